@@ -1,0 +1,54 @@
+"""Fourier sine velocity basis (paper, "Simulation studies").
+
+On control interval l, velocity component d is
+
+    v_d(x, y) = sum_{i=1..I} sum_{j=1..J} a[l, d, i-1, j-1] sin(i pi (x - x0)/b) sin(j pi (y - y0)/c),
+
+with b = x1 - x0, c = y1 - y0.  (The paper prints sin(i pi x1/b) twice; the second factor is
+sin(j pi x2/c).)  Every basis function vanishes on the walls, so v . n = 0 there and the
+reflecting boundary condition of eq. "reference model" holds by construction.
+
+The basis is separable, so on a tensor grid v = S_x A S_y^T with S_x[k, i] = sin(i pi xi_k):
+O(I J (nx + ny) + nx ny min(I, J)) per component instead of a dense (nx ny) x (I J) product.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def sine_matrix(s: np.ndarray, n_modes: int, length: float, start: float = 0.0) -> np.ndarray:
+    """S[k, i-1] = sin(i pi (s_k - start) / length), i = 1..n_modes; exactly 0 on the two walls."""
+    xi = (np.asarray(s, dtype=float) - start) / length
+    S = np.sin(np.pi * np.outer(xi, np.arange(1, n_modes + 1)))
+    S[(xi <= 0.0) | (xi >= 1.0), :] = 0.0
+    return S
+
+
+def velocity_at(coef: np.ndarray, domain, points: np.ndarray) -> np.ndarray:
+    """Velocity (n, 2) at arbitrary points from one interval's coefficients ``coef`` (2, I, J)."""
+    coef = np.asarray(coef, dtype=float)
+    x0, x1, y0, y1 = domain
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    Sx = sine_matrix(np.clip(pts[:, 0], x0, x1), coef.shape[1], x1 - x0, x0)   # (n, I)
+    Sy = sine_matrix(np.clip(pts[:, 1], y0, y1), coef.shape[2], y1 - y0, y0)   # (n, J)
+    # v_d[n] = sum_ij Sx[n,i] a[d,i,j] Sy[n,j]
+    return np.einsum("ni,dij,nj->nd", Sx, coef, Sy)
+
+
+def velocity_on_grid(coef: np.ndarray, domain, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Velocity (2, len(x), len(y)) on the tensor grid x by y: v_d = S_x a_d S_y^T."""
+    coef = np.asarray(coef, dtype=float)
+    x0, x1, y0, y1 = domain
+    Sx = sine_matrix(x, coef.shape[1], x1 - x0, x0)
+    Sy = sine_matrix(y, coef.shape[2], y1 - y0, y0)
+    return np.stack([Sx @ coef[d] @ Sy.T for d in range(2)])
+
+
+def speed_bound(coef: np.ndarray) -> np.ndarray:
+    """Upper bound on sup|v| per interval: sum over d, i, j of |a| (each basis function is bounded by 1).
+
+    ``coef`` (N, 2, I, J) -> (N,).  Since |v| <= |v_x| + |v_y| <= sum |a|, this bound is what the
+    planner constrains; it also bounds |v_x| + |v_y|, which is what the CFL condition needs.
+    """
+    coef = np.asarray(coef, dtype=float)
+    return np.abs(coef).reshape(coef.shape[0], -1).sum(axis=1)

@@ -1,0 +1,217 @@
+"""The reference model (p_r, v_r) of eq. "reference model": storage and evaluation.
+
+A :class:`ReferencePlan` holds the planner's output in the schema of DESIGN.md ("Plan file"):
+
+===============  ===============  ==============================================================
+key              shape            meaning
+===============  ===============  ==============================================================
+``domain``       (4,)             x0, x1, y0, y1
+``t``            (K+1,)           times of the density snapshots, ``t[0]`` = plan start
+``p``            (K+1, nx, ny)    reference density on cell centres, ``sum(p[k]) dx dy == 1``
+``t_intervals``  (N+1,)           boundaries of the N control intervals
+``coef``         (N, 2, I, J)     sine coefficients of v_r on each interval (see :mod:`ocp.basis`)
+``target``       (nx, ny)         the target density p_f used
+``meta``         () str           JSON: settings, solver status, iterations, timings, costs, versions
+===============  ===============  ==============================================================
+
+Evaluation: ``p_r`` is piecewise linear in time between snapshots and bilinear in space between
+cell centres (constant beyond the outermost centres, i.e. zero normal derivative at the walls);
+``v_r`` is the sine series of the interval containing ``t`` (piecewise constant in time).
+Outside ``[t[0], t[-1]]`` the plan is held: first/last density, zero velocity after the end.
+"""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .basis import velocity_at
+from .grid import Grid
+
+KEYS = ("domain", "t", "p", "t_intervals", "coef", "target", "meta")
+
+
+@dataclass
+class ReferencePlan:
+    """Reference density snapshots and sine-series reference velocity (eq. "reference model")."""
+
+    domain: np.ndarray
+    t: np.ndarray
+    p: np.ndarray
+    t_intervals: np.ndarray
+    coef: np.ndarray
+    target: np.ndarray
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        self.domain = np.asarray(self.domain, dtype=np.float64).reshape(-1)
+        self.t = np.asarray(self.t, dtype=np.float64).reshape(-1)
+        self.p = np.asarray(self.p, dtype=np.float64)
+        self.t_intervals = np.asarray(self.t_intervals, dtype=np.float64).reshape(-1)
+        self.coef = np.asarray(self.coef, dtype=np.float64)
+        self.target = np.asarray(self.target, dtype=np.float64)
+        self._validate()
+
+    # ------------------------------------------------------------------ validation
+    def _validate(self):
+        if self.domain.shape != (4,):
+            raise ValueError(f"plan: domain must have shape (4,), got {self.domain.shape}")
+        if self.p.ndim != 3 or self.p.shape[0] != self.t.shape[0]:
+            raise ValueError(f"plan: p must have shape (K+1, nx, ny) matching t {self.t.shape}, got {self.p.shape}")
+        if self.target.shape != self.p.shape[1:]:
+            raise ValueError(f"plan: target shape {self.target.shape} differs from density grid {self.p.shape[1:]}")
+        if self.coef.ndim != 4 or self.coef.shape[1] != 2:
+            raise ValueError(f"plan: coef must have shape (N, 2, I, J), got {self.coef.shape}")
+        if self.t_intervals.shape != (self.coef.shape[0] + 1,):
+            raise ValueError(
+                f"plan: t_intervals must have N+1 = {self.coef.shape[0] + 1} entries, got {self.t_intervals.shape}")
+        for name in ("t", "t_intervals"):
+            a = getattr(self, name)
+            if a.size > 1 and not np.all(np.diff(a) > 0):
+                raise ValueError(f"plan: {name} must be strictly increasing")
+        for name in ("domain", "t", "p", "t_intervals", "coef", "target"):
+            if not np.all(np.isfinite(getattr(self, name))):
+                raise ValueError(f"plan: {name} contains non-finite values")
+        if np.any(self.p < 0):
+            raise ValueError("plan: reference density has negative values")
+        self.grid  # validates the domain
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def grid(self) -> Grid:
+        return Grid(tuple(self.domain), self.p.shape[1], self.p.shape[2])
+
+    @property
+    def t_start(self) -> float:
+        return float(self.t[0])
+
+    @property
+    def t_end(self) -> float:
+        return float(self.t[-1])
+
+    def __repr__(self):
+        g = self.grid
+        return (f"ReferencePlan(grid={g.nx}x{g.ny}, t=[{self.t_start:g}, {self.t_end:g}], "
+                f"snapshots={self.t.size}, intervals={self.coef.shape[0]}, modes={self.coef.shape[2]}x{self.coef.shape[3]})")
+
+    # ------------------------------------------------------------------ evaluation
+    def _time_weights(self, t: float):
+        tt = self.t
+        if t <= tt[0]:
+            return 0, 0, 0.0
+        if t >= tt[-1]:
+            k = tt.size - 1
+            return k, k, 0.0
+        k = int(np.searchsorted(tt, t, side="right") - 1)
+        w = (t - tt[k]) / (tt[k + 1] - tt[k])
+        return k, k + 1, float(w)
+
+    def density_grid(self, t: float) -> np.ndarray:
+        """p_r(t) on the cell centres, (nx, ny), linear in time between snapshots."""
+        k0, k1, w = self._time_weights(float(t))
+        return (1.0 - w) * self.p[k0] + w * self.p[k1]
+
+    def _bilinear(self, field2d: np.ndarray, points: np.ndarray, gradient: bool):
+        g = self.grid
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        # fractional index relative to the cell centres
+        fx = (pts[:, 0] - g.domain[0]) / g.dx - 0.5
+        fy = (pts[:, 1] - g.domain[2]) / g.dy - 0.5
+        fx = np.clip(fx, 0.0, g.nx - 1.0)
+        fy = np.clip(fy, 0.0, g.ny - 1.0)
+        i0 = np.minimum(np.floor(fx).astype(int), g.nx - 2)
+        j0 = np.minimum(np.floor(fy).astype(int), g.ny - 2)
+        sx = fx - i0
+        sy = fy - j0
+        f00 = field2d[i0, j0]
+        f10 = field2d[i0 + 1, j0]
+        f01 = field2d[i0, j0 + 1]
+        f11 = field2d[i0 + 1, j0 + 1]
+        val = (1 - sx) * (1 - sy) * f00 + sx * (1 - sy) * f10 + (1 - sx) * sy * f01 + sx * sy * f11
+        if not gradient:
+            return val
+        # beyond the outermost centres the interpolant is constant: zero normal derivative
+        inx = ((pts[:, 0] - g.domain[0]) / g.dx - 0.5 > 0) & ((pts[:, 0] - g.domain[0]) / g.dx - 0.5 < g.nx - 1)
+        iny = ((pts[:, 1] - g.domain[2]) / g.dy - 0.5 > 0) & ((pts[:, 1] - g.domain[2]) / g.dy - 0.5 < g.ny - 1)
+        gx = ((1 - sy) * (f10 - f00) + sy * (f11 - f01)) / g.dx * inx
+        gy = ((1 - sx) * (f01 - f00) + sx * (f11 - f10)) / g.dy * iny
+        return val, np.column_stack([gx, gy])
+
+    def density(self, t: float, points: np.ndarray) -> np.ndarray:
+        """p_r(t, x) at points (n, 2) -> (n,)."""
+        return self._bilinear(self.density_grid(t), points, gradient=False)
+
+    def density_and_gradient(self, t: float, points: np.ndarray):
+        """(p_r, grad p_r) at points: (n,), (n, 2)."""
+        return self._bilinear(self.density_grid(t), points, gradient=True)
+
+    def interval_index(self, t: float) -> int | None:
+        """Index of the control interval containing t, or None outside the plan."""
+        if t < self.t_intervals[0] or t >= self.t_intervals[-1]:
+            return None
+        return int(np.searchsorted(self.t_intervals, t, side="right") - 1)
+
+    def velocity(self, t: float, points: np.ndarray) -> np.ndarray:
+        """v_r(t, x) at points (n, 2) -> (n, 2); zero outside the planned time window."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        k = self.interval_index(float(t))
+        if k is None:
+            return np.zeros_like(pts)
+        return velocity_at(self.coef[k], tuple(self.domain), pts)
+
+    # ------------------------------------------------------------------ I/O
+    def save(self, path) -> Path:
+        """Write the plan atomically (temporary file in the same folder, then rename)."""
+        path = Path(path)
+        if path.suffix != ".npz":
+            raise ValueError(f"plan file must end in .npz, got {path}")
+        directory = path.parent if str(path.parent) else Path(".")
+        if not directory.is_dir():
+            raise FileNotFoundError(f"folder {directory} does not exist")
+        arrays = {k: getattr(self, k) for k in KEYS if k != "meta"}
+        arrays["meta"] = np.array(json.dumps(self.meta, default=_json_default))
+        fd, tmp = tempfile.mkstemp(prefix=".plan-", suffix=".npz", dir=directory)
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                np.savez(fh, **arrays)
+            os.replace(tmp, path)
+        except BaseException:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+            raise
+        return path
+
+    @classmethod
+    def load(cls, path) -> "ReferencePlan":
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                missing = [k for k in KEYS if k not in z.files]
+                if missing:
+                    raise ValueError(f"plan file {path} lacks keys {missing}")
+                data = {k: z[k] for k in KEYS}
+        except (OSError, EOFError) as exc:
+            raise ValueError(f"cannot read plan file {path}: {exc}") from exc
+        except Exception as exc:  # zipfile.BadZipFile and friends
+            if isinstance(exc, ValueError):
+                raise
+            raise ValueError(f"cannot read plan file {path}: {exc}") from exc
+        try:
+            meta = json.loads(str(data.pop("meta")))
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"plan file {path}: meta is not JSON ({exc})") from exc
+        return cls(meta=meta, **data)
+
+
+def _json_default(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, (tuple, set)):
+        return list(o)
+    return str(o)
