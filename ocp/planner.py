@@ -1,0 +1,155 @@
+"""Solve the reference-density problem with IPOPT and package the result as a :class:`ReferencePlan`.
+
+``ReferencePlanner(settings)`` builds the CasADi NLP and the IPOPT solver once (a few tens of
+milliseconds); :meth:`ReferencePlanner.solve` is then called at every re-plan of Algorithm 1 with
+new (p0, p_f) as NLP *parameters*, optionally warm-started from the previous plan.
+"""
+from __future__ import annotations
+
+import json
+import time
+from importlib import metadata
+
+import casadi as ca
+import numpy as np
+
+from .grid import Grid
+from .plan import ReferencePlan
+from .problem import TransportProblem
+from .settings import PlannerSettings, to_dict
+from .transport import simulate
+
+SUCCESS = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+
+
+class PlannerError(RuntimeError):
+    """IPOPT did not return a usable solution; ``stats`` holds the solver statistics."""
+
+    def __init__(self, message: str, stats: dict | None = None):
+        super().__init__(message)
+        self.stats = stats or {}
+
+
+class ReferencePlanner:
+    """Builds the NLP once; :meth:`solve` returns the reference (p_r, v_r) for given p0 and p_f."""
+
+    def __init__(self, settings: PlannerSettings | None = None):
+        self.settings = settings or PlannerSettings()
+        t0 = time.perf_counter()
+        self.problem = TransportProblem(self.settings)
+        opts = {"ipopt": self.settings.ipopt.options(), "print_time": False, "record_time": True,
+                "error_on_fail": False}
+        ipopt = opts["ipopt"]
+        # the constraints are linear: IPOPT may evaluate their Jacobian once
+        ipopt.setdefault("jac_c_constant", "yes")
+        ipopt.setdefault("jac_d_constant", "yes")
+        self.solver = ca.nlpsol("reference_density", "ipopt", self.problem.nlp, opts)
+        self.build_time = time.perf_counter() - t0
+
+    @property
+    def grid(self) -> Grid:
+        return self.problem.grid
+
+    # ------------------------------------------------------------------ initial guesses
+    def initial_coefficients(self, warm_start: ReferencePlan | None, t0: float) -> np.ndarray:
+        """Cold start: zero velocity.  Warm start: the previous plan's coefficients shifted by the
+        number of whole intervals elapsed since its start (tail filled with zeros); a plan whose
+        horizon has fully elapsed is reused unshifted (the next period usually needs a similar flow)."""
+        P = self.problem
+        shape = (P.N, 2, P.I, P.J)
+        if warm_start is None:
+            return np.zeros(shape)
+        prev = np.asarray(warm_start.coef)
+        if prev.shape != shape:
+            raise ValueError(f"warm-start plan has coefficients of shape {prev.shape}, this planner uses {shape}")
+        shift = int(round((t0 - warm_start.t_start) / self.settings.interval))
+        if shift <= 0 or shift >= P.N:
+            return prev.copy()
+        out = np.zeros(shape)
+        out[: P.N - shift] = prev[shift:]
+        return out
+
+    # ------------------------------------------------------------------ solve
+    def solve(self, p0: np.ndarray, target: np.ndarray, t0: float = 0.0,
+              warm_start: ReferencePlan | None = None) -> ReferencePlan:
+        """Solve eq. "optimization problem" from density p0 towards target p_f; both (nx, ny) cell densities."""
+        g, P, s = self.grid, self.problem, self.settings
+        p0 = g.normalize(p0, "initial density")
+        target = g.normalize(target, "target density")
+        if not np.isfinite(t0):
+            raise ValueError("plan start time must be finite")
+        q = P.floored_target(target)
+        par = P.parameters(p0, q)
+
+        coef0 = self.initial_coefficients(warm_start, t0)
+        # scale the initial guess into the admissible set; the split starts strictly interior
+        bound = np.abs(coef0).reshape(P.N, -1).sum(axis=1)
+        scale = np.minimum(1.0, 0.9 * s.v_max / np.maximum(bound, 1e-300))
+        a0 = P.coef_to_vector(coef0 * scale[:, None, None, None])
+        offset = 0.02 * s.v_max / (2 * P.I * P.J)
+        x0 = np.concatenate([np.maximum(a0, 0.0) + offset, np.maximum(-a0, 0.0) + offset])
+        t_start = time.perf_counter()
+        sol = self.solver(x0=x0, p=par, lbx=P.lbx, ubx=P.ubx, lbg=P.lbg, ubg=P.ubg)
+        wall = time.perf_counter() - t_start
+        stats = self.solver.stats()
+        status = stats.get("return_status", "unknown")
+        x = np.array(sol["x"]).ravel()
+        if status not in SUCCESS or not np.all(np.isfinite(x)):
+            raise PlannerError(f"IPOPT failed: {status} after {stats.get('iter_count', '?')} iterations",
+                               _stats_summary(stats, wall))
+
+        a = x[: P.n_coef] - x[P.n_coef:]
+        coef = P.vector_to_coef(a)
+        snapshots = simulate(p0, coef, g, s.interval, P.n_sub, s.upwind_smoothing)
+        terms = [float(v) for v in P.objective_terms(a, p0, q, np.log(q))]
+        kl0 = float(P.sym_kl(p0, q, np.log(q)))
+        kl_end = float(P.sym_kl(snapshots[-1], q, np.log(q)))
+        meta = {
+            "settings": to_dict(s),
+            "substeps": P.n_sub,
+            "initial_guess": "warm" if warm_start is not None else "cold",
+            "solver": _stats_summary(stats, wall),
+            "build_time_s": self.build_time,
+            "objective": float(sol["f"]),
+            "objective_terms": {"terminal": terms[0], "running": terms[1], "energy": terms[2]},
+            "symmetric_kl_initial": kl0,
+            "symmetric_kl_final": kl_end,
+            "speed_bound": [float(v) for v in np.abs(coef).reshape(P.N, -1).sum(axis=1)],
+            "versions": _versions(),
+        }
+        t_snap = t0 + np.arange(snapshots.shape[0]) * P.dt
+        t_int = t0 + np.arange(P.N + 1) * s.interval
+        return ReferencePlan(domain=np.array(g.domain), t=t_snap, p=snapshots, t_intervals=t_int,
+                             coef=coef, target=target, meta=meta)
+
+
+def plan_reference(p0, target, settings: PlannerSettings | None = None, t0: float = 0.0,
+                   warm_start: ReferencePlan | None = None) -> ReferencePlan:
+    """One-shot convenience: build a planner for ``settings`` and solve once."""
+    return ReferencePlanner(settings).solve(p0, target, t0=t0, warm_start=warm_start)
+
+
+def _stats_summary(stats: dict, wall: float) -> dict:
+    out = {
+        "status": stats.get("return_status", "unknown"),
+        "success": bool(stats.get("success", False)),
+        "iterations": int(stats.get("iter_count", -1)),
+        "wall_time_s": wall,
+    }
+    for key in ("nlp_f", "nlp_grad_f", "nlp_g", "nlp_jac_g", "nlp_hess_l", "total"):
+        t = stats.get(f"t_wall_{key}")
+        if t is not None:
+            out[f"t_wall_{key}"] = float(t)
+        n = stats.get(f"n_call_{key}")
+        if n is not None:
+            out[f"n_call_{key}"] = int(n)
+    return out
+
+
+def _versions() -> dict:
+    out = {"casadi": ca.__version__, "numpy": np.__version__}
+    try:
+        out["swarm-field-estimation"] = metadata.version("swarm-field-estimation")
+    except metadata.PackageNotFoundError:
+        pass
+    return out

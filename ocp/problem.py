@@ -1,0 +1,152 @@
+"""The reference-density problem, eq. "optimization problem", posed symbolically in CasADi.
+
+Decision variables: sine coefficients a[l, d, i, j] (N x 2 x I x J) of the velocity on each of the
+N control intervals (paper, "Simulation studies"), split as a = a+ - a- (a+, a- >= 0) so that the speed limit is linear.
+Formulation (single shooting; why: README "Planner formulation" and ``solver-study``):
+
+    min_a   w_f KLs(p(t_f), q) + tau sum_l^trap w_p KLs(p(t_l), q) + w_v int int |v|^2 dx dt
+    s.t.    p(t_{l+1}) = Phi(p(t_l), a_l)   (n_sub explicit donor-cell steps, :mod:`ocp.transport`)
+            a = a+ - a-, a+, a- >= 0,  sum_{d,i,j} (a+ + a-)[l, d, i, j] <= v_max   for every interval l
+
+with KLs(p, q) = sum (p - q)(log(p + eps) - log q) dx dy, the symmetric KL D(p||q) + D(q||p)
+(term-wise >= 0), trapezoidal in time over the interval boundaries, and q the floored target.
+Because the sine modes are orthogonal on the rectangle, the velocity penalty is exact:
+int_Omega |v_l|^2 dx = (b c / 4) sum_{d,i,j} a[l, d, i, j]^2.
+
+Speed: the state is a dense nx x ny *matrix* MX and every operation of a step is one matrix
+node (elementwise products, two sparse difference products), so CasADi's virtual machine runs
+~15 nodes per sub-step instead of ~20 scalar instructions per cell; face velocities use the
+separable basis v = S_x A S_y^T once per interval.
+"""
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from .grid import Grid
+from .settings import PlannerSettings
+from .transport import FaceBasis
+
+
+def _difference_matrix(n: int) -> ca.DM:
+    """D (n x n-1) with (D f)[i] = f[i] - f[i-1] for interior-face fluxes f (wall fluxes are 0)."""
+    rows = list(range(n - 1)) + list(range(1, n))
+    cols = list(range(n - 1)) + list(range(n - 1))
+    vals = [1.0] * (n - 1) + [-1.0] * (n - 1)
+    return ca.DM.triplet(rows, cols, ca.DM(vals), n, n - 1)
+
+
+class TransportProblem:
+    """Symbolic pieces of the OCP for one setting: the shooting map, the costs and the NLP dict."""
+
+    def __init__(self, settings: PlannerSettings):
+        s = settings
+        self.settings = s
+        self.grid = Grid(s.domain, s.nx, s.ny)
+        g = self.grid
+        self.basis = FaceBasis(g, s.n_modes_x, s.n_modes_y)
+        self.N, self.I, self.J = s.n_intervals, s.n_modes_x, s.n_modes_y
+        self.n_coef = self.N * 2 * self.I * self.J
+        self.n_sub = s.substeps
+        self.dt = s.interval / self.n_sub
+        self._build()
+
+    # ------------------------------------------------------------------ symbolic model
+    def _build(self):
+        s, g = self.settings, self.grid
+        nx, ny, I, J, N = g.nx, g.ny, self.I, self.J, self.N
+        eps = s.upwind_smoothing
+        Dx = _difference_matrix(nx)            # (nx, nx-1)
+        DyT = _difference_matrix(ny).T          # (ny-1, ny)
+        rx, ry = self.dt / g.dx, self.dt / g.dy
+        Sxf, Sxc = ca.DM(self.basis.Sx_face), ca.DM(self.basis.Sx_cell)
+        Syf_T, Syc_T = ca.DM(self.basis.Sy_face.T), ca.DM(self.basis.Sy_cell.T)
+
+        # one interval: face velocities from the coefficients, then n_sub upwind steps
+        p = ca.MX.sym("p", nx, ny)
+        ax = ca.MX.sym("ax", I, J)
+        ay = ca.MX.sym("ay", I, J)
+        vx = ca.mtimes([Sxf, ax, Syc_T])       # (nx-1, ny)
+        vy = ca.mtimes([Sxc, ay, Syf_T])       # (nx, ny-1)
+        vxp = 0.5 * (vx + ca.sqrt(vx * vx + eps * eps))
+        vxm = vxp - vx
+        vyp = 0.5 * (vy + ca.sqrt(vy * vy + eps * eps))
+        vym = vyp - vy
+        q = p
+        for _ in range(self.n_sub):
+            fx = vxp * q[: nx - 1, :] - vxm * q[1:, :]
+            fy = vyp * q[:, : ny - 1] - vym * q[:, 1:]
+            q = q - rx * ca.mtimes(Dx, fx) - ry * ca.mtimes(fy, DyT)
+        self.interval_map = ca.Function("interval_map", [p, ax, ay], [q], ["p", "ax", "ay"], ["p_next"])
+
+        # symmetric KL to the floored target (log q is a parameter: computed once in NumPy)
+        pk = ca.MX.sym("p", nx, ny)
+        qk = ca.MX.sym("q", nx, ny)
+        logq = ca.MX.sym("logq", nx, ny)
+        kl = ca.sum1(ca.sum2((pk - qk) * (ca.log(pk + s.log_eps) - logq))) * g.cell_area
+        self.sym_kl = ca.Function("sym_kl", [pk, qk, logq], [kl])
+
+        # the whole horizon, single shooting
+        a = ca.MX.sym("a", self.n_coef)
+        p0 = ca.MX.sym("p0", nx, ny)
+        qt = ca.MX.sym("q", nx, ny)
+        lq = ca.MX.sym("logq", nx, ny)
+        A = ca.reshape(a, I * J, 2 * N)           # column (2l + d) holds a[l, d] in (i, j) C order
+        tau = s.interval
+        pk = p0
+        running = 0.5 * self.sym_kl(pk, qt, lq)
+        states = [pk]
+        for l in range(N):
+            ax_l = ca.reshape(A[:, 2 * l], J, I).T   # C order (i, j) -> I x J
+            ay_l = ca.reshape(A[:, 2 * l + 1], J, I).T
+            pk = self.interval_map(pk, ax_l, ay_l)
+            states.append(pk)
+            w = 0.5 if l == N - 1 else 1.0
+            running = running + w * self.sym_kl(pk, qt, lq)
+        terminal = self.sym_kl(pk, qt, lq)
+        energy = tau * (g.lx * g.ly / 4.0) * ca.sumsqr(a)
+        J_f = s.w_f * terminal
+        J_p = s.w_p * tau * running
+        J_v = s.w_v * energy
+        self.objective_terms = ca.Function(
+            "objective_terms", [a, p0, qt, lq], [J_f, J_p, J_v], ["a", "p0", "q", "logq"], ["terminal", "running", "energy"])
+        self.shoot = ca.Function("shoot", [a, p0], [ca.horzcat(*[ca.vec(x) for x in states])], ["a", "p0"], ["P"])
+
+        # NLP: x = [a+; a-] >= 0 with a = a+ - a-; speed limit sum_l (a+ + a-) <= v_max, linear.
+        # The energy is charged on a+^2 + a-^2 = a^2 + 2 a+ a-: equal to the original cost on the
+        # split a+ = max(a, 0), a- = max(-a, 0), and larger on every other split, so both
+        # problems have the same minimisers while the split is unique (no flat directions).
+        # Only N general constraints: IPOPT's augmented system stays ~ (2n + N) and diagonal,
+        # which keeps its L-BFGS back-solves cheap (README "Planner formulation").
+        ap = ca.MX.sym("a_plus", self.n_coef)
+        am = ca.MX.sym("a_minus", self.n_coef)
+        x = ca.vertcat(ap, am)
+        block = ca.DM.triplet([l for l in range(N) for _ in range(2 * I * J)], list(range(self.n_coef)),
+                              ca.DM.ones(self.n_coef), N, self.n_coef)
+        g_con = ca.mtimes(block, ap + am)
+        split_energy = tau * (g.lx * g.ly / 4.0) * (ca.sumsqr(ap) + ca.sumsqr(am))
+        f_split = ca.substitute(J_f + J_p, a, ap - am) + s.w_v * split_energy
+        param = ca.vertcat(ca.vec(p0), ca.vec(qt), ca.vec(lq))
+        self.nlp = {"x": x, "p": param, "f": f_split, "g": g_con}
+        self.lbg = np.full(N, -np.inf)
+        self.ubg = np.full(N, s.v_max)
+        self.lbx = np.zeros(2 * self.n_coef)
+        self.ubx = np.full(2 * self.n_coef, np.inf)
+        self.objective = ca.Function("objective", [a, p0, qt, lq], [J_f + J_p + J_v])
+
+    # ------------------------------------------------------------------ helpers
+    def floored_target(self, target: np.ndarray) -> np.ndarray:
+        """q = (1 - beta) p_f + beta / |Omega| (unit mass, strictly positive)."""
+        beta = self.settings.target_floor
+        return (1.0 - beta) * target + beta / self.grid.area
+
+    def parameters(self, p0: np.ndarray, q: np.ndarray) -> np.ndarray:
+        # CasADi vec() is column-major: pass the arrays in Fortran order
+        return np.concatenate([p0.ravel(order="F"), q.ravel(order="F"), np.log(q).ravel(order="F")])
+
+    def coef_to_vector(self, coef: np.ndarray) -> np.ndarray:
+        """(N, 2, I, J) -> decision vector a (column (2l+d) of reshape(a, IJ, 2N) is a[l,d] in C order)."""
+        return np.asarray(coef, dtype=float).reshape(self.N * 2, self.I * self.J).ravel()
+
+    def vector_to_coef(self, a: np.ndarray) -> np.ndarray:
+        return np.asarray(a, dtype=float).reshape(self.N, 2, self.I, self.J)

@@ -1,0 +1,212 @@
+"""Planner settings (frozen dataclasses) and a small loader from TOML-like mappings.
+
+Every setting the paper leaves open has a default here; README.md ("Settings") gives the reasons.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import typing
+from dataclasses import dataclass, field
+
+
+@dataclass(frozen=True)
+class IpoptSettings:
+    """IPOPT options used by the planner (names follow IPOPT's own).
+
+    ``hessian_approximation='limited-memory'`` (L-BFGS) is the default: the exact Hessian of the
+    single-shooting problem is dense in the 1536 coefficients and costs ~1536 directional second
+    derivatives per iteration (see ``solver-study`` and README "Planner formulation").
+    """
+
+    tol: float = 1e-6
+    acceptable_tol: float = 1e-4
+    acceptable_iter: int = 5
+    max_iter: int = 500
+    hessian_approximation: str = "limited-memory"
+    limited_memory_max_history: int = 6
+    limited_memory_aug_solver: str = "extended"
+    linear_solver: str = "mumps"
+    mu_strategy: str = "adaptive"
+    mu_init: float = 1e-3
+    print_level: int = 0
+    extra: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        _positive(self, "tol", "acceptable_tol")
+        _positive_int(self, "max_iter", "limited_memory_max_history", "acceptable_iter")
+        if self.hessian_approximation not in ("limited-memory", "exact"):
+            raise ValueError(f"ipopt.hessian_approximation must be 'limited-memory' or 'exact', got {self.hessian_approximation!r}")
+        if self.limited_memory_aug_solver not in ("sherman-morrison", "extended"):
+            raise ValueError("ipopt.limited_memory_aug_solver must be 'sherman-morrison' or 'extended', "
+                             f"got {self.limited_memory_aug_solver!r}")
+        if self.mu_strategy not in ("monotone", "adaptive"):
+            raise ValueError(f"ipopt.mu_strategy must be 'monotone' or 'adaptive', got {self.mu_strategy!r}")
+        if not 0 <= int(self.print_level) <= 12:
+            raise ValueError(f"ipopt.print_level must be in 0..12, got {self.print_level}")
+        _positive(self, "mu_init")
+
+    def options(self) -> dict:
+        """The ``ipopt.*`` option dictionary for ``casadi.nlpsol``."""
+        opts = {
+            "tol": float(self.tol),
+            "acceptable_tol": float(self.acceptable_tol),
+            "acceptable_iter": int(self.acceptable_iter),
+            "max_iter": int(self.max_iter),
+            "hessian_approximation": self.hessian_approximation,
+            "linear_solver": self.linear_solver,
+            "mu_strategy": self.mu_strategy,
+            "mu_init": float(self.mu_init),
+            "print_level": int(self.print_level),
+            "sb": "yes",
+        }
+        if self.hessian_approximation == "limited-memory":
+            opts["limited_memory_max_history"] = int(self.limited_memory_max_history)
+            opts["limited_memory_aug_solver"] = self.limited_memory_aug_solver
+        opts.update(self.extra)
+        return opts
+
+
+@dataclass(frozen=True)
+class PlannerSettings:
+    """The reference-density problem (eq. "optimization problem") and its discretisation.
+
+    domain, grid, horizon T, N intervals and I x J sine modes follow the paper's simulation
+    section; weights are w_f = 10, w_p = 1, w_v = 0.01.  ``v_max`` bounds sum |a| per interval,
+    hence sup |v| (and the CFL number); ``target_floor`` mixes the target with the uniform
+    density, q = (1 - beta) p_f + beta / |Omega|, so log q is finite.
+    """
+
+    domain: tuple = (0.0, 20.0, 0.0, 20.0)
+    nx: int = 40
+    ny: int = 40
+    horizon: float = 7.0
+    n_intervals: int = 12
+    n_modes_x: int = 8
+    n_modes_y: int = 8
+    w_f: float = 10.0
+    w_p: float = 1.0
+    w_v: float = 0.01
+    v_max: float = 3.0
+    target_floor: float = 0.05
+    upwind_smoothing: float = 0.02
+    cfl: float = 0.9
+    log_eps: float = 1e-12
+    ipopt: IpoptSettings = field(default_factory=IpoptSettings)
+
+    def __post_init__(self):
+        dom = tuple(float(v) for v in self.domain)
+        if len(dom) != 4 or not all(math.isfinite(v) for v in dom) or not (dom[1] > dom[0] and dom[3] > dom[2]):
+            raise ValueError(f"planner.domain must be (x0, x1, y0, y1) with x1 > x0, y1 > y0, got {self.domain}")
+        object.__setattr__(self, "domain", dom)
+        _positive_int(self, "n_intervals", "n_modes_x", "n_modes_y")
+        if self.nx < 3 or self.ny < 3:
+            raise ValueError(f"planner grid must be at least 3x3 cells, got {self.nx}x{self.ny}")
+        _positive(self, "horizon", "v_max", "upwind_smoothing", "log_eps")
+        for name in ("w_f", "w_p", "w_v"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"planner.{name} must be finite and >= 0, got {v}")
+        if not 0 < self.target_floor < 1:
+            raise ValueError(f"planner.target_floor must be in (0, 1), got {self.target_floor}")
+        if not 0 < self.cfl <= 1:
+            raise ValueError(f"planner.cfl must be in (0, 1], got {self.cfl}")
+        if not isinstance(self.ipopt, IpoptSettings):
+            raise ValueError("planner.ipopt must be an IpoptSettings")
+
+    @property
+    def interval(self) -> float:
+        """Length tau = T / N of one control interval."""
+        return self.horizon / self.n_intervals
+
+    @property
+    def substeps(self) -> int:
+        """Explicit upwind sub-steps per interval so that dt * 2 (v_max + eps) / min(dx, dy) <= cfl.
+
+        Outflow from a cell through its four faces is at most dt (2 sup|v_x| + eps)/dx +
+        dt (2 sup|v_y| + eps)/dy <= 2 dt (v_max + eps) / min(dx, dy), because the smoothed
+        upwind split satisfies v+ , v- <= |v| + eps/2 and sup|v_x| + sup|v_y| <= sum|a| <= v_max.
+        Keeping this below 1 makes every update a non-negative combination of old cell values:
+        p stays >= 0 (> 0 if p0 > 0) for every admissible control.
+        """
+        h = min((self.domain[1] - self.domain[0]) / self.nx, (self.domain[3] - self.domain[2]) / self.ny)
+        return max(1, math.ceil(self.interval * 2.0 * (self.v_max + self.upwind_smoothing) / (h * self.cfl) - 1e-12))
+
+
+def _positive(obj, *names):
+    for name in names:
+        v = getattr(obj, name)
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+
+
+def _positive_int(obj, *names):
+    for name in names:
+        v = getattr(obj, name)
+        if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+            raise ValueError(f"{name} must be an integer >= 1, got {v!r}")
+
+
+def dataclass_from_dict(cls, mapping, where: str = ""):
+    """Build dataclass ``cls`` from a mapping (e.g. a TOML table), recursing into nested dataclasses.
+
+    Unknown keys and values of the wrong type raise ``ValueError`` naming ``where.key``.
+    """
+    if mapping is None:
+        return cls()
+    if not isinstance(mapping, dict):
+        raise ValueError(f"[{where}] must be a table, got {type(mapping).__name__}")
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    unknown = sorted(set(mapping) - set(fields))
+    if unknown:
+        raise ValueError(f"unknown setting(s) {', '.join(f'{where}.{k}' if where else k for k in unknown)}; "
+                         f"known: {', '.join(sorted(fields))}")
+    kwargs = {}
+    for key, value in mapping.items():
+        name = f"{where}.{key}" if where else key
+        hint = hints.get(key)
+        if dataclasses.is_dataclass(hint):
+            kwargs[key] = dataclass_from_dict(hint, value, name)
+            continue
+        kwargs[key] = _coerce(value, hint, name)
+    try:
+        return cls(**kwargs)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{where + ': ' if where else ''}{exc}") from None
+
+
+def _coerce(value, hint, name):
+    origin = typing.get_origin(hint)
+    if hint is float or (origin is typing.Union and float in typing.get_args(hint)):
+        if value is None and type(None) in typing.get_args(hint):
+            return None
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ValueError(f"{name} must be a number, got {value!r}")
+        return float(value)
+    if hint is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ValueError(f"{name} must be an integer, got {value!r}")
+        return value
+    if hint is bool:
+        if not isinstance(value, bool):
+            raise ValueError(f"{name} must be true or false, got {value!r}")
+        return value
+    if hint is str:
+        if not isinstance(value, str):
+            raise ValueError(f"{name} must be a string, got {value!r}")
+        return value
+    if hint is tuple or origin is tuple:
+        if not isinstance(value, (list, tuple)):
+            raise ValueError(f"{name} must be a list, got {value!r}")
+        return tuple(value)
+    if hint is dict or origin is dict:
+        if not isinstance(value, dict):
+            raise ValueError(f"{name} must be a table, got {value!r}")
+        return dict(value)
+    return value
+
+
+def to_dict(obj) -> dict:
+    """Settings dataclass -> plain dict (JSON/TOML friendly)."""
+    return dataclasses.asdict(obj)
