@@ -1,0 +1,198 @@
+"""``plan-reference``: solve the reference-density problem (eq. "optimization problem") and write a plan.
+
+With no arguments it plans the paper's first step (robots uniform on [0, 7]^2, target from the GP
+variance of their first measurements; :mod:`ocp.scenario`) on the default grid and writes
+``plan.npz``.  Exit codes: 0 success, 1 solver failure, 2 bad input (nothing written).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from .plan import ReferencePlan
+from .settings import IpoptSettings, PlannerSettings, dataclass_from_dict
+
+PROG = "plan-reference"
+
+
+class InputError(ValueError):
+    """Bad user input: reported in one line, exit code 2."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("--config", type=Path, help="TOML file with [planner] and [planner.ipopt] tables (flags override it)")
+    p.add_argument("--out", type=Path, default=Path("plan.npz"), help="plan file to write (.npz)")
+    p.add_argument("--plot", type=Path, help="also write a PNG of p_r snapshots with v_r arrows and the target")
+    p.add_argument("--initial", type=Path, help="initial density p0 as an (nx, ny) .npy array (normalised here)")
+    p.add_argument("--target", type=Path, help="target density p_f as an (nx, ny) .npy array (normalised here)")
+    p.add_argument("--warm-start", type=Path, help="previous plan (.npz) whose shifted coefficients start the solver")
+    p.add_argument("--t0", type=float, default=0.0, help="plan start time [s]")
+    p.add_argument("--seed", type=int, default=0, help="seed of the default scenario's robot sample")
+    g = p.add_argument_group("problem")
+    g.add_argument("--nx", type=int, help="cells along x (default 40)")
+    g.add_argument("--ny", type=int, help="cells along y (default 40)")
+    g.add_argument("--intervals", type=int, help="number N of control intervals (default 12)")
+    g.add_argument("--modes", type=int, nargs=2, metavar=("I", "J"), help="sine modes per axis (default 8 8)")
+    g.add_argument("--horizon", type=float, help="planning horizon T [s] (default 7)")
+    g.add_argument("--w-f", type=float, help="terminal weight (default 10)")
+    g.add_argument("--w-p", type=float, help="running KL weight (default 1)")
+    g.add_argument("--w-v", type=float, help="velocity weight (default 0.01)")
+    g.add_argument("--v-max", type=float, help="speed limit: sum |a| per interval [m/s] (default 3)")
+    g.add_argument("--target-floor", type=float, help="uniform fraction mixed into the target (default 0.05)")
+    s = p.add_argument_group("IPOPT")
+    s.add_argument("--tol", type=float, help="IPOPT tol (default 1e-6)")
+    s.add_argument("--max-iter", type=int, help="IPOPT max_iter (default 500)")
+    s.add_argument("--hessian", choices=["limited-memory", "exact"], help="Hessian approximation")
+    s.add_argument("--linear-solver", help="IPOPT linear_solver (mumps; spral; ma27/ma57 need libhsl)")
+    s.add_argument("--print-level", type=int, help="IPOPT print_level 0..12")
+    return p
+
+
+def resolve_settings(args) -> PlannerSettings:
+    cfg = {}
+    if args.config is not None:
+        try:
+            with open(args.config, "rb") as fh:
+                doc = tomllib.load(fh)
+        except OSError as exc:
+            raise InputError(f"cannot read config {args.config}: {exc.strerror}") from None
+        except tomllib.TOMLDecodeError as exc:
+            raise InputError(f"config {args.config} is not valid TOML: {exc}") from None
+        unknown = sorted(set(doc) - {"planner"})
+        if unknown:
+            raise InputError(f"config {args.config}: unknown table(s) {unknown}; expected [planner]")
+        cfg = dict(doc.get("planner", {}))
+    flags = {"nx": args.nx, "ny": args.ny, "n_intervals": args.intervals, "horizon": args.horizon,
+             "w_f": args.w_f, "w_p": args.w_p, "w_v": args.w_v, "v_max": args.v_max,
+             "target_floor": args.target_floor}
+    if args.modes is not None:
+        flags["n_modes_x"], flags["n_modes_y"] = args.modes
+    cfg.update({k: v for k, v in flags.items() if v is not None})
+    ip = dict(cfg.get("ipopt", {}))
+    ipflags = {"tol": args.tol, "max_iter": args.max_iter, "hessian_approximation": args.hessian,
+               "linear_solver": args.linear_solver, "print_level": args.print_level}
+    ip.update({k: v for k, v in ipflags.items() if v is not None})
+    if ip:
+        cfg["ipopt"] = ip
+    try:
+        return dataclass_from_dict(PlannerSettings, cfg, "planner")
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+
+
+def load_density(path: Path, shape, name: str) -> np.ndarray:
+    try:
+        arr = np.load(path, allow_pickle=False)
+    except FileNotFoundError:
+        raise InputError(f"{name} file {path} does not exist") from None
+    except (OSError, ValueError) as exc:
+        raise InputError(f"cannot read {name} file {path}: {exc}") from None
+    if not isinstance(arr, np.ndarray):
+        raise InputError(f"{name} file {path} must hold one array (.npy), not an archive")
+    if arr.shape != tuple(shape):
+        raise InputError(f"{name} in {path} has shape {arr.shape}, expected {tuple(shape)} (nx, ny)")
+    if not np.issubdtype(arr.dtype, np.number):
+        raise InputError(f"{name} in {path} is not numeric")
+    arr = arr.astype(float)
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"{name} in {path} contains non-finite values")
+    if np.any(arr < 0):
+        raise InputError(f"{name} in {path} has negative values (min {arr.min():.3g})")
+    if not arr.sum() > 0:
+        raise InputError(f"{name} in {path} has zero mass")
+    return arr
+
+
+def check_output(path: Path, suffix: str, what: str):
+    if path.suffix != suffix:
+        raise InputError(f"{what} {path} must end in {suffix}")
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise InputError(f"folder {parent} of {what} {path} does not exist")
+    if path.is_dir():
+        raise InputError(f"{what} {path} is a folder")
+
+
+def run(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    settings = resolve_settings(args)
+    check_output(args.out, ".npz", "output")
+    if args.plot is not None:
+        check_output(args.plot, ".png", "plot")
+    from .grid import Grid
+    from .scenario import box_density, first_step_target
+
+    grid = Grid(settings.domain, settings.nx, settings.ny)
+    if args.initial is not None:
+        p0, p0_desc = load_density(args.initial, grid.shape, "initial density"), str(args.initial)
+    else:
+        p0, p0_desc = box_density(grid), "100 robots uniform on [0,7]^2, KDE-smoothed"
+    if args.target is not None:
+        target, target_desc = load_density(args.target, grid.shape, "target density"), str(args.target)
+    else:
+        target, target_desc = first_step_target(grid, seed=args.seed)
+    warm = None
+    if args.warm_start is not None:
+        if not args.warm_start.exists():
+            raise InputError(f"warm-start plan {args.warm_start} does not exist")
+        try:
+            warm = ReferencePlan.load(args.warm_start)
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
+        expected = (settings.n_intervals, 2, settings.n_modes_x, settings.n_modes_y)
+        if warm.coef.shape != expected:
+            raise InputError(f"warm-start plan {args.warm_start} has coefficients {warm.coef.shape}, expected {expected}")
+
+    from .planner import PlannerError, ReferencePlanner
+
+    planner = ReferencePlanner(settings)
+    try:
+        plan = planner.solve(p0, target, t0=args.t0, warm_start=warm)
+    except PlannerError as exc:
+        print(f"{PROG}: error: {exc}; no plan written", file=sys.stderr)
+        return 1
+    plan.meta["initial_density"] = p0_desc
+    plan.meta["target_density"] = target_desc
+    plan.save(args.out)
+    if args.plot is not None:
+        from .figures import plot_plan
+        plot_plan(plan, args.plot)
+    m = plan.meta
+    sv = m["solver"]
+    terms = m["objective_terms"]
+    print(f"{sv['status']}: {sv['iterations']} iterations, build {m['build_time_s']:.2f} s, "
+          f"solve {sv['wall_time_s']:.2f} s ({settings.nx}x{settings.ny} cells, N={settings.n_intervals}, "
+          f"I=J={settings.n_modes_x}x{settings.n_modes_y}, {m['substeps']} sub-steps/interval)")
+    print(f"objective {m['objective']:.4f} = terminal {terms['terminal']:.4f} + running {terms['running']:.4f} "
+          f"+ energy {terms['energy']:.4f}; symmetric KL to target {m['symmetric_kl_initial']:.4f} -> "
+          f"{m['symmetric_kl_final']:.4f}")
+    print(f"wrote {args.out}" + (f" and {args.plot}" if args.plot else ""))
+    return 0
+
+
+def main(argv=None) -> int:
+    try:
+        code = run(argv)
+    except InputError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        code = 2
+    except ValueError as exc:  # validation inside the library (grid, densities, plan files)
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        code = 2
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        code = 130
+    if __name__ == "__main__" or argv is None:
+        sys.exit(code)
+    return code
+
+
+if __name__ == "__main__":
+    main()
