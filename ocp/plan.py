@@ -188,18 +188,22 @@ class ReferencePlan:
     @classmethod
     def load(cls, path) -> "ReferencePlan":
         path = Path(path)
+        if not path.exists():
+            raise ValueError(f"plan file {path} does not exist")
         try:
-            with np.load(path, allow_pickle=False) as z:
-                missing = [k for k in KEYS if k not in z.files]
-                if missing:
-                    raise ValueError(f"plan file {path} lacks keys {missing}")
+            z = np.load(path, allow_pickle=False)
+        except Exception as exc:  # OSError, pickled data, bad zip ...
+            raise ValueError(f"cannot read plan file {path}: not a NumPy .npz archive ({exc.__class__.__name__})") from None
+        if not isinstance(z, np.lib.npyio.NpzFile):
+            raise ValueError(f"cannot read plan file {path}: it holds a single array, not a plan archive")
+        with z:
+            missing = [k for k in KEYS if k not in z.files]
+            if missing:
+                raise ValueError(f"plan file {path} lacks keys {missing}")
+            try:
                 data = {k: z[k] for k in KEYS}
-        except (OSError, EOFError) as exc:
-            raise ValueError(f"cannot read plan file {path}: {exc}") from exc
-        except Exception as exc:  # zipfile.BadZipFile and friends
-            if isinstance(exc, ValueError):
-                raise
-            raise ValueError(f"cannot read plan file {path}: {exc}") from exc
+            except Exception as exc:
+                raise ValueError(f"cannot read plan file {path}: {exc}") from None
         try:
             meta = json.loads(str(data.pop("meta")))
         except json.JSONDecodeError as exc:

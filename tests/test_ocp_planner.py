@@ -1,0 +1,146 @@
+"""The CasADi objective and gradient, IPOPT solves, warm starts and failures (ocp.problem, ocp.planner)."""
+import casadi as ca
+import numpy as np
+import pytest
+
+from ocp.basis import speed_bound
+from ocp.grid import Grid
+from ocp.planner import PlannerError, ReferencePlanner
+from ocp.problem import TransportProblem
+from ocp.settings import IpoptSettings, PlannerSettings
+from ocp.transport import simulate
+
+SMALL = dict(domain=(0.0, 10.0, 0.0, 8.0), nx=12, ny=10, horizon=4.0, n_intervals=3, n_modes_x=3, n_modes_y=3,
+             v_max=2.0)
+
+
+def bump(grid, cx, cy, s):
+    X, Y = np.meshgrid(grid.xc, grid.yc, indexing="ij")
+    return grid.normalize(np.exp(-((X - cx) ** 2 + (Y - cy) ** 2) / (2 * s * s)) + 1e-6)
+
+
+def numpy_objective(coef, p0, q, s, grid, n_sub):
+    """Independent NumPy evaluation of the discretised cost of eq. "optimization problem"."""
+    snaps = simulate(p0, coef, grid, s.interval, n_sub, s.upwind_smoothing)[::n_sub]
+
+    def kls(p):
+        return np.sum((p - q) * (np.log(p + s.log_eps) - np.log(q))) * grid.cell_area
+
+    kl = np.array([kls(p) for p in snaps])
+    running = s.interval * (0.5 * kl[0] + kl[1:-1].sum() + 0.5 * kl[-1])
+    energy = s.interval * sum(np.sum(np.asarray(coef) ** 2) for _ in [0]) * grid.lx * grid.ly / 4
+    return s.w_f * kl[-1] + s.w_p * running + s.w_v * energy
+
+
+def test_objective_and_gradient_against_numpy_finite_differences():
+    s = PlannerSettings(**SMALL)
+    P = TransportProblem(s)
+    g = P.grid
+    p0, q = bump(g, 3, 3, 1.5), P.floored_target(bump(g, 7, 5, 1.5))
+    rng = np.random.default_rng(0)
+    coef = 0.1 * rng.standard_normal((s.n_intervals, 2, s.n_modes_x, s.n_modes_y))
+    a = P.coef_to_vector(coef)
+    av = ca.MX.sym("a", P.n_coef)
+    J = P.objective(av, p0, q, np.log(q))
+    fg = ca.Function("fg", [av], [J, ca.gradient(J, av)])
+    f_cas, g_cas = (np.array(v).ravel() for v in fg(a))
+    f_np = numpy_objective(coef, p0, q, s, g, P.n_sub)
+    assert f_cas[0] == pytest.approx(f_np, rel=1e-12)
+    h = 1e-6
+    fd = np.empty(P.n_coef)
+    for k in range(P.n_coef):
+        e = np.zeros(P.n_coef)
+        e[k] = h
+        fd[k] = (numpy_objective(P.vector_to_coef(a + e), p0, q, s, g, P.n_sub)
+                 - numpy_objective(P.vector_to_coef(a - e), p0, q, s, g, P.n_sub)) / (2 * h)
+    np.testing.assert_allclose(g_cas, fd, rtol=1e-5, atol=1e-7 * np.abs(fd).max())
+
+
+def test_split_formulation_objective_equals_original():
+    s = PlannerSettings(**SMALL)
+    P = TransportProblem(s)
+    g = P.grid
+    p0, q = bump(g, 3, 3, 1.5), P.floored_target(bump(g, 7, 5, 1.5))
+    a = 0.2 * np.random.default_rng(1).standard_normal(P.n_coef)
+    x = np.concatenate([np.maximum(a, 0), np.maximum(-a, 0)])
+    f_split = ca.Function("f", [P.nlp["x"], P.nlp["p"]], [P.nlp["f"]])(x, P.parameters(p0, q))
+    assert float(f_split) == pytest.approx(float(P.objective(a, p0, q, np.log(q))), rel=1e-12)
+
+
+@pytest.fixture(scope="module")
+def small_planner():
+    return ReferencePlanner(PlannerSettings(**SMALL))
+
+
+def test_small_problem_reaches_target(small_planner):
+    g = small_planner.grid
+    p0, target = bump(g, 2.5, 2.5, 1.2), bump(g, 7.0, 5.0, 1.2)
+    plan = small_planner.solve(p0, target)
+    m = plan.meta
+    assert m["solver"]["status"] in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+    assert m["symmetric_kl_final"] < 0.2 * m["symmetric_kl_initial"]
+    # the speed limit holds, and the plan's snapshots conserve mass and stay non-negative
+    assert np.all(speed_bound(plan.coef) <= small_planner.settings.v_max * (1 + 1e-6))
+    np.testing.assert_allclose(plan.p.sum(axis=(1, 2)) * g.cell_area, 1.0, atol=1e-10)
+    assert plan.p.min() >= 0
+    assert plan.t[0] == 0.0 and plan.t[-1] == pytest.approx(small_planner.settings.horizon)
+    # the reported objective is the cost of the returned coefficients
+    P = small_planner.problem
+    q = P.floored_target(target)
+    assert m["objective"] == pytest.approx(float(P.objective(P.coef_to_vector(plan.coef), p0, q, np.log(q))), rel=1e-6)
+
+
+def test_warm_start_shifts_coefficients_and_converges_faster(small_planner):
+    g = small_planner.grid
+    p0, target = bump(g, 2.5, 2.5, 1.2), bump(g, 7.0, 5.0, 1.2)
+    cold = small_planner.solve(p0, target)
+    tau = small_planner.settings.interval
+    init = small_planner.initial_coefficients(cold, tau)
+    np.testing.assert_array_equal(init[:-1], cold.coef[1:])
+    assert np.all(init[-1] == 0)
+    p1 = cold.density_grid(tau)
+    warm = small_planner.solve(p1, target, t0=tau, warm_start=cold)
+    recold = small_planner.solve(p1, target, t0=tau)
+    assert warm.meta["objective"] == pytest.approx(recold.meta["objective"], rel=1e-3)
+    assert warm.meta["solver"]["iterations"] <= recold.meta["solver"]["iterations"]
+    assert warm.t[0] == pytest.approx(tau)
+
+
+def test_solver_failure_raises_with_status():
+    s = PlannerSettings(**{**SMALL, "ipopt": IpoptSettings(max_iter=2, acceptable_iter=50)})
+    pl = ReferencePlanner(s)
+    g = pl.grid
+    with pytest.raises(PlannerError, match="Maximum_Iterations_Exceeded"):
+        pl.solve(bump(g, 2.5, 2.5, 1.2), bump(g, 7.0, 5.0, 1.2))
+
+
+@pytest.mark.parametrize("bad, msg", [
+    (np.full((12, 10), np.nan), "non-finite"),
+    (-np.ones((12, 10)), "negative"),
+    (np.zeros((12, 10)), "zero mass"),
+    (np.ones((10, 12)), "shape"),
+])
+def test_bad_densities_rejected(small_planner, bad, msg):
+    good = np.ones((12, 10))
+    with pytest.raises(ValueError, match=msg):
+        small_planner.solve(bad, good)
+    with pytest.raises(ValueError, match=msg):
+        small_planner.solve(good, bad)
+
+
+@pytest.mark.parametrize("kw, msg", [
+    (dict(nx=2), "3x3"), (dict(v_max=-1.0), "v_max"), (dict(horizon=0.0), "horizon"),
+    (dict(n_intervals=0), "n_intervals"), (dict(target_floor=1.5), "target_floor"),
+    (dict(domain=(0, -1, 0, 1)), "domain"),
+])
+def test_impossible_settings_rejected(kw, msg):
+    with pytest.raises(ValueError, match=msg):
+        PlannerSettings(**kw)
+
+
+def test_substeps_respect_cfl():
+    s = PlannerSettings()
+    h = min(s.domain[1] - s.domain[0], s.domain[3] - s.domain[2]) / max(s.nx, s.ny)
+    dt = s.interval / s.substeps
+    assert 2 * dt * (s.v_max + s.upwind_smoothing) / h <= s.cfl + 1e-12
+    assert 2 * (s.interval / (s.substeps - 1)) * (s.v_max + s.upwind_smoothing) / h > s.cfl
