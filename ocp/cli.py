@@ -130,14 +130,6 @@ def run(argv=None) -> int:
     from .scenario import box_density, first_step_target
 
     grid = Grid(settings.domain, settings.nx, settings.ny)
-    if args.initial is not None:
-        p0, p0_desc = load_density(args.initial, grid.shape, "initial density"), str(args.initial)
-    else:
-        p0, p0_desc = box_density(grid), "100 robots uniform on [0,7]^2, KDE-smoothed"
-    if args.target is not None:
-        target, target_desc = load_density(args.target, grid.shape, "target density"), str(args.target)
-    else:
-        target, target_desc = first_step_target(grid, seed=args.seed)
     warm = None
     if args.warm_start is not None:
         if not args.warm_start.exists():
@@ -150,6 +142,14 @@ def run(argv=None) -> int:
         if warm.coef.shape != expected:
             raise InputError(f"warm-start plan {args.warm_start} has coefficients {warm.coef.shape}, expected {expected}")
 
+    if args.initial is not None:
+        p0, p0_desc = load_density(args.initial, grid.shape, "initial density"), str(args.initial)
+    else:
+        p0, p0_desc = box_density(grid), "100 robots uniform on [0,7]^2, KDE-smoothed"
+    if args.target is not None:
+        target, target_desc = load_density(args.target, grid.shape, "target density"), str(args.target)
+    else:
+        target, target_desc = first_step_target(grid, seed=args.seed)
     from .planner import PlannerError, ReferencePlanner
 
     planner = ReferencePlanner(settings)

@@ -82,12 +82,12 @@ class ReferencePlanner:
         par = P.parameters(p0, q)
 
         coef0 = self.initial_coefficients(warm_start, t0)
-        # scale the initial guess into the admissible set; the split starts strictly interior
+        # scale the initial guess into the admissible set, then start strictly interior
         bound = np.abs(coef0).reshape(P.N, -1).sum(axis=1)
         scale = np.minimum(1.0, 0.9 * s.v_max / np.maximum(bound, 1e-300))
         a0 = P.coef_to_vector(coef0 * scale[:, None, None, None])
-        offset = 0.02 * s.v_max / (2 * P.I * P.J)
-        x0 = np.concatenate([np.maximum(a0, 0.0) + offset, np.maximum(-a0, 0.0) + offset])
+        x0 = P.initial_point(a0)
+
         t_start = time.perf_counter()
         sol = self.solver(x0=x0, p=par, lbx=P.lbx, ubx=P.ubx, lbg=P.lbg, ubg=P.ubg)
         wall = time.perf_counter() - t_start
@@ -98,7 +98,7 @@ class ReferencePlanner:
             raise PlannerError(f"IPOPT failed: {status} after {stats.get('iter_count', '?')} iterations",
                                _stats_summary(stats, wall))
 
-        a = x[: P.n_coef] - x[P.n_coef:]
+        a = P.coefficients_from_solution(x)
         coef = P.vector_to_coef(a)
         snapshots = simulate(p0, coef, g, s.interval, P.n_sub, s.upwind_smoothing)
         terms = [float(v) for v in P.objective_terms(a, p0, q, np.log(q))]

@@ -1,7 +1,9 @@
 """The reference-density problem, eq. "optimization problem", posed symbolically in CasADi.
 
 Decision variables: sine coefficients a[l, d, i, j] (N x 2 x I x J) of the velocity on each of the
-N control intervals (paper, "Simulation studies"), split as a = a+ - a- (a+, a- >= 0) so that the speed limit is linear.
+N control intervals (paper, "Simulation studies"), split as a = a+ - a- (a+, a- >= 0) so that the
+speed limit is linear (``speed_limit_form='split'``, default; ``'slack'`` is the textbook lift
+|a| <= t with 2n general constraints, kept for the solver study).
 Formulation (single shooting; why: README "Planner formulation" and ``solver-study``):
 
     min_a   w_f KLs(p(t_f), q) + tau sum_l^trap w_p KLs(p(t_l), q) + w_v int int |v|^2 dx dt
@@ -112,27 +114,61 @@ class TransportProblem:
             "objective_terms", [a, p0, qt, lq], [J_f, J_p, J_v], ["a", "p0", "q", "logq"], ["terminal", "running", "energy"])
         self.shoot = ca.Function("shoot", [a, p0], [ca.horzcat(*[ca.vec(x) for x in states])], ["a", "p0"], ["P"])
 
-        # NLP: x = [a+; a-] >= 0 with a = a+ - a-; speed limit sum_l (a+ + a-) <= v_max, linear.
-        # The energy is charged on a+^2 + a-^2 = a^2 + 2 a+ a-: equal to the original cost on the
-        # split a+ = max(a, 0), a- = max(-a, 0), and larger on every other split, so both
-        # problems have the same minimisers while the split is unique (no flat directions).
-        # Only N general constraints: IPOPT's augmented system stays ~ (2n + N) and diagonal,
-        # which keeps its L-BFGS back-solves cheap (README "Planner formulation").
+        param = ca.vertcat(ca.vec(p0), ca.vec(qt), ca.vec(lq))
+        if s.speed_limit_form == "split":
+            self._split_nlp(a, J_f + J_p, param)
+        else:
+            self._slack_nlp(a, J_f + J_p + J_v, param)
+        self.objective = ca.Function("objective", [a, p0, qt, lq], [J_f + J_p + J_v])
+
+    def _block(self):
+        """(N x n_coef) 0/1 matrix summing the coefficients of each interval."""
+        N, m = self.N, 2 * self.I * self.J
+        return ca.DM.triplet([l for l in range(N) for _ in range(m)], list(range(self.n_coef)),
+                             ca.DM.ones(self.n_coef), N, self.n_coef)
+
+    def _split_nlp(self, a, kl_terms, param):
+        """x = [a+; a-] >= 0, a = a+ - a-; speed limit sum_l (a+ + a-) <= v_max (N linear constraints).
+
+        The energy is charged on a+^2 + a-^2 = a^2 + 2 a+ a-: equal to the original cost on the split
+        a+ = max(a, 0), a- = max(-a, 0) and larger on every other split, so both problems have the
+        same minimisers while the split is unique (no flat directions).  With only N general
+        constraints IPOPT's augmented system is (2n + N) and nearly diagonal, which keeps its
+        L-BFGS solves cheap (README "Planner formulation").
+        """
+        s, g = self.settings, self.grid
         ap = ca.MX.sym("a_plus", self.n_coef)
         am = ca.MX.sym("a_minus", self.n_coef)
-        x = ca.vertcat(ap, am)
-        block = ca.DM.triplet([l for l in range(N) for _ in range(2 * I * J)], list(range(self.n_coef)),
-                              ca.DM.ones(self.n_coef), N, self.n_coef)
-        g_con = ca.mtimes(block, ap + am)
-        split_energy = tau * (g.lx * g.ly / 4.0) * (ca.sumsqr(ap) + ca.sumsqr(am))
-        f_split = ca.substitute(J_f + J_p, a, ap - am) + s.w_v * split_energy
-        param = ca.vertcat(ca.vec(p0), ca.vec(qt), ca.vec(lq))
-        self.nlp = {"x": x, "p": param, "f": f_split, "g": g_con}
-        self.lbg = np.full(N, -np.inf)
-        self.ubg = np.full(N, s.v_max)
+        energy = s.interval * (g.lx * g.ly / 4.0) * (ca.sumsqr(ap) + ca.sumsqr(am))
+        f = ca.substitute(kl_terms, a, ap - am) + s.w_v * energy
+        self.nlp = {"x": ca.vertcat(ap, am), "p": param, "f": f, "g": ca.mtimes(self._block(), ap + am)}
+        self.lbg = np.full(self.N, -np.inf)
+        self.ubg = np.full(self.N, s.v_max)
         self.lbx = np.zeros(2 * self.n_coef)
         self.ubx = np.full(2 * self.n_coef, np.inf)
-        self.objective = ca.Function("objective", [a, p0, qt, lq], [J_f + J_p + J_v])
+
+    def _slack_nlp(self, a, objective, param):
+        """x = [a; t], |a| <= t as 2n linear constraints, sum_l t <= v_max (the textbook L1 lift)."""
+        sl = ca.MX.sym("t", self.n_coef)
+        g_con = ca.vertcat(sl - a, sl + a, ca.mtimes(self._block(), sl))
+        self.nlp = {"x": ca.vertcat(a, sl), "p": param, "f": objective, "g": g_con}
+        self.lbg = np.concatenate([np.zeros(2 * self.n_coef), np.full(self.N, -np.inf)])
+        self.ubg = np.concatenate([np.full(2 * self.n_coef, np.inf), np.full(self.N, self.settings.v_max)])
+        self.lbx = np.concatenate([np.full(self.n_coef, -np.inf), np.zeros(self.n_coef)])
+        self.ubx = np.full(2 * self.n_coef, np.inf)
+
+    def initial_point(self, a0: np.ndarray) -> np.ndarray:
+        """Strictly interior starting point of the NLP for coefficients a0 (sum|a0| < v_max)."""
+        offset = 0.02 * self.settings.v_max / (2 * self.I * self.J)
+        if self.settings.speed_limit_form == "split":
+            return np.concatenate([np.maximum(a0, 0.0) + offset, np.maximum(-a0, 0.0) + offset])
+        return np.concatenate([a0, np.abs(a0) + offset])
+
+    def coefficients_from_solution(self, x: np.ndarray) -> np.ndarray:
+        """Decision vector of the NLP -> coefficient vector a."""
+        if self.settings.speed_limit_form == "split":
+            return x[: self.n_coef] - x[self.n_coef:]
+        return x[: self.n_coef]
 
     # ------------------------------------------------------------------ helpers
     def floored_target(self, target: np.ndarray) -> np.ndarray:

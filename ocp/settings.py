@@ -92,6 +92,7 @@ class PlannerSettings:
     upwind_smoothing: float = 0.02
     cfl: float = 0.9
     log_eps: float = 1e-12
+    speed_limit_form: str = "split"
     ipopt: IpoptSettings = field(default_factory=IpoptSettings)
 
     def __post_init__(self):
@@ -111,6 +112,8 @@ class PlannerSettings:
             raise ValueError(f"planner.target_floor must be in (0, 1), got {self.target_floor}")
         if not 0 < self.cfl <= 1:
             raise ValueError(f"planner.cfl must be in (0, 1], got {self.cfl}")
+        if self.speed_limit_form not in ("split", "slack"):
+            raise ValueError(f"planner.speed_limit_form must be 'split' or 'slack', got {self.speed_limit_form!r}")
         if not isinstance(self.ipopt, IpoptSettings):
             raise ValueError("planner.ipopt must be an IpoptSettings")
 

@@ -144,3 +144,12 @@ def test_substeps_respect_cfl():
     dt = s.interval / s.substeps
     assert 2 * dt * (s.v_max + s.upwind_smoothing) / h <= s.cfl + 1e-12
     assert 2 * (s.interval / (s.substeps - 1)) * (s.v_max + s.upwind_smoothing) / h > s.cfl
+
+
+def test_slack_and_split_speed_limit_forms_reach_the_same_optimum(small_planner):
+    g = small_planner.grid
+    p0, target = bump(g, 2.5, 2.5, 1.2), bump(g, 7.0, 5.0, 1.2)
+    split = small_planner.solve(p0, target)
+    slack = ReferencePlanner(PlannerSettings(**SMALL, speed_limit_form="slack")).solve(p0, target)
+    assert slack.meta["objective"] == pytest.approx(split.meta["objective"], rel=1e-4)
+    np.testing.assert_allclose(slack.p[-1], split.p[-1], atol=1e-3 * split.p[-1].max())
