@@ -1,0 +1,26 @@
+"""solver-study: a quick study runs, writes its table, and the two Hessian options agree on the optimum."""
+import csv
+
+import pytest
+
+from ocp.study import main
+
+
+def test_quick_hessian_study(tmp_path, capsys):
+    assert main(["--study", "hessian", "--quick", "--out", str(tmp_path)]) == 0
+    rows = list(csv.DictReader(open(tmp_path / "study.csv")))
+    assert [r["study"] for r in rows] == ["hessian", "hessian"]
+    assert all(r["status"] in ("Solve_Succeeded", "Solved_To_Acceptable_Level") for r in rows)
+    lbfgs, exact = (float(r["objective"]) for r in rows)
+    assert exact == pytest.approx(lbfgs, rel=1e-4)
+    assert float(rows[1]["t_hess_s"]) > 0 and float(rows[0]["t_hess_s"]) == 0
+    assert (tmp_path / "study.png").stat().st_size > 1000
+    assert "| hessian |" in (tmp_path / "study.md").read_text()
+
+
+def test_out_must_be_a_folder(tmp_path, capsys):
+    f = tmp_path / "file"
+    f.write_text("x")
+    assert main(["--study", "hessian", "--quick", "--out", str(f)]) == 2
+    assert "not a folder" in capsys.readouterr().err
+    assert f.read_text() == "x"
