@@ -1,0 +1,16 @@
+"""Density estimation and mean-field feedback (paper, "Density tracking control").
+
+* :mod:`control.kde` -- reflected Gaussian kernel density estimate p_hat of the robots
+  (eq. "KDE", with the Neumann image kernel so that no mass leaks through the walls) and its
+  gradient, by linear binning and DCT smoothing.
+* :mod:`control.feedback` -- the velocity of eq. "density feedback law using estimation",
+  with a density floor and speed saturation (see that module for what they do to the
+  stability results).
+
+NumPy/SciPy only; the reference (p_r, v_r) comes from :class:`ocp.plan.ReferencePlan`.
+"""
+from .feedback import FeedbackSettings, feedback_velocity, saturate, tracking_velocity
+from .kde import DensityEstimate, KernelDensity, silverman_bandwidth
+
+__all__ = ["KernelDensity", "DensityEstimate", "silverman_bandwidth",
+           "FeedbackSettings", "feedback_velocity", "tracking_velocity", "saturate"]

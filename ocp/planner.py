@@ -72,9 +72,15 @@ class ReferencePlanner:
     # ------------------------------------------------------------------ solve
     def solve(self, p0: np.ndarray, target: np.ndarray, t0: float = 0.0,
               warm_start: ReferencePlan | None = None) -> ReferencePlan:
-        """Solve eq. "optimization problem" from density p0 towards target p_f; both (nx, ny) cell densities."""
+        """Solve eq. "optimization problem" from density p0 towards target p_f; both (nx, ny) cell densities.
+
+        Both are validated and normalised; p0 is mixed with ``initial_floor`` of the uniform density
+        (the plan's p[0]).  Raises ``ValueError`` on bad densities and :class:`PlannerError` when
+        IPOPT returns no usable solution.
+        """
         g, P, s = self.grid, self.problem, self.settings
         p0 = g.normalize(p0, "initial density")
+        p0 = (1.0 - s.initial_floor) * p0 + s.initial_floor / g.area
         target = g.normalize(target, "target density")
         if not np.isfinite(t0):
             raise ValueError("plan start time must be finite")

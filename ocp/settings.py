@@ -74,7 +74,9 @@ class PlannerSettings:
     domain, grid, horizon T, N intervals and I x J sine modes follow the paper's simulation
     section; weights are w_f = 10, w_p = 1, w_v = 0.01.  ``v_max`` bounds sum |a| per interval,
     hence sup |v| (and the CFL number); ``target_floor`` mixes the target with the uniform
-    density, q = (1 - beta) p_f + beta / |Omega|, so log q is finite.
+    density, q = (1 - beta) p_f + beta / |Omega|, so log q is finite.  ``initial_floor`` does the same
+    to p0: KDE tails far from every robot carry no information, and a floor bounds the curvature
+    1/p + q/p^2 of the KL terms, which is what slows L-BFGS down (README "Planner formulation").
     """
 
     domain: tuple = (0.0, 20.0, 0.0, 20.0)
@@ -89,6 +91,7 @@ class PlannerSettings:
     w_v: float = 0.01
     v_max: float = 3.0
     target_floor: float = 0.05
+    initial_floor: float = 0.02
     upwind_smoothing: float = 0.02
     cfl: float = 0.9
     log_eps: float = 1e-12
@@ -110,6 +113,8 @@ class PlannerSettings:
                 raise ValueError(f"planner.{name} must be finite and >= 0, got {v}")
         if not 0 < self.target_floor < 1:
             raise ValueError(f"planner.target_floor must be in (0, 1), got {self.target_floor}")
+        if not 0 <= self.initial_floor < 1:
+            raise ValueError(f"planner.initial_floor must be in [0, 1), got {self.initial_floor}")
         if not 0 < self.cfl <= 1:
             raise ValueError(f"planner.cfl must be in (0, 1], got {self.cfl}")
         if self.speed_limit_form not in ("split", "slack"):

@@ -84,10 +84,13 @@ def test_small_problem_reaches_target(small_planner):
     np.testing.assert_allclose(plan.p.sum(axis=(1, 2)) * g.cell_area, 1.0, atol=1e-10)
     assert plan.p.min() >= 0
     assert plan.t[0] == 0.0 and plan.t[-1] == pytest.approx(small_planner.settings.horizon)
-    # the reported objective is the cost of the returned coefficients
+    # p[0] is p0 mixed with the documented floor; the reported objective is the cost of the coefficients
+    beta0 = small_planner.settings.initial_floor
+    np.testing.assert_allclose(plan.p[0], (1 - beta0) * p0 + beta0 / g.area, rtol=1e-12)
     P = small_planner.problem
     q = P.floored_target(target)
-    assert m["objective"] == pytest.approx(float(P.objective(P.coef_to_vector(plan.coef), p0, q, np.log(q))), rel=1e-6)
+    assert m["objective"] == pytest.approx(float(P.objective(P.coef_to_vector(plan.coef), plan.p[0], q, np.log(q))),
+                                           rel=1e-6)
 
 
 def test_warm_start_shifts_coefficients_and_converges_faster(small_planner):

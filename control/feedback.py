@@ -1,0 +1,162 @@
+"""Mean-field feedback law for density tracking (eq. "density feedback law using estimation").
+
+The paper's law, with the robots' density p replaced by its estimate p_hat (eq. "KDE"):
+
+    v = -( alpha grad(p_hat - p_r) - grad(sigma p_hat) - v_r p_r ) / p_hat
+      = ( -alpha grad(p_hat - p_r) + sigma grad p_hat + v_r p_r ) / p_hat,
+
+with alpha and sigma constants here (so grad(sigma p_hat) = sigma grad p_hat).  ``sigma`` must be
+the diffusion coefficient of the robots' motion, eq. "Langevin equation"
+``dX = v dt + sqrt(2 sigma) dB``: the term sigma grad p_hat / p_hat is what cancels the
+diffusion Delta(sigma p) of eq. "FP equation".  ``alpha`` is the feedback gain (the diffusion
+coefficient of the error equation).
+
+Two modifications make the law implementable; both are departures from the analysed law:
+
+* **Density floor.**  The denominator is ``max(p_hat, p_floor)``.  The reflected KDE is
+  positive everywhere in exact arithmetic but can be ~1e-300 far from every robot; the floor
+  keeps v finite there.  Where p_hat < p_floor the law is not eq. "density feedback law using
+  estimation" any more; the paper's section "Robustness of the control law" allows for such
+  corrections only through the estimation error epsilon = p_hat/p - 1 (Theorem "ISS"), and a
+  floor in the denominator alone is not exactly of that form, so it is a (small, local)
+  additional mismatch of the same kind as the one discussed next.
+* **Saturation.**  If |v| > v_max the velocity is scaled to length v_max, direction kept.
+  Theorem "Exponential stability" (and Theorem "ISS") assume the unsaturated law.  With
+  saturation the closed loop gives the diffusion equation for Phi = p - p_r exactly only where
+  |v| <= v_max.  Elsewhere the flux differs by d = p (v - sat(v)), so
+
+      d/dt Phi = div(alpha grad Phi) + div(d) + (estimation-error terms),
+
+  and in the Lyapunov computation of the ISS proof d enters like the estimation-error terms:
+  dV/dt gains at most ||grad Phi||_L2 ||d||_L2.  Hence Phi is ISS with respect to ||d||_L2 as an
+  additional *bounded* disturbance (|d| <= p |v|).  That is all the argument gives: d depends on
+  the state and is not small a priori, so there is no guarantee of exponential convergence while
+  saturation is active.  In practice v_max is chosen so that saturation acts only in the
+  transient (large initial error, or sparsely populated regions where p_hat is near the floor);
+  ``v_max = inf`` recovers the analysed law.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["FeedbackSettings", "feedback_velocity", "tracking_velocity", "saturate"]
+
+
+@dataclass(frozen=True)
+class FeedbackSettings:
+    """Gains of eq. "density feedback law using estimation" and its two safeguards.
+
+    alpha : feedback gain (> 0), constant in space and time (the paper allows alpha(x, t)).
+    sigma : diffusion coefficient of the robots' Brownian motion (>= 0), the sigma of
+            eq. "Langevin equation"; must match the simulated/real noise.
+    p_floor : lower bound on p_hat in the denominator (> 0); the default 2.5e-4 is 1/10 of the
+            uniform density on the paper's 20 x 20 domain.
+    v_max : speed limit (> 0, ``math.inf`` for none); faster velocities are scaled to v_max.
+    """
+
+    alpha: float = 1.0
+    sigma: float = 0.05
+    p_floor: float = 2.5e-4
+    v_max: float = 4.0
+
+    def __post_init__(self):
+        for name in ("alpha", "sigma", "p_floor", "v_max"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)):
+                raise ValueError(f"feedback.{name} must be a number, got {v!r}")
+            object.__setattr__(self, name, float(v))
+        if not (math.isfinite(self.alpha) and self.alpha > 0):
+            raise ValueError(f"feedback.alpha must be finite and > 0, got {self.alpha}")
+        if not (math.isfinite(self.sigma) and self.sigma >= 0):
+            raise ValueError(f"feedback.sigma must be finite and >= 0, got {self.sigma}")
+        if not (math.isfinite(self.p_floor) and self.p_floor > 0):
+            raise ValueError(f"feedback.p_floor must be finite and > 0, got {self.p_floor}")
+        if not (self.v_max > 0) or math.isnan(self.v_max):
+            raise ValueError(f"feedback.v_max must be > 0 (inf allowed), got {self.v_max}")
+
+
+def _vector(a, name: str, m: int | None) -> np.ndarray:
+    a = np.asarray(a, dtype=float)
+    if a.ndim != 1:
+        raise ValueError(f"{name} must have shape (m,), got {a.shape}")
+    if m is not None and a.shape[0] != m:
+        raise ValueError(f"{name} has {a.shape[0]} entries, expected m = {m} (shape mismatch)")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} contains non-finite values (NaN or inf)")
+    return a
+
+
+def _field(a, name: str, m: int) -> np.ndarray:
+    a = np.asarray(a, dtype=float)
+    if a.shape != (m, 2):
+        raise ValueError(f"{name} must have shape (m, 2) = ({m}, 2), got {a.shape} (shape mismatch)")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} contains non-finite values (NaN or inf)")
+    return a
+
+
+def saturate(v: np.ndarray, v_max: float) -> np.ndarray:
+    """Scale rows of v (m, 2) longer than v_max down to length v_max; directions are kept."""
+    v = np.asarray(v, dtype=float)
+    if math.isinf(v_max):
+        return v
+    speed = np.hypot(v[:, 0], v[:, 1])
+    over = speed > v_max
+    if np.any(over):
+        v = v.copy()
+        v[over] *= (v_max / speed[over])[:, None]
+    return v
+
+
+def feedback_velocity(p_hat, grad_p_hat, p_r, grad_p_r, v_r, settings: FeedbackSettings) -> np.ndarray:
+    """Velocity of eq. "density feedback law using estimation" at m points, then saturated.
+
+        v = ( -alpha (grad p_hat - grad p_r) + sigma grad p_hat + v_r p_r ) / max(p_hat, p_floor)
+
+    Shapes: p_hat (m,), grad_p_hat (m, 2), p_r (m,), grad_p_r (m, 2), v_r (m, 2) -> v (m, 2).
+    Densities must be finite and >= 0; every mismatch or bad value raises ``ValueError``.
+    """
+    if not isinstance(settings, FeedbackSettings):
+        raise ValueError(f"settings must be a FeedbackSettings, got {type(settings).__name__}")
+    p_hat = _vector(p_hat, "p_hat", None)
+    m = p_hat.shape[0]
+    grad_p_hat = _field(grad_p_hat, "grad_p_hat", m)
+    p_r = _vector(p_r, "p_r", m)
+    grad_p_r = _field(grad_p_r, "grad_p_r", m)
+    v_r = _field(v_r, "v_r", m)
+    if np.any(p_hat < 0):
+        raise ValueError(f"p_hat has negative values (min {p_hat.min():.3g}); a density estimate must be >= 0")
+    if np.any(p_r < 0):
+        raise ValueError(f"p_r has negative values (min {p_r.min():.3g}); a reference density must be >= 0")
+    s = settings
+    num = -s.alpha * (grad_p_hat - grad_p_r) + s.sigma * grad_p_hat + v_r * p_r[:, None]
+    v = num / np.maximum(p_hat, s.p_floor)[:, None]
+    return saturate(v, s.v_max)
+
+
+def tracking_velocity(X, plan, t: float, est, settings: FeedbackSettings) -> np.ndarray:
+    """Feedback velocity for robots at X (n, 2) at time t, from a plan and a density estimate.
+
+    Evaluates p_r, grad p_r (``plan.density_and_gradient``), v_r (``plan.velocity``) of eq.
+    "reference model" and p_hat, grad p_hat (``est.evaluate``, eq. "KDE") at the robots, then
+    :func:`feedback_velocity`.  ``plan`` is an :class:`ocp.plan.ReferencePlan`; ``est`` a
+    :class:`control.kde.DensityEstimate` on the same domain.
+    """
+    X = np.asarray(X, dtype=float)
+    if X.ndim != 2 or X.shape[1] != 2:
+        raise ValueError(f"X must have shape (n, 2), got {X.shape}")
+    if not np.all(np.isfinite(X)):
+        raise ValueError("X contains non-finite values (NaN or inf)")
+    t = float(t)
+    if not math.isfinite(t):
+        raise ValueError(f"t must be finite, got {t}")
+    plan_dom = np.asarray(plan.domain, dtype=float).reshape(-1)
+    if plan_dom.shape != (4,) or not np.allclose(plan_dom, est.domain, rtol=1e-12, atol=1e-12):
+        raise ValueError(f"plan domain {tuple(plan_dom)} differs from the density estimate's domain {tuple(est.domain)}")
+    p_hat, grad_p_hat = est.evaluate(X)          # also rejects robots outside the domain
+    p_r, grad_p_r = plan.density_and_gradient(t, X)
+    v_r = plan.velocity(t, X)
+    return feedback_velocity(p_hat, grad_p_hat, p_r, grad_p_r, v_r, settings)

@@ -1,0 +1,371 @@
+"""Kernel density estimate of the robot density with reflecting walls (eq. "KDE").
+
+The paper estimates the swarm density by the Gaussian KDE (eq. "KDE", m = 2)
+
+    p_hat(x) = 1/(n h^2) sum_i K((x - X_i)/h),    K(z) = exp(-|z|^2/2) / (2 pi).
+
+On the bounded domain Omega that estimate leaks mass through the walls (it halves at a wall).
+Here every kernel is replaced by its *method-of-images* version: the Gaussian is reflected
+across the four walls, and again across the corners and so on, i.e. the kernel is the heat
+kernel of the Neumann problem on the rectangle at time h^2/2.  Consequences:
+
+* ``p_hat`` integrates to exactly 1 over Omega (the robots never leave it either);
+* ``n . grad p_hat = 0`` on the walls, the same boundary condition as eq. "FP equation";
+* away from the walls (distance >> h) it equals the plain KDE of eq. "KDE".
+
+Algorithm, O(n + G log G) with G = number of bins:
+
+1. *Linear binning*: each robot's unit mass is split bilinearly between the four nearest bin
+   centres (bin centres at ``x0 + (j + 1/2) dx``).  A robot between a wall and the first
+   centre puts its whole x-weight on that centre, which is exact for the reflected problem
+   (the ghost centre beyond the wall is the mirror of the first one).
+2. *Smoothing by DCT*: the DCT-II diagonalises convolution with the evenly (reflectively)
+   extended data, so the Neumann heat kernel acts by multiplying cosine mode (k, l) by
+   ``exp(-h_eff^2 (wx_k^2 + wy_l^2) / 2)``, ``wx_k = pi k / (x1 - x0)``.  Linear binning
+   widens each kernel by ``s(1-s) dx^2`` (s the fractional bin position), ``dx^2/6`` on average
+   for scattered robots, so the smoothing variance is ``h_eff^2 = h^2 - dx^2/6`` per axis
+   (``- dy^2/6`` in y), which removes that bias on average.
+3. *Derivatives in the DCT domain*: d/dx turns cos(wx (x - x0)) into -wx sin(wx (x - x0)),
+   evaluated at the centres by an inverse DST-II.  This gives p, dp/dx, dp/dy and
+   d2p/dxdy exactly (to rounding) at the bin centres.
+4. *Evaluation*: bicubic Hermite interpolation from those four grids (C^1, error O(dx^4));
+   the gradient returned is the exact gradient of the interpolant, so it agrees with finite
+   differences of ``evaluate``.  Ghost nodes beyond the walls are filled by reflection (p even,
+   the normal derivative odd), so the interpolant also has zero normal derivative on the walls.
+   Values are clipped at 0 (with zero gradient there): a density never comes out negative.
+
+Resolution rule: the bin width must satisfy ``dx <= h / bins_per_bandwidth`` (default 4) in
+both directions; if the requested ``bins`` are coarser the count is raised automatically (to a
+fast FFT length), up to ``max_bins`` per axis.  With the rule at 4 the aliasing of the
+DCT-domain Gaussian is below exp(-(4 pi)^2 / 2) ~ 1e-34 and the Hermite error is O((dx/h)^4);
+the dominant error is the binning error, at most about ``(1/6)(dx/h)^2`` of the peak value for a
+single isolated robot (about 1 % at the default rule, when the robot sits on a bin centre) and
+much smaller for a swarm, where the s-dependence averages out (about 2e-4 of the peak for
+2000 robots against the exact image sum, see tests).
+
+Cost for n = 1e5 robots on the default 128 x 128 bins: fit about 12 ms (half of it the binning),
+evaluate at 1e5 points about 15 ms (2-core test machine).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import fft as sfft
+
+__all__ = ["KernelDensity", "DensityEstimate", "silverman_bandwidth"]
+
+#: Points this far outside the domain (relative to its size) are clipped onto the wall, not rejected.
+_WALL_TOL = 1e-9
+#: Points per block in DensityEstimate.evaluate.
+_BLOCK = 8192
+
+
+def silverman_bandwidth(X: np.ndarray) -> float:
+    """Rule-of-thumb bandwidth for eq. "KDE" in 2-D: ``h = sigma_bar * n^(-1/6)``.
+
+    ``sigma_bar`` is the mean of the two coordinate standard deviations (ddof = 1, as in
+    ``numpy.cov``).  In two dimensions Silverman's rule ``(4/(d+2))^(1/(d+4)) sigma n^(-1/(d+4))``
+    and Scott's rule ``sigma n^(-1/(d+4))`` coincide; ``scipy.stats.gaussian_kde`` uses the same
+    factor ``n^(-1/6)`` (but the full covariance instead of an isotropic one).
+
+    Raises ``ValueError`` if there are fewer than two points or all points coincide (the spread,
+    hence the bandwidth, would be zero; pass a fixed bandwidth instead).
+    """
+    X = _check_points(X, "X")
+    n = X.shape[0]
+    if n < 2:
+        raise ValueError(f"silverman_bandwidth needs at least 2 points to estimate the spread, got {n}; "
+                         "pass a fixed bandwidth")
+    sigma_bar = float(np.mean(np.std(X, axis=0, ddof=1)))
+    if not sigma_bar > 0:
+        raise ValueError("silverman_bandwidth: all points coincide (zero spread); pass a fixed bandwidth")
+    return sigma_bar * n ** (-1.0 / 6.0)
+
+
+def _check_points(X, name: str) -> np.ndarray:
+    X = np.asarray(X, dtype=float)
+    if X.ndim != 2 or X.shape[1] != 2:
+        raise ValueError(f"{name} must have shape (n, 2), got {X.shape}")
+    if X.shape[0] == 0:
+        raise ValueError(f"{name} is empty")
+    if not np.all(np.isfinite(X)):
+        raise ValueError(f"{name} contains non-finite values (NaN or inf)")
+    return X
+
+
+def _check_domain(domain) -> tuple[float, float, float, float]:
+    try:
+        x0, x1, y0, y1 = (float(v) for v in domain)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"domain must be (x0, x1, y0, y1), got {domain!r}") from exc
+    if not all(math.isfinite(v) for v in (x0, x1, y0, y1)) or not (x1 > x0 and y1 > y0):
+        raise ValueError(f"domain must be finite (x0, x1, y0, y1) with x1 > x0 and y1 > y0, got {domain!r}")
+    return x0, x1, y0, y1
+
+
+def _inside(X: np.ndarray, domain, name: str) -> np.ndarray:
+    """Reject points outside the closed domain; clip those within rounding of a wall onto it."""
+    x0, x1, y0, y1 = domain
+    tx = _WALL_TOL * (x1 - x0)
+    ty = _WALL_TOL * (y1 - y0)
+    bad = (X[:, 0] < x0 - tx) | (X[:, 0] > x1 + tx) | (X[:, 1] < y0 - ty) | (X[:, 1] > y1 + ty)
+    if np.any(bad):
+        k = int(np.argmax(bad))
+        raise ValueError(f"{name}: {int(bad.sum())} point(s) outside the domain {tuple(domain)}, "
+                         f"e.g. row {k} = ({X[k, 0]:.6g}, {X[k, 1]:.6g})")
+    return np.column_stack([np.clip(X[:, 0], x0, x1), np.clip(X[:, 1], y0, y1)])
+
+
+class KernelDensity:
+    """Reflected Gaussian KDE (eq. "KDE" with the Neumann image kernel) on a rectangle.
+
+    Parameters
+    ----------
+    domain : (x0, x1, y0, y1)
+    bandwidth : float or None
+        ``None``: :func:`silverman_bandwidth` of the positions, recomputed at every ``fit``.
+        A positive float fixes h.
+    bins : (bx, by)
+        Minimum number of bins per axis; raised automatically so that the bin width is at most
+        ``h / bins_per_bandwidth`` (see the module docstring).
+    bins_per_bandwidth : float
+        Resolution rule, default 4 (bin width <= h/4).
+    max_bins : int
+        Upper limit per axis for the automatic raise; a bandwidth needing more bins is an error.
+    """
+
+    def __init__(self, domain=(0.0, 20.0, 0.0, 20.0), bandwidth: float | None = None, bins=(128, 128),
+                 *, bins_per_bandwidth: float = 4.0, max_bins: int = 2048):
+        self.domain = _check_domain(domain)
+        if bandwidth is not None:
+            try:
+                bandwidth = float(bandwidth)
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"bandwidth must be a positive number or None, got {bandwidth!r}") from exc
+            if not (math.isfinite(bandwidth) and bandwidth > 0):
+                raise ValueError(f"bandwidth must be a positive finite number or None, got {bandwidth}")
+        self.bandwidth = bandwidth
+        try:
+            bx, by = (int(b) for b in bins)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"bins must be a pair of integers, got {bins!r}") from exc
+        if bx < 2 or by < 2:
+            raise ValueError(f"bins must be at least (2, 2), got {bins!r}")
+        self.bins = (bx, by)
+        if not (math.isfinite(bins_per_bandwidth) and bins_per_bandwidth >= 1):
+            raise ValueError(f"bins_per_bandwidth must be >= 1, got {bins_per_bandwidth}")
+        self.bins_per_bandwidth = float(bins_per_bandwidth)
+        if int(max_bins) < max(self.bins):
+            raise ValueError(f"max_bins ({max_bins}) is smaller than the requested bins {self.bins}")
+        self.max_bins = int(max_bins)
+
+    def __repr__(self):
+        h = "silverman" if self.bandwidth is None else f"{self.bandwidth:g}"
+        return f"KernelDensity(domain={self.domain}, bandwidth={h}, bins={self.bins})"
+
+    def resolve_bins(self, h: float) -> tuple[int, int]:
+        """Bin counts used for bandwidth h: the requested ones, raised until width <= h / bins_per_bandwidth."""
+        x0, x1, y0, y1 = self.domain
+        out = []
+        for b, length, axis in ((self.bins[0], x1 - x0, "x"), (self.bins[1], y1 - y0, "y")):
+            need = math.ceil(self.bins_per_bandwidth * length / h - 1e-9)
+            if need > b:
+                b = sfft.next_fast_len(need, real=True)
+            if b > self.max_bins:
+                raise ValueError(f"bandwidth h = {h:.4g} needs {need} bins along {axis} (bin width <= h/"
+                                 f"{self.bins_per_bandwidth:g}), more than max_bins = {self.max_bins}; "
+                                 "use a larger bandwidth or raise max_bins")
+            out.append(int(b))
+        return out[0], out[1]
+
+    def fit(self, X: np.ndarray) -> "DensityEstimate":
+        """Estimate the density of the positions ``X`` (n, 2); returns a :class:`DensityEstimate`."""
+        X = _inside(_check_points(X, "X"), self.domain, "X")
+        h = silverman_bandwidth(X) if self.bandwidth is None else self.bandwidth
+        mx, my = self.resolve_bins(h)
+        x0, x1, y0, y1 = self.domain
+        dx = (x1 - x0) / mx
+        dy = (y1 - y0) / my
+        n = X.shape[0]
+
+        # 1. linear binning onto the bin centres x0 + (j + 1/2) dx
+        counts = _linear_binning(X, x0, y0, dx, dy, mx, my)
+        dens = counts / (n * dx * dy)
+
+        # 2./3. Neumann heat kernel in the DCT-II domain, derivatives via DST
+        a = sfft.dctn(dens, type=2)
+        wx = np.pi * np.arange(mx) / (x1 - x0)
+        wy = np.pi * np.arange(my) / (y1 - y0)
+        hx2 = h * h - dx * dx / 6.0
+        hy2 = h * h - dy * dy / 6.0
+        a *= np.exp(-0.5 * hx2 * wx * wx)[:, None]
+        a *= np.exp(-0.5 * hy2 * wy * wy)[None, :]
+        p = sfft.idctn(a, type=2)
+        # d/dx: coefficient k -> -wx_k a_k placed at DST index k-1 (last DST entry zero)
+        bx = np.zeros_like(a)
+        bx[:-1, :] = -wx[1:, None] * a[1:, :]
+        px = sfft.idct(sfft.idst(bx, type=2, axis=0), type=2, axis=1)
+        by = np.zeros_like(a)
+        by[:, :-1] = -wy[None, 1:] * a[:, 1:]
+        py = sfft.idst(sfft.idct(by, type=2, axis=0), type=2, axis=1)
+        bxy = np.zeros_like(a)
+        bxy[:-1, :-1] = wx[1:, None] * wy[None, 1:] * a[1:, 1:]
+        pxy = sfft.idstn(bxy, type=2)
+        return DensityEstimate(self.domain, float(h), (mx, my), n, p, px, py, pxy)
+
+
+def _linear_binning(X, x0, y0, dx, dy, mx, my) -> np.ndarray:
+    fx = (X[:, 0] - x0) / dx - 0.5
+    fy = (X[:, 1] - y0) / dy - 0.5
+    ix = np.floor(fx)
+    iy = np.floor(fy)
+    sx = fx - ix
+    sy = fy - iy
+    ix = ix.astype(np.intp)
+    iy = iy.astype(np.intp)
+    # neighbours beyond the walls are the mirrors of the first/last centre
+    ix0 = np.clip(ix, 0, mx - 1)
+    ix1 = np.clip(ix + 1, 0, mx - 1)
+    iy0 = np.clip(iy, 0, my - 1)
+    iy1 = np.clip(iy + 1, 0, my - 1)
+    size = mx * my
+    c = np.bincount(ix0 * my + iy0, (1 - sx) * (1 - sy), minlength=size)
+    c += np.bincount(ix1 * my + iy0, sx * (1 - sy), minlength=size)
+    c += np.bincount(ix0 * my + iy1, (1 - sx) * sy, minlength=size)
+    c += np.bincount(ix1 * my + iy1, sx * sy, minlength=size)
+    return c.reshape(mx, my)
+
+
+def _pad_reflect(f: np.ndarray, odd_x: bool, odd_y: bool) -> np.ndarray:
+    """Add one ghost layer on each side: the mirror value across the wall (negated if odd)."""
+    g = np.pad(f, 1, mode="edge")
+    if odd_x:
+        g[0, :] *= -1
+        g[-1, :] *= -1
+    if odd_y:
+        g[:, 0] *= -1
+        g[:, -1] *= -1
+    return g
+
+
+@dataclass(frozen=True, eq=False)
+class DensityEstimate:
+    """A fitted reflected KDE: values and derivatives at the bin centres, evaluated anywhere in Omega."""
+
+    domain: tuple
+    bandwidth: float
+    bins: tuple
+    n_points: int
+    values: np.ndarray        # p_hat at the bin centres, (bx, by)
+    grad_x: np.ndarray        # d p_hat / dx at the bin centres
+    grad_y: np.ndarray        # d p_hat / dy at the bin centres
+    grad_xy: np.ndarray       # d2 p_hat / dx dy at the bin centres
+
+    def __post_init__(self):
+        # padded, flattened (bx+2)*(by+2) grids of p, dp/dx, dp/dy, d2p/dxdy with reflected ghost nodes
+        flat = (_pad_reflect(self.values, False, False).ravel(),
+                _pad_reflect(self.grad_x, True, False).ravel(),
+                _pad_reflect(self.grad_y, False, True).ravel(),
+                _pad_reflect(self.grad_xy, True, True).ravel())
+        object.__setattr__(self, "_flat", flat)
+
+    def __repr__(self):
+        return f"DensityEstimate(n_points={self.n_points}, bandwidth={self.bandwidth:.4g}, bins={self.bins})"
+
+    @property
+    def cell_size(self) -> tuple[float, float]:
+        x0, x1, y0, y1 = self.domain
+        return (x1 - x0) / self.bins[0], (y1 - y0) / self.bins[1]
+
+    def evaluate(self, points: np.ndarray):
+        """Density and gradient at ``points`` (m, 2) -> ``(p (m,), grad (m, 2))``.
+
+        Bicubic Hermite interpolation from the bin centres (see the module docstring); points
+        must lie in the closed domain (``ValueError`` otherwise).  ``p >= 0`` always.
+        """
+        pts = _inside(_check_points(points, "points"), self.domain, "points")
+        x0, _, y0, _ = self.domain
+        dx, dy = self.cell_size
+        mx, my = self.bins
+        # index in the padded arrays: padded node k sits at x0 + (k - 1/2) dx
+        fx = (pts[:, 0] - x0) / dx + 0.5
+        fy = (pts[:, 1] - y0) / dy + 0.5
+        m = pts.shape[0]
+        p = np.empty(m)
+        grad = np.empty((m, 2))
+        # blocks small enough for the temporaries to stay in cache (about 2x faster for m = 1e5)
+        for s in range(0, m, _BLOCK):
+            sl = slice(s, s + _BLOCK)
+            p[sl], grad[sl, 0], grad[sl, 1] = self._hermite(fx[sl], fy[sl])
+        neg = p <= 0
+        if np.any(neg):
+            p[neg] = 0.0
+            grad[neg] = 0.0
+        return p, grad
+
+    def _hermite(self, fx: np.ndarray, fy: np.ndarray):
+        """Bicubic Hermite value and gradient at fractional padded indices (fx, fy)."""
+        dx, dy = self.cell_size
+        mx, my = self.bins
+        i = np.clip(fx.astype(np.intp), 0, mx)     # fx >= 0, so truncation is floor
+        j = np.clip(fy.astype(np.intp), 0, my)
+        t = fx - i
+        u = fy - j
+        k00 = i * (my + 2) + j                 # flat index of the lower-left node
+        corners = (k00, k00 + 1, k00 + (my + 2), k00 + (my + 3))   # (a, b) = 00, 01, 10, 11
+        P, PX, PY, PXY = self._flat
+        # cubic Hermite weights: value/slope at the left (0) and right (1) node, and their d/dt
+        t2, u2 = t * t, u * u
+        t3, u3 = t2 * t, u2 * u
+        a0 = 2 * t3 - 3 * t2 + 1
+        a1 = 1 - a0
+        b0 = (t3 - 2 * t2 + t) * dx
+        b1 = (t3 - t2) * dx
+        da0 = (6 * t2 - 6 * t) / dx
+        da1 = -da0
+        db0 = 3 * t2 - 4 * t + 1
+        db1 = 3 * t2 - 2 * t
+        e0 = 2 * u3 - 3 * u2 + 1
+        e1 = 1 - e0
+        f0 = (u3 - 2 * u2 + u) * dy
+        f1 = (u3 - u2) * dy
+        de0 = (6 * u2 - 6 * u) / dy
+        de1 = -de0
+        df0 = 3 * u2 - 4 * u + 1
+        df1 = 3 * u2 - 2 * u
+        # contract along y first: for each x-node a, the y-interpolant of p and of dp/dx (and d/dy)
+        rows = []
+        for kb0, kb1 in ((corners[0], corners[1]), (corners[2], corners[3])):
+            p0, p1 = P[kb0], P[kb1]
+            y0v, y1v = PY[kb0], PY[kb1]
+            x0v, x1v = PX[kb0], PX[kb1]
+            c0, c1 = PXY[kb0], PXY[kb1]
+            val = e0 * p0 + e1 * p1 + f0 * y0v + f1 * y1v          # p along the x-node line
+            sx = e0 * x0v + e1 * x1v + f0 * c0 + f1 * c1           # dp/dx along the line
+            dval = de0 * p0 + de1 * p1 + df0 * y0v + df1 * y1v     # d/dy of val
+            dsx = de0 * x0v + de1 * x1v + df0 * c0 + df1 * c1      # d/dy of sx
+            rows.append((val, sx, dval, dsx))
+        (v0, s0, dv0, ds0), (v1, s1, dv1, ds1) = rows
+        p = a0 * v0 + a1 * v1 + b0 * s0 + b1 * s1
+        gx = da0 * v0 + da1 * v1 + db0 * s0 + db1 * s1
+        gy = a0 * dv0 + a1 * dv1 + b0 * ds0 + b1 * ds1
+        return p, gx, gy
+
+    def density(self, points: np.ndarray) -> np.ndarray:
+        """p_hat at ``points`` (m, 2) -> (m,)."""
+        return self.evaluate(points)[0]
+
+    def on_grid(self, nx: int, ny: int) -> np.ndarray:
+        """p_hat at the cell centres of an nx x ny cell grid of the domain, shape (nx, ny) (x first)."""
+        nx, ny = int(nx), int(ny)
+        if nx < 1 or ny < 1:
+            raise ValueError(f"on_grid needs positive cell counts, got ({nx}, {ny})")
+        x0, x1, y0, y1 = self.domain
+        if (nx, ny) == tuple(self.bins):
+            return np.maximum(self.values, 0.0)
+        xc = x0 + (np.arange(nx) + 0.5) * (x1 - x0) / nx
+        yc = y0 + (np.arange(ny) + 0.5) * (y1 - y0) / ny
+        Xg, Yg = np.meshgrid(xc, yc, indexing="ij")
+        return self.evaluate(np.column_stack([Xg.ravel(), Yg.ravel()]))[0].reshape(nx, ny)

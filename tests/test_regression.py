@@ -1,0 +1,340 @@
+"""Tests of regression/: the GP against scikit-learn's exact GP, its Bayesian properties, input
+validation, the hyperparameter fit and the target density (section "Generation of reference
+models": V_k, W_k = max(V_k - eta, 0), p_f = W_k / int W_k).
+
+Documented tolerances (measured values in brackets; the GP uses a cubic-B-spline inducing grid of
+spacing l/2, see regression/gp.py):
+
+* paper setting (s_f^2 = 0.25, l = 1, s_n^2 = 0.04, 100 robots on [0,7]^2 + 300 points on
+  [0,20]^2, f(x) = 2 + sin(2|x|)/|x| + N(0, 0.04)), 40 x 40 cell centres:
+  max |Δmean| <= 5e-3 [1.4e-3 .. 1.7e-3], max |Δvar| <= 1.5e-3 [3.8e-4 .. 3.9e-4],
+  |Δ log marginal likelihood| <= 0.25 [0.01 .. 0.04];
+* offset, non-square domain, s_f^2 = 1, l = 0.8, s_n^2 = 0.01 (kernel-approximation errors are
+  amplified by s_f^2 / s_n^2): max |Δmean| <= 0.02 [7.7e-3], max |Δvar| <= 8e-3 [3.0e-3].
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from regression import GaussianProcess, GPSettings, target_density
+from regression.kernels import squared_exponential
+
+sklearn_gp = pytest.importorskip("sklearn.gaussian_process")
+sk_kernels = pytest.importorskip("sklearn.gaussian_process.kernels")
+
+
+# ---------------------------------------------------------------------- helpers
+def field(X: np.ndarray) -> np.ndarray:
+    """The paper's test field f(x) = 2 + sin(2|x|)/|x| (limit 4 at x = 0)."""
+    r = np.linalg.norm(X, axis=1)
+    out = np.full(len(X), 4.0)
+    nz = r > 0
+    out[nz] = 2.0 + np.sin(2.0 * r[nz]) / r[nz]
+    return out
+
+
+def paper_data(seed: int, n_robots: int = 100, n_spread: int = 300):
+    rng = np.random.default_rng(seed)
+    X = np.vstack([rng.uniform(0.0, 7.0, (n_robots, 2)), rng.uniform(0.0, 20.0, (n_spread, 2))])
+    y = field(X) + rng.normal(0.0, 0.2, len(X))
+    return X, y
+
+
+def cell_centres(domain=(0.0, 20.0, 0.0, 20.0), nx: int = 40, ny: int = 40) -> np.ndarray:
+    x0, x1, y0, y1 = domain
+    cx = x0 + (np.arange(nx) + 0.5) * (x1 - x0) / nx
+    cy = y0 + (np.arange(ny) + 0.5) * (y1 - y0) / ny
+    return np.array(np.meshgrid(cx, cy, indexing="ij")).reshape(2, -1).T
+
+
+def exact_gp(X, y, settings: GPSettings, mean: float, points):
+    """scikit-learn's dense GP with the same fixed kernel, noise and constant mean."""
+    kernel = sk_kernels.ConstantKernel(settings.signal_variance, "fixed") * sk_kernels.RBF(settings.length_scale, "fixed")
+    reg = sklearn_gp.GaussianProcessRegressor(kernel, alpha=settings.noise_variance, optimizer=None)
+    reg.fit(X, y - mean)
+    m, sd = reg.predict(points, return_std=True)
+    return m + mean, sd**2, reg.log_marginal_likelihood_value_
+
+
+PAPER = GPSettings(signal_variance=0.25, length_scale=1.0, noise_variance=0.04)
+
+
+# ---------------------------------------------------------------------- agreement with the exact GP
+@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("prior_mean", [None, 2.0])
+def test_matches_exact_gp_on_paper_setting(seed, prior_mean):
+    X, y = paper_data(seed)
+    s = dataclasses.replace(PAPER, prior_mean=prior_mean)
+    gp = GaussianProcess(s, domain=(0.0, 20.0, 0.0, 20.0))
+    gp.add(X, y)
+    assert gp.inducing_shape == (43, 43)
+    pts = cell_centres()
+    mean, var = gp.predict(pts)
+    m = y.mean() if prior_mean is None else prior_mean
+    assert gp.prior_mean == pytest.approx(m)
+    ref_mean, ref_var, ref_lml = exact_gp(X, y, s, m, pts)
+    assert mean.shape == var.shape == (1600,)
+    assert np.max(np.abs(mean - ref_mean)) <= 5e-3
+    assert np.max(np.abs(var - ref_var)) <= 1.5e-3
+    assert abs(gp.log_marginal_likelihood() - ref_lml) <= 0.25
+
+
+def test_matches_exact_gp_on_offset_rectangle():
+    rng = np.random.default_rng(5)
+    domain = (-5.0, 5.0, 10.0, 16.0)
+    X = np.column_stack([rng.uniform(-5, 5, 300), rng.uniform(10, 16, 300)])
+    X = X[X[:, 0] < 2.0]                       # leave a data-free strip along x
+    y = np.sin(X[:, 0]) * np.cos(X[:, 1] / 2.0) + rng.normal(0.0, 0.1, len(X))
+    s = GPSettings(signal_variance=1.0, length_scale=0.8, noise_variance=0.01, prior_mean=0.3)
+    gp = GaussianProcess(s, domain=domain)
+    gp.add(X, y)
+    pts = np.column_stack([rng.uniform(-5, 5, 2000), rng.uniform(10, 16, 2000)])
+    mean, var = gp.predict(pts)
+    ref_mean, ref_var, _ = exact_gp(X, y, s, 0.3, pts)
+    assert np.max(np.abs(mean - ref_mean)) <= 0.02
+    assert np.max(np.abs(var - ref_var)) <= 8e-3
+
+
+def test_dense_data_recover_field_within_posterior_uncertainty():
+    """1e5 noisy samples: the posterior mean tracks f and its variance is calibrated."""
+    rng = np.random.default_rng(11)
+    X = rng.uniform(0.0, 20.0, (100_000, 2))
+    gp = GaussianProcess(PAPER)
+    gp.add(X, field(X) + rng.normal(0.0, 0.2, len(X)))
+    pts = cell_centres()
+    mean, var = gp.predict(pts)
+    err = np.abs(mean - field(pts))
+    sd = np.sqrt(var)
+    assert np.all(err <= 5.0 * sd + 1e-3)
+    assert np.mean(err <= 2.0 * sd) >= 0.85
+    assert var.max() < 1e-3
+
+
+# ---------------------------------------------------------------------- Bayesian properties
+def test_predict_before_data_returns_prior():
+    pts = cell_centres(nx=5, ny=7)
+    mean, var = GaussianProcess(dataclasses.replace(PAPER, prior_mean=1.5)).predict(pts)
+    np.testing.assert_array_equal(mean, 1.5)
+    np.testing.assert_array_equal(var, 0.25)
+    mean, var = GaussianProcess(PAPER).predict(pts)       # running mean without data: 0
+    np.testing.assert_array_equal(mean, 0.0)
+    assert GaussianProcess(PAPER).n_observations == 0
+
+
+def test_variance_far_from_data_equals_prior_variance():
+    rng = np.random.default_rng(2)
+    gp = GaussianProcess(dataclasses.replace(PAPER, prior_mean=1.0))
+    gp.add(rng.uniform(0.0, 5.0, (500, 2)), rng.normal(size=500))
+    far = np.array([[19.0, 19.0], [20.0, 20.0], [15.0, 20.0], [20.0, 0.0]])
+    mean, var = gp.predict(far)
+    np.testing.assert_allclose(var, 0.25, rtol=1e-9)
+    np.testing.assert_allclose(mean, 1.0, atol=1e-8)
+    near_mean, near_var = gp.predict(np.array([[2.5, 2.5]]))
+    assert near_var[0] < 0.01
+
+
+def test_variance_decreases_when_data_added():
+    X, y = paper_data(3)
+    gp = GaussianProcess(PAPER)
+    gp.add(X[:200], y[:200])
+    pts = cell_centres()
+    _, v1 = gp.predict(pts)
+    new = np.random.default_rng(4).uniform(12.0, 18.0, (50, 2))
+    gp.add(new, field(new))
+    _, v2 = gp.predict(pts)
+    assert np.all(v2 <= v1 + 1e-12)
+    assert np.all(v1 >= 0) and np.all(v2 >= 0) and np.all(v1 <= 0.25 + 1e-12)
+    inside = np.all((pts >= 12.5) & (pts <= 17.5), axis=1)
+    assert np.all(v2[inside] < 0.5 * v1[inside])
+
+
+@pytest.mark.parametrize("prior_mean", [None, 0.5])
+def test_repeated_observations_act_like_one_with_reduced_noise(prior_mean):
+    k = 10
+    rng = np.random.default_rng(6)
+    X = rng.uniform(0.0, 20.0, (30, 2))
+    y = rng.normal(size=30)
+    s = dataclasses.replace(PAPER, prior_mean=prior_mean)
+    repeated = GaussianProcess(s)
+    repeated.add(np.repeat(X, k, axis=0), np.repeat(y, k))
+    single = GaussianProcess(dataclasses.replace(s, noise_variance=s.noise_variance / k))
+    single.add(X, y)
+    pts = cell_centres()
+    m1, v1 = repeated.predict(pts)
+    m2, v2 = single.predict(pts)
+    np.testing.assert_allclose(m1, m2, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(v1, v2, rtol=0, atol=1e-10)
+    assert repeated.n_observations == 30 * k
+
+
+def test_incremental_add_equals_single_add():
+    X, y = paper_data(7)
+    whole = GaussianProcess(PAPER)
+    whole.add(X, y)
+    chunked = GaussianProcess(PAPER)
+    for part in np.array_split(np.arange(len(y)), 9):
+        chunked.add(X[part], y[part])
+        chunked.predict(X[:3])                  # predictions in between must not go stale
+    chunked.add(np.empty((0, 2)), np.empty(0))
+    assert chunked.n_observations == whole.n_observations == len(y)
+    pts = cell_centres()
+    m1, v1 = whole.predict(pts)
+    m2, v2 = chunked.predict(pts)
+    np.testing.assert_allclose(m1, m2, atol=1e-10)
+    np.testing.assert_allclose(v1, v2, atol=1e-12)
+
+
+def test_points_on_and_just_outside_the_boundary():
+    gp = GaussianProcess(PAPER)
+    corners = np.array([[0.0, 0.0], [20.0, 20.0], [20.0 + 1e-12, -1e-12]])
+    gp.add(corners, np.array([1.0, 2.0, 3.0]))
+    mean, var = gp.predict(corners)
+    assert np.all(np.isfinite(mean)) and np.all(var > 0) and np.all(var < 0.25)
+
+
+# ---------------------------------------------------------------------- input validation
+@pytest.mark.parametrize("X, y, match", [
+    (np.array([[1.0, np.nan]]), np.array([1.0]), "non-finite"),
+    (np.array([[1.0, 2.0]]), np.array([np.inf]), "non-finite"),
+    (np.array([[1.0, 2.0, 3.0]]), np.array([1.0]), "shape"),
+    (np.array([1.0, 2.0]), np.array([1.0]), "shape"),
+    (np.array([[1.0, 2.0], [3.0, 4.0]]), np.array([1.0]), "shape"),
+    (np.array([[1.0, 2.0]]), np.array([[1.0]]), "shape"),
+    (np.array([[1.0, 20.5]]), np.array([1.0]), "outside the domain"),
+    (np.array([[-0.1, 2.0]]), np.array([1.0]), "outside the domain"),
+])
+def test_add_rejects_bad_input(X, y, match):
+    gp = GaussianProcess(PAPER)
+    gp.add(np.array([[1.0, 1.0]]), np.array([2.0]))
+    with pytest.raises(ValueError, match=match):
+        gp.add(X, y)
+    assert gp.n_observations == 1
+    mean, _ = gp.predict(np.array([[1.0, 1.0]]))
+    assert np.isfinite(mean).all()
+
+
+@pytest.mark.parametrize("pts, match", [
+    (np.array([[np.nan, 1.0]]), "non-finite"),
+    (np.array([1.0, 2.0]), "shape"),
+    (np.array([[25.0, 1.0]]), "outside the domain"),
+])
+def test_predict_rejects_bad_points(pts, match):
+    gp = GaussianProcess(PAPER)
+    with pytest.raises(ValueError, match=match):
+        gp.predict(pts)
+
+
+@pytest.mark.parametrize("field_name, value", [
+    ("signal_variance", 0.0), ("signal_variance", float("nan")),
+    ("length_scale", -1.0), ("length_scale", float("inf")),
+    ("noise_variance", 0.0), ("noise_variance", "a lot"),
+    ("prior_mean", float("nan")), ("prior_mean", True),
+    ("inducing_spacing", 0.0), ("inducing_spacing", 0.9),
+    ("max_inducing_points", 3), ("max_inducing_points", 2.5),
+])
+def test_settings_validation_names_the_field(field_name, value):
+    with pytest.raises(ValueError, match=field_name):
+        GPSettings(**{field_name: value})
+
+
+def test_settings_defaults_and_frozen():
+    s = GPSettings()
+    assert (s.signal_variance, s.length_scale, s.noise_variance, s.prior_mean) == (0.25, 1.0, 0.04, None)
+    assert s.resolved_inducing_spacing == 0.5
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        s.length_scale = 2.0
+
+
+def test_domain_and_grid_size_validation():
+    with pytest.raises(ValueError, match="domain"):
+        GaussianProcess(PAPER, domain=(0.0, 0.0, 0.0, 1.0))
+    with pytest.raises(ValueError, match="domain"):
+        GaussianProcess(PAPER, domain=(0.0, 1.0, 0.0))
+    with pytest.raises(ValueError, match="max_inducing_points"):
+        GaussianProcess(GPSettings(length_scale=0.1), domain=(0.0, 20.0, 0.0, 20.0))
+    with pytest.raises(TypeError):
+        GaussianProcess({"length_scale": 1.0})
+
+
+# ---------------------------------------------------------------------- hyperparameters
+@pytest.mark.parametrize("seed", [0, 1])
+def test_fit_hyperparameters_recovers_length_scale(seed):
+    rng = np.random.default_rng(seed)
+    X = rng.uniform(0.0, 10.0, (600, 2))
+    K = squared_exponential(X, X, 0.5, 1.5) + 1e-8 * np.eye(len(X))
+    y = 1.0 + np.linalg.cholesky(K) @ rng.normal(size=len(X)) + rng.normal(0.0, 0.1, len(X))
+    gp = GaussianProcess(GPSettings(signal_variance=0.25, length_scale=1.0, noise_variance=0.01),
+                         domain=(0.0, 10.0, 0.0, 10.0))
+    gp.add(X, y)
+    lml_before = gp.log_marginal_likelihood()
+    fitted = gp.fit_hyperparameters()
+    assert 1.2 <= fitted.length_scale <= 1.8            # truth 1.5
+    assert 0.2 <= fitted.signal_variance <= 1.0         # truth 0.5
+    assert fitted.noise_variance == 0.01 and fitted.inducing_spacing == 0.5
+    assert gp.settings == fitted
+    assert gp.log_marginal_likelihood() >= lml_before
+    # the maximum-likelihood estimate of the exact GP (scikit-learn) agrees closely
+    kernel = sk_kernels.ConstantKernel(0.25, (1e-4, 1e3)) * sk_kernels.RBF(1.0, (0.75, 10.0))
+    ref = sklearn_gp.GaussianProcessRegressor(kernel, alpha=0.01).fit(X, y - y.mean()).kernel_
+    assert fitted.length_scale == pytest.approx(ref.k2.length_scale, rel=0.05)
+    assert fitted.signal_variance == pytest.approx(ref.k1.constant_value, rel=0.1)
+
+
+def test_fit_hyperparameters_input_checks():
+    gp = GaussianProcess(PAPER)
+    with pytest.raises(ValueError, match="two observations"):
+        gp.fit_hyperparameters()
+    gp.add(np.array([[1.0, 1.0], [2.0, 2.0]]), np.array([1.0, 2.0]))
+    with pytest.raises(ValueError, match="length_scale_bounds"):
+        gp.fit_hyperparameters(length_scale_bounds=(0.1, 5.0))
+    with pytest.raises(ValueError, match="signal_variance_bounds"):
+        gp.fit_hyperparameters(signal_variance_bounds=(1.0, 0.5))
+
+
+# ---------------------------------------------------------------------- target density
+def test_target_density_formula_and_normalisation():
+    rng = np.random.default_rng(8)
+    V = rng.uniform(0.0, 0.25, (40, 40))
+    eta, area = 0.05, 0.25
+    p = target_density(V, eta, area)
+    W = np.maximum(V - eta, 0.0)
+    assert p.shape == V.shape
+    assert np.sum(p) * area == pytest.approx(1.0, rel=1e-12)
+    np.testing.assert_allclose(p, W / (W.sum() * area), rtol=1e-12)
+    assert np.all(p[V <= eta] == 0.0) and np.all(p[V > eta] > 0.0)
+    q = target_density(np.array([[0.0, 1.0], [3.0, 0.0]]), 0.0, 2.0)
+    np.testing.assert_allclose(q, [[0.0, 0.125], [0.375, 0.0]])
+
+
+def test_target_density_none_when_variance_below_tolerance():
+    assert target_density(np.full((4, 5), 0.01), 0.01, 1.0) is None
+    assert target_density(np.zeros((3, 3)), 0.0, 1.0) is None
+
+
+@pytest.mark.parametrize("V, eta, area, match", [
+    (np.array([[0.1, np.nan]]), 0.0, 1.0, "non-finite"),
+    (np.array([0.1, 0.2]), 0.0, 1.0, "2-D"),
+    (np.zeros((2, 2, 2)), 0.0, 1.0, "2-D"),
+    (np.array([[0.1, -0.2]]), 0.0, 1.0, ">= 0"),
+    (np.array([[0.1, 0.2]]), -0.01, 1.0, "eta"),
+    (np.array([[0.1, 0.2]]), float("nan"), 1.0, "eta"),
+    (np.array([[0.1, 0.2]]), 0.0, 0.0, "cell_area"),
+    (np.array([[0.1, 0.2]]), 0.0, float("inf"), "cell_area"),
+])
+def test_target_density_rejects_bad_input(V, eta, area, match):
+    with pytest.raises(ValueError, match=match):
+        target_density(V, eta, area)
+
+
+def test_target_density_from_gp_variance():
+    X, y = paper_data(9)
+    gp = GaussianProcess(PAPER)
+    gp.add(X, y)
+    _, var = gp.predict(cell_centres())
+    p = target_density(var.reshape(40, 40), 0.01, 0.25)
+    assert np.sum(p) * 0.25 == pytest.approx(1.0)
+    # the robots' start region [0,7]^2 is well observed: little target mass there
+    assert np.sum(p[:14, :14]) * 0.25 < 0.05
