@@ -60,11 +60,12 @@ def exact_gp(X, y, settings: GPSettings, mean: float, points):
 
 
 PAPER = GPSettings(signal_variance=0.25, length_scale=1.0, noise_variance=0.04)
+#: a coarser model (23 x 23 inducing nodes) for tests where only exact identities matter
+COARSE = GPSettings(signal_variance=0.25, length_scale=2.0, noise_variance=0.04)
 
 
 # ---------------------------------------------------------------------- agreement with the exact GP
-@pytest.mark.parametrize("seed", [0, 1])
-@pytest.mark.parametrize("prior_mean", [None, 2.0])
+@pytest.mark.parametrize("seed, prior_mean", [(0, None), (1, 2.0)])
 def test_matches_exact_gp_on_paper_setting(seed, prior_mean):
     X, y = paper_data(seed)
     s = dataclasses.replace(PAPER, prior_mean=prior_mean)
@@ -138,8 +139,8 @@ def test_variance_far_from_data_equals_prior_variance():
 
 def test_variance_decreases_when_data_added():
     X, y = paper_data(3)
-    gp = GaussianProcess(PAPER)
-    gp.add(X[:200], y[:200])
+    gp = GaussianProcess(COARSE)
+    gp.add(X[:100], y[:100])                    # the robots' start region [0,7]^2 only
     pts = cell_centres()
     _, v1 = gp.predict(pts)
     new = np.random.default_rng(4).uniform(12.0, 18.0, (50, 2))
@@ -147,7 +148,7 @@ def test_variance_decreases_when_data_added():
     _, v2 = gp.predict(pts)
     assert np.all(v2 <= v1 + 1e-12)
     assert np.all(v1 >= 0) and np.all(v2 >= 0) and np.all(v1 <= 0.25 + 1e-12)
-    inside = np.all((pts >= 12.5) & (pts <= 17.5), axis=1)
+    inside = np.all((pts >= 13.0) & (pts <= 17.0), axis=1)
     assert np.all(v2[inside] < 0.5 * v1[inside])
 
 
@@ -157,7 +158,7 @@ def test_repeated_observations_act_like_one_with_reduced_noise(prior_mean):
     rng = np.random.default_rng(6)
     X = rng.uniform(0.0, 20.0, (30, 2))
     y = rng.normal(size=30)
-    s = dataclasses.replace(PAPER, prior_mean=prior_mean)
+    s = dataclasses.replace(COARSE, prior_mean=prior_mean)
     repeated = GaussianProcess(s)
     repeated.add(np.repeat(X, k, axis=0), np.repeat(y, k))
     single = GaussianProcess(dataclasses.replace(s, noise_variance=s.noise_variance / k))
@@ -172,9 +173,9 @@ def test_repeated_observations_act_like_one_with_reduced_noise(prior_mean):
 
 def test_incremental_add_equals_single_add():
     X, y = paper_data(7)
-    whole = GaussianProcess(PAPER)
+    whole = GaussianProcess(COARSE)
     whole.add(X, y)
-    chunked = GaussianProcess(PAPER)
+    chunked = GaussianProcess(COARSE)
     for part in np.array_split(np.arange(len(y)), 9):
         chunked.add(X[part], y[part])
         chunked.predict(X[:3])                  # predictions in between must not go stale
@@ -188,7 +189,7 @@ def test_incremental_add_equals_single_add():
 
 
 def test_points_on_and_just_outside_the_boundary():
-    gp = GaussianProcess(PAPER)
+    gp = GaussianProcess(COARSE)
     corners = np.array([[0.0, 0.0], [20.0, 20.0], [20.0 + 1e-12, -1e-12]])
     gp.add(corners, np.array([1.0, 2.0, 3.0]))
     mean, var = gp.predict(corners)
@@ -207,7 +208,7 @@ def test_points_on_and_just_outside_the_boundary():
     (np.array([[-0.1, 2.0]]), np.array([1.0]), "outside the domain"),
 ])
 def test_add_rejects_bad_input(X, y, match):
-    gp = GaussianProcess(PAPER)
+    gp = GaussianProcess(COARSE)
     gp.add(np.array([[1.0, 1.0]]), np.array([2.0]))
     with pytest.raises(ValueError, match=match):
         gp.add(X, y)
@@ -222,7 +223,7 @@ def test_add_rejects_bad_input(X, y, match):
     (np.array([[25.0, 1.0]]), "outside the domain"),
 ])
 def test_predict_rejects_bad_points(pts, match):
-    gp = GaussianProcess(PAPER)
+    gp = GaussianProcess(COARSE)
     with pytest.raises(ValueError, match=match):
         gp.predict(pts)
 

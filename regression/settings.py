@@ -1,0 +1,95 @@
+"""Settings of the Gaussian-process regression (section "Generation of reference models").
+
+The paper fixes only the noise variance of the measurements (0.04, section "Simulation"); the
+kernel hyperparameters and the resolution of the inducing grid are settings chosen here.
+"""
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass
+
+
+def _finite_positive(name: str, value) -> float:
+    if isinstance(value, bool):
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}") from None
+    if not math.isfinite(v) or v <= 0.0:
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class GPSettings:
+    """Hyperparameters of the GP model and of its inducing grid.
+
+    Kernel (squared exponential, the paper's eq. "squared exponential kernel")::
+
+        k(x, x') = signal_variance * exp(-|x - x'|^2 / (2 length_scale^2))
+
+    Attributes
+    ----------
+    signal_variance
+        Prior variance s_f^2 of the latent field; the predictive variance returns to it far
+        from all data.
+    length_scale
+        Length scale l of the kernel (same unit as the domain).
+    noise_variance
+        Variance s_n^2 of the additive Gaussian measurement noise (paper: 0.04). Kept fixed by
+        :meth:`GaussianProcess.fit_hyperparameters`.
+    prior_mean
+        Constant prior mean m of the field, or ``None`` for the running mean of all data added
+        so far (0 before any data).
+    inducing_spacing
+        Requested spacing h of the cubic-B-spline inducing grid (``None``: ``length_scale / 2``).
+        Each axis of length L gets ``ceil(L / h)`` cells of equal width <= h. The kernel
+        approximation error is about 1e-3 * signal_variance at h = l/2 and 3e-3 at h = l/1.5;
+        the spacing must therefore be <= length_scale / 1.5.
+    max_inducing_points
+        Upper bound on the number of inducing grid nodes M = (cells_x + 3) * (cells_y + 3).
+        ``predict`` after new data costs one dense M x M Cholesky factorisation and inverse
+        (~0.3 s at M = 1849, growing like M^3; memory ~ 6 M^2 doubles), so the bound turns an
+        accidental fine grid into a clear error instead of a stall.
+    """
+
+    signal_variance: float = 0.25
+    length_scale: float = 1.0
+    noise_variance: float = 0.04
+    prior_mean: float | None = None
+    inducing_spacing: float | None = None
+    max_inducing_points: int = 4096
+
+    def __post_init__(self):
+        object.__setattr__(self, "signal_variance", _finite_positive("signal_variance", self.signal_variance))
+        object.__setattr__(self, "length_scale", _finite_positive("length_scale", self.length_scale))
+        object.__setattr__(self, "noise_variance", _finite_positive("noise_variance", self.noise_variance))
+        if self.prior_mean is not None:
+            if isinstance(self.prior_mean, bool):
+                raise ValueError(f"prior_mean must be None or a finite number, got {self.prior_mean!r}")
+            try:
+                m = float(self.prior_mean)
+            except (TypeError, ValueError):
+                raise ValueError(f"prior_mean must be None or a finite number, got {self.prior_mean!r}") from None
+            if not math.isfinite(m):
+                raise ValueError(f"prior_mean must be None or a finite number, got {self.prior_mean!r}")
+            object.__setattr__(self, "prior_mean", m)
+        if self.inducing_spacing is not None:
+            h = _finite_positive("inducing_spacing", self.inducing_spacing)
+            if h > self.length_scale / 1.5 * (1.0 + 1e-12):
+                raise ValueError(
+                    f"inducing_spacing must be <= length_scale / 1.5 = {self.length_scale / 1.5:g} "
+                    f"for an accurate kernel approximation, got {h:g}")
+            object.__setattr__(self, "inducing_spacing", h)
+        mip = self.max_inducing_points
+        integral = isinstance(mip, numbers.Integral) or (isinstance(mip, float) and mip.is_integer())
+        if isinstance(mip, bool) or not integral or int(mip) < 16:
+            raise ValueError(f"max_inducing_points must be an integer >= 16, got {mip!r}")
+        object.__setattr__(self, "max_inducing_points", int(mip))
+
+    @property
+    def resolved_inducing_spacing(self) -> float:
+        """The requested inducing-grid spacing, ``length_scale / 2`` when unset."""
+        return self.inducing_spacing if self.inducing_spacing is not None else self.length_scale / 2.0
