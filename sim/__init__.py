@@ -1,0 +1,20 @@
+"""Closed-loop simulation of the swarm: Algorithm 1 of Zheng & Lin ("Deployment algorithm").
+
+* :mod:`sim.fields`   -- unknown fields f(x): the paper's sinc, plumes, ridge, fields from files
+* :mod:`sim.dynamics` -- eq. "Langevin equation" by Euler--Maruyama with reflecting walls; measurements
+* :mod:`sim.config`   -- ``SimSettings``, ``KDESettings``, ``RunConfig`` and their TOML form
+* :mod:`sim.loop`     -- Algorithm 1: GP regression, target density, planner, feedback, metrics
+* :mod:`sim.metrics`, :mod:`sim.outputs`, :mod:`sim.figures` -- metrics.csv, summary.json, figures
+* :mod:`sim.cli`      -- the ``simulate-swarm`` command
+
+    from sim import RunConfig, run_simulation
+    result = run_simulation(RunConfig.default())
+"""
+from .config import KDESettings, RunConfig, SimSettings, config_from_dict, load_config, to_toml
+from .dynamics import advance, euler_maruyama_step, measure, reflect
+from .fields import FIELDS, make_field
+from .loop import SimulationResult, run_simulation
+
+__all__ = ["SimSettings", "KDESettings", "RunConfig", "config_from_dict", "load_config", "to_toml",
+           "reflect", "euler_maruyama_step", "advance", "measure", "FIELDS", "make_field",
+           "SimulationResult", "run_simulation"]

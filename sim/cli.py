@@ -1,0 +1,140 @@
+"""``simulate-swarm``: run Algorithm 1 (paper, "Deployment algorithm") and write metrics, summary and figures.
+
+Without arguments it runs the paper's scenario (100 robots from [0, 7]^2 on [0, 20]^2, field
+2 + sin(2|x|)/|x|, Δt = 0.875 s, T = 7 s, γ = 0.1) with seed 0 into ``./run``.  Flags override
+the ``[sim]`` settings of ``--config``.  Exit codes: 0 run finished (whether or not sup V fell
+below γ; see summary.json), 1 planner failure (the outputs up to that point are written),
+2 bad input (one line on stderr, nothing written), 130 interrupted.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+PROG = "simulate-swarm"
+
+
+class InputError(ValueError):
+    """Bad user input: one line on stderr, exit code 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line instead of usage + message, and no SystemExit(2) from deep inside
+        raise InputError(message)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog=PROG, description=__doc__.split("\n\n")[0],
+                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("--config", type=Path, help="TOML file with [sim], [gp], [kde], [feedback], [planner] tables")
+    p.add_argument("--out", type=Path, default=Path("run"), help="output folder")
+    p.add_argument("--seed", type=int, help="random seed (default 0)")
+    p.add_argument("--robots", type=int, help="number of robots (default 100)")
+    p.add_argument("--field", help="sinc | plumes | ridge | path to a .npz/.npy/.csv field file (default sinc)")
+    p.add_argument("--max-periods", type=int, help="stop after this many re-planning periods T (default 20)")
+    p.add_argument("--gif", action="store_true", help="also write animation.gif")
+    p.add_argument("--no-figures", action="store_true", help="write no PNG figures")
+    p.add_argument("--force", action="store_true", help="write into a non-empty folder that holds no previous run")
+    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    return p
+
+
+def resolve(args):
+    """Configuration and field from the arguments; ``InputError`` for every bad input."""
+    from .config import RunConfig, config_from_dict, load_config
+    from .fields import make_field
+    from .loop import check_config
+
+    overrides = {"seed": args.seed, "robots": args.robots, "field": args.field, "max_periods": args.max_periods}
+    for name in ("seed", "robots", "max_periods"):
+        v = overrides[name]
+        if v is not None and (v < 0 or (v == 0 and name != "seed")):
+            flag = "--" + name.replace("_", "-")
+            raise InputError(f"{flag} must be {'>= 0' if name == 'seed' else '> 0'}, got {v}")
+    try:
+        config = load_config(args.config, overrides) if args.config is not None else config_from_dict({}, overrides)
+        field = make_field(config.sim.field, config.sim.domain)
+        check_config(config)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    assert isinstance(config, RunConfig)
+    return config, field
+
+
+def _progress_printer(config):
+    T = config.sim.period
+
+    def show(info):
+        if info["event"] == "plan":
+            print(f"{PROG}: t = {info['t']:7.2f} s ({info['t'] / T:4.1f} T)  sup V = {info['max_variance']:.4f}  "
+                  f"rmse = {info['rmse']:.4f}  planner: {info['status']}, {info['iterations']} it, "
+                  f"{info['solve_time_s']:.2f} s", file=sys.stderr, flush=True)
+        elif info["event"] == "done":
+            ttt = info["time_to_threshold"]
+            reached = f"sup V <= gamma at t = {ttt:.2f} s ({ttt / T:.2f} T)" if ttt is not None else \
+                "sup V stayed above gamma"
+            print(f"{PROG}: stopped ({info['stop_reason']}) at t = {info['t']:.2f} s: {reached}; "
+                  f"final sup V = {info['max_variance']:.4f}, rmse = {info['rmse']:.4f}, "
+                  f"wall time {info['wall_time']:.1f} s", file=sys.stderr, flush=True)
+    return show
+
+
+def run(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    config, field = resolve(args)
+    from .outputs import check_output_dir, prepare_output_dir, write_metrics, write_outputs
+
+    try:
+        check_output_dir(args.out, args.force)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    from ocp import ReferencePlanner
+
+    from .loop import run_simulation
+
+    try:
+        planner = ReferencePlanner(config.planner)
+    except ValueError as exc:
+        raise InputError(f"planner: {exc}") from None
+    out = prepare_output_dir(args.out, args.force)
+    progress = None if args.quiet else _progress_printer(config)
+    try:
+        result = run_simulation(config, field=field, planner=planner, progress=progress,
+                                on_period=lambda res: write_metrics(res, out))
+    except (ValueError, RuntimeError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        # not a planner failure (those end the run normally): report in one line; the metrics of
+        # the completed periods are already in DIR/metrics.csv
+        print(f"{PROG}: error: simulation failed: {type(exc).__name__}: {exc}; metrics of completed periods "
+              f"are in {out}", file=sys.stderr)
+        return 1
+    files = write_outputs(result, out, figures=not args.no_figures, gif=args.gif,
+                          extra={"command": [PROG] + [str(a) for a in (sys.argv[1:] if argv is None else argv)],
+                                 "planner_build_time_s": planner.build_time})
+    if not args.quiet:
+        print(f"{PROG}: wrote {', '.join(files)} to {out}", file=sys.stderr)
+    if result.stop_reason == "planner_failed":
+        print(f"{PROG}: error: {result.error}; outputs up to t = {result.rows[-1]['t']:g} s are in {out}",
+              file=sys.stderr)
+        return 1
+    return 0
+
+
+def main(argv=None) -> int:
+    try:
+        code = run(argv)
+    except InputError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        code = 2
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        code = 130
+    if argv is None:
+        sys.exit(code)
+    return code
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,335 @@
+"""Settings of a closed-loop run (Algorithm 1) and their TOML form.
+
+A run is fully described by a :class:`RunConfig`: the simulation settings (:class:`SimSettings`),
+the GP (``regression.GPSettings``), the KDE (:class:`KDESettings`), the feedback law
+(``control.FeedbackSettings``) and the planner (``ocp.PlannerSettings``).  In TOML::
+
+    [sim]        robots, domain, start_box, dt, period, gamma, eta, noise_variance,
+                 max_periods, field, seed, substeps
+    [gp]         signal_variance, length_scale, noise_variance, prior_mean, ...
+    [kde]        bandwidth, bins
+    [feedback]   alpha, sigma, p_floor, v_max
+    [planner]    nx, ny, horizon, n_intervals, n_modes_x, n_modes_y, w_f, w_p, w_v, v_max, ...
+    [planner.ipopt]  tol, max_iter, ...
+
+Unknown tables or keys and bad values raise ``ValueError`` naming them.  Shared quantities have one
+source: ``planner.domain`` is ``sim.domain``, ``planner.horizon`` defaults to ``sim.period`` and
+``gp.noise_variance`` defaults to ``sim.noise_variance``; giving them explicitly with different
+values is an error (a horizon longer than the period is allowed).  The diffusion coefficient of
+the robots' motion (eq. "Langevin equation") is ``feedback.sigma``, the same sigma the feedback law
+compensates for.
+
+:func:`to_toml` writes a resolved configuration back as TOML, so ``DIR/config.toml`` of a run
+repeats it with ``simulate-swarm --config DIR/config.toml``.
+
+Defaults the paper leaves open, and why
+---------------------------------------
+``eta = 0.05``     the paper only asks for "a small tolerance".  It must stay below gamma (0.1) so that
+                   p_f is non-empty whenever Algorithm 1 continues (sup V > gamma > eta); at 1/5 of the
+                   prior variance 0.25 the target ignores regions that are already well sampled
+                   (V ~ 0.01-0.03 there) and concentrates on those above half the stopping level.
+``substeps = 8``   sub-step h = Δt/8 = 0.109 s.  At the feedback speed limit (4 m/s) a robot moves at
+                   most 0.44 m per sub-step: less than half the smallest KDE bandwidth of the paper
+                   scenario (Silverman, 100 robots on [0, 7]^2: h ~ 0.94 m) and a fifth of a planner
+                   control interval (T/N = 0.58 s), so the feedback -- re-evaluated with a refitted
+                   KDE at every sub-step -- behaves like the continuous-time law; the Brownian
+                   increment is sqrt(2 sigma h) = 0.10 m.
+``max_periods = 20``  140 s, five times the 4T after which the paper reaches gamma.
+``kde``            Silverman bandwidth refitted at every estimate (the paper fixes no h), 128 x 128
+                   bins raised automatically to h/4 (``control.kde``).
+Metrics and sup V are evaluated on the planner grid's cell centres (:mod:`sim.metrics`).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from control import FeedbackSettings
+from ocp.settings import PlannerSettings, dataclass_from_dict
+from regression import GPSettings
+
+__all__ = ["SimSettings", "KDESettings", "RunConfig", "load_config", "config_from_dict", "to_toml", "SECTIONS"]
+
+SECTIONS = ("sim", "gp", "kde", "feedback", "planner")
+
+
+def _number(name, v, *, positive=False, nonneg=False):
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise ValueError(f"sim.{name} must be a number, got {v!r}")
+    v = float(v)
+    if not math.isfinite(v):
+        raise ValueError(f"sim.{name} must be finite, got {v}")
+    if positive and not v > 0:
+        raise ValueError(f"sim.{name} must be > 0, got {v:g}")
+    if nonneg and v < 0:
+        raise ValueError(f"sim.{name} must be >= 0, got {v:g}")
+    return v
+
+
+def _integer(name, v, minimum):
+    if isinstance(v, bool) or not isinstance(v, int):
+        raise ValueError(f"sim.{name} must be an integer, got {v!r}")
+    if v < minimum:
+        raise ValueError(f"sim.{name} must be >= {minimum}, got {v}")
+    return int(v)
+
+
+def _rect(name, v):
+    try:
+        r = tuple(float(x) for x in v)
+    except (TypeError, ValueError):
+        raise ValueError(f"sim.{name} must be [x0, x1, y0, y1], got {v!r}") from None
+    if len(r) != 4 or not all(math.isfinite(x) for x in r) or not (r[1] > r[0] and r[3] > r[2]):
+        raise ValueError(f"sim.{name} must be four finite numbers [x0, x1, y0, y1] with x1 > x0 and y1 > y0, got {v!r}")
+    return r
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """The closed loop of Algorithm 1 (paper, section "Simulation studies").
+
+    robots          number n of robots (paper: 100)
+    domain          Omega = [x0, x1] x [y0, y1] (paper: [0, 20]^2)
+    start_box       initial positions uniform on this box (paper: [0, 7]^2)
+    dt              measurement period Δt [s] (paper: 0.875)
+    period          re-planning period T [s], a whole multiple of dt (paper: 7 = 8 Δt)
+    gamma           stop when sup_x V(x) <= gamma (paper: 0.1)
+    eta             tolerance of the target density p_f = max(V - eta, 0) / int (paper: "small")
+    noise_variance  variance of the measurement noise (paper: 0.04)
+    max_periods     stop after this many re-planning periods even if sup V > gamma
+    field           unknown field: ``sinc`` (paper), ``plumes``, ``ridge`` or a file (see sim.fields)
+    seed            seed of the ``numpy.random.Generator`` that drives everything random
+    substeps        Euler--Maruyama sub-steps per Δt; the feedback velocity and KDE are
+                    re-evaluated at each (module docstring: "Defaults ... and why")
+    """
+
+    robots: int = 100
+    domain: tuple = (0.0, 20.0, 0.0, 20.0)
+    start_box: tuple = (0.0, 7.0, 0.0, 7.0)
+    dt: float = 0.875
+    period: float = 7.0
+    gamma: float = 0.1
+    eta: float = 0.05
+    noise_variance: float = 0.04
+    max_periods: int = 20
+    field: str = "sinc"
+    seed: int = 0
+    substeps: int = 8
+
+    def __post_init__(self):
+        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
+        set_("robots", _integer("robots", self.robots, 1))
+        set_("domain", _rect("domain", self.domain))
+        set_("start_box", _rect("start_box", self.start_box))
+        for k in ("dt", "period", "noise_variance"):
+            set_(k, _number(k, getattr(self, k), positive=True))
+        for k in ("gamma", "eta"):
+            set_(k, _number(k, getattr(self, k), nonneg=True))
+        set_("max_periods", _integer("max_periods", self.max_periods, 1))
+        set_("seed", _integer("seed", self.seed, 0))
+        set_("substeps", _integer("substeps", self.substeps, 1))
+        if not isinstance(self.field, str) or not self.field:
+            raise ValueError(f"sim.field must be a field name or a file path, got {self.field!r}")
+        x0, x1, y0, y1 = self.domain
+        b = self.start_box
+        if b[0] < x0 or b[1] > x1 or b[2] < y0 or b[3] > y1:
+            raise ValueError(f"sim.start_box {list(b)} is not inside sim.domain {list(self.domain)}")
+        ratio = self.period / self.dt
+        if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio) or round(ratio) < 1:
+            raise ValueError(f"sim.period ({self.period:g}) must be a whole multiple of sim.dt ({self.dt:g})")
+
+    @property
+    def steps_per_period(self) -> int:
+        """Measurements per re-planning period, T / Δt (paper: 8)."""
+        return int(round(self.period / self.dt))
+
+    @property
+    def max_time(self) -> float:
+        return self.max_periods * self.period
+
+
+@dataclass(frozen=True)
+class KDESettings:
+    """Options of the reflected KDE p_hat (eq. "KDE", ``control.KernelDensity``).
+
+    bandwidth  kernel width h; ``None`` = Silverman's rule, refitted at every estimate
+    bins       minimum binning resolution (raised automatically to h/4)
+    """
+
+    bandwidth: float | None = None
+    bins: tuple = (128, 128)
+
+    def __post_init__(self):
+        if self.bandwidth is not None:
+            if isinstance(self.bandwidth, bool) or not isinstance(self.bandwidth, (int, float)) \
+                    or not math.isfinite(self.bandwidth) or self.bandwidth <= 0:
+                raise ValueError(f"kde.bandwidth must be a positive number, got {self.bandwidth!r}")
+            object.__setattr__(self, "bandwidth", float(self.bandwidth))
+        try:
+            bins = tuple(self.bins)
+        except TypeError:
+            raise ValueError(f"kde.bins must be [bx, by], got {self.bins!r}") from None
+        if len(bins) != 2 or any(isinstance(b, bool) or not isinstance(b, int) or b < 2 for b in bins):
+            raise ValueError(f"kde.bins must be two integers >= 2, got {self.bins!r}")
+        object.__setattr__(self, "bins", bins)
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """Everything a closed-loop run needs; consistency of the shared quantities is checked here."""
+
+    sim: SimSettings = field(default_factory=SimSettings)
+    gp: GPSettings = field(default_factory=GPSettings)
+    kde: KDESettings = field(default_factory=KDESettings)
+    feedback: FeedbackSettings = field(default_factory=FeedbackSettings)
+    planner: PlannerSettings = field(default_factory=PlannerSettings)
+
+    def __post_init__(self):
+        s, p = self.sim, self.planner
+        if tuple(p.domain) != tuple(s.domain):
+            raise ValueError(f"planner.domain {list(p.domain)} differs from sim.domain {list(s.domain)}; "
+                             "set the domain in [sim] only")
+        if p.horizon < s.period * (1 - 1e-12):
+            raise ValueError(f"planner.horizon ({p.horizon:g}) is shorter than sim.period ({s.period:g}): "
+                             "the plan must cover a whole period")
+        if not math.isclose(self.gp.noise_variance, s.noise_variance, rel_tol=1e-12):
+            raise ValueError(f"gp.noise_variance ({self.gp.noise_variance:g}) differs from sim.noise_variance "
+                             f"({s.noise_variance:g}); set it in [sim] only")
+        if self.kde.bandwidth is None and s.robots < 2:
+            raise ValueError("the KDE's Silverman bandwidth needs at least 2 robots; set kde.bandwidth or sim.robots >= 2")
+
+    @classmethod
+    def default(cls) -> "RunConfig":
+        """The paper scenario with this project's defaults."""
+        return config_from_dict({})
+
+    def replace(self, **sim_changes) -> "RunConfig":
+        """A copy with some :class:`SimSettings` fields changed (planner domain/horizon, GP noise follow)."""
+        return config_from_dict(_with_sim(self.as_dict(), sim_changes))
+
+    def as_dict(self) -> dict:
+        """Plain nested dict of all settings (JSON/TOML friendly)."""
+        return {name: dataclasses.asdict(getattr(self, name)) for name in SECTIONS}
+
+
+def _with_sim(doc: dict, sim_changes: dict) -> dict:
+    doc = {k: dict(v) for k, v in doc.items()}
+    old = doc.get("sim", {})
+    new = {**old, **sim_changes}
+    # derived entries follow the simulation settings they default to
+    if "domain" in sim_changes:
+        doc.get("planner", {}).pop("domain", None)
+    if "period" in sim_changes and doc.get("planner", {}).get("horizon") == old.get("period", SimSettings.period):
+        doc["planner"].pop("horizon", None)
+    if "noise_variance" in sim_changes:
+        doc.get("gp", {}).pop("noise_variance", None)
+    doc["sim"] = new
+    return doc
+
+
+def config_from_dict(doc: dict, overrides: dict | None = None) -> RunConfig:
+    """Build a :class:`RunConfig` from a TOML-like mapping; ``overrides`` replace ``[sim]`` entries.
+
+    Raises ``ValueError`` naming unknown tables/keys and bad values.
+    """
+    if not isinstance(doc, dict):
+        raise ValueError("configuration must be a table")
+    unknown = sorted(set(doc) - set(SECTIONS))
+    if unknown:
+        raise ValueError(f"unknown table(s) {', '.join('[' + u + ']' for u in unknown)}; "
+                         f"known: {', '.join('[' + s + ']' for s in SECTIONS)}")
+    for name in SECTIONS:
+        if name in doc and not isinstance(doc[name], dict):
+            raise ValueError(f"[{name}] must be a table")
+    sim_map = dict(doc.get("sim", {}))
+    sim_map.update({k: v for k, v in (overrides or {}).items() if v is not None})
+    sim = dataclass_from_dict(SimSettings, sim_map, "sim")
+    gp_map = dict(doc.get("gp", {}))
+    gp_map.setdefault("noise_variance", sim.noise_variance)
+    gp = dataclass_from_dict(GPSettings, gp_map, "gp")
+    kde = dataclass_from_dict(KDESettings, dict(doc.get("kde", {})), "kde")
+    fb = dataclass_from_dict(FeedbackSettings, dict(doc.get("feedback", {})), "feedback")
+    pl_map = dict(doc.get("planner", {}))
+    pl_map.setdefault("domain", sim.domain)
+    pl_map.setdefault("horizon", sim.period)
+    if isinstance(pl_map.get("domain"), (list, tuple)):
+        try:
+            pl_map["domain"] = tuple(float(v) for v in pl_map["domain"])
+        except (TypeError, ValueError):
+            raise ValueError(f"planner.domain must be [x0, x1, y0, y1], got {pl_map['domain']!r}") from None
+    planner = dataclass_from_dict(PlannerSettings, pl_map, "planner")
+    return RunConfig(sim=sim, gp=gp, kde=kde, feedback=fb, planner=planner)
+
+
+def load_config(path, overrides: dict | None = None) -> RunConfig:
+    """Read a TOML file (see module docstring); ``ValueError`` with the file name on any problem."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+    except FileNotFoundError:
+        raise ValueError(f"config file {path} does not exist") from None
+    except IsADirectoryError:
+        raise ValueError(f"config file {path} is a folder") from None
+    except OSError as exc:
+        raise ValueError(f"cannot read config file {path}: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise ValueError(f"config file {path} is not valid TOML: not UTF-8 text") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"config file {path} is not valid TOML: {exc}") from None
+    try:
+        return config_from_dict(doc, overrides)
+    except ValueError as exc:
+        raise ValueError(f"config file {path}: {exc}") from None
+
+
+# ------------------------------------------------------------------------------------- TOML out
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if math.isnan(v):
+            return "nan"
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return repr(v)
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}" for k, x in v.items()) + "}"
+    raise ValueError(f"cannot write {type(v).__name__} value {v!r} to TOML")
+
+
+def _toml_key(k: str) -> str:
+    return k if k.replace("_", "").replace("-", "").isalnum() else _toml_value(str(k))
+
+
+def _toml_table(name: str, d: dict, lines: list):
+    lines.append(f"[{name}]")
+    nested = []
+    for k, v in d.items():
+        if v is None:
+            continue  # None is every such setting's default; TOML has no null
+        if isinstance(v, dict) and k != "extra":
+            nested.append((k, v))
+            continue
+        lines.append(f"{_toml_key(k)} = {_toml_value(v)}")
+    lines.append("")
+    for k, v in nested:
+        _toml_table(f"{name}.{k}", v, lines)
+
+
+def to_toml(config: RunConfig) -> str:
+    """The resolved configuration as TOML text (round-trips through :func:`load_config`)."""
+    lines = ["# simulate-swarm: resolved configuration of a run (repeat it with --config this-file)", ""]
+    d = config.as_dict()
+    for name in SECTIONS:
+        _toml_table(name, d[name], lines)
+    return "\n".join(lines)

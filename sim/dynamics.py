@@ -1,0 +1,103 @@
+"""Robot motion (eq. "Langevin equation") with reflecting walls, and noisy measurements.
+
+Each robot follows ``dX = v(X, t) dt + sqrt(2 sigma) dB`` (sigma constant), integrated by
+Euler--Maruyama with step ``h``::
+
+    X <- R(X + v(X, t) h + sqrt(2 sigma h) Z),     Z ~ N(0, I_2),
+
+where ``R`` is the mirror reflection at the walls of the rectangle Omega, applied as often as
+needed (a point that overshoots a wall by more than the domain width is folded back again), so
+robots never leave the closed domain.  Reflection is the particle counterpart of the
+no-flux (reflecting) boundary condition of eq. "FP equation": the uniform density stays
+invariant under it (tested).
+
+The feedback velocity of eq. "density feedback law using estimation" depends on the density
+estimate p_hat of all robots, so within one measurement period Δt the motion is integrated in
+``n_sub`` sub-steps of ``h = Δt / n_sub`` and the velocity is re-evaluated (with the KDE refitted)
+at every sub-step; see :func:`advance`.
+
+Measurements (section "Problem Formulation"): ``y_i = f(X_i) + eps_i``, eps_i i.i.d.
+N(0, noise_variance).  All randomness comes from an explicit ``numpy.random.Generator``.
+"""
+from __future__ import annotations
+
+import math
+from typing import Callable
+
+import numpy as np
+
+__all__ = ["reflect", "euler_maruyama_step", "advance", "measure", "uniform_in_box"]
+
+
+def reflect(X, domain) -> np.ndarray:
+    """Fold positions back into ``domain = (x0, x1, y0, y1)`` by repeated mirror reflection.
+
+    Closed form of reflecting again and again: with L the width and ``s = (u - a) mod 2L``,
+    ``R(u) = a + s`` if ``s <= L`` else ``a + 2L - s``.  Points already inside are unchanged.
+    """
+    X = np.array(X, dtype=float, copy=True)
+    if X.ndim != 2 or X.shape[1] != 2:
+        raise ValueError(f"positions must have shape (n, 2), got {X.shape}")
+    if not np.all(np.isfinite(X)):
+        raise ValueError("positions contain non-finite values (NaN or inf); the velocity or step blew up")
+    x0, x1, y0, y1 = (float(v) for v in domain)
+    for d, (a, b) in enumerate(((x0, x1), (y0, y1))):
+        u = X[:, d]
+        out = (u < a) | (u > b)
+        if np.any(out):
+            L = b - a
+            s = np.mod(u[out] - a, 2.0 * L)
+            u[out] = np.clip(np.where(s <= L, a + s, a + 2.0 * L - s), a, b)
+    return X
+
+
+def euler_maruyama_step(X, v, h: float, sigma: float, rng: np.random.Generator, domain) -> np.ndarray:
+    """One Euler--Maruyama step of eq. "Langevin equation" followed by wall reflection."""
+    X = np.asarray(X, dtype=float)
+    v = np.asarray(v, dtype=float)
+    if v.shape != X.shape:
+        raise ValueError(f"velocity shape {v.shape} differs from positions {X.shape}")
+    if not (h > 0 and math.isfinite(h)):
+        raise ValueError(f"step must be finite and > 0, got {h}")
+    if not (sigma >= 0 and math.isfinite(sigma)):
+        raise ValueError(f"sigma must be finite and >= 0, got {sigma}")
+    step = X + v * h
+    if sigma > 0:
+        step = step + math.sqrt(2.0 * sigma * h) * rng.standard_normal(X.shape)
+    return reflect(step, domain)
+
+
+def advance(X, t: float, duration: float, n_sub: int, velocity: Callable[[np.ndarray, float], np.ndarray],
+            sigma: float, rng: np.random.Generator, domain):
+    """Integrate over ``[t, t + duration]`` in ``n_sub`` equal Euler--Maruyama sub-steps.
+
+    ``velocity(X, t)`` is called at the start of every sub-step (the feedback law is re-evaluated
+    with the current positions).  Returns ``(X_new, mean_speed)`` where ``mean_speed`` is the
+    mean over robots and sub-steps of the commanded speed |v|.
+    """
+    n_sub = int(n_sub)
+    if n_sub < 1:
+        raise ValueError(f"n_sub must be >= 1, got {n_sub}")
+    h = duration / n_sub
+    speed = 0.0
+    for k in range(n_sub):
+        v = np.asarray(velocity(X, t + k * h), dtype=float)
+        speed += float(np.mean(np.hypot(v[:, 0], v[:, 1])))
+        X = euler_maruyama_step(X, v, h, sigma, rng, domain)
+    return X, speed / n_sub
+
+
+def measure(field, X, noise_variance: float, rng: np.random.Generator) -> np.ndarray:
+    """Noisy measurements ``y = f(X) + N(0, noise_variance)`` at the robots (data set D_k)."""
+    f = np.asarray(field(X), dtype=float)
+    if f.shape != (np.shape(X)[0],):
+        raise ValueError(f"field returned shape {f.shape}, expected ({np.shape(X)[0]},)")
+    if not np.all(np.isfinite(f)):
+        raise ValueError("field returned non-finite values at the robots' positions")
+    return f + math.sqrt(noise_variance) * rng.standard_normal(f.shape)
+
+
+def uniform_in_box(n: int, box, rng: np.random.Generator) -> np.ndarray:
+    """n positions uniform on ``box = (x0, x1, y0, y1)`` (the paper's initial distribution)."""
+    bx0, bx1, by0, by1 = (float(v) for v in box)
+    return np.column_stack([rng.uniform(bx0, bx1, n), rng.uniform(by0, by1, n)])

@@ -1,0 +1,428 @@
+"""Unknown scalar fields f(x) that the swarm measures (paper, section "Problem Formulation").
+
+Each field is a callable ``f(points) -> values`` taking an (n, 2) array of positions and
+returning an (n,) array; ``f.describe()`` returns a JSON-friendly description that
+``summary.json`` records so a run can be repeated.
+
+Analytic fields
+---------------
+``sinc``    the paper's field (section "Simulation studies"): ``f(x) = 2 + sin(2|x|)/|x|``,
+            centred at the origin (a corner of the default domain); the removable singularity
+            is filled in, ``f(0) = 4``, so f is smooth everywhere.
+``plumes``  a constant background plus a few Gaussian "pollution plumes" (one of them a dip),
+            ``f(x) = b + sum_k a_k exp(-|x - c_k|^2 / (2 s_k^2))``.
+``ridge``   a smooth "bathymetry": a continental-shelf step (tanh across a slanted line) plus a
+            meandering Gaussian ridge.
+
+All three take values in roughly [1, 4] on the default domain [0, 20]^2, i.e. the range of the
+paper's field, so one set of GP hyperparameters suits them all.
+
+Fields from a file (``--field path``)
+-------------------------------------
+``.npz``    keys ``values`` (nx, ny) and ``extent`` (4,) = (x0, x1, y0, y1).  ``values[i, j]`` is
+            the field at the *node* ``(x0 + i (x1-x0)/(nx-1), y0 + j (y1-y0)/(ny-1))``: x is the
+            first axis (as everywhere in this project) and the nodes include the edges.
+``.npy``    one (nx, ny) array, same node convention; its extent is read from the sidecar
+            ``<name>.json`` (``{"extent": [x0, x1, y0, y1]}``) next to it, or, without a sidecar,
+            taken to be the simulation domain.
+``.csv``    columns ``x, y, value`` (a header row with these three names, any order, is
+            optional; ``#`` starts a comment).  If the points are a complete rectangular
+            lattice (every (x, y) pair of the distinct x and y values present exactly once) the
+            field is the bilinear interpolant on that lattice; otherwise the points are
+            scattered and the field is the piecewise-linear interpolant on their Delaunay
+            triangulation (scipy ``LinearNDInterpolator``), continued by the nearest data point
+            outside their convex hull.
+
+Gridded fields are bilinear between nodes (scipy ``RegularGridInterpolator``) and must cover the
+simulation domain (checked by :meth:`GridField.check_domain`).  Every file problem -- missing,
+unreadable, wrong keys, non-numeric, non-finite values, wrong shapes, a grid smaller than 2 x 2,
+an extent that is not (x0 < x1, y0 < y1), duplicate or too few scattered points -- raises
+``ValueError`` naming the file and the problem.
+"""
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["Field", "SincField", "PlumesField", "RidgeField", "GridField", "ScatteredField",
+           "FIELDS", "make_field", "load_field", "save_npz_field"]
+
+
+def _points(points) -> np.ndarray:
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim == 1 and pts.shape == (2,):
+        pts = pts[None, :]
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise ValueError(f"field points must have shape (n, 2), got {pts.shape}")
+    return pts
+
+
+class Field:
+    """Base class: ``f(points (n, 2)) -> (n,)``; subclasses implement :meth:`_evaluate`."""
+
+    name = "field"
+
+    def __call__(self, points) -> np.ndarray:
+        return self._evaluate(_points(points))
+
+    def _evaluate(self, pts: np.ndarray) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def on_grid(self, xc, yc) -> np.ndarray:
+        """Values at the tensor grid ``xc`` x ``yc`` as an (len(xc), len(yc)) array (x first)."""
+        X, Y = np.meshgrid(np.asarray(xc, float), np.asarray(yc, float), indexing="ij")
+        return self(np.column_stack([X.ravel(), Y.ravel()])).reshape(X.shape)
+
+    def check_domain(self, domain) -> None:
+        """Raise ``ValueError`` if the field is not defined on all of ``domain``; analytic fields are."""
+
+    def describe(self) -> dict:
+        return {"name": self.name}
+
+    def __repr__(self):
+        return f"{type(self).__name__}({self.describe()})"
+
+
+class SincField(Field):
+    """The paper's field ``f(x) = offset + sin(k |x - c|) / |x - c|`` (section "Simulation studies").
+
+    Defaults ``offset = 2``, ``k = 2``, ``c = (0, 0)`` give ``2 + sin(2|x|)/|x|``; at ``x = c``
+    the limit ``offset + k`` (= 4) is used, so the field is continuous (indeed analytic).
+    """
+
+    name = "sinc"
+
+    def __init__(self, center=(0.0, 0.0), offset: float = 2.0, frequency: float = 2.0):
+        self.center = tuple(float(c) for c in center)
+        self.offset = float(offset)
+        self.frequency = float(frequency)
+
+    def _evaluate(self, pts):
+        r = np.hypot(pts[:, 0] - self.center[0], pts[:, 1] - self.center[1])
+        # sin(k r) / r = k sinc(k r / pi) with numpy's normalised sinc(u) = sin(pi u) / (pi u), sinc(0) = 1
+        return self.offset + self.frequency * np.sinc(self.frequency * r / np.pi)
+
+    def describe(self):
+        return {"name": self.name, "formula": "offset + sin(frequency*|x-center|)/|x-center|",
+                "center": list(self.center), "offset": self.offset, "frequency": self.frequency}
+
+
+class PlumesField(Field):
+    """Background plus Gaussian plumes ``b + sum_k a_k exp(-|x - c_k|^2 / (2 s_k^2))``.
+
+    ``plumes`` is a sequence of ``(cx, cy, amplitude, width)``; the default has two sources and
+    one sink spread over [0, 20]^2, away from the paper's start box [0, 7]^2.
+    """
+
+    name = "plumes"
+    DEFAULT = ((5.0, 14.0, 1.6, 2.0), (14.0, 6.0, 1.2, 3.0), (15.0, 15.5, -0.9, 1.5))
+
+    def __init__(self, background: float = 2.0, plumes=DEFAULT):
+        self.background = float(background)
+        arr = np.asarray(plumes, dtype=float)
+        if arr.ndim != 2 or arr.shape[1] != 4 or not np.all(np.isfinite(arr)) or np.any(arr[:, 3] <= 0):
+            raise ValueError("plumes must be rows (cx, cy, amplitude, width > 0)")
+        self.plumes = arr
+
+    def _evaluate(self, pts):
+        out = np.full(pts.shape[0], self.background)
+        for cx, cy, a, s in self.plumes:
+            out += a * np.exp(-((pts[:, 0] - cx) ** 2 + (pts[:, 1] - cy) ** 2) / (2.0 * s * s))
+        return out
+
+    def describe(self):
+        return {"name": self.name, "formula": "background + sum a exp(-|x-c|^2/(2 s^2))",
+                "background": self.background, "plumes (cx, cy, a, s)": self.plumes.tolist()}
+
+
+class RidgeField(Field):
+    """Smooth "bathymetry": a shelf step plus a meandering ridge.
+
+    ``f(x, y) = base + step * tanh((x + 0.5 y - shelf) / shelf_width)
+               + ridge * exp(-(y - y_r(x))^2 / (2 ridge_width^2))``,
+    ``y_r(x) = ridge_y + meander * sin(2 pi x / wavelength)``.
+    """
+
+    name = "ridge"
+
+    def __init__(self, base=2.2, step=0.8, shelf=15.0, shelf_width=3.0, ridge=1.0, ridge_y=10.0,
+                 ridge_width=1.5, meander=3.0, wavelength=20.0):
+        self.params = dict(base=float(base), step=float(step), shelf=float(shelf), shelf_width=float(shelf_width),
+                           ridge=float(ridge), ridge_y=float(ridge_y), ridge_width=float(ridge_width),
+                           meander=float(meander), wavelength=float(wavelength))
+        if not (self.params["shelf_width"] > 0 and self.params["ridge_width"] > 0 and self.params["wavelength"] > 0):
+            raise ValueError("ridge field widths and wavelength must be > 0")
+
+    def _evaluate(self, pts):
+        p = self.params
+        x, y = pts[:, 0], pts[:, 1]
+        shelf = p["step"] * np.tanh((x + 0.5 * y - p["shelf"]) / p["shelf_width"])
+        yr = p["ridge_y"] + p["meander"] * np.sin(2.0 * np.pi * x / p["wavelength"])
+        return p["base"] + shelf + p["ridge"] * np.exp(-((y - yr) ** 2) / (2.0 * p["ridge_width"] ** 2))
+
+    def describe(self):
+        return {"name": self.name, "formula": "base + step tanh((x+y/2-shelf)/shelf_width) + ridge exp(-(y-y_r(x))^2/(2 w^2))",
+                **self.params}
+
+
+#: Named analytic fields for ``--field``.
+FIELDS = {"sinc": SincField, "plumes": PlumesField, "ridge": RidgeField}
+
+
+# ---------------------------------------------------------------------------------- file fields
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _check_extent(extent, where: str) -> tuple[float, float, float, float]:
+    try:
+        e = np.asarray(extent, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ValueError(f"{where}: extent must be four numbers (x0, x1, y0, y1), got {extent!r}") from None
+    if e.shape != (4,) or not np.all(np.isfinite(e)) or not (e[1] > e[0] and e[3] > e[2]):
+        raise ValueError(f"{where}: extent must be four finite numbers (x0, x1, y0, y1) with x1 > x0 and "
+                         f"y1 > y0, got {e.tolist()}")
+    return tuple(float(v) for v in e)
+
+
+def _check_values(values, where: str) -> np.ndarray:
+    v = np.asarray(values)
+    if not (np.issubdtype(v.dtype, np.integer) or np.issubdtype(v.dtype, np.floating)):
+        raise ValueError(f"{where}: field values must be numeric, got dtype {v.dtype}")
+    v = v.astype(float)
+    if v.ndim != 2:
+        raise ValueError(f"{where}: field values must be a 2-D (nx, ny) array, got shape {v.shape}")
+    if v.shape[0] < 2 or v.shape[1] < 2:
+        raise ValueError(f"{where}: field grid must be at least 2 x 2 nodes, got {v.shape}")
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"{where}: field values contain {int(np.sum(~np.isfinite(v)))} non-finite entries")
+    return v
+
+
+class GridField(Field):
+    """Bilinear interpolant of node values on a regular grid (x first axis, nodes include edges)."""
+
+    name = "grid"
+
+    def __init__(self, values, extent, source: str | None = None, sha256: str | None = None):
+        from scipy.interpolate import RegularGridInterpolator
+
+        where = source or "grid field"
+        self.values = _check_values(values, where)
+        self.extent = _check_extent(extent, where)
+        self.source = source
+        self.sha256 = sha256
+        x0, x1, y0, y1 = self.extent
+        self.x = np.linspace(x0, x1, self.values.shape[0])
+        self.y = np.linspace(y0, y1, self.values.shape[1])
+        self._interp = RegularGridInterpolator((self.x, self.y), self.values, method="linear", bounds_error=False,
+                                               fill_value=None)
+
+    def _evaluate(self, pts):
+        x0, x1, y0, y1 = self.extent
+        # clamp onto the extent: rounding at the edges must not extrapolate
+        q = np.column_stack([np.clip(pts[:, 0], x0, x1), np.clip(pts[:, 1], y0, y1)])
+        return self._interp(q)
+
+    def check_domain(self, domain):
+        x0, x1, y0, y1 = (float(v) for v in domain)
+        e = self.extent
+        tol = 1e-9 * max(x1 - x0, y1 - y0)
+        if e[0] > x0 + tol or e[1] < x1 - tol or e[2] > y0 + tol or e[3] < y1 - tol:
+            raise ValueError(f"{self.source or 'grid field'}: extent {list(e)} does not cover the simulation "
+                             f"domain {[x0, x1, y0, y1]}")
+
+    def describe(self):
+        return {"name": self.name, "source": self.source, "sha256": self.sha256, "shape": list(self.values.shape),
+                "extent": list(self.extent), "interpolation": "bilinear between nodes"}
+
+
+class ScatteredField(Field):
+    """Piecewise-linear interpolant on the Delaunay triangulation of scattered samples,
+    nearest-sample value outside their convex hull."""
+
+    name = "scattered"
+
+    def __init__(self, points, values, source: str | None = None, sha256: str | None = None):
+        from scipy.interpolate import LinearNDInterpolator, NearestNDInterpolator
+        from scipy.spatial import QhullError
+
+        where = source or "scattered field"
+        pts = np.asarray(points, dtype=float)
+        vals = np.asarray(values, dtype=float).reshape(-1)
+        if pts.ndim != 2 or pts.shape[1] != 2 or pts.shape[0] != vals.shape[0]:
+            raise ValueError(f"{where}: need (n, 2) points and n values, got {pts.shape} and {vals.shape}")
+        if pts.shape[0] < 3:
+            raise ValueError(f"{where}: need at least 3 scattered points, got {pts.shape[0]}")
+        if not (np.all(np.isfinite(pts)) and np.all(np.isfinite(vals))):
+            raise ValueError(f"{where}: non-finite coordinates or values")
+        uniq = np.unique(pts, axis=0)
+        if uniq.shape[0] != pts.shape[0]:
+            raise ValueError(f"{where}: {pts.shape[0] - uniq.shape[0]} duplicate (x, y) point(s)")
+        try:
+            self._lin = LinearNDInterpolator(pts, vals)
+        except (QhullError, ValueError) as exc:
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise ValueError(f"{where}: cannot triangulate the points (collinear?): {first}") from None
+        self._near = NearestNDInterpolator(pts, vals)
+        self.points, self.values = pts, vals
+        self.source, self.sha256 = source, sha256
+
+    def _evaluate(self, pts):
+        out = self._lin(pts)
+        bad = ~np.isfinite(out)
+        if np.any(bad):
+            out[bad] = self._near(pts[bad])
+        return out
+
+    def describe(self):
+        lo, hi = self.points.min(axis=0), self.points.max(axis=0)
+        return {"name": self.name, "source": self.source, "sha256": self.sha256, "n_points": int(self.points.shape[0]),
+                "bounding_box": [float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1])],
+                "interpolation": "linear on Delaunay triangles, nearest outside the hull"}
+
+
+def _read_csv(path: Path):
+    where = str(path)
+    try:
+        with open(path, newline="") as fh:
+            rows = [r for r in csv.reader(line for line in fh if line.strip() and not line.lstrip().startswith("#"))]
+    except UnicodeDecodeError:
+        raise ValueError(f"cannot read field file {where}: not a text CSV file") from None
+    except OSError as exc:
+        raise ValueError(f"cannot read field file {where}: {exc.strerror or exc}") from None
+    if not rows:
+        raise ValueError(f"field file {where} has no data rows")
+    cols = [0, 1, 2]
+    head = [c.strip().lower() for c in rows[0]]
+    if any(_not_number(c) for c in head):
+        if sorted(head) != ["value", "x", "y"]:
+            raise ValueError(f"field file {where}: header must name the columns x, y, value, got {rows[0]}")
+        cols = [head.index("x"), head.index("y"), head.index("value")]
+        rows = rows[1:]
+    if not rows:
+        raise ValueError(f"field file {where} has no data rows")
+    data = np.empty((len(rows), 3))
+    for k, r in enumerate(rows):
+        if len(r) != 3:
+            raise ValueError(f"field file {where}: data row {k + 1} has {len(r)} columns, expected 3 (x, y, value)")
+        try:
+            data[k] = [float(r[c]) for c in cols]
+        except ValueError:
+            raise ValueError(f"field file {where}: data row {k + 1} is not numeric: {r}") from None
+    if not np.all(np.isfinite(data)):
+        bad = int(np.argmax(~np.all(np.isfinite(data), axis=1)))
+        raise ValueError(f"field file {where}: non-finite value in data row {bad + 1}")
+    return data
+
+
+def _not_number(s: str) -> bool:
+    try:
+        float(s)
+        return False
+    except ValueError:
+        return True
+
+
+def _csv_field(path: Path, digest: str) -> Field:
+    data = _read_csv(path)
+    xs, xi = np.unique(data[:, 0], return_inverse=True)
+    ys, yi = np.unique(data[:, 1], return_inverse=True)
+    if xs.size >= 2 and ys.size >= 2 and data.shape[0] == xs.size * ys.size:
+        grid = np.full((xs.size, ys.size), np.nan)
+        grid[xi, yi] = data[:, 2]
+        if np.all(np.isfinite(grid)) and np.allclose(np.diff(xs), np.diff(xs)[0], rtol=1e-6) \
+                and np.allclose(np.diff(ys), np.diff(ys)[0], rtol=1e-6):
+            return GridField(grid, (xs[0], xs[-1], ys[0], ys[-1]), source=str(path), sha256=digest)
+    return ScatteredField(data[:, :2], data[:, 2], source=str(path), sha256=digest)
+
+
+def load_field(path, default_extent=None) -> Field:
+    """Read a field file (``.npz``, ``.npy`` or ``.csv``; module docstring); ``ValueError`` on any problem.
+
+    ``default_extent`` is used for a ``.npy`` file without a ``<name>.json`` sidecar.
+    """
+    path = Path(path)
+    where = str(path)
+    if not path.exists():
+        raise ValueError(f"field file {where} does not exist")
+    if path.is_dir():
+        raise ValueError(f"field file {where} is a folder")
+    suffix = path.suffix.lower()
+    if suffix not in (".npz", ".npy", ".csv"):
+        raise ValueError(f"field file {where}: unsupported type {suffix or '(none)'}; use .npz, .npy or .csv")
+    try:
+        digest = _sha256(path)
+    except OSError as exc:
+        raise ValueError(f"cannot read field file {where}: {exc.strerror or exc}") from None
+    if suffix == ".csv":
+        return _csv_field(path, digest)
+    try:
+        obj = np.load(path, allow_pickle=False)
+    except Exception as exc:  # OSError, ValueError (pickled / corrupt), BadZipFile ...
+        raise ValueError(f"cannot read field file {where}: not a valid NumPy {suffix} file ({type(exc).__name__})") from None
+    if suffix == ".npz":
+        if not isinstance(obj, np.lib.npyio.NpzFile):
+            raise ValueError(f"field file {where}: expected an .npz archive with keys 'values' and 'extent'")
+        with obj:
+            missing = [k for k in ("values", "extent") if k not in obj.files]
+            if missing:
+                raise ValueError(f"field file {where} lacks key(s) {missing}; expected 'values' (nx, ny) and 'extent' (4,)")
+            try:
+                values, extent = obj["values"], obj["extent"]
+            except Exception as exc:
+                raise ValueError(f"cannot read field file {where}: {type(exc).__name__}") from None
+        return GridField(values, _check_extent(extent, where), source=where, sha256=digest)
+    # .npy
+    if not isinstance(obj, np.ndarray):
+        raise ValueError(f"field file {where}: expected a single array")
+    sidecar = path.with_suffix(".json")
+    if sidecar.exists():
+        try:
+            meta = json.loads(sidecar.read_text())
+            extent = meta["extent"]
+        except (OSError, ValueError, KeyError, TypeError):
+            raise ValueError(f"field sidecar {sidecar}: must be JSON like {{\"extent\": [x0, x1, y0, y1]}}") from None
+        extent = _check_extent(extent, str(sidecar))
+    elif default_extent is not None:
+        extent = _check_extent(default_extent, where)
+    else:
+        raise ValueError(f"field file {where}: no extent; write {sidecar.name} with {{\"extent\": [x0, x1, y0, y1]}}")
+    return GridField(obj, extent, source=where, sha256=digest)
+
+
+def make_field(spec, domain=None) -> Field:
+    """The field named ``spec`` (``sinc``, ``plumes``, ``ridge``) or read from the file ``spec``.
+
+    ``domain`` (x0, x1, y0, y1) is the default extent of a ``.npy`` file and is checked to be
+    covered by gridded file fields.  Raises ``ValueError`` for an unknown name or a bad file.
+    """
+    if isinstance(spec, Field):
+        field = spec
+    else:
+        spec = str(spec)
+        if spec in FIELDS:
+            field = FIELDS[spec]()
+        elif Path(spec).suffix.lower() in (".npz", ".npy", ".csv") or Path(spec).exists():
+            field = load_field(spec, default_extent=domain)
+        else:
+            raise ValueError(f"unknown field {spec!r}; choose one of {', '.join(FIELDS)} or a path to a "
+                             ".npz/.npy/.csv field file")
+    if domain is not None:
+        field.check_domain(domain)
+    return field
+
+
+def save_npz_field(path, values, extent) -> Path:
+    """Write ``values`` (nx, ny) and ``extent`` to an ``.npz`` field file (for tests and users)."""
+    path = Path(path)
+    np.savez(path, values=np.asarray(values, dtype=float), extent=np.asarray(extent, dtype=float))
+    return path

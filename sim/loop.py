@@ -1,0 +1,268 @@
+"""Algorithm 1 ("Deployment algorithm") of the paper: the closed loop of regression, planning and feedback.
+
+::
+
+    X ~ U(start_box)                                     (section "Simulation studies")
+    D_0 = {(X_i, f(X_i) + eps_i)};  GP on D_0 -> f̄_0, V_0
+    while sup V_k > gamma and t < max_time:                                   (Algorithm 1)
+        p_f = max(V_k - eta, 0) / int              (section "Generation of reference models")
+        p0  = p_hat(t) on the planner grid                                     (eq. "KDE")
+        (p_r, v_r) = planner.solve(p0, p_f, t0=t, warm start = previous plan)
+                                                   (eqs. "optimization problem", "reference model")
+        repeat T / Δt times:
+            integrate eq. "Langevin equation" over Δt in ``substeps`` Euler--Maruyama steps,
+            v = eq. "density feedback law using estimation" with p_hat refitted every sub-step
+            t += Δt; measure D_k; GP on all data -> f̄_k, V_k; record metrics
+        (the GP on all data after the last step is the "regression on D_k" of Algorithm 1)
+
+The variance is checked against gamma only at period boundaries, as in Algorithm 1; the
+metrics nevertheless record sup V after every measurement, and ``time_to_threshold`` is the first
+measurement time at which sup V <= gamma.  sup V, f̄ and all fields are evaluated on the cell
+centres of the planner grid (see :mod:`sim.metrics`).
+
+A planner failure (``ocp.PlannerError``) ends the run with ``stop_reason = "planner_failed"``;
+everything recorded until then is kept in the result.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field as dc_field
+from typing import Callable
+
+import numpy as np
+
+from control import KernelDensity, tracking_velocity
+from regression import GaussianProcess, target_density
+
+from .config import RunConfig
+from .dynamics import advance, measure, uniform_in_box
+from .fields import Field, make_field
+from .metrics import l2_norm, rmse
+
+__all__ = ["Snapshot", "SimulationResult", "run_simulation", "check_config", "QUIVER_POINTS"]
+
+#: Points per axis of the coarse grid on which the velocity field is recorded for the figures.
+QUIVER_POINTS = 12
+
+
+@dataclass
+class Snapshot:
+    """State at a re-planning time t = k T (and at the end of the run), for the figures."""
+
+    t: float
+    period: int
+    X: np.ndarray                      # (n, 2) robot positions
+    mean: np.ndarray                   # (nx, ny) GP mean f̄ on the planner grid
+    var: np.ndarray                    # (nx, ny) GP variance V
+    p_hat: np.ndarray                  # (nx, ny) KDE of the robots, normalised on the grid
+    target: np.ndarray | None = None   # (nx, ny) p_f used by the plan starting at t (None at the end)
+    velocity: np.ndarray | None = None  # (q, q, 2) commanded feedback velocity on QUIVER_POINTS^2 points
+
+
+@dataclass
+class SimulationResult:
+    """Everything a run produced; :mod:`sim.outputs` writes it to disk."""
+
+    config: RunConfig
+    field: Field
+    grid: object                                           # ocp.Grid of the planner
+    f_true: np.ndarray                                     # (nx, ny) true field on the grid
+    rows: list = dc_field(default_factory=list)            # one dict per measurement step (metrics.COLUMNS)
+    replans: list = dc_field(default_factory=list)         # one dict per planner call
+    snapshots: list = dc_field(default_factory=list)       # Snapshot at t = 0, T, 2T, ... and the end
+    times: list = dc_field(default_factory=list)           # measurement times
+    positions: list = dc_field(default_factory=list)       # (n, 2) positions at each measurement
+    variances: list = dc_field(default_factory=list)       # (nx, ny) float32 V at each measurement
+    mean: np.ndarray | None = None                         # final GP mean on the grid
+    var: np.ndarray | None = None                          # final GP variance on the grid
+    stop_reason: str = "running"
+    error: str | None = None
+    wall_time: float = 0.0
+    timings: dict = dc_field(default_factory=lambda: {"planner": 0.0, "regression": 0.0, "dynamics": 0.0})
+
+    @property
+    def time_to_threshold(self) -> float | None:
+        """First measurement time with sup V <= gamma, or None."""
+        g = self.config.sim.gamma
+        for r in self.rows:
+            if r["max_variance"] <= g:
+                return float(r["t"])
+        return None
+
+    @property
+    def periods_to_threshold(self) -> float | None:
+        """time_to_threshold in multiples of the period T."""
+        t = self.time_to_threshold
+        return None if t is None else t / self.config.sim.period
+
+    @property
+    def final(self) -> dict:
+        return dict(self.rows[-1]) if self.rows else {}
+
+
+def check_config(config: RunConfig) -> None:
+    """Fail early (``ValueError``) on settings that the components would reject only mid-run:
+    a GP inducing grid above ``max_inducing_points``, a fixed KDE bandwidth needing too many bins."""
+    s = config.sim
+    GaussianProcess(config.gp, domain=s.domain)
+    kde = KernelDensity(domain=s.domain, bandwidth=config.kde.bandwidth, bins=config.kde.bins)
+    if config.kde.bandwidth is not None:
+        try:
+            kde.resolve_bins(config.kde.bandwidth)
+        except ValueError as exc:
+            raise ValueError(f"kde.bandwidth: {exc}") from None
+
+
+def _quiver_points(domain, q=QUIVER_POINTS):
+    x0, x1, y0, y1 = domain
+    xs = x0 + (np.arange(q) + 0.5) * (x1 - x0) / q
+    ys = y0 + (np.arange(q) + 0.5) * (y1 - y0) / q
+    XQ, YQ = np.meshgrid(xs, ys, indexing="ij")
+    return np.column_stack([XQ.ravel(), YQ.ravel()])
+
+
+def run_simulation(config: RunConfig | None = None, *, field: Field | None = None, planner=None,
+                   progress: Callable[[dict], None] | None = None,
+                   on_period: Callable[[SimulationResult], None] | None = None) -> SimulationResult:
+    """Run Algorithm 1 with ``config``; returns a :class:`SimulationResult`.
+
+    ``field`` overrides ``config.sim.field``; ``planner`` may be a prebuilt ``ocp.ReferencePlanner``
+    for ``config.planner`` (it is built here otherwise).  ``progress(info)`` is called after every
+    re-plan (``info["event"] == "plan"``) and at the end (``"done"``); ``on_period(result)`` after
+    every completed period (the CLI writes the outputs so far there).
+    """
+    from ocp import PlannerError, ReferencePlanner
+
+    config = config or RunConfig.default()
+    s, fb = config.sim, config.feedback
+    wall0 = time.perf_counter()
+    field = make_field(s.field if field is None else field, s.domain)
+    if planner is None:
+        planner = ReferencePlanner(config.planner)
+    grid = planner.grid
+    if tuple(grid.domain) != tuple(s.domain):
+        raise ValueError(f"planner grid domain {grid.domain} differs from sim.domain {s.domain}")
+    centers = grid.centers()
+    qpts = _quiver_points(s.domain)
+    f_true = field(centers).reshape(grid.shape)
+    if not np.all(np.isfinite(f_true)):
+        raise ValueError("the field has non-finite values on the grid")
+
+    rng = np.random.default_rng(s.seed)
+    gp = GaussianProcess(config.gp, domain=s.domain)
+    kde = KernelDensity(domain=s.domain, bandwidth=config.kde.bandwidth, bins=config.kde.bins)
+    res = SimulationResult(config=config, field=field, grid=grid, f_true=f_true)
+    tm = res.timings
+
+    def regress(X, y):
+        t0 = time.perf_counter()
+        gp.add(X, y)
+        mean, var = gp.predict(centers)
+        tm["regression"] += time.perf_counter() - t0
+        return mean.reshape(grid.shape), var.reshape(grid.shape)
+
+    def p_hat_grid(est):
+        return grid.normalize(est.on_grid(grid.nx, grid.ny), "KDE of the robots")
+
+    def record(step, t, period, X, mean, var, p_hat, p_r, speed):
+        err = mean - f_true
+        res.rows.append({
+            "step": step, "t": t, "period": period,
+            "max_variance": float(var.max()), "mean_variance": float(var.mean()),
+            "rmse": rmse(f_true, mean), "l2_error": l2_norm(err, grid.cell_area),
+            "tracking_error": math.nan if p_r is None else l2_norm(p_hat - p_r, grid.cell_area),
+            "mean_speed": speed, "n_observations": gp.n_observations,
+        })
+        res.times.append(t)
+        res.positions.append(X.copy())
+        res.variances.append(var.astype(np.float32))
+
+    # --- initial positions, D_0, regression on D_0 (Algorithm 1, first two lines)
+    X = uniform_in_box(s.robots, s.start_box, rng)
+    mean, var = regress(X, measure(field, X, s.noise_variance, rng))
+    est = kde.fit(X)
+    p_hat = p_hat_grid(est)
+    t, step, k = 0.0, 0, 0
+    record(step, t, 0, X, mean, var, p_hat, None, 0.0)
+    plan = None
+    n_steps = s.steps_per_period
+
+    try:
+        while True:
+            sup_v = float(var.max())
+            snap = Snapshot(t=t, period=k, X=X.copy(), mean=mean, var=var, p_hat=p_hat)
+            res.snapshots.append(snap)
+            if sup_v <= s.gamma:
+                res.stop_reason = "threshold"
+                break
+            if k >= s.max_periods or t >= s.max_time - 1e-9 * s.period:
+                res.stop_reason = "max_time"
+                break
+            p_f = target_density(var, s.eta, grid.cell_area)
+            if p_f is None:
+                res.stop_reason = "variance_below_eta"
+                break
+            snap.target = p_f
+            # --- reference model for [t, t + T] (eqs. "optimization problem", "reference model")
+            t_plan = time.perf_counter()
+            try:
+                new_plan = planner.solve(p_hat, p_f, t0=t, warm_start=plan)
+            except PlannerError as exc:
+                info = dict(getattr(exc, "stats", {}) or {})
+                res.replans.append({"period": k, "t0": t, "max_variance": sup_v, "rmse": res.rows[-1]["rmse"],
+                                    "status": info.get("status", "failed"), "success": False,
+                                    "iterations": info.get("iterations", -1),
+                                    "solve_time_s": time.perf_counter() - t_plan})
+                res.stop_reason = "planner_failed"
+                res.error = f"planner failed at t = {t:g} s (period {k}): {exc}"
+                break
+            tm["planner"] += time.perf_counter() - t_plan
+            plan = new_plan
+            sv = plan.meta.get("solver", {})
+            res.replans.append({
+                "period": k, "t0": t, "max_variance": sup_v, "rmse": res.rows[-1]["rmse"],
+                "status": sv.get("status", "?"), "success": True, "iterations": sv.get("iterations", -1),
+                "solve_time_s": sv.get("wall_time_s", time.perf_counter() - t_plan),
+                "objective": plan.meta.get("objective"),
+                "symmetric_kl_initial": plan.meta.get("symmetric_kl_initial"),
+                "symmetric_kl_final": plan.meta.get("symmetric_kl_final"),
+            })
+            if k == 0 and math.isnan(res.rows[0]["tracking_error"]):
+                res.rows[0]["tracking_error"] = l2_norm(p_hat - plan.density_grid(t), grid.cell_area)
+            snap.velocity = tracking_velocity(qpts, plan, t, est, fb).reshape(QUIVER_POINTS, QUIVER_POINTS, 2)
+            if progress is not None:
+                progress({"event": "plan", "period": k, "t": t, "max_variance": sup_v,
+                          "rmse": res.rows[-1]["rmse"], **res.replans[-1]})
+
+            # --- inner loop: T / Δt measurement steps under the feedback law
+            t0 = k * s.period
+
+            def velocity(Xc, tc, _plan=plan):
+                return tracking_velocity(Xc, _plan, tc, kde.fit(Xc), fb)
+
+            for j in range(1, n_steps + 1):
+                t_dyn = time.perf_counter()
+                X, speed = advance(X, t, s.dt, s.substeps, velocity, fb.sigma, rng, s.domain)
+                t = t0 + j * s.dt          # k T + j Δt: no accumulated rounding
+                y = measure(field, X, s.noise_variance, rng)
+                est = kde.fit(X)
+                p_hat = p_hat_grid(est)
+                tm["dynamics"] += time.perf_counter() - t_dyn
+                mean, var = regress(X, y)
+                step += 1
+                record(step, t, k, X, mean, var, p_hat, plan.density_grid(t), speed)
+            k += 1
+            if on_period is not None:
+                res.mean, res.var = mean, var
+                on_period(res)
+    finally:
+        res.mean, res.var = mean, var
+        res.wall_time = time.perf_counter() - wall0
+    if plan is not None and res.snapshots and res.snapshots[-1].velocity is None:
+        res.snapshots[-1].velocity = tracking_velocity(qpts, plan, t, est, fb).reshape(QUIVER_POINTS, QUIVER_POINTS, 2)
+    if progress is not None:
+        progress({"event": "done", "t": t, "period": k, "max_variance": float(var.max()),
+                  "rmse": res.rows[-1]["rmse"], "stop_reason": res.stop_reason, "error": res.error,
+                  "time_to_threshold": res.time_to_threshold, "wall_time": time.perf_counter() - wall0})
+    return res

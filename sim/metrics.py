@@ -1,0 +1,39 @@
+"""Per-step figures of merit of a closed-loop run (one row of ``metrics.csv`` each).
+
+All fields are evaluated on the cell centres of the planner grid (the grid on which the target
+p_f and the reference p_r live; 40 x 40 cells of 0.5 m by default):
+
+``max_variance``    sup_x V_k(x) of the GP predictive variance (the stopping test of Algorithm 1)
+``rmse``            sqrt(mean_cells (f - f̄)^2): root-mean-square prediction error
+``l2_error``        ||f - f̄||_{L2(Omega)} ~ sqrt(sum_cells (f - f̄)^2 dx dy), the norm the paper
+                    plots (Fig. "sinc and prediction error"); ``l2_error = rmse * sqrt(|Omega|)``
+``tracking_error``  ||p_hat - p_r(t)||_{L2(Omega)}, p_hat the KDE of the robots (eq. "KDE") and p_r
+                    the reference density (eq. "reference model"); the Phi of Theorem "ISS"
+``mean_speed``      mean over robots and sub-steps of the commanded speed |v| during the last Δt
+``n_observations``  number of measurements in the data set
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["COLUMNS", "rmse", "l2_norm", "max_variance"]
+
+#: Column order of ``metrics.csv``.
+COLUMNS = ("step", "t", "period", "max_variance", "mean_variance", "rmse", "l2_error", "tracking_error",
+           "mean_speed", "n_observations")
+
+
+def rmse(f_true: np.ndarray, f_bar: np.ndarray) -> float:
+    """Root-mean-square of ``f_true - f_bar`` over grid cells."""
+    d = np.asarray(f_true, float) - np.asarray(f_bar, float)
+    return float(np.sqrt(np.mean(d * d)))
+
+
+def l2_norm(values: np.ndarray, cell_area: float) -> float:
+    """Midpoint-rule L2 norm over the domain of a cell-centred field."""
+    v = np.asarray(values, float)
+    return float(np.sqrt(np.sum(v * v) * cell_area))
+
+
+def max_variance(var: np.ndarray) -> float:
+    return float(np.max(var))

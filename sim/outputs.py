@@ -1,0 +1,248 @@
+"""Files of a closed-loop run (DESIGN.md, "Closed-loop run").
+
+``DIR/metrics.csv``     one row per measurement step, columns :data:`sim.metrics.COLUMNS`
+                        (``t, max_variance, rmse, tracking_error, mean_speed, n_observations`` and
+                        more); ``nan`` where a value does not exist (no plan yet)
+``DIR/replans.csv``     one row per planner call: period, t0, sup V, rmse, IPOPT status,
+                        iterations, solve time, objective
+``DIR/summary.json``    resolved configuration (every setting), seed, field description,
+                        ``time_to_threshold`` (null if never reached), ``periods_to_threshold``,
+                        final figures, planner statistics, timings, wall time, package versions
+``DIR/config.toml``     the resolved configuration as TOML: ``simulate-swarm --config DIR/config.toml``
+                        repeats the run
+``DIR/trajectory.npz``  measurement times ``t`` (K,), positions ``X`` (K, n, 2), the planner grid's
+                        cell centres ``xc``, ``yc``, the true field ``f_true`` and the final GP
+                        ``mean`` and ``var`` on it (nx, ny)
+figures                 ``panels.png``, ``convergence.png``, ``field_error.png`` and, on request,
+                        ``animation.gif`` (:mod:`sim.figures`)
+
+Every file is written to a temporary file in DIR and renamed into place, so a reader never sees a
+half-written file and an interrupted run leaves the previous version intact.
+
+Output folder policy (:func:`check_output_dir`, :func:`prepare_output_dir`): DIR may be missing
+(it is created), empty, or a previous run (it holds the marker file ``.simulate-swarm``; the
+files of that run are removed first so that no stale figure survives).  Any other non-empty
+folder is refused unless ``force`` is given; then only the files named above are (over)written
+and nothing else in the folder is touched.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import platform
+import sys
+import tempfile
+from importlib import metadata
+from pathlib import Path
+
+import numpy as np
+
+from .config import to_toml
+from .metrics import COLUMNS
+
+__all__ = ["MARKER", "OUTPUT_FILES", "check_output_dir", "prepare_output_dir", "write_atomic",
+           "write_metrics", "write_summary", "write_outputs", "summary_dict", "versions"]
+
+MARKER = ".simulate-swarm"
+FIGURES = ("panels.png", "convergence.png", "field_error.png", "animation.gif")
+OUTPUT_FILES = ("metrics.csv", "replans.csv", "summary.json", "config.toml", "trajectory.npz") + FIGURES
+def _file_mode() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
+_MODE = _file_mode()
+REPLAN_COLUMNS = ("period", "t0", "max_variance", "rmse", "status", "success", "iterations", "solve_time_s",
+                  "objective", "symmetric_kl_initial", "symmetric_kl_final")
+
+
+# ------------------------------------------------------------------------------ folder handling
+def check_output_dir(path, force: bool = False) -> Path:
+    """Validate the output folder without touching it; ``ValueError`` if it cannot be used."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"output {path} exists and is not a folder")
+    if path.is_dir():
+        entries = list(path.iterdir())
+        if entries and not (path / MARKER).exists() and not force:
+            raise ValueError(f"output folder {path} is not empty and holds no previous simulate-swarm run; "
+                             "choose another --out or pass --force")
+        if not os.access(path, os.W_OK):
+            raise ValueError(f"output folder {path} is not writable")
+    else:
+        parent = path.parent
+        while not parent.exists():
+            parent = parent.parent
+        if not parent.is_dir() or not os.access(parent, os.W_OK):
+            raise ValueError(f"cannot create output folder {path}: {parent} is not a writable folder")
+    return path
+
+
+def prepare_output_dir(path, force: bool = False) -> Path:
+    """Create DIR (or clear the files of a previous run in it) and mark it as a run folder."""
+    path = check_output_dir(path, force)
+    path.mkdir(parents=True, exist_ok=True)
+    if (path / MARKER).exists():
+        for name in OUTPUT_FILES:
+            try:
+                (path / name).unlink()
+            except FileNotFoundError:
+                pass
+    write_atomic(path / MARKER, b"simulate-swarm output folder\n")
+    return path
+
+
+def write_atomic(path, data: bytes | str) -> Path:
+    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename."""
+    path = Path(path)
+    if isinstance(data, str):
+        data = data.encode()
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.chmod(tmp, _MODE)         # mkstemp creates 0600; give the usual permissions
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+# ------------------------------------------------------------------------------ tables
+def _fmt(v) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (float, np.floating)):
+        return "nan" if math.isnan(v) else repr(float(v))
+    return str(v)
+
+
+def _csv_text(rows, columns) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(columns)
+    for r in rows:
+        w.writerow([_fmt(r.get(c)) for c in columns])
+    return buf.getvalue()
+
+
+def write_metrics(result, out: Path) -> None:
+    """``metrics.csv`` and ``replans.csv`` (atomic)."""
+    out = Path(out)
+    write_atomic(out / "metrics.csv", _csv_text(result.rows, COLUMNS))
+    write_atomic(out / "replans.csv", _csv_text(result.replans, REPLAN_COLUMNS))
+
+
+# ------------------------------------------------------------------------------ summary
+def versions() -> dict:
+    out = {"python": sys.version.split()[0], "platform": platform.platform()}
+    for dist in ("swarm-field-estimation", "numpy", "scipy", "casadi", "matplotlib", "pillow"):
+        try:
+            out[dist] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            pass
+    return out
+
+
+def _clean(o):
+    """JSON-safe copy: numpy scalars/arrays to Python, NaN/inf to null."""
+    if isinstance(o, dict):
+        return {str(k): _clean(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_clean(v) for v in o]
+    if isinstance(o, np.ndarray):
+        return _clean(o.tolist())
+    if isinstance(o, np.generic):
+        return _clean(o.item())
+    if isinstance(o, float):
+        return o if math.isfinite(o) else None
+    if o is None or isinstance(o, (str, int, bool)):
+        return o
+    return str(o)
+
+
+def summary_dict(result, files=(), extra: dict | None = None) -> dict:
+    cfg = result.config
+    s = cfg.sim
+    rows = result.rows
+    ok = [r for r in result.replans if r.get("success")]
+    iters = [r["iterations"] for r in ok if r.get("iterations", -1) >= 0]
+    final = result.final
+    summary = {
+        "program": "simulate-swarm",
+        "stop_reason": result.stop_reason,
+        "error": result.error,
+        "seed": s.seed,
+        "threshold_reached": result.time_to_threshold is not None,
+        "time_to_threshold": result.time_to_threshold,
+        "periods_to_threshold": result.periods_to_threshold,
+        "gamma": s.gamma,
+        "period": s.period,
+        "periods_run": sum(1 for r in result.replans if r.get("success")),
+        "stop_time": final.get("t"),
+        "final": {k: final.get(k) for k in ("t", "rmse", "l2_error", "max_variance", "mean_variance",
+                                            "tracking_error", "mean_speed", "n_observations")},
+        "final_rmse": final.get("rmse"),
+        "final_max_variance": final.get("max_variance"),
+        "metrics_definition": "fields on the planner grid cell centres: rmse = sqrt(mean (f - f_bar)^2), "
+                              "l2_error = ||f - f_bar||_L2 (midpoint rule), tracking_error = ||p_hat - p_r||_L2",
+        "planner": {
+            "solves": len(ok),
+            "failures": len(result.replans) - len(ok),
+            "total_solve_time_s": float(sum(r.get("solve_time_s", 0.0) for r in result.replans)),
+            "mean_iterations": float(np.mean(iters)) if iters else None,
+            "max_iterations": int(max(iters)) if iters else None,
+            "replans": result.replans,
+        },
+        "field": result.field.describe(),
+        "config": cfg.as_dict(),
+        "grid": {"nx": result.grid.nx, "ny": result.grid.ny, "domain": list(result.grid.domain)},
+        "n_measurement_steps": len(rows),
+        "wall_time_s": result.wall_time,
+        "timings_s": result.timings,
+        "versions": versions(),
+        "files": sorted(files),
+    }
+    if extra:
+        summary.update(extra)
+    return _clean(summary)
+
+
+def write_summary(result, out: Path, files=(), extra: dict | None = None) -> None:
+    text = json.dumps(summary_dict(result, files, extra), indent=2, allow_nan=False)
+    write_atomic(Path(out) / "summary.json", text + "\n")
+
+
+def _write_trajectory(result, out: Path) -> None:
+    buf = io.BytesIO()
+    np.savez_compressed(buf, t=np.asarray(result.times, float),
+                        X=np.asarray(result.positions, float).reshape(len(result.positions), -1, 2),
+                        xc=result.grid.xc, yc=result.grid.yc, f_true=result.f_true,
+                        mean=result.mean if result.mean is not None else np.full(result.grid.shape, np.nan),
+                        var=result.var if result.var is not None else np.full(result.grid.shape, np.nan))
+    write_atomic(out / "trajectory.npz", buf.getvalue())
+
+
+def write_outputs(result, out, *, figures: bool = True, gif: bool = False, extra: dict | None = None) -> list:
+    """Write every output of ``result`` into the (prepared) folder ``out``; returns the file names."""
+    out = Path(out)
+    files = ["metrics.csv", "replans.csv", "config.toml", "trajectory.npz"]
+    write_metrics(result, out)
+    write_atomic(out / "config.toml", to_toml(result.config))
+    _write_trajectory(result, out)
+    if figures and result.rows:
+        from . import figures as fig
+        files += fig.write_figures(result, out)
+        if gif:
+            files.append(fig.write_animation(result, out / "animation.gif"))
+    files.append("summary.json")
+    write_summary(result, out, files, extra)
+    return files

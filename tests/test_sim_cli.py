@@ -1,0 +1,161 @@
+"""The simulate-swarm CLI, in-process: a normal run, re-runs, planner failure, and every bad input."""
+import json
+
+import numpy as np
+import pytest
+
+from sim.cli import main
+from sim.outputs import MARKER
+
+SMALL_TOML = """
+[sim]
+robots = 30
+domain = [0.0, 10.0, 0.0, 10.0]
+start_box = [0.0, 4.0, 0.0, 4.0]
+period = 1.75
+max_periods = 2
+substeps = 4
+[gp]
+length_scale = 1.5
+[kde]
+bins = [32, 32]
+[planner]
+nx = 16
+ny = 16
+n_intervals = 3
+n_modes_x = 3
+n_modes_y = 3
+"""
+
+
+@pytest.fixture
+def cfg(tmp_path):
+    path = tmp_path / "small.toml"
+    path.write_text(SMALL_TOML)
+    return path
+
+
+def run(argv, capsys):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_normal_run_writes_metrics_summary_and_figures(tmp_path, cfg, capsys):
+    out = tmp_path / "run"
+    code, stdout, err = run(["--config", cfg, "--out", out, "--seed", 3, "--field", "plumes", "--max-periods", 1],
+                            capsys)
+    assert code == 0, err
+    lines = err.strip().splitlines()
+    assert lines[0].startswith("simulate-swarm: t =") and "sup V" in lines[0] and "it," in lines[0]
+    assert "stopped (max_time)" in err
+    for name in ("metrics.csv", "replans.csv", "summary.json", "config.toml", "trajectory.npz", "panels.png",
+                 "convergence.png", "field_error.png", MARKER):
+        assert (out / name).is_file(), name
+    assert not (out / "animation.gif").exists()
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["seed"] == 3 and summary["config"]["sim"]["seed"] == 3
+    assert summary["config"]["sim"]["field"] == "plumes" and summary["field"]["name"] == "plumes"
+    assert summary["periods_run"] == 1 and summary["stop_reason"] == "max_time"
+    assert summary["command"][:2] == ["simulate-swarm", "--config"]
+    header = (out / "metrics.csv").read_text().splitlines()[0].split(",")
+    assert {"t", "max_variance", "rmse", "tracking_error", "mean_speed", "n_observations"} <= set(header)
+
+    # the recorded config.toml repeats the run exactly
+    again = tmp_path / "again"
+    code, _, err = run(["--config", out / "config.toml", "--out", again, "--quiet", "--no-figures"], capsys)
+    assert code == 0 and err == ""
+    assert (again / "metrics.csv").read_text() == (out / "metrics.csv").read_text()
+    assert not (again / "panels.png").exists()
+
+
+def test_rerun_into_previous_run_replaces_its_files(tmp_path, cfg, capsys):
+    out = tmp_path / "run"
+    code, _, err = run(["--config", cfg, "--out", out, "--max-periods", 1, "--gif", "--quiet"], capsys)
+    assert code == 0, err
+    assert (out / "animation.gif").stat().st_size > 0
+    code, _, err = run(["--config", cfg, "--out", out, "--max-periods", 1, "--no-figures", "--quiet"], capsys)
+    assert code == 0, err
+    assert not (out / "animation.gif").exists() and not (out / "panels.png").exists()   # no stale figures
+    assert json.loads((out / "summary.json").read_text())["files"] == sorted(
+        ["metrics.csv", "replans.csv", "config.toml", "trajectory.npz", "summary.json"])
+
+
+def test_force_writes_into_a_foreign_folder_and_keeps_its_files(tmp_path, cfg, capsys):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "notes.txt").write_text("keep me")
+    code, _, err = run(["--config", cfg, "--out", out, "--max-periods", 1, "--no-figures", "--quiet", "--force"],
+                       capsys)
+    assert code == 0, err
+    assert (out / "notes.txt").read_text() == "keep me" and (out / "summary.json").exists()
+
+
+def test_planner_failure_exits_1_with_valid_outputs(tmp_path, cfg, capsys):
+    bad = tmp_path / "fail.toml"
+    bad.write_text(SMALL_TOML + "[planner.ipopt]\nmax_iter = 1\n")
+    out = tmp_path / "run"
+    code, _, err = run(["--config", bad, "--out", out, "--no-figures"], capsys)
+    assert code == 1
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("simulate-swarm: error: planner failed at t = 0 s") and "Maximum_Iterations" in last
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["stop_reason"] == "planner_failed" and summary["planner"]["failures"] == 1
+    rows = (out / "metrics.csv").read_text().splitlines()
+    assert len(rows) == 2                                   # header + the measurement at t = 0
+
+
+def _bad_inputs(tmp, cfg):
+    (tmp / "junk.npz").write_bytes(b"garbage")
+    (tmp / "bad.toml").write_text("[sim\nrobots = 3\n")
+    (tmp / "unknown.toml").write_text(SMALL_TOML + "\n[extra]\nx = 1\n")
+    (tmp / "key.toml").write_text(SMALL_TOML.replace("robots = 30", "robots = 30\nspeed = 2"))
+    (tmp / "value.toml").write_text(SMALL_TOML.replace("period = 1.75", "period = 1.8"))
+    (tmp / "type.toml").write_text(SMALL_TOML.replace("robots = 30", 'robots = "many"'))
+    (tmp / "foreign").mkdir()
+    (tmp / "foreign" / "thesis.tex").write_text("precious")
+    (tmp / "afile").write_text("x")
+    np.save(tmp / "nan.npy", np.full((4, 4), np.nan))
+    (tmp / "gp.toml").write_text(SMALL_TOML.replace("length_scale = 1.5", "length_scale = 0.05"))
+    (tmp / "kde.toml").write_text(SMALL_TOML.replace("bins = [32, 32]", "bandwidth = 0.001"))
+    c = ["--config", cfg]
+    return {
+        "unknown field": (c + ["--field", "banana"], "unknown field 'banana'"),
+        "missing field file": (c + ["--field", tmp / "nope.csv"], "does not exist"),
+        "unreadable field file": (c + ["--field", tmp / "junk.npz"], "cannot read"),
+        "non-finite field": (c + ["--field", tmp / "nan.npy"], "non-finite"),
+        "robots 0": (c + ["--robots", "0"], "--robots must be > 0"),
+        "robots negative": (c + ["--robots", "-4"], "--robots must be > 0"),
+        "robots not a number": (c + ["--robots", "ten"], "invalid int value"),
+        "max periods 0": (c + ["--max-periods", "0"], "--max-periods must be > 0"),
+        "negative seed": (c + ["--seed", "-1"], "--seed must be >= 0"),
+        "unknown flag": (c + ["--speed", "3"], "unrecognized arguments"),
+        "missing config": (["--config", tmp / "none.toml"], "does not exist"),
+        "bad toml": (["--config", tmp / "bad.toml"], "not valid TOML"),
+        "unknown table": (["--config", tmp / "unknown.toml"], r"\[extra\]"),
+        "unknown key": (["--config", tmp / "key.toml"], "sim.speed"),
+        "bad value": (["--config", tmp / "value.toml"], "whole multiple"),
+        "bad type": (["--config", tmp / "type.toml"], "sim.robots must be an integer"),
+        "GP grid too fine": (["--config", tmp / "gp.toml"], "max_inducing_points"),
+        "KDE bandwidth too small": (["--config", tmp / "kde.toml"], "kde.bandwidth"),
+        "foreign folder": (c + ["--out", tmp / "foreign"], "not empty"),
+        "out is a file": (c + ["--out", tmp / "afile"], "not a folder"),
+    }
+
+
+def test_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, cfg, capsys):
+    import re
+
+    cases = _bad_inputs(tmp_path, cfg)
+    before = sorted(p.name for p in tmp_path.rglob("*"))
+    for label, (argv, msg) in cases.items():
+        if "--out" not in argv:
+            argv = argv + ["--out", tmp_path / "out"]
+        code, stdout, err = run(argv, capsys)
+        assert code == 2, (label, err)
+        lines = err.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("simulate-swarm: error: "), (label, err)
+        assert re.search(msg, lines[0]), (label, lines[0])
+        assert "Traceback" not in err and stdout == ""
+        assert sorted(p.name for p in tmp_path.rglob("*")) == before, label      # nothing written
+    assert (tmp_path / "foreign" / "thesis.tex").read_text() == "precious"
