@@ -20,15 +20,15 @@ class IpoptSettings:
     """
 
     tol: float = 1e-6
-    acceptable_tol: float = 1e-4
+    acceptable_tol: float = 1e-3
     acceptable_iter: int = 5
     max_iter: int = 500
     hessian_approximation: str = "limited-memory"
     limited_memory_max_history: int = 6
     limited_memory_aug_solver: str = "extended"
     linear_solver: str = "mumps"
-    mu_strategy: str = "adaptive"
-    mu_init: float = 1e-3
+    mu_strategy: str = "monotone"
+    mu_init: float = 1e-7
     print_level: int = 0
     extra: dict = field(default_factory=dict)
 
