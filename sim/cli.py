@@ -34,6 +34,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, help="random seed (default 0)")
     p.add_argument("--robots", type=int, help="number of robots (default 100)")
     p.add_argument("--field", help="sinc | plumes | ridge | path to a .npz/.npy/.csv field file (default sinc)")
+    p.add_argument("--controller", choices=["feedback", "open-loop"],
+                   help="feedback: the paper's mean-field law (default); open-loop: follow v_r alone (baseline)")
     p.add_argument("--max-periods", type=int, help="stop after this many re-planning periods T (default 20)")
     p.add_argument("--gif", action="store_true", help="also write animation.gif")
     p.add_argument("--no-figures", action="store_true", help="write no PNG figures")
@@ -48,7 +50,8 @@ def resolve(args):
     from .fields import make_field
     from .loop import check_config
 
-    overrides = {"seed": args.seed, "robots": args.robots, "field": args.field, "max_periods": args.max_periods}
+    overrides = {"seed": args.seed, "robots": args.robots, "field": args.field, "max_periods": args.max_periods,
+                 "controller": args.controller}
     for name in ("seed", "robots", "max_periods"):
         v = overrides[name]
         if v is not None and (v < 0 or (v == 0 and name != "seed")):

@@ -54,6 +54,7 @@ from regression import GPSettings
 __all__ = ["SimSettings", "KDESettings", "RunConfig", "load_config", "config_from_dict", "to_toml", "SECTIONS"]
 
 SECTIONS = ("sim", "gp", "kde", "feedback", "planner")
+CONTROLLERS = ("feedback", "open-loop")
 
 
 def _number(name, v, *, positive=False, nonneg=False):
@@ -104,6 +105,9 @@ class SimSettings:
     seed            seed of the ``numpy.random.Generator`` that drives everything random
     substeps        Euler--Maruyama sub-steps per Δt; the feedback velocity and KDE are
                     re-evaluated at each (module docstring: "Defaults ... and why")
+    controller      ``feedback``: eq. "density feedback law using estimation" (the paper);
+                    ``open-loop``: the robots follow the planned v_r alone (saturated at
+                    feedback.v_max), a baseline that shows what the mean-field feedback adds
     """
 
     robots: int = 100
@@ -118,6 +122,7 @@ class SimSettings:
     field: str = "sinc"
     seed: int = 0
     substeps: int = 8
+    controller: str = "feedback"
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -131,6 +136,8 @@ class SimSettings:
         set_("max_periods", _integer("max_periods", self.max_periods, 1))
         set_("seed", _integer("seed", self.seed, 0))
         set_("substeps", _integer("substeps", self.substeps, 1))
+        if self.controller not in CONTROLLERS:
+            raise ValueError(f"sim.controller must be one of {', '.join(CONTROLLERS)}, got {self.controller!r}")
         if not isinstance(self.field, str) or not self.field:
             raise ValueError(f"sim.field must be a field name or a file path, got {self.field!r}")
         x0, x1, y0, y1 = self.domain

@@ -32,7 +32,7 @@ from typing import Callable
 
 import numpy as np
 
-from control import KernelDensity, tracking_velocity
+from control import KernelDensity, saturate, tracking_velocity
 from regression import GaussianProcess, target_density
 
 from .config import RunConfig
@@ -238,8 +238,12 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
             # --- inner loop: T / Δt measurement steps under the feedback law
             t0 = k * s.period
 
-            def velocity(Xc, tc, _plan=plan):
-                return tracking_velocity(Xc, _plan, tc, kde.fit(Xc), fb)
+            if s.controller == "open-loop":
+                def velocity(Xc, tc, _plan=plan):
+                    return saturate(_plan.velocity(tc, Xc), fb.v_max)
+            else:
+                def velocity(Xc, tc, _plan=plan):
+                    return tracking_velocity(Xc, _plan, tc, kde.fit(Xc), fb)
 
             for j in range(1, n_steps + 1):
                 t_dyn = time.perf_counter()
