@@ -24,7 +24,7 @@ class IpoptSettings:
     acceptable_iter: int = 5
     max_iter: int = 500
     hessian_approximation: str = "limited-memory"
-    limited_memory_max_history: int = 6
+    limited_memory_max_history: int = 3
     limited_memory_aug_solver: str = "extended"
     linear_solver: str = "mumps"
     mu_strategy: str = "monotone"
