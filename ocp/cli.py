@@ -8,14 +8,13 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 import tomllib
 from pathlib import Path
 
 import numpy as np
 
 from .plan import ReferencePlan
-from .settings import IpoptSettings, PlannerSettings, dataclass_from_dict
+from .settings import PlannerSettings, dataclass_from_dict
 
 PROG = "plan-reference"
 

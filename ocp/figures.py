@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .atomic import atomic_path
 from .basis import velocity_on_grid
 from .plan import ReferencePlan
 
@@ -32,5 +33,6 @@ def plot_plan(plan: ReferencePlan, path, n_snapshots: int = 4, arrows: int = 12)
     axes[-1].set_title("target $p_f$")
     axes[-1].set_xticks([]), axes[-1].set_yticks([])
     fig.colorbar(im, ax=axes, shrink=0.8, label="density [1/m²]")
-    fig.savefig(path, dpi=110)
+    with atomic_path(path, ".png") as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
     plt.close(fig)

@@ -22,13 +22,12 @@ Outside ``[t[0], t[-1]]`` the plan is held: first/last density, zero velocity af
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from .atomic import atomic_path
 from .basis import velocity_at
 from .grid import Grid
 
@@ -174,15 +173,8 @@ class ReferencePlan:
             raise FileNotFoundError(f"folder {directory} does not exist")
         arrays = {k: getattr(self, k) for k in KEYS if k != "meta"}
         arrays["meta"] = np.array(json.dumps(self.meta, default=_json_default))
-        fd, tmp = tempfile.mkstemp(prefix=".plan-", suffix=".npz", dir=directory)
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                np.savez(fh, **arrays)
-            os.replace(tmp, path)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise
+        with atomic_path(path, ".npz") as tmp:
+            np.savez(tmp, **arrays)
         return path
 
     @classmethod

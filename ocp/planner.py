@@ -6,7 +6,6 @@ new (p0, p_f) as NLP *parameters*, optionally warm-started from the previous pla
 """
 from __future__ import annotations
 
-import json
 import time
 from importlib import metadata
 

@@ -15,13 +15,12 @@ from __future__ import annotations
 import argparse
 import csv
 import dataclasses
-import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
-from .settings import IpoptSettings, PlannerSettings
+from .atomic import atomic_path, write_atomic
+from .settings import PlannerSettings
 
 PROG = "solver-study"
 
@@ -92,26 +91,19 @@ COLUMNS = ["study", "case", "build_s", "solve_s", "iterations", "status", "objec
            "t_grad_s", "t_hess_s"]
 
 
-def _atomic_text(path: Path, text: str):
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}-")
-    with os.fdopen(fd, "w") as fh:
-        fh.write(text)
-    os.replace(tmp, path)
-
-
 def write_outputs(rows, out: Path):
     import io
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=COLUMNS)
     w.writeheader()
     w.writerows(rows)
-    _atomic_text(out / "study.csv", buf.getvalue())
+    write_atomic(out / "study.csv", buf.getvalue())
     lines = ["| study | case | build [s] | solve [s] | iterations | status | objective | final sym. KL |",
              "|---|---|---:|---:|---:|---|---:|---:|"]
     for r in rows:
         lines.append(f"| {r['study']} | {r['case']} | {r['build_s']:.2f} | {r['solve_s']:.2f} | {r['iterations']} | "
                      f"{r['status']} | {r['objective']:.4f} | {r['kl_final']:.4f} |")
-    _atomic_text(out / "study.md", "\n".join(lines) + "\n")
+    write_atomic(out / "study.md", "\n".join(lines) + "\n")
     plot(rows, out / "study.png")
 
 
@@ -133,10 +125,9 @@ def plot(rows, path: Path):
         ax.set_xlabel("IPOPT wall time [s]")
         ax.set_title(st)
         ax.set_xlim(0, 1.6 * max(r["solve_s"] for r in rs))
-    tmp = path.with_name(f".{path.stem}-tmp.png")
-    fig.savefig(tmp, dpi=110)
+    with atomic_path(path, ".png") as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
     plt.close(fig)
-    os.replace(tmp, path)
 
 
 def main(argv=None) -> int:

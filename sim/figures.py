@@ -13,13 +13,11 @@
 """
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from .outputs import _MODE
+from ocp.atomic import atomic_path
 
 __all__ = ["write_figures", "plot_panels", "plot_convergence", "plot_field_error", "write_animation",
            "panel_snapshots"]
@@ -36,15 +34,8 @@ def _plt():
 
 def _save(fig, path: Path, fmt: str = "png", dpi: int = 110):
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".{fmt}", dir=path.parent)
-    os.close(fd)
-    try:
+    with atomic_path(path, f".{fmt}") as tmp:
         fig.savefig(tmp, format=fmt, dpi=dpi)
-        os.chmod(tmp, _MODE)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
     return path
 
 
@@ -199,14 +190,9 @@ def write_animation(result, path, fps: int = 4) -> str:
         return im, sc, title
 
     anim = FuncAnimation(fig, frame, frames=len(sd), blit=False)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".gif", dir=path.parent)
-    os.close(fd)
     try:
-        anim.save(tmp, writer=PillowWriter(fps=fps))
-        os.chmod(tmp, _MODE)
-        os.replace(tmp, path)
+        with atomic_path(path, ".gif") as tmp:
+            anim.save(tmp, writer=PillowWriter(fps=fps))
     finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
         plt.close(fig)
     return path.name

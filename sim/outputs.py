@@ -34,11 +34,12 @@ import math
 import os
 import platform
 import sys
-import tempfile
 from importlib import metadata
 from pathlib import Path
 
 import numpy as np
+
+from ocp.atomic import write_atomic
 
 from .config import to_toml
 from .metrics import COLUMNS
@@ -49,13 +50,6 @@ __all__ = ["MARKER", "OUTPUT_FILES", "check_output_dir", "prepare_output_dir", "
 MARKER = ".simulate-swarm"
 FIGURES = ("panels.png", "convergence.png", "field_error.png", "animation.gif")
 OUTPUT_FILES = ("metrics.csv", "replans.csv", "summary.json", "config.toml", "trajectory.npz") + FIGURES
-def _file_mode() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return 0o666 & ~mask
-
-
-_MODE = _file_mode()
 REPLAN_COLUMNS = ("period", "t0", "max_variance", "rmse", "status", "success", "iterations", "solve_time_s",
                   "objective", "symmetric_kl_initial", "symmetric_kl_final")
 
@@ -93,24 +87,6 @@ def prepare_output_dir(path, force: bool = False) -> Path:
             except FileNotFoundError:
                 pass
     write_atomic(path / MARKER, b"simulate-swarm output folder\n")
-    return path
-
-
-def write_atomic(path, data: bytes | str) -> Path:
-    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename."""
-    path = Path(path)
-    if isinstance(data, str):
-        data = data.encode()
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.chmod(tmp, _MODE)         # mkstemp creates 0600; give the usual permissions
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
     return path
 
 

@@ -95,3 +95,10 @@ def test_failed_save_keeps_previous_file(tmp_path, monkeypatch):
         make_plan(rng).save(path)
     assert path.read_bytes() == before
     assert sorted(os.listdir(tmp_path)) == ["plan.npz"]
+
+
+def test_saved_plan_has_the_usual_file_permissions(tmp_path):
+    mask = os.umask(0)
+    os.umask(mask)
+    path = make_plan(np.random.default_rng(4)).save(tmp_path / "plan.npz")
+    assert path.stat().st_mode & 0o777 == 0o666 & ~mask

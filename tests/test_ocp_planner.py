@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 
 from ocp.basis import speed_bound
-from ocp.grid import Grid
 from ocp.planner import PlannerError, ReferencePlanner
 from ocp.problem import TransportProblem
 from ocp.settings import IpoptSettings, PlannerSettings
