@@ -43,7 +43,7 @@ def cases(study: str, base: PlannerSettings, quick: bool):
         out.append(("ipopt", "mu adaptive, mu_init 0.1", rep(base, ipopt=rep(ip, mu_init=0.1))))
         out.append(("ipopt", "tol 1e-8, acceptable off",
                     rep(base, ipopt=rep(ip, tol=1e-8, acceptable_iter=1000))))
-        out.append(("ipopt", "acceptable_tol 1e-3", rep(base, ipopt=rep(ip, acceptable_tol=1e-3))))
+        out.append(("ipopt", "acceptable_tol 1e-4", rep(base, ipopt=rep(ip, acceptable_tol=1e-4))))
     if study in ("discretisation", "all"):
         sizes = (10, 20) if quick else (20, 30, 40, 60)
         for n in sizes:
