@@ -57,8 +57,15 @@ def large_swarm(n_robots: int, repeat: int):
     p0 = grid.normalize(kde.fit(X).on_grid(grid.nx, grid.ny))
     plan = planner.solve(p0, p_f)
 
+    last = {"X": None, "est": None}
+
+    def fit(Xc):                      # as in sim.loop: one estimate per distinct position array
+        if Xc is not last["X"]:
+            last.update(X=Xc, est=kde.fit(Xc))
+        return last["est"]
+
     def velocity(Xc, tc):
-        return tracking_velocity(Xc, plan, tc, kde.fit(Xc), fb)
+        return tracking_velocity(Xc, plan, tc, fit(Xc), fb)
 
     times = []
     t = 0.0
@@ -66,7 +73,7 @@ def large_swarm(n_robots: int, repeat: int):
         t0 = time.perf_counter()
         X, _ = advance(X, t, s.dt, s.substeps, velocity, fb.sigma, rng, s.domain)
         y = measure(field, X, s.noise_variance, rng)
-        kde.fit(X).on_grid(grid.nx, grid.ny)
+        fit(X).on_grid(grid.nx, grid.ny)
         times.append(time.perf_counter() - t0)
         t += s.dt
     print(f"{n_robots} robots, one measurement step ({s.substeps} sub-steps with KDE + feedback, measurement, KDE): "

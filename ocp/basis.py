@@ -16,35 +16,41 @@ from __future__ import annotations
 import numpy as np
 
 
-def sine_matrix(s: np.ndarray, n_modes: int, length: float, start: float = 0.0) -> np.ndarray:
-    """S[k, i-1] = sin(i pi (s_k - start) / length), i = 1..n_modes; exactly 0 on the two walls.
+def _sine_rows(xi: np.ndarray, n_modes: int) -> np.ndarray:
+    """R[i-1, k] = sin(i pi xi_k), i = 1..n_modes, for xi in [0, 1]; exactly 0 at xi = 0 and 1.
 
     Higher modes by the recurrence sin((i+1)u) = 2 cos(u) sin(iu) - sin((i-1)u): two
     trigonometric evaluations per point instead of n_modes (round-off grows like i * eps).
+    Mode-major, so each step of the recurrence works on contiguous rows.
     """
-    xi = (np.asarray(s, dtype=float).reshape(-1) - start) / length
     u = np.pi * xi
-    S = np.empty((n_modes, xi.size))          # built mode-major: contiguous rows in the recurrence
-    S[0] = np.sin(u)
+    R = np.empty((n_modes, xi.size))
+    R[0] = np.sin(u)
     if n_modes > 1:
         c2 = 2.0 * np.cos(u)
-        S[1] = c2 * S[0]
+        R[1] = c2 * R[0]
         for i in range(2, n_modes):
-            S[i] = c2 * S[i - 1] - S[i - 2]
-    S[:, (xi <= 0.0) | (xi >= 1.0)] = 0.0
-    return S.T
+            R[i] = c2 * R[i - 1] - R[i - 2]
+    R[:, (xi <= 0.0) | (xi >= 1.0)] = 0.0
+    return R
+
+
+def sine_matrix(s: np.ndarray, n_modes: int, length: float, start: float = 0.0) -> np.ndarray:
+    """S[k, i-1] = sin(i pi (s_k - start) / length), i = 1..n_modes; exactly 0 on the two walls."""
+    xi = (np.asarray(s, dtype=float).reshape(-1) - start) / length
+    return _sine_rows(xi, n_modes).T
 
 
 def velocity_at(coef: np.ndarray, domain, points: np.ndarray) -> np.ndarray:
     """Velocity (n, 2) at arbitrary points from one interval's coefficients ``coef`` (2, I, J)."""
     coef = np.asarray(coef, dtype=float)
     x0, x1, y0, y1 = domain
-    pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    SxT = sine_matrix(np.clip(pts[:, 0], x0, x1), coef.shape[1], x1 - x0, x0).T   # (I, n)
-    SyT = sine_matrix(np.clip(pts[:, 1], y0, y1), coef.shape[2], y1 - y0, y0).T   # (J, n)
+    pts = np.asarray(points, dtype=float).reshape(-1, 2).T                      # (2, n), contiguous rows
+    rx = _sine_rows(np.clip((pts[0] - x0) / (x1 - x0), 0.0, 1.0), coef.shape[1])   # (I, n)
+    ry = _sine_rows(np.clip((pts[1] - y0) / (y1 - y0), 0.0, 1.0), coef.shape[2])   # (J, n)
     # v_d[n] = sum_i Sx[n,i] (sum_j a[d,i,j] Sy[n,j])
-    W = np.tensordot(coef, SyT, axes=([2], [0]))                                   # (2, I, n)
-    return np.einsum("din,in->nd", W, SxT)
+    W = (coef.reshape(-1, coef.shape[2]) @ ry).reshape(2, coef.shape[1], -1)       # (2, I, n)
+    return np.einsum("din,in->nd", W, rx)
 
 
 def velocity_on_grid(coef: np.ndarray, domain, x: np.ndarray, y: np.ndarray) -> np.ndarray:
