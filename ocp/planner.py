@@ -6,6 +6,7 @@ new (p0, p_f) as NLP *parameters*, optionally warm-started from the previous pla
 """
 from __future__ import annotations
 
+import re
 import time
 from importlib import metadata
 
@@ -42,7 +43,11 @@ class ReferencePlanner:
         # the constraints are linear: IPOPT may evaluate their Jacobian once
         ipopt.setdefault("jac_c_constant", "yes")
         ipopt.setdefault("jac_d_constant", "yes")
-        self.solver = ca.nlpsol("reference_density", "ipopt", self.problem.nlp, opts)
+        try:
+            self.solver = ca.nlpsol("reference_density", "ipopt", self.problem.nlp, opts)
+        except RuntimeError as exc:
+            reason = re.sub(r"^.*?\.cpp:\d+:\s*", "", str(exc).strip().splitlines()[-1])
+            raise ValueError(f"IPOPT rejected the options: {reason}") from None
         self.build_time = time.perf_counter() - t0
 
     @property
@@ -99,6 +104,9 @@ class ReferencePlanner:
         stats = self.solver.stats()
         status = stats.get("return_status", "unknown")
         x = np.array(sol["x"]).ravel()
+        if status == "Invalid_Option":
+            raise PlannerError(f"IPOPT failed: {status} (is linear solver {s.ipopt.linear_solver!r} available? "
+                               "the HSL solvers need ipopt.extra.hsllib)", _stats_summary(stats, wall))
         if status not in SUCCESS or not np.all(np.isfinite(x)):
             raise PlannerError(f"IPOPT failed: {status} after {stats.get('iter_count', '?')} iterations",
                                _stats_summary(stats, wall))

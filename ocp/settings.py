@@ -10,6 +10,11 @@ import typing
 from dataclasses import dataclass, field
 
 
+#: IPOPT's linear solvers; the CasADi wheel ships MUMPS (and SPRAL on Linux x86_64); the HSL
+#: solvers need a separately supplied libhsl (``extra = {hsllib = "/path/libhsl.so"}``).
+LINEAR_SOLVERS = ("mumps", "spral", "ma27", "ma57", "ma77", "ma86", "ma97", "pardiso", "pardisomkl")
+
+
 @dataclass(frozen=True)
 class IpoptSettings:
     """IPOPT options used by the planner (names follow IPOPT's own).
@@ -40,6 +45,8 @@ class IpoptSettings:
         if self.limited_memory_aug_solver not in ("sherman-morrison", "extended"):
             raise ValueError("ipopt.limited_memory_aug_solver must be 'sherman-morrison' or 'extended', "
                              f"got {self.limited_memory_aug_solver!r}")
+        if self.linear_solver not in LINEAR_SOLVERS:
+            raise ValueError(f"ipopt.linear_solver must be one of {', '.join(LINEAR_SOLVERS)}, got {self.linear_solver!r}")
         if self.mu_strategy not in ("monotone", "adaptive"):
             raise ValueError(f"ipopt.mu_strategy must be 'monotone' or 'adaptive', got {self.mu_strategy!r}")
         if not 0 <= int(self.print_level) <= 12:

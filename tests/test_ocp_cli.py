@@ -49,6 +49,7 @@ def _bad_cases(tmp):
     (tmp / "bad.toml").write_text("[planner\n")
     (tmp / "unknown.toml").write_text("[planner]\nspeed = 3\n")
     (tmp / "badplan.npz").write_bytes(b"garbage")
+    (tmp / "badopt.toml").write_text("[planner.ipopt]\nextra = {nonsense_option = 3}\n")
     return {
         "missing initial": (["--initial", tmp / "nope.npy"], "does not exist"),
         "unreadable target": (["--target", tmp / "junk.npy"], "cannot read"),
@@ -63,12 +64,15 @@ def _bad_cases(tmp):
         "bad warm start": (["--warm-start", tmp / "badplan.npz"], "cannot read"),
         "bad out suffix": (["--out", tmp / "plan.txt"], ".npz"),
         "missing out folder": (["--out", tmp / "no" / "plan.npz"], "does not exist"),
+        "unknown linear solver": (["--linear-solver", "foo"], "linear_solver"),
+        "option IPOPT rejects": (["--config", tmp / "badopt.toml"], "No such IPOPT option: nonsense_option"),
     }
 
 
 @pytest.mark.parametrize("case", [
     "missing initial", "unreadable target", "wrong shape", "negative", "non-finite", "zero mass", "bad toml",
-    "unknown key", "impossible v_max", "impossible grid", "bad warm start", "bad out suffix", "missing out folder"])
+    "unknown key", "impossible v_max", "impossible grid", "bad warm start", "bad out suffix", "missing out folder",
+    "unknown linear solver", "option IPOPT rejects"])
 def test_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys, case):
     args, msg = _bad_cases(tmp_path)[case]
     before = sorted(p.name for p in tmp_path.iterdir())
