@@ -65,6 +65,7 @@ def _bad_cases(tmp):
         "bad out suffix": (["--out", tmp / "plan.txt"], ".npz"),
         "missing out folder": (["--out", tmp / "no" / "plan.npz"], "does not exist"),
         "unknown linear solver": (["--linear-solver", "foo"], "linear_solver"),
+        "exact Hessian too large": (["--hessian", "exact", "--modes", "8", "8"], "exact Hessian is dense"),
         "option IPOPT rejects": (["--config", tmp / "badopt.toml"], "No such IPOPT option: nonsense_option"),
     }
 
@@ -72,7 +73,8 @@ def _bad_cases(tmp):
 @pytest.mark.parametrize("case", [
     "missing initial", "unreadable target", "wrong shape", "negative", "non-finite", "zero mass", "bad toml",
     "unknown key", "impossible v_max", "impossible grid", "bad warm start", "bad out suffix", "missing out folder",
-    "unknown linear solver", "option IPOPT rejects"])
+    "unknown linear solver", "option IPOPT rejects",
+    "exact Hessian too large"])
 def test_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys, case):
     args, msg = _bad_cases(tmp_path)[case]
     before = sorted(p.name for p in tmp_path.iterdir())
