@@ -65,7 +65,7 @@ def _bad_cases(tmp):
         "bad out suffix": (["--out", tmp / "plan.txt"], ".npz"),
         "missing out folder": (["--out", tmp / "no" / "plan.npz"], "does not exist"),
         "unknown linear solver": (["--linear-solver", "foo"], "linear_solver"),
-        "exact Hessian too large": (["--hessian", "exact", "--modes", "8", "8"], "exact Hessian is dense"),
+        "exact Hessian too large": (["--hessian", "exact", "--intervals", "12", "--modes", "8", "8"], "exact Hessian is dense"),
         "option IPOPT rejects": (["--config", tmp / "badopt.toml"], "No such IPOPT option: nonsense_option"),
     }
 
