@@ -96,16 +96,16 @@ class TransportProblem:
         A = ca.reshape(a, I * J, 2 * N)           # column (2l + d) holds a[l, d] in (i, j) C order
         tau = s.interval
         pk = p0
-        running = 0.5 * self.sym_kl(pk, qt, lq)
         states = [pk]
+        kls = [self.sym_kl(pk, qt, lq)]
         for l in range(N):
             ax_l = ca.reshape(A[:, 2 * l], J, I).T   # C order (i, j) -> I x J
             ay_l = ca.reshape(A[:, 2 * l + 1], J, I).T
             pk = self.interval_map(pk, ax_l, ay_l)
             states.append(pk)
-            w = 0.5 if l == N - 1 else 1.0
-            running = running + w * self.sym_kl(pk, qt, lq)
-        terminal = self.sym_kl(pk, qt, lq)
+            kls.append(self.sym_kl(pk, qt, lq))
+        running = 0.5 * (kls[0] + kls[-1]) + sum(kls[1:-1])   # trapezoid over the interval boundaries
+        terminal = kls[-1]
         energy = tau * (g.lx * g.ly / 4.0) * ca.sumsqr(a)
         J_f = s.w_f * terminal
         J_p = s.w_p * tau * running
