@@ -13,19 +13,15 @@ from pathlib import Path
 
 import numpy as np
 
+from .cliargs import OneLineParser, UsageError as InputError
 from .plan import ReferencePlan
 from .settings import PlannerSettings, dataclass_from_dict
 
 PROG = "plan-reference"
 
 
-class InputError(ValueError):
-    """Bad user input: reported in one line, exit code 2."""
-
-
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0])
     p.add_argument("--config", type=Path, help="TOML file with [planner] and [planner.ipopt] tables (flags override it)")
     p.add_argument("--out", type=Path, default=Path("plan.npz"), help="plan file to write (.npz)")
     p.add_argument("--plot", type=Path, help="also write a PNG of p_r snapshots with v_r arrows and the target")

@@ -12,7 +12,6 @@ within a study, not across.
 """
 from __future__ import annotations
 
-import argparse
 import csv
 import dataclasses
 import sys
@@ -20,6 +19,7 @@ import time
 from pathlib import Path
 
 from .atomic import atomic_path, write_atomic
+from .cliargs import OneLineParser, UsageError
 from .settings import PlannerSettings
 
 PROG = "solver-study"
@@ -131,11 +131,16 @@ def plot(rows, path: Path):
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0])
-    ap.add_argument("--study", choices=["all", "formulation", "ipopt", "discretisation", "hessian"], default="all")
+    ap = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0])
+    ap.add_argument("--study", choices=["all", "formulation", "ipopt", "discretisation", "hessian"], default="all",
+                    help="which settings to vary")
     ap.add_argument("--out", type=Path, default=Path("study"), help="folder for study.csv, study.md, study.png")
     ap.add_argument("--quick", action="store_true", help="small grid (12x12, N=4, I=J=3) for a fast check")
-    args = ap.parse_args(argv)
+    try:
+        args = ap.parse_args(argv)
+    except UsageError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 2
     if args.out.exists() and not args.out.is_dir():
         print(f"{PROG}: error: {args.out} exists and is not a folder", file=sys.stderr)
         return 2

@@ -14,21 +14,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ocp.cliargs import OneLineParser, UsageError as InputError
+
 PROG = "simulate-swarm"
 
 
-class InputError(ValueError):
-    """Bad user input: one line on stderr, exit code 2."""
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line instead of usage + message, and no SystemExit(2) from deep inside
-        raise InputError(message)
-
-
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog=PROG, description=__doc__.split("\n\n")[0],
-                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0])
     p.add_argument("--config", type=Path, help="TOML file with [sim], [gp], [kde], [feedback], [planner] tables")
     p.add_argument("--out", type=Path, default=Path("run"), help="output folder")
     p.add_argument("--seed", type=int, help="random seed (default 0)")

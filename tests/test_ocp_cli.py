@@ -67,6 +67,8 @@ def _bad_cases(tmp):
         "unknown linear solver": (["--linear-solver", "foo"], "linear_solver"),
         "exact Hessian too large": (["--hessian", "exact", "--intervals", "12", "--modes", "8", "8"], "exact Hessian is dense"),
         "option IPOPT rejects": (["--config", tmp / "badopt.toml"], "No such IPOPT option: nonsense_option"),
+        "not a number": (["--nx", "abc"], "argument --nx: invalid int value"),
+        "unknown flag": (["--speed", "3"], "unrecognized arguments: --speed"),
     }
 
 
@@ -74,7 +76,7 @@ def _bad_cases(tmp):
     "missing initial", "unreadable target", "wrong shape", "negative", "non-finite", "zero mass", "bad toml",
     "unknown key", "impossible v_max", "impossible grid", "bad warm start", "bad out suffix", "missing out folder",
     "unknown linear solver", "option IPOPT rejects",
-    "exact Hessian too large"])
+    "exact Hessian too large", "not a number", "unknown flag"])
 def test_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys, case):
     args, msg = _bad_cases(tmp_path)[case]
     before = sorted(p.name for p in tmp_path.iterdir())

@@ -24,3 +24,10 @@ def test_out_must_be_a_folder(tmp_path, capsys):
     assert main(["--study", "hessian", "--quick", "--out", str(f)]) == 2
     assert "not a folder" in capsys.readouterr().err
     assert f.read_text() == "x"
+
+
+def test_usage_errors_are_one_line(tmp_path, capsys):
+    assert main(["--study", "nonsense", "--out", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("solver-study: error: argument --study: invalid choice"), err
+    assert not (tmp_path / "s").exists()
