@@ -36,7 +36,10 @@ Algorithm, O(n + G log G) with G = number of bins:
 
 Resolution rule: the bin width must satisfy ``dx <= h / bins_per_bandwidth`` (default 4) in
 both directions; if the requested ``bins`` are coarser the count is raised automatically (to a
-fast FFT length), up to ``max_bins`` per axis.  With the rule at 4 the aliasing of the
+fast FFT length), up to ``max_bins`` per axis.  A fixed bandwidth that needs more is an error; a
+Silverman bandwidth below the finest resolvable one, ``bins_per_bandwidth * max(b, c) / max_bins``
+(0.04 m on the paper's domain: a tightly clustered swarm), is raised to it, so that a closed loop
+never stops because the robots bunched up.  With the rule at 4 the aliasing of the
 DCT-domain Gaussian is below exp(-(4 pi)^2 / 2) ~ 1e-34 and the Hermite error is O((dx/h)^4);
 the dominant error is the binning error, at most about ``(1/6)(dx/h)^2`` of the peak value for a
 single isolated robot (about 1 % at the default rule, when the robot sits on a bin centre) and
@@ -125,8 +128,8 @@ class KernelDensity:
     ----------
     domain : (x0, x1, y0, y1)
     bandwidth : float or None
-        ``None``: :func:`silverman_bandwidth` of the positions, recomputed at every ``fit``.
-        A positive float fixes h.
+        ``None``: :func:`silverman_bandwidth` of the positions, recomputed at every ``fit``
+        (raised to :attr:`min_bandwidth` for tightly clustered robots).  A positive float fixes h.
     bins : (bx, by)
         Minimum number of bins per axis; raised automatically so that the bin width is at most
         ``h / bins_per_bandwidth`` (see the module docstring).
@@ -165,6 +168,12 @@ class KernelDensity:
         h = "silverman" if self.bandwidth is None else f"{self.bandwidth:g}"
         return f"KernelDensity(domain={self.domain}, bandwidth={h}, bins={self.bins})"
 
+    @property
+    def min_bandwidth(self) -> float:
+        """Smallest bandwidth the bins can resolve: ``bins_per_bandwidth * max(b, c) / max_bins``."""
+        x0, x1, y0, y1 = self.domain
+        return self.bins_per_bandwidth * max(x1 - x0, y1 - y0) / self.max_bins
+
     def resolve_bins(self, h: float) -> tuple[int, int]:
         """Bin counts used for bandwidth h: the requested ones, raised until width <= h / bins_per_bandwidth."""
         x0, x1, y0, y1 = self.domain
@@ -183,7 +192,9 @@ class KernelDensity:
     def fit(self, X: np.ndarray) -> "DensityEstimate":
         """Estimate the density of the positions ``X`` (n, 2); returns a :class:`DensityEstimate`."""
         X = _inside(_check_points(X, "X"), self.domain, "X")
-        h = silverman_bandwidth(X) if self.bandwidth is None else self.bandwidth
+        h = self.bandwidth
+        if h is None:
+            h = max(silverman_bandwidth(X), self.min_bandwidth)
         mx, my = self.resolve_bins(h)
         x0, x1, y0, y1 = self.domain
         dx = (x1 - x0) / mx

@@ -104,6 +104,8 @@ from .settings import GPSettings
 _N_POW = 7            # powers t^0 .. t^6 of the products w_p w_r
 _N_POW_Y = 4          # powers t^0 .. t^3 of the weights w_p
 _PREDICT_CHUNK = 4096
+#: Points per block in GaussianProcess.add: bounds its work arrays (~1 KB per point) for huge batches.
+_ADD_CHUNK = 65536
 
 
 @dataclasses.dataclass
@@ -284,6 +286,22 @@ class GaussianProcess:
         n = y.shape[0]
         if n == 0:
             return
+        for k in range(0, n, _ADD_CHUNK):       # bounded work arrays (~1 KB per point) for huge batches
+            self._accumulate(X[k:k + _ADD_CHUNK], y[k:k + _ADD_CHUNK])
+        self._n += n
+        self._sum_y += float(y.sum())
+        self._sum_y2 += float(y @ y)
+        self._version += 1
+        if self._pending is not None:
+            if self._pending_n + n <= self.max_update_rank:
+                self._pending.append(X)          # X is a fresh array from _points
+                self._pending_n += n
+            else:
+                self._pending, self._pending_n = None, 0
+
+    def _accumulate(self, X: np.ndarray, y: np.ndarray) -> None:
+        """Add the points' power-sum features to the per-cell sums (the O(n) part of :meth:`add`)."""
+        n = y.shape[0]
         ix, tx = self._ax.locate(X[:, 0])
         iy, ty = self._ay.locate(X[:, 1])
         cell = ix * self._ay.n_cells + iy
@@ -303,16 +321,6 @@ class GaussianProcess:
         sums = np.asarray(member @ both)
         self._mom += sums[:, : _N_POW * _N_POW].reshape(n_cells, _N_POW, _N_POW)
         self._momy += sums[:, _N_POW * _N_POW:].reshape(n_cells, _N_POW_Y, _N_POW_Y)
-        self._n += n
-        self._sum_y += float(y.sum())
-        self._sum_y2 += float(y @ y)
-        self._version += 1
-        if self._pending is not None:
-            if self._pending_n + n <= self.max_update_rank:
-                self._pending.append(X)          # X is a fresh array from _points
-                self._pending_n += n
-            else:
-                self._pending, self._pending_n = None, 0
 
     # ------------------------------------------------------------------ linear algebra
     def _build_scatter_indices(self) -> None:

@@ -46,7 +46,8 @@ class GPSettings:
     inducing_spacing
         Requested spacing h of the cubic-B-spline inducing grid (``None``: ``length_scale / 2``).
         Each axis of length L gets ``ceil(L / h)`` cells of equal width <= h. The kernel
-        approximation error is about 1e-3 * signal_variance at h = l/2 and 3e-3 at h = l/1.5;
+        approximation error per axis is about 7e-4 * signal_variance at h = l/2 and 3e-3 at
+        h = l/1.5 (in 2-D: 1.4e-3 and 5.5e-3);
         the spacing must therefore be <= length_scale / 1.5.
     max_inducing_points
         Upper bound on the number of inducing grid nodes M = (cells_x + 3) * (cells_y + 3).

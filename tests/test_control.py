@@ -208,6 +208,20 @@ def test_silverman_bandwidth():
         silverman_bandwidth(np.ones((5, 2)))
 
 
+def test_clustered_robots_get_the_finest_resolvable_bandwidth():
+    # Silverman gives h = 0.022 m here, which would need 3584 bins per axis: the estimate uses the
+    # finest bandwidth the bins resolve instead of failing, and still has unit mass
+    X = 10 + np.random.default_rng(0).normal(0, 0.05, (100, 2))
+    kde = KernelDensity(DOMAIN)
+    assert silverman_bandwidth(X) < kde.min_bandwidth == pytest.approx(4 * 20 / 2048)
+    est = kde.fit(X)
+    assert est.bandwidth == kde.min_bandwidth and max(est.bins) <= kde.max_bins
+    assert est.on_grid(400, 400).sum() * 0.05 ** 2 == pytest.approx(1.0, abs=1e-4)   # midpoint rule
+    # a fixed bandwidth that fine is still refused, with the reason
+    with pytest.raises(ValueError, match="max_bins"):
+        KernelDensity(DOMAIN, bandwidth=0.02).fit(X)
+
+
 @pytest.mark.parametrize("kwargs, match", [
     (dict(bandwidth=-1.0), "bandwidth"),
     (dict(bandwidth=0.0), "bandwidth"),

@@ -188,6 +188,23 @@ def test_incremental_add_equals_single_add():
     np.testing.assert_allclose(v1, v2, atol=1e-12)
 
 
+def test_large_batches_are_accumulated_in_blocks(monkeypatch):
+    import regression.gp as gpmod
+
+    X, y = paper_data(8)
+    whole = GaussianProcess(COARSE)
+    whole.add(X, y)
+    monkeypatch.setattr(gpmod, "_ADD_CHUNK", 97)     # many blocks, the last one partial
+    blocks = GaussianProcess(COARSE)
+    blocks.add(X, y)
+    assert blocks.n_observations == len(y)
+    pts = cell_centres()
+    m1, v1 = whole.predict(pts)
+    m2, v2 = blocks.predict(pts)
+    np.testing.assert_allclose(m1, m2, atol=1e-10)
+    np.testing.assert_allclose(v1, v2, atol=1e-12)
+
+
 # ---------------------------------------------------------------------- Woodbury updates of the posterior
 def exact_posterior(settings, X, y, pts):
     """A fresh GP that computes the posterior from the power sums (no Woodbury update)."""
