@@ -4,6 +4,8 @@
 * :mod:`sim.dynamics` -- eq. "Langevin equation" by Euler--Maruyama with reflecting walls; measurements
 * :mod:`sim.config`   -- ``SimSettings``, ``KDESettings``, ``RunConfig`` and their TOML form
 * :mod:`sim.loop`     -- Algorithm 1: GP regression, target density, planner, feedback, metrics
+* :mod:`sim.tracking` -- the feedback law alone towards a given plan (Theorems "Exponential
+  stability" and "ISS" at the particle level)
 * :mod:`sim.metrics`, :mod:`sim.outputs`, :mod:`sim.figures` -- metrics.csv, summary.json, figures
 * :mod:`sim.cli`      -- the ``simulate-swarm`` command
 
