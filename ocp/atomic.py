@@ -44,3 +44,12 @@ def write_atomic(path, data: bytes | str) -> Path:
         with open(tmp, "wb") as fh:
             fh.write(data)
     return Path(path)
+
+
+def probe_writable(path) -> None:
+    """Raise ``OSError`` unless a file can be created beside ``path`` (checked before long work, so
+    that an unwritable destination is reported before, not after, a solve or a run)."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".probe", dir=path.parent)
+    os.close(fd)
+    os.unlink(tmp)

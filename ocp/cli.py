@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .atomic import probe_writable
 from .cliargs import OneLineParser, UsageError as InputError
 from .plan import ReferencePlan
 from .settings import PlannerSettings, dataclass_from_dict
@@ -63,7 +64,10 @@ def resolve_settings(args) -> PlannerSettings:
         unknown = sorted(set(doc) - {"planner"})
         if unknown:
             raise InputError(f"config {args.config}: unknown table(s) {unknown}; expected [planner]")
-        cfg = dict(doc.get("planner", {}))
+        cfg = doc.get("planner", {})
+        if not isinstance(cfg, dict) or not isinstance(cfg.get("ipopt", {}), dict):
+            raise InputError(f"config {args.config}: [planner] and [planner.ipopt] must be tables")
+        cfg = dict(cfg)
     flags = {"nx": args.nx, "ny": args.ny, "n_intervals": args.intervals, "horizon": args.horizon,
              "w_f": args.w_f, "w_p": args.w_p, "w_v": args.w_v, "v_max": args.v_max,
              "target_floor": args.target_floor}
@@ -87,20 +91,20 @@ def load_density(path: Path, shape, name: str) -> np.ndarray:
         arr = np.load(path, allow_pickle=False)
     except FileNotFoundError:
         raise InputError(f"{name} file {path} does not exist") from None
-    except (OSError, ValueError) as exc:
-        raise InputError(f"cannot read {name} file {path}: {exc}") from None
+    except (OSError, ValueError, EOFError) as exc:
+        raise InputError(f"cannot read {name} file {path}: {exc or 'empty or truncated file'}") from None
     if not isinstance(arr, np.ndarray):
         raise InputError(f"{name} file {path} must hold one array (.npy), not an archive")
     if arr.shape != tuple(shape):
         raise InputError(f"{name} in {path} has shape {arr.shape}, expected {tuple(shape)} (nx, ny)")
-    if not np.issubdtype(arr.dtype, np.number):
-        raise InputError(f"{name} in {path} is not numeric")
+    if not (np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)):
+        raise InputError(f"{name} in {path} must hold real numbers, got dtype {arr.dtype}")
     arr = arr.astype(float)
     if not np.all(np.isfinite(arr)):
         raise InputError(f"{name} in {path} contains non-finite values")
     if np.any(arr < 0):
         raise InputError(f"{name} in {path} has negative values (min {arr.min():.3g})")
-    if not arr.sum() > 0:
+    if not arr.max() > 0:
         raise InputError(f"{name} in {path} has zero mass")
     return arr
 
@@ -113,6 +117,10 @@ def check_output(path: Path, suffix: str, what: str):
         raise InputError(f"folder {parent} of {what} {path} does not exist")
     if path.is_dir():
         raise InputError(f"{what} {path} is a folder")
+    try:
+        probe_writable(path)
+    except OSError as exc:
+        raise InputError(f"cannot write {what} {path}: {exc.strerror or exc}") from None
 
 
 def run(argv=None) -> int:
@@ -136,6 +144,9 @@ def run(argv=None) -> int:
         expected = (settings.n_intervals, 2, settings.n_modes_x, settings.n_modes_y)
         if warm.coef.shape != expected:
             raise InputError(f"warm-start plan {args.warm_start} has coefficients {warm.coef.shape}, expected {expected}")
+        if tuple(warm.domain) != settings.domain:
+            raise InputError(f"warm-start plan {args.warm_start} is for the domain {tuple(float(v) for v in warm.domain)}, "
+                             f"this problem's is {settings.domain}")
 
     if args.initial is not None:
         p0, p0_desc = load_density(args.initial, grid.shape, "initial density"), str(args.initial)
@@ -155,10 +166,14 @@ def run(argv=None) -> int:
         return 1
     plan.meta["initial_density"] = p0_desc
     plan.meta["target_density"] = target_desc
-    plan.save(args.out)
-    if args.plot is not None:
-        from .figures import plot_plan
-        plot_plan(plan, args.plot)
+    try:
+        plan.save(args.out)
+        if args.plot is not None:
+            from .figures import plot_plan
+            plot_plan(plan, args.plot)
+    except OSError as exc:
+        print(f"{PROG}: error: cannot write {exc.filename or args.out}: {exc.strerror or exc}", file=sys.stderr)
+        return 1
     m = plan.meta
     sv = m["solver"]
     terms = m["objective_terms"]

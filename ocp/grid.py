@@ -95,10 +95,11 @@ class Grid:
             raise ValueError(f"{name} contains non-finite values")
         if np.any(p < 0):
             raise ValueError(f"{name} has negative values (min {p.min():.3g})")
-        m = self.mass(p)
-        if not m > 0:
+        top = p.max()
+        if not top > 0:
             raise ValueError(f"{name} has zero mass")
-        return p / m
+        q = p / top                     # scaled first: the sum of huge finite values must not overflow
+        return q / self.mass(q)
 
     def contains(self, points: np.ndarray) -> np.ndarray:
         points = np.asarray(points, dtype=float)

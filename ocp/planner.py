@@ -7,7 +7,10 @@ new (p0, p_f) as NLP *parameters*, optionally warm-started from the previous pla
 from __future__ import annotations
 
 import re
+import signal
+import threading
 import time
+from contextlib import contextmanager
 from importlib import metadata
 
 import casadi as ca
@@ -77,6 +80,9 @@ class ReferencePlanner:
         prev = np.asarray(warm_start.coef)
         if prev.shape != shape:
             raise ValueError(f"warm-start plan has coefficients of shape {prev.shape}, this planner uses {shape}")
+        if not np.allclose(warm_start.domain, self.grid.domain, rtol=0.0, atol=1e-12):
+            raise ValueError(f"warm-start plan is for the domain {tuple(float(v) for v in warm_start.domain)}, "
+                             f"this planner's is {self.grid.domain}")
         shift = int(round((t0 - warm_start.t_start) / self.settings.interval))
         if shift <= 0 or shift >= P.N:
             return prev.copy()
@@ -110,7 +116,10 @@ class ReferencePlanner:
         x0 = P.initial_point(a0)
 
         t_start = time.perf_counter()
-        sol = self.solver(x0=x0, p=par, lbx=P.lbx, ubx=P.ubx, lbg=P.lbg, ubg=P.ubg)
+        with _interrupt_guard() as interrupted:
+            sol = self.solver(x0=x0, p=par, lbx=P.lbx, ubx=P.ubx, lbg=P.lbg, ubg=P.ubg)
+        if interrupted:
+            raise KeyboardInterrupt
         wall = time.perf_counter() - t_start
         stats = self.solver.stats()
         status = stats.get("return_status", "unknown")
@@ -151,6 +160,28 @@ def plan_reference(p0, target, settings: PlannerSettings | None = None, t0: floa
                    warm_start: ReferencePlan | None = None) -> ReferencePlan:
     """One-shot convenience: build a planner for ``settings`` and solve once."""
     return ReferencePlanner(settings).solve(p0, target, t0=t0, warm_start=warm_start)
+
+
+@contextmanager
+def _interrupt_guard():
+    """Record Ctrl-C during an IPOPT solve.  CasADi turns the KeyboardInterrupt raised in its
+    callbacks into IPOPT's status ``NonIpopt_Exception_Thrown``; the caller re-raises it after
+    the solve, so an interrupt is never reported as a solver failure (main thread only: elsewhere
+    signal handlers cannot be installed and Python's own handling applies)."""
+    hits = []
+    if threading.current_thread() is not threading.main_thread():
+        yield hits
+        return
+
+    def handler(signum, frame):
+        hits.append(signum)
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        yield hits
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _stats_summary(stats: dict, wall: float) -> dict:

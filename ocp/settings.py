@@ -15,6 +15,12 @@ from dataclasses import dataclass, field
 LINEAR_SOLVERS = ("mumps", "spral", "ma27", "ma57", "ma77", "ma86", "ma97", "pardiso", "pardisomkl")
 
 
+#: Upper bound on N * sub-steps * nx * ny, the cell updates of one forward pass (the paper's problem:
+#: 1.5e5, 0.3 s per solve; 4.1e6 at 120 x 120 takes ~0.4 s per IPOPT iteration): beyond it a solve
+#: would take hours, so the settings are refused up front instead.
+MAX_CELL_STEPS = 50_000_000
+
+
 @dataclass(frozen=True)
 class IpoptSettings:
     """IPOPT options used by the planner (names follow IPOPT's own).
@@ -128,6 +134,12 @@ class PlannerSettings:
             raise ValueError(f"planner.speed_limit_form must be 'split' or 'slack', got {self.speed_limit_form!r}")
         if not isinstance(self.ipopt, IpoptSettings):
             raise ValueError("planner.ipopt must be an IpoptSettings")
+        work = self.n_intervals * self.substeps * self.nx * self.ny
+        if work > MAX_CELL_STEPS:
+            raise ValueError(
+                f"planner: {self.nx}x{self.ny} cells with {self.substeps} sub-steps on each of {self.n_intervals} "
+                f"intervals is {work:.3g} cell updates per objective evaluation, above the limit {MAX_CELL_STEPS:.0e} "
+                f"(the paper's 40x40 problem: {12 * 8 * 1600:.3g}); use a coarser grid, a shorter horizon or a lower v_max")
 
     @property
     def interval(self) -> float:

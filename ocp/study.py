@@ -18,7 +18,7 @@ import sys
 import time
 from pathlib import Path
 
-from .atomic import atomic_path, write_atomic
+from .atomic import atomic_path, probe_writable, write_atomic
 from .cliargs import OneLineParser, UsageError
 from .settings import PlannerSettings
 
@@ -144,16 +144,29 @@ def main(argv=None) -> int:
     if args.out.exists() and not args.out.is_dir():
         print(f"{PROG}: error: {args.out} exists and is not a folder", file=sys.stderr)
         return 2
-    args.out.mkdir(parents=True, exist_ok=True)
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+        probe_writable(args.out / "study.csv")
+    except OSError as exc:
+        print(f"{PROG}: error: cannot write to {args.out}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
     base = PlannerSettings(nx=12, ny=12, n_intervals=4, n_modes_x=3, n_modes_y=3) if args.quick else PlannerSettings()
     rows = []
     todo = cases(args.study, base, args.quick)
-    for k, (st, label, s) in enumerate(todo, 1):
-        r = {"study": st, "case": label, **run_case(s)}
-        rows.append(r)
-        print(f"[{k}/{len(todo)}] {st:<15s} {label:<45s} solve {r['solve_s']:7.2f} s  {r['iterations']:4d} it  "
-              f"J = {r['objective']:.5g}  {r['status']}", file=sys.stderr, flush=True)
-    write_outputs(rows, args.out)
+    try:
+        for k, (st, label, s) in enumerate(todo, 1):
+            r = {"study": st, "case": label, **run_case(s)}
+            rows.append(r)
+            print(f"[{k}/{len(todo)}] {st:<15s} {label:<45s} solve {r['solve_s']:7.2f} s  {r['iterations']:4d} it  "
+                  f"J = {r['objective']:.5g}  {r['status']}", file=sys.stderr, flush=True)
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted after {len(rows)} of {len(todo)} cases; no table written", file=sys.stderr)
+        return 130
+    try:
+        write_outputs(rows, args.out)
+    except OSError as exc:
+        print(f"{PROG}: error: cannot write the study to {args.out}: {exc.strerror or exc}", file=sys.stderr)
+        return 1
     print(f"wrote {args.out / 'study.csv'}, {args.out / 'study.md'}, {args.out / 'study.png'}")
     return 0
 

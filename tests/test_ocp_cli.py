@@ -50,6 +50,13 @@ def _bad_cases(tmp):
     (tmp / "unknown.toml").write_text("[planner]\nspeed = 3\n")
     (tmp / "badplan.npz").write_bytes(b"garbage")
     (tmp / "badopt.toml").write_text("[planner.ipopt]\nextra = {nonsense_option = 3}\n")
+    (tmp / "notable.toml").write_text("planner = 3\n")
+    (tmp / "ipopt_notable.toml").write_text("[planner]\nipopt = 3\n")
+    (tmp / "empty.npy").write_bytes(b"")
+    np.save(tmp / "complex.npy", good + 1j)
+    ReferencePlan(domain=np.array([0.0, 10.0, 0.0, 30.0]), t=np.array([0.0, 1.0]), p=np.full((2, 12, 10), 1 / 300),
+                  t_intervals=np.linspace(0.0, 1.0, 4), coef=np.zeros((3, 2, 3, 3)),
+                  target=np.full((12, 10), 1 / 300)).save(tmp / "otherdomain.npz")
     return {
         "missing initial": (["--initial", tmp / "nope.npy"], "does not exist"),
         "unreadable target": (["--target", tmp / "junk.npy"], "cannot read"),
@@ -68,6 +75,13 @@ def _bad_cases(tmp):
         "exact Hessian too large": (["--hessian", "exact", "--intervals", "12", "--modes", "8", "8"], "exact Hessian is dense"),
         "option IPOPT rejects": (["--config", tmp / "badopt.toml"], "No such IPOPT option: nonsense_option"),
         "not a number": (["--nx", "abc"], "argument --nx: invalid int value"),
+        "planner not a table": (["--config", tmp / "notable.toml"], "must be tables"),
+        "ipopt not a table": (["--config", tmp / "ipopt_notable.toml"], "must be tables"),
+        "empty npy": (["--initial", tmp / "empty.npy"], "cannot read"),
+        "complex density": (["--target", tmp / "complex.npy"], "real numbers"),
+        "warm start of another domain": (["--warm-start", tmp / "otherdomain.npz"], "domain (0.0, 10.0, 0.0, 30.0)"),
+        "unwritable out": (["--out", "/proc/plan.npz"], "cannot write output"),
+        "grid too fine": (["--nx", "100000"], "cell updates per objective evaluation"),
         "unknown flag": (["--speed", "3"], "unrecognized arguments: --speed"),
     }
 
@@ -76,7 +90,8 @@ def _bad_cases(tmp):
     "missing initial", "unreadable target", "wrong shape", "negative", "non-finite", "zero mass", "bad toml",
     "unknown key", "impossible v_max", "impossible grid", "bad warm start", "bad out suffix", "missing out folder",
     "unknown linear solver", "option IPOPT rejects",
-    "exact Hessian too large", "not a number", "unknown flag"])
+    "exact Hessian too large", "not a number", "unknown flag", "planner not a table", "ipopt not a table",
+    "empty npy", "complex density", "warm start of another domain", "unwritable out", "grid too fine"])
 def test_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys, case):
     args, msg = _bad_cases(tmp_path)[case]
     before = sorted(p.name for p in tmp_path.iterdir())
@@ -97,3 +112,15 @@ def test_solver_failure_exits_nonzero_and_keeps_old_plan(tmp_path, capsys):
     assert code == 1
     assert "Maximum_Iterations_Exceeded" in err and "no plan written" in err
     assert out.read_bytes() == b"previous"
+
+
+def test_huge_finite_densities_are_normalised_without_overflow(tmp_path, capsys):
+    np.save(tmp_path / "huge.npy", np.full((12, 10), 1e308))
+    out = tmp_path / "plan.npz"
+    code, _, err = run(SMALL + ["--initial", tmp_path / "huge.npy", "--target", tmp_path / "huge.npy", "--out", out],
+                       capsys)
+    assert code == 0, err
+    plan = ReferencePlan.load(out)
+    g = plan.grid
+    np.testing.assert_allclose(plan.p.sum(axis=(1, 2)) * g.cell_area, 1.0, atol=1e-10)
+    np.testing.assert_allclose(plan.target, 1.0 / g.area)

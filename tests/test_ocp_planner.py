@@ -161,3 +161,29 @@ def test_slack_and_split_speed_limit_forms_reach_the_same_optimum(small_planner)
     slack = ReferencePlanner(PlannerSettings(**SMALL, speed_limit_form="slack")).solve(p0, target)
     assert slack.meta["objective"] == pytest.approx(split.meta["objective"], rel=1e-4)
     np.testing.assert_allclose(slack.p[-1], split.p[-1], atol=1e-3 * split.p[-1].max())
+
+
+def test_ctrl_c_during_a_solve_is_an_interrupt_not_a_solver_failure(small_planner, monkeypatch):
+    import signal
+
+    real = small_planner.solver
+
+    class InterruptedSolver:
+        """Ctrl-C arrives during the solve; CasADi catches the exception and IPOPT stops early."""
+
+        def __call__(self, **kw):
+            try:
+                signal.raise_signal(signal.SIGINT)
+            except KeyboardInterrupt:
+                pass
+            return real(**kw)
+
+        def stats(self):
+            return {"return_status": "NonIpopt_Exception_Thrown", "iter_count": 3}
+
+    before = signal.getsignal(signal.SIGINT)
+    monkeypatch.setattr(small_planner, "solver", InterruptedSolver())
+    g = small_planner.grid
+    with pytest.raises(KeyboardInterrupt):
+        small_planner.solve(bump(g, 2.5, 2.5, 1.2), bump(g, 7.0, 5.0, 1.2))
+    assert signal.getsignal(signal.SIGINT) is before
