@@ -97,8 +97,9 @@ class SimSettings:
     start_box       initial positions uniform on this box (paper: [0, 7]^2)
     dt              measurement period Δt [s] (paper: 0.875)
     period          re-planning period T [s], a whole multiple of dt (paper: 7 = 8 Δt)
-    gamma           stop when sup_x V(x) <= gamma (paper: 0.1)
-    eta             tolerance of the target density p_f = max(V - eta, 0) / int (paper: "small")
+    gamma           stop when sup_x V(x) <= gamma (paper: 0.1); below gp.signal_variance; 0 never stops
+                    on the variance (the run lasts max_periods)
+    eta             tolerance of the target density p_f = max(V - eta, 0) / int (paper: "small"); below gamma
     noise_variance  variance of the measurement noise (paper: 0.04)
     max_periods     stop after this many re-planning periods even if sup V > gamma
     field           unknown field: ``sinc`` (paper), ``plumes``, ``ridge`` or a file (see sim.fields)
@@ -144,6 +145,9 @@ class SimSettings:
         b = self.start_box
         if b[0] < x0 or b[1] > x1 or b[2] < y0 or b[3] > y1:
             raise ValueError(f"sim.start_box {list(b)} is not inside sim.domain {list(self.domain)}")
+        if self.gamma > 0 and self.eta >= self.gamma:
+            raise ValueError(f"sim.eta ({self.eta:g}) must be below sim.gamma ({self.gamma:g}): otherwise the target "
+                             "p_f = max(V - eta, 0) is empty while sup V > gamma keeps the loop running")
         ratio = self.period / self.dt
         if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio) or round(ratio) < 1:
             raise ValueError(f"sim.period ({self.period:g}) must be a whole multiple of sim.dt ({self.dt:g})")
@@ -205,6 +209,10 @@ class RunConfig:
         if not math.isclose(self.gp.noise_variance, s.noise_variance, rel_tol=1e-12):
             raise ValueError(f"gp.noise_variance ({self.gp.noise_variance:g}) differs from sim.noise_variance "
                              f"({s.noise_variance:g}); set it in [sim] only")
+        if s.gamma >= self.gp.signal_variance:
+            raise ValueError(f"sim.gamma ({s.gamma:g}) must be below the GP prior variance gp.signal_variance "
+                             f"({self.gp.signal_variance:g}): sup V starts there, so Algorithm 1 would stop before "
+                             "the robots move")
         if self.kde.bandwidth is None and s.robots < 2:
             raise ValueError("the KDE's Silverman bandwidth needs at least 2 robots; set kde.bandwidth or sim.robots >= 2")
 

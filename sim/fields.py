@@ -204,7 +204,18 @@ def _check_values(values, where: str) -> np.ndarray:
         raise ValueError(f"{where}: field grid must be at least 2 x 2 nodes, got {v.shape}")
     if not np.all(np.isfinite(v)):
         raise ValueError(f"{where}: field values contain {int(np.sum(~np.isfinite(v)))} non-finite entries")
+    _check_magnitude(v, where)
     return v
+
+
+#: Largest |f| accepted from a file: squares of the errors (RMSE, L2) must stay finite.
+MAX_ABS_VALUE = 1e100
+
+
+def _check_magnitude(v: np.ndarray, where: str) -> None:
+    if v.size and np.max(np.abs(v)) > MAX_ABS_VALUE:
+        raise ValueError(f"{where}: field values up to {np.max(np.abs(v)):.3g} exceed {MAX_ABS_VALUE:.0e} in magnitude; "
+                         "rescale the field (its errors and variances would overflow)")
 
 
 class GridField(Field):
@@ -264,6 +275,7 @@ class ScatteredField(Field):
             raise ValueError(f"{where}: need at least 3 scattered points, got {pts.shape[0]}")
         if not (np.all(np.isfinite(pts)) and np.all(np.isfinite(vals))):
             raise ValueError(f"{where}: non-finite coordinates or values")
+        _check_magnitude(vals, where)
         uniq = np.unique(pts, axis=0)
         if uniq.shape[0] != pts.shape[0]:
             raise ValueError(f"{where}: {pts.shape[0] - uniq.shape[0]} duplicate (x, y) point(s)")
@@ -293,7 +305,7 @@ class ScatteredField(Field):
 def _read_csv(path: Path):
     where = str(path)
     try:
-        with open(path, newline="") as fh:
+        with open(path, newline="", encoding="utf-8-sig") as fh:     # a byte-order mark (Excel) is not data
             rows = [r for r in csv.reader(line for line in fh if line.strip() and not line.lstrip().startswith("#"))]
     except UnicodeDecodeError:
         raise ValueError(f"cannot read field file {where}: not a text CSV file") from None

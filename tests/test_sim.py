@@ -180,6 +180,10 @@ def test_csv_lattice_and_scattered_round_trip(tmp_path):
     f = make_field(str(tmp_path / "lattice.csv"), DOMAIN)
     assert isinstance(f, GridField)
     np.testing.assert_allclose(f(np.column_stack([XX.ravel(), YY.ravel()])), v.ravel(), rtol=1e-13)
+    # the same file as Excel's "CSV UTF-8" writes it, with a byte-order mark
+    (tmp_path / "bom.csv").write_bytes(b"\xef\xbb\xbf" + text.encode())
+    f = make_field(str(tmp_path / "bom.csv"), DOMAIN)
+    np.testing.assert_allclose(f(np.column_stack([XX.ravel(), YY.ravel()])), v.ravel(), rtol=1e-13)
 
     # scattered samples of a linear function: linear interpolation reproduces it inside the hull
     P = rng.uniform(1, 19, size=(60, 2))
@@ -217,6 +221,8 @@ def _bad_field_files(tmp):
     (tmp / "empty.csv").write_text("x,y,value\n")
     (tmp / "binary.csv").write_bytes(b"\xff\xfe\x00\x01\x02")
     (tmp / "field.txt").write_text("1 2 3\n")
+    save_npz_field(tmp / "huge.npz", np.full((5, 4), 1e300), DOMAIN)
+    (tmp / "hugecsv.csv").write_text("0,0,1\n20,0,2\n0,20,1e200\n20,20,3\n")
     return {
         "missing": ("nope.npz", "does not exist"),
         "junk npz": ("junk.npz", "cannot read"),
@@ -239,6 +245,8 @@ def _bad_field_files(tmp):
         "csv empty": ("empty.csv", "no data"),
         "csv binary": ("binary.csv", "cannot read|not numeric|header"),
         "suffix": ("field.txt", "unsupported|unknown field"),
+        "huge values": ("huge.npz", "exceed 1e[+]100 in magnitude"),
+        "huge csv values": ("hugecsv.csv", "exceed 1e[+]100 in magnitude"),
     }
 
 
@@ -294,6 +302,9 @@ def test_toml_round_trip_and_derived_settings(tmp_path):
     ({"planner": {"ipopt": {"tol": "x"}}}, "planner.ipopt.tol"),
     ({"feedback": {"alpha": 0}}, "alpha"),
     ({"kde": {"bins": [4]}}, "kde.bins"),
+    ({"sim": {"eta": 0.5}}, r"sim.eta \(0.5\) must be below sim.gamma"),
+    ({"sim": {"gamma": 0.3}}, "below the GP prior variance"),
+    ({"sim": {"gamma": -0.1}}, "gamma"),
 ])
 def test_bad_configuration_values_are_rejected(doc, msg):
     with pytest.raises(ValueError, match=msg):
