@@ -3,8 +3,9 @@
 Without arguments it runs the paper's scenario (100 robots from [0, 7]^2 on [0, 20]^2, field
 2 + sin(2|x|)/|x|, Δt = 0.875 s, T = 7 s, γ = 0.1) with seed 0 into ``./run``.  Flags override
 the ``[sim]`` settings of ``--config``.  Exit codes: 0 run finished (whether or not sup V fell
-below γ; see summary.json), 1 planner failure (the outputs up to that point are written),
-2 bad input (one line on stderr, nothing written), 130 interrupted.
+below γ; see summary.json), 1 planner failure (the outputs up to that point are written) or a
+simulation or write failure (one line; DIR keeps its previous contents), 2 bad input (one line on
+stderr, nothing written), 130 interrupted (DIR keeps its previous contents).
 """
 from __future__ import annotations
 
@@ -80,7 +81,7 @@ def _progress_printer(config):
 def run(argv=None) -> int:
     args = build_parser().parse_args(argv)
     config, field = resolve(args)
-    from .outputs import check_output_dir, prepare_output_dir, write_metrics, write_outputs
+    from .outputs import check_output_dir, prepare_output_dir, publish, write_metrics, write_outputs
 
     try:
         check_output_dir(args.out, args.force)
@@ -94,24 +95,35 @@ def run(argv=None) -> int:
         planner = ReferencePlanner(config.planner)
     except ValueError as exc:
         raise InputError(f"planner: {exc}") from None
-    out = prepare_output_dir(args.out, args.force)
+    try:
+        stage = prepare_output_dir(args.out, args.force)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    kept = f"{args.out} keeps its previous contents; the metrics of the completed periods are in {stage}"
     progress = None if args.quiet else _progress_printer(config)
     try:
         result = run_simulation(config, field=field, planner=planner, progress=progress,
-                                on_period=lambda res: write_metrics(res, out))
-    except (ValueError, RuntimeError, ArithmeticError, np.linalg.LinAlgError) as exc:
-        # not a planner failure (those end the run normally): report in one line; the metrics of
-        # the completed periods are already in DIR/metrics.csv
-        print(f"{PROG}: error: simulation failed: {type(exc).__name__}: {exc}; metrics of completed periods "
-              f"are in {out}", file=sys.stderr)
+                                on_period=lambda res: write_metrics(res, stage))
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted; {kept}", file=sys.stderr)
+        return 130
+    except (ValueError, RuntimeError, ArithmeticError, MemoryError, OSError, np.linalg.LinAlgError) as exc:
+        # not a planner failure (those end the run normally): one line, the previous run left in place
+        print(f"{PROG}: error: simulation failed: {type(exc).__name__}: {exc}; {kept}", file=sys.stderr)
         return 1
-    files = write_outputs(result, out, figures=not args.no_figures, gif=args.gif,
-                          extra={"command": [PROG] + [str(a) for a in (sys.argv[1:] if argv is None else argv)],
-                                 "planner_build_time_s": planner.build_time})
+    try:
+        files = write_outputs(result, stage, figures=not args.no_figures, gif=args.gif,
+                              extra={"command": [PROG] + [str(a) for a in (sys.argv[1:] if argv is None else argv)],
+                                     "planner_build_time_s": planner.build_time})
+        publish(stage, args.out)
+    except OSError as exc:
+        print(f"{PROG}: error: cannot write the outputs ({exc.strerror or exc}); {args.out} keeps its previous "
+              f"contents, whatever was written is in {stage}", file=sys.stderr)
+        return 1
     if not args.quiet:
-        print(f"{PROG}: wrote {', '.join(files)} to {out}", file=sys.stderr)
+        print(f"{PROG}: wrote {', '.join(files)} to {args.out}", file=sys.stderr)
     if result.stop_reason == "planner_failed":
-        print(f"{PROG}: error: {result.error}; outputs up to t = {result.rows[-1]['t']:g} s are in {out}",
+        print(f"{PROG}: error: {result.error}; outputs up to t = {result.rows[-1]['t']:g} s are in {args.out}",
               file=sys.stderr)
         return 1
     return 0

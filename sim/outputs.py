@@ -16,14 +16,16 @@
 figures                 ``panels.png``, ``convergence.png``, ``field_error.png`` and, on request,
                         ``animation.gif`` (:mod:`sim.figures`)
 
-Every file is written to a temporary file in DIR and renamed into place, so a reader never sees a
-half-written file and an interrupted run leaves the previous version intact.
+A run writes into the staging folder ``DIR/.simulate-swarm-incomplete`` (the metrics after every
+period, everything else at the end); :func:`publish` then moves its files into DIR, each by one
+rename.  So an interrupted or crashed run leaves the previous run in DIR exactly as it was (its
+completed periods' metrics stay in the staging folder), and a reader never sees a half-written file.
 
 Output folder policy (:func:`check_output_dir`, :func:`prepare_output_dir`): DIR may be missing
-(it is created), empty, or a previous run (it holds the marker file ``.simulate-swarm``; the
-files of that run are removed first so that no stale figure survives).  Any other non-empty
-folder is refused unless ``force`` is given; then only the files named above are (over)written
-and nothing else in the folder is touched.
+(it is created), empty, or a previous run (it holds the marker file ``.simulate-swarm``; files of
+that run which the new run does not write are removed when it is published, so that no stale
+figure survives).  Any other non-empty folder is refused unless ``force`` is given; then only the
+files named above are (over)written and nothing else in the folder is touched.
 """
 from __future__ import annotations
 
@@ -33,6 +35,7 @@ import json
 import math
 import os
 import platform
+import shutil
 import sys
 from importlib import metadata
 from pathlib import Path
@@ -44,10 +47,11 @@ from ocp.atomic import write_atomic
 from .config import to_toml
 from .metrics import COLUMNS
 
-__all__ = ["MARKER", "OUTPUT_FILES", "check_output_dir", "prepare_output_dir", "write_atomic",
+__all__ = ["MARKER", "STAGING", "OUTPUT_FILES", "check_output_dir", "prepare_output_dir", "publish", "write_atomic",
            "write_metrics", "write_summary", "write_outputs", "summary_dict", "versions"]
 
 MARKER = ".simulate-swarm"
+STAGING = ".simulate-swarm-incomplete"
 FIGURES = ("panels.png", "convergence.png", "field_error.png", "animation.gif")
 OUTPUT_FILES = ("metrics.csv", "replans.csv", "summary.json", "config.toml", "trajectory.npz") + FIGURES
 REPLAN_COLUMNS = ("period", "t0", "max_variance", "rmse", "status", "success", "iterations", "solve_time_s",
@@ -67,6 +71,9 @@ def check_output_dir(path, force: bool = False) -> Path:
                              "choose another --out or pass --force")
         if not os.access(path, os.W_OK):
             raise ValueError(f"output folder {path} is not writable")
+        for name in OUTPUT_FILES + (MARKER,):
+            if (path / name).is_dir():
+                raise ValueError(f"{path / name} is a folder; the run writes a file of that name")
     else:
         parent = path.parent
         while not parent.exists():
@@ -77,17 +84,38 @@ def check_output_dir(path, force: bool = False) -> Path:
 
 
 def prepare_output_dir(path, force: bool = False) -> Path:
-    """Create DIR (or clear the files of a previous run in it) and mark it as a run folder."""
+    """Create DIR, mark it as a run folder and return a fresh, empty staging folder inside it.
+
+    ``ValueError`` if DIR cannot be used or created; nothing of a previous run is touched."""
     path = check_output_dir(path, force)
-    path.mkdir(parents=True, exist_ok=True)
-    if (path / MARKER).exists():
-        for name in OUTPUT_FILES:
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        write_atomic(path / MARKER, b"simulate-swarm output folder\n")
+        stage = path / STAGING
+        shutil.rmtree(stage, ignore_errors=True)       # left by an earlier interrupted run
+        stage.mkdir()
+    except OSError as exc:
+        raise ValueError(f"cannot write to output folder {path}: {exc.strerror or exc}") from None
+    return stage
+
+
+def publish(stage, out) -> list:
+    """Move the files of a finished run from the staging folder into DIR; returns their names.
+
+    Files of the previous run that this run did not write are removed, the rest are replaced
+    one rename each; the staging folder is removed."""
+    stage, out = Path(stage), Path(out)
+    names = sorted(p.name for p in stage.iterdir())
+    for name in OUTPUT_FILES:
+        if name not in names:
             try:
-                (path / name).unlink()
+                (out / name).unlink()
             except FileNotFoundError:
                 pass
-    write_atomic(path / MARKER, b"simulate-swarm output folder\n")
-    return path
+    for name in names:
+        os.replace(stage / name, out / name)
+    stage.rmdir()
+    return names
 
 
 # ------------------------------------------------------------------------------ tables
@@ -214,9 +242,10 @@ def write_outputs(result, out, *, figures: bool = True, gif: bool = False, extra
     write_metrics(result, out)
     write_atomic(out / "config.toml", to_toml(result.config))
     _write_trajectory(result, out)
-    if figures and result.rows:
+    if result.rows and (figures or gif):
         from . import figures as fig
-        files += fig.write_figures(result, out)
+        if figures:
+            files += fig.write_figures(result, out)
         if gif:
             files.append(fig.write_animation(result, out / "animation.gif"))
     files.append("summary.json")

@@ -81,6 +81,42 @@ def test_rerun_into_previous_run_replaces_its_files(tmp_path, cfg, capsys):
         ["metrics.csv", "replans.csv", "config.toml", "trajectory.npz", "summary.json"])
 
 
+def test_interrupted_rerun_keeps_the_previous_run(tmp_path, cfg, capsys, monkeypatch):
+    import sim.loop
+    from sim.outputs import STAGING
+
+    out = tmp_path / "run"
+    code, _, err = run(["--config", cfg, "--out", out, "--quiet"], capsys)
+    assert code == 0, err
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    real = sim.loop.run_simulation
+
+    def ctrl_c_in_second_period(config, **kw):
+        plans = []
+
+        def progress(info):
+            if info["event"] == "plan":
+                plans.append(info)
+                if len(plans) == 2:
+                    raise KeyboardInterrupt
+        return real(config, **{**kw, "progress": progress})
+
+    monkeypatch.setattr(sim.loop, "run_simulation", ctrl_c_in_second_period)
+    code, _, err = run(["--config", cfg, "--out", out, "--seed", 7], capsys)
+    assert code == 130
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("simulate-swarm: interrupted;") and STAGING in lines[0]
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before
+    # the completed first period's metrics are kept aside; the next run clears them and publishes normally
+    assert len((out / STAGING / "metrics.csv").read_text().splitlines()) == 1 + 1 + 2   # header, t = 0, 2 steps
+    monkeypatch.setattr(sim.loop, "run_simulation", real)
+    code, _, err = run(["--config", cfg, "--out", out, "--seed", 7, "--quiet", "--no-figures", "--gif"], capsys)
+    assert code == 0, err
+    assert not (out / STAGING).exists() and (out / "animation.gif").stat().st_size > 0   # --gif alone still writes it
+    assert not (out / "panels.png").exists()
+    assert json.loads((out / "summary.json").read_text())["seed"] == 7
+
+
 def test_force_writes_into_a_foreign_folder_and_keeps_its_files(tmp_path, cfg, capsys):
     out = tmp_path / "mine"
     out.mkdir()
@@ -115,6 +151,9 @@ def _bad_inputs(tmp, cfg):
     (tmp / "foreign").mkdir()
     (tmp / "foreign" / "thesis.tex").write_text("precious")
     (tmp / "afile").write_text("x")
+    (tmp / "oldrun").mkdir()
+    (tmp / "oldrun" / MARKER).write_text("simulate-swarm output folder\n")
+    (tmp / "oldrun" / "panels.png").mkdir()
     np.save(tmp / "nan.npy", np.full((4, 4), np.nan))
     (tmp / "gp.toml").write_text(SMALL_TOML.replace("length_scale = 1.5", "length_scale = 0.05"))
     (tmp / "kde.toml").write_text(SMALL_TOML.replace("bins = [32, 32]", "bandwidth = 0.001"))
@@ -140,6 +179,8 @@ def _bad_inputs(tmp, cfg):
         "KDE bandwidth too small": (["--config", tmp / "kde.toml"], "kde.bandwidth"),
         "foreign folder": (c + ["--out", tmp / "foreign"], "not empty"),
         "out is a file": (c + ["--out", tmp / "afile"], "not a folder"),
+        "an output name is a folder": (c + ["--out", tmp / "oldrun"], "panels.png is a folder"),
+        "out cannot be created": (c + ["--out", "/proc/swarm-run"], "cannot write to output folder|not a writable"),
     }
 
 
