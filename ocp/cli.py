@@ -144,9 +144,6 @@ def run(argv=None) -> int:
         expected = (settings.n_intervals, 2, settings.n_modes_x, settings.n_modes_y)
         if warm.coef.shape != expected:
             raise InputError(f"warm-start plan {args.warm_start} has coefficients {warm.coef.shape}, expected {expected}")
-        if tuple(warm.domain) != settings.domain:
-            raise InputError(f"warm-start plan {args.warm_start} is for the domain {tuple(float(v) for v in warm.domain)}, "
-                             f"this problem's is {settings.domain}")
 
     if args.initial is not None:
         p0, p0_desc = load_density(args.initial, grid.shape, "initial density"), str(args.initial)

@@ -31,20 +31,18 @@ from control import FeedbackSettings
 from ocp import Grid, ReferencePlan
 from ocp.atomic import atomic_path, write_atomic
 from sim.dynamics import uniform_in_box
-from sim.tracking import decay_rate, heat_rate, sampling_floor, track_reference
+from sim.tracking import decay_rate, heat_rate, sampling_floor, stationary_plan, track_reference
 
 L = 10.0
 BOX = (0.0, L, 0.0, L)
 DT, SUBSTEPS, T_END = 0.25, 5, 30.0
 
 
-def stationary_plan() -> ReferencePlan:
+def bump_plan() -> ReferencePlan:
     g = Grid(BOX, 40, 40)
     X, Y = np.meshgrid(g.xc, g.yc, indexing="ij")
     bump = np.exp(-((X - 6.5) ** 2 + (Y - 6.0) ** 2) / (2 * 1.5 ** 2))
-    p = 0.5 / g.area + 0.5 * bump / (bump.sum() * g.cell_area)
-    return ReferencePlan(domain=np.array(BOX), t=np.array([0.0, T_END]), p=np.stack([p, p]),
-                         t_intervals=np.array([0.0, T_END]), coef=np.zeros((1, 2, 1, 1)), target=p)
+    return stationary_plan(0.5 / g.area + 0.5 * bump / (bump.sum() * g.cell_area), BOX, T_END)
 
 
 def main():
@@ -64,7 +62,7 @@ def main():
               file=sys.stderr, flush=True)
         return r
 
-    plan = stationary_plan()
+    plan = bump_plan()
     start = (0.0, 4.0, 0.0, 4.0)
     windows = {0.5: (8.0, 30.0), 1.0: (8.0, 22.0), 2.0: (3.0, 12.0)}
     for alpha, (ta, tb) in windows.items():

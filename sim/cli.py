@@ -81,7 +81,7 @@ def _progress_printer(config):
 def run(argv=None) -> int:
     args = build_parser().parse_args(argv)
     config, field = resolve(args)
-    from .outputs import check_output_dir, prepare_output_dir, publish, write_metrics, write_outputs
+    from .outputs import MARKER, check_output_dir, prepare_output_dir, publish, write_metrics, write_outputs
 
     try:
         check_output_dir(args.out, args.force)
@@ -95,6 +95,7 @@ def run(argv=None) -> int:
         planner = ReferencePlanner(config.planner)
     except ValueError as exc:
         raise InputError(f"planner: {exc}") from None
+    previous_run = (args.out / MARKER).is_file()
     try:
         stage = prepare_output_dir(args.out, args.force)
     except ValueError as exc:
@@ -115,7 +116,7 @@ def run(argv=None) -> int:
         files = write_outputs(result, stage, figures=not args.no_figures, gif=args.gif,
                               extra={"command": [PROG] + [str(a) for a in (sys.argv[1:] if argv is None else argv)],
                                      "planner_build_time_s": planner.build_time})
-        publish(stage, args.out)
+        publish(stage, args.out, remove_stale=previous_run)
     except OSError as exc:
         print(f"{PROG}: error: cannot write the outputs ({exc.strerror or exc}); {args.out} keeps its previous "
               f"contents, whatever was written is in {stage}", file=sys.stderr)

@@ -99,14 +99,14 @@ def prepare_output_dir(path, force: bool = False) -> Path:
     return stage
 
 
-def publish(stage, out) -> list:
+def publish(stage, out, remove_stale: bool = True) -> list:
     """Move the files of a finished run from the staging folder into DIR; returns their names.
 
-    Files of the previous run that this run did not write are removed, the rest are replaced
-    one rename each; the staging folder is removed."""
+    With ``remove_stale`` (DIR held a previous run), files of that run which this run did not
+    write are removed; the rest are replaced one rename each; the staging folder is removed."""
     stage, out = Path(stage), Path(out)
     names = sorted(p.name for p in stage.iterdir())
-    for name in OUTPUT_FILES:
+    for name in OUTPUT_FILES if remove_stale else ():
         if name not in names:
             try:
                 (out / name).unlink()

@@ -35,7 +35,7 @@ from control import FeedbackSettings, KernelDensity, saturate, tracking_velocity
 from .dynamics import advance
 from .metrics import l2_norm
 
-__all__ = ["TrackingResult", "track_reference", "heat_rate", "sampling_floor", "sample_cell_density",
+__all__ = ["TrackingResult", "track_reference", "stationary_plan", "heat_rate", "sampling_floor", "sample_cell_density",
            "decay_rate"]
 
 
@@ -47,6 +47,15 @@ class TrackingResult:
     error: np.ndarray         # (k,) ||p_hat - p_r(t)||_L2 on the plan's grid
     mean_speed: np.ndarray    # (k,) mean commanded speed over robots and sub-steps of the step ending at t
     X: np.ndarray             # (n, 2) final positions
+
+
+def stationary_plan(p: np.ndarray, domain, t_end: float):
+    """A reference that holds the cell density ``p`` (nx, ny) fixed on [0, t_end], with v_r = 0."""
+    from ocp import ReferencePlan, Grid
+
+    p = Grid(tuple(domain), *np.shape(p)).normalize(p, "reference density")
+    return ReferencePlan(domain=np.array(domain, dtype=float), t=np.array([0.0, t_end]), p=np.stack([p, p]),
+                         t_intervals=np.array([0.0, t_end]), coef=np.zeros((1, 2, 1, 1)), target=p)
 
 
 def heat_rate(domain, alpha: float) -> float:

@@ -121,10 +121,12 @@ def test_force_writes_into_a_foreign_folder_and_keeps_its_files(tmp_path, cfg, c
     out = tmp_path / "mine"
     out.mkdir()
     (out / "notes.txt").write_text("keep me")
+    (out / "panels.png").write_bytes(b"my own figure")      # a name the run could write, but does not here
     code, _, err = run(["--config", cfg, "--out", out, "--max-periods", 1, "--no-figures", "--quiet", "--force"],
                        capsys)
     assert code == 0, err
     assert (out / "notes.txt").read_text() == "keep me" and (out / "summary.json").exists()
+    assert (out / "panels.png").read_bytes() == b"my own figure"
 
 
 def test_planner_failure_exits_1_with_valid_outputs(tmp_path, cfg, capsys):

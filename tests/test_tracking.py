@@ -10,26 +10,27 @@ import numpy as np
 import pytest
 
 from control import FeedbackSettings, KernelDensity
-from ocp import Grid, ReferencePlan
+from ocp import Grid
 from sim.dynamics import uniform_in_box
-from sim.tracking import (decay_rate, heat_rate, sample_cell_density, sampling_floor, track_reference)
+from sim.tracking import (decay_rate, heat_rate, sample_cell_density, sampling_floor, stationary_plan,
+                          track_reference)
 
 L = 10.0
 DOMAIN = (0.0, L, 0.0, L)
 N_ROBOTS = 2000
 
 
-def stationary_plan(t_end):
+def bump_plan(t_end):
     g = Grid(DOMAIN, 40, 40)
     X, Y = np.meshgrid(g.xc, g.yc, indexing="ij")
     bump = np.exp(-((X - 6.5) ** 2 + (Y - 6.0) ** 2) / (2 * 1.5 ** 2))
-    p = 0.5 / g.area + 0.5 * bump / (bump.sum() * g.cell_area)
-    return ReferencePlan(domain=np.array(DOMAIN), t=np.array([0.0, t_end]), p=np.stack([p, p]),
-                         t_intervals=np.array([0.0, t_end]), coef=np.zeros((1, 2, 1, 1)), target=p)
+    plan = stationary_plan(0.5 / g.area + 0.5 * bump / (bump.sum() * g.cell_area), DOMAIN, t_end)
+    assert plan.velocity(0.5 * t_end, np.array([[5.0, 5.0]])).tolist() == [[0.0, 0.0]]
+    return plan
 
 
 def run(alpha, sigma, t_end, compensate=True):
-    plan = stationary_plan(t_end)
+    plan = bump_plan(t_end)
     rng = np.random.default_rng(0)
     X0 = uniform_in_box(N_ROBOTS, (0, 4, 0, 4), rng)
     return plan, track_reference(plan, X0, FeedbackSettings(alpha=alpha, sigma=sigma), t_end=t_end, dt=0.25,
@@ -96,7 +97,7 @@ def test_cell_samples_follow_the_density():
 
 
 def test_bad_arguments():
-    plan = stationary_plan(1.0)
+    plan = bump_plan(1.0)
     X0 = np.full((10, 2), 5.0)
     with pytest.raises(ValueError, match="controller"):
         track_reference(plan, X0, FeedbackSettings(), t_end=1.0, dt=0.5, rng=np.random.default_rng(0),
