@@ -20,13 +20,13 @@ import time
 
 import numpy as np
 
-from control import KernelDensity, tracking_velocity
+from control import KernelDensity
 from ocp import ReferencePlanner
 from regression import GaussianProcess, target_density
 from sim.config import RunConfig
 from sim.dynamics import advance, measure, uniform_in_box
 from sim.fields import make_field
-from sim.loop import run_simulation
+from sim.loop import LatestEstimate, controller_velocity, run_simulation
 
 
 def paper_run():
@@ -57,15 +57,8 @@ def large_swarm(n_robots: int, repeat: int):
     p0 = grid.normalize(kde.fit(X).on_grid(grid.nx, grid.ny))
     plan = planner.solve(p0, p_f)
 
-    last = {"X": None, "est": None}
-
-    def fit(Xc):                      # as in sim.loop: one estimate per distinct position array
-        if Xc is not last["X"]:
-            last.update(X=Xc, est=kde.fit(Xc))
-        return last["est"]
-
-    def velocity(Xc, tc):
-        return tracking_velocity(Xc, plan, tc, fit(Xc), fb)
+    fit = LatestEstimate(kde)          # as in sim.loop: one estimate per distinct position array
+    velocity = controller_velocity("feedback", plan, fb, fit)
 
     times = []
     t = 0.0

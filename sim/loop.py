@@ -114,6 +114,28 @@ def check_config(config: RunConfig) -> None:
             raise ValueError(f"kde.bandwidth: {exc}") from None
 
 
+class LatestEstimate:
+    """KDE of the most recent position array, refitted only when a new array arrives: the estimate
+    made for the metrics after a step is also the one the next step's first feedback evaluation needs."""
+
+    def __init__(self, kde: KernelDensity):
+        self.kde = kde
+        self._X, self._est = None, None
+
+    def __call__(self, X):
+        if X is not self._X:
+            self._X, self._est = X, self.kde.fit(X)
+        return self._est
+
+
+def controller_velocity(controller: str, plan, feedback, estimate: LatestEstimate):
+    """``velocity(X, t)`` of the inner loop: eq. "density feedback law using estimation"
+    (``'feedback'``) or v_r alone, saturated (``'open-loop'``, the baseline)."""
+    if controller == "open-loop":
+        return lambda X, t: saturate(plan.velocity(t, X), feedback.v_max)
+    return lambda X, t: tracking_velocity(X, plan, t, estimate(X), feedback)
+
+
 def _quiver_points(domain, q=QUIVER_POINTS):
     x0, x1, y0, y1 = domain
     xs = x0 + (np.arange(q) + 0.5) * (x1 - x0) / q
@@ -162,14 +184,7 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
         tm["regression"] += time.perf_counter() - t0
         return mean.reshape(grid.shape), var.reshape(grid.shape)
 
-    last_fit = {"X": None, "est": None}
-
-    def fit_kde(Xc):
-        """KDE of the positions Xc; the estimate of the same array is reused (the one made for the
-        metrics after a step is also the one the next step's first feedback evaluation needs)."""
-        if Xc is not last_fit["X"]:
-            last_fit.update(X=Xc, est=kde.fit(Xc))
-        return last_fit["est"]
+    fit_kde = LatestEstimate(kde)
 
     def p_hat_grid(est):
         return grid.normalize(est.on_grid(grid.nx, grid.ny), "KDE of the robots")
@@ -246,13 +261,7 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
 
             # --- inner loop: T / Δt measurement steps under the feedback law
             t0 = k * s.period
-
-            if s.controller == "open-loop":
-                def velocity(Xc, tc, _plan=plan):
-                    return saturate(_plan.velocity(tc, Xc), fb.v_max)
-            else:
-                def velocity(Xc, tc, _plan=plan):
-                    return tracking_velocity(Xc, _plan, tc, fit_kde(Xc), fb)
+            velocity = controller_velocity(s.controller, plan, fb, fit_kde)
 
             for j in range(1, n_steps + 1):
                 t_dyn = time.perf_counter()

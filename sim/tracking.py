@@ -30,9 +30,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from control import FeedbackSettings, KernelDensity, saturate, tracking_velocity
+from control import FeedbackSettings, KernelDensity
 
 from .dynamics import advance
+from .loop import LatestEstimate, controller_velocity
 from .metrics import l2_norm
 
 __all__ = ["TrackingResult", "track_reference", "stationary_plan", "heat_rate", "sampling_floor", "sample_cell_density",
@@ -64,9 +65,10 @@ def heat_rate(domain, alpha: float) -> float:
     return float(alpha) * math.pi ** 2 / max(x1 - x0, y1 - y0) ** 2
 
 
-def _grid_error(kde: KernelDensity, X: np.ndarray, plan, t: float) -> float:
+def _grid_error(estimate, X: np.ndarray, plan, t: float) -> float:
+    """||p_hat - p_r(t)||_L2 on the plan's grid; ``estimate(X)`` gives the KDE of the positions X."""
     g = plan.grid
-    p_hat = g.normalize(kde.fit(X).on_grid(g.nx, g.ny), "KDE of the robots")
+    p_hat = g.normalize(estimate(X).on_grid(g.nx, g.ny), "KDE of the robots")
     return l2_norm(p_hat - plan.density_grid(t), g.cell_area)
 
 
@@ -88,24 +90,18 @@ def track_reference(plan, X0: np.ndarray, settings: FeedbackSettings, *, sigma: 
     sigma = settings.sigma if sigma is None else float(sigma)
     law = settings if compensate_sigma else FeedbackSettings(settings.alpha, 0.0, settings.p_floor, settings.v_max)
     domain = tuple(float(v) for v in plan.domain)
-    kde = kde or KernelDensity(domain)
-
-    if controller == "open-loop":
-        def velocity(X, t):
-            return saturate(plan.velocity(t, X), law.v_max)
-    else:
-        def velocity(X, t):
-            return tracking_velocity(X, plan, t, kde.fit(X), law)
+    estimate = LatestEstimate(kde or KernelDensity(domain))      # one fit per position array
+    velocity = controller_velocity(controller, plan, law, estimate)
 
     X = np.array(X0, dtype=float)
     n_steps = int(round(t_end / dt))
     t0 = plan.t_start
-    ts, errs, speeds = [t0], [_grid_error(kde, X, plan, t0)], [0.0]
+    ts, errs, speeds = [t0], [_grid_error(estimate, X, plan, t0)], [0.0]
     for k in range(1, n_steps + 1):
         X, speed = advance(X, t0 + (k - 1) * dt, dt, substeps, velocity, sigma, rng, domain)
         t = t0 + k * dt
         ts.append(t)
-        errs.append(_grid_error(kde, X, plan, t))
+        errs.append(_grid_error(estimate, X, plan, t))
         speeds.append(speed)
     return TrackingResult(np.array(ts), np.array(errs), np.array(speeds), X)
 
@@ -124,9 +120,9 @@ def sample_cell_density(p: np.ndarray, grid, n: int, rng: np.random.Generator) -
 def sampling_floor(plan, t: float, n: int, rng: np.random.Generator, kde: KernelDensity | None = None,
                    repeats: int = 10) -> float:
     """Mean ||p_hat - p_r(t)||_L2 of the KDE of n independent samples of p_r(t) (the ISS yardstick)."""
-    kde = kde or KernelDensity(tuple(float(v) for v in plan.domain))
+    fit = (kde or KernelDensity(tuple(float(v) for v in plan.domain))).fit
     p = plan.density_grid(t)
-    return float(np.mean([_grid_error(kde, sample_cell_density(p, plan.grid, n, rng), plan, t)
+    return float(np.mean([_grid_error(fit, sample_cell_density(p, plan.grid, n, rng), plan, t)
                           for _ in range(int(repeats))]))
 
 
