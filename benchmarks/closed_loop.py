@@ -20,13 +20,13 @@ import time
 
 import numpy as np
 
-from control import KernelDensity
-from ocp import ReferencePlanner
-from regression import GaussianProcess, target_density
-from sim.config import RunConfig
-from sim.dynamics import advance, measure, uniform_in_box
-from sim.fields import make_field
-from sim.loop import LatestEstimate, controller_velocity, run_simulation
+from swarmfield.control import KernelDensity
+from swarmfield.ocp import ReferencePlanner
+from swarmfield.regression import GaussianProcess, target_density
+from swarmfield.sim.config import RunConfig
+from swarmfield.sim.dynamics import advance, measure, uniform_in_box
+from swarmfield.sim.fields import make_field
+from swarmfield.sim.loop import LatestEstimate, controller_velocity, run_simulation
 
 
 def paper_run():

@@ -17,9 +17,9 @@ import time
 
 import numpy as np
 
-from ocp.planner import ReferencePlanner
-from ocp.scenario import box_density, first_step_target
-from ocp.settings import PlannerSettings
+from swarmfield.ocp.planner import ReferencePlanner
+from swarmfield.ocp.scenario import box_density, first_step_target
+from swarmfield.ocp.settings import PlannerSettings
 
 
 def peak_rss_mib() -> float:

@@ -11,11 +11,11 @@ import signal
 import threading
 import time
 from contextlib import contextmanager
-from importlib import metadata
 
 import casadi as ca
 import numpy as np
 
+from .. import DISTRIBUTION, __version__, distribution
 from .grid import Grid
 from .plan import ReferencePlan
 from .problem import TransportProblem
@@ -148,6 +148,7 @@ class ReferencePlanner:
             "symmetric_kl_initial": kl0,
             "symmetric_kl_final": kl_end,
             "speed_bound": [float(v) for v in np.abs(coef).reshape(P.N, -1).sum(axis=1)],
+            "distribution": distribution(),
             "versions": _versions(),
         }
         t_snap = t0 + np.arange(snapshots.shape[0]) * P.dt
@@ -202,9 +203,4 @@ def _stats_summary(stats: dict, wall: float) -> dict:
 
 
 def _versions() -> dict:
-    out = {"casadi": ca.__version__, "numpy": np.__version__}
-    try:
-        out["swarm-field-estimation"] = metadata.version("swarm-field-estimation")
-    except metadata.PackageNotFoundError:
-        pass
-    return out
+    return {DISTRIBUTION: __version__, "casadi": ca.__version__, "numpy": np.__version__}

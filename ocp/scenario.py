@@ -44,7 +44,7 @@ def box_density(grid: Grid, box=START_BOX, bandwidth: float | None = None, n_rob
 def first_step_target(grid: Grid, seed: int = 0, eta: float = 0.05, box=START_BOX, n_robots: int = N_ROBOTS):
     """Target p_f of the paper's first planning step; returns (p_f, description)."""
     try:
-        from regression import GaussianProcess, GPSettings, target_density
+        from ..regression import GaussianProcess, GPSettings, target_density
     except ImportError:  # pragma: no cover - regression ships with the project
         X, Y = np.meshgrid(grid.xc, grid.yc, indexing="ij")
         bump = np.exp(-((X - 14.0) ** 2 + (Y - 14.0) ** 2) / (2 * 2.0 ** 2))

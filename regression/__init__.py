@@ -4,7 +4,7 @@ Paper, section "Generation of reference models": a GP gives the prediction f̄_k
 variance V_k from all data D_k; ``target_density`` turns V_k into p_f = max(V_k - eta, 0) / ∫.
 NumPy/SciPy only; imports nothing from ``ocp``, ``control`` or ``sim``.
 
-    from regression import GPSettings, GaussianProcess, target_density
+    from swarmfield.regression import GPSettings, GaussianProcess, target_density
     gp = GaussianProcess(GPSettings(), domain=(0, 20, 0, 20))
     gp.add(X, y)
     mean, var = gp.predict(points)

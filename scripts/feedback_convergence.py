@@ -27,11 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
-from control import FeedbackSettings
-from ocp import Grid, ReferencePlan
-from ocp.atomic import atomic_path, write_atomic
-from sim.dynamics import uniform_in_box
-from sim.tracking import decay_rate, heat_rate, sampling_floor, stationary_plan, track_reference
+from swarmfield.control import FeedbackSettings
+from swarmfield.ocp import Grid, ReferencePlan
+from swarmfield.ocp.atomic import atomic_path, write_atomic
+from swarmfield.sim.dynamics import uniform_in_box
+from swarmfield.sim.tracking import decay_rate, heat_rate, sampling_floor, stationary_plan, track_reference
 
 L = 10.0
 BOX = (0.0, L, 0.0, L)
@@ -83,8 +83,8 @@ def main():
         r = run(label, plan, 2000, start, FeedbackSettings(alpha=1.0, sigma=0.5), T_END, **kw)
         notes.append(f"{label}: error at 30 s {r.error[-1]:.4f}")
 
-    from ocp import PlannerSettings, ReferencePlanner
-    from ocp.scenario import box_density, first_step_target
+    from swarmfield.ocp import PlannerSettings, ReferencePlanner
+    from swarmfield.ocp.scenario import box_density, first_step_target
     planner = ReferencePlanner(PlannerSettings())
     g = planner.grid
     moving = planner.solve(box_density(g), first_step_target(g, seed=0)[0])

@@ -20,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ocp import ReferencePlanner
-from sim.config import RunConfig
-from sim.loop import run_simulation
+from swarmfield.ocp import ReferencePlanner
+from swarmfield.sim.config import RunConfig
+from swarmfield.sim.loop import run_simulation
 
 
 def main():

@@ -9,7 +9,7 @@
 * :mod:`sim.metrics`, :mod:`sim.outputs`, :mod:`sim.figures` -- metrics.csv, summary.json, figures
 * :mod:`sim.cli`      -- the ``simulate-swarm`` command
 
-    from sim import RunConfig, run_simulation
+    from swarmfield.sim import RunConfig, run_simulation
     result = run_simulation(RunConfig.default())
 """
 from .config import KDESettings, RunConfig, SimSettings, config_from_dict, load_config, to_toml

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ocp.cliargs import OneLineParser, UsageError as InputError
+from ..ocp.cliargs import OneLineParser, UsageError as InputError
 
 PROG = "simulate-swarm"
 
@@ -87,7 +87,7 @@ def run(argv=None) -> int:
         check_output_dir(args.out, args.force)
     except ValueError as exc:
         raise InputError(str(exc)) from None
-    from ocp import ReferencePlanner
+    from ..ocp import ReferencePlanner
 
     from .loop import run_simulation
 

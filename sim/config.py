@@ -47,9 +47,9 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from control import FeedbackSettings
-from ocp.settings import PlannerSettings, dataclass_from_dict
-from regression import GPSettings
+from ..control import FeedbackSettings
+from ..ocp.settings import PlannerSettings, dataclass_from_dict
+from ..regression import GPSettings
 
 __all__ = ["SimSettings", "KDESettings", "RunConfig", "load_config", "config_from_dict", "to_toml", "SECTIONS"]
 

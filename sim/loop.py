@@ -32,8 +32,8 @@ from typing import Callable
 
 import numpy as np
 
-from control import KernelDensity, saturate, tracking_velocity
-from regression import GaussianProcess, target_density
+from ..control import KernelDensity, saturate, tracking_velocity
+from ..regression import GaussianProcess, target_density
 
 from .config import RunConfig
 from .dynamics import advance, measure, uniform_in_box
@@ -154,7 +154,7 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
     re-plan (``info["event"] == "plan"``) and at the end (``"done"``); ``on_period(result)`` after
     every completed period (the CLI writes the outputs so far there).
     """
-    from ocp import PlannerError, ReferencePlanner
+    from ..ocp import PlannerError, ReferencePlanner
 
     config = config or RunConfig.default()
     s, fb = config.sim, config.feedback

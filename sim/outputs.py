@@ -42,7 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ocp.atomic import write_atomic
+from .. import DISTRIBUTION, __version__, distribution
+from ..ocp.atomic import write_atomic
 
 from .config import to_toml
 from .metrics import COLUMNS
@@ -148,7 +149,8 @@ def write_metrics(result, out: Path) -> None:
 # ------------------------------------------------------------------------------ summary
 def versions() -> dict:
     out = {"python": sys.version.split()[0], "platform": platform.platform()}
-    for dist in ("swarm-field-estimation", "numpy", "scipy", "casadi", "matplotlib", "pillow"):
+    out[DISTRIBUTION] = __version__
+    for dist in ("numpy", "scipy", "casadi", "matplotlib", "pillow"):
         try:
             out[dist] = metadata.version(dist)
         except metadata.PackageNotFoundError:
@@ -212,6 +214,7 @@ def summary_dict(result, files=(), extra: dict | None = None) -> dict:
         "n_measurement_steps": len(rows),
         "wall_time_s": result.wall_time,
         "timings_s": result.timings,
+        "distribution": distribution(),
         "versions": versions(),
         "files": sorted(files),
     }

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from control import FeedbackSettings, KernelDensity
+from ..control import FeedbackSettings, KernelDensity
 
 from .dynamics import advance
 from .loop import LatestEstimate, controller_velocity
@@ -52,7 +52,7 @@ class TrackingResult:
 
 def stationary_plan(p: np.ndarray, domain, t_end: float):
     """A reference that holds the cell density ``p`` (nx, ny) fixed on [0, t_end], with v_r = 0."""
-    from ocp import ReferencePlan, Grid
+    from ..ocp import ReferencePlan, Grid
 
     p = Grid(tuple(domain), *np.shape(p)).normalize(p, "reference density")
     return ReferencePlan(domain=np.array(domain, dtype=float), t=np.array([0.0, t_end]), p=np.stack([p, p]),

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from scipy.stats import gaussian_kde
 
-from control import (DensityEstimate, FeedbackSettings, KernelDensity, feedback_velocity,
+from swarmfield.control import (DensityEstimate, FeedbackSettings, KernelDensity, feedback_velocity,
                      silverman_bandwidth, tracking_velocity)
-from ocp.plan import ReferencePlan
+from swarmfield.ocp.plan import ReferencePlan
 
 DOMAIN = (0.0, 20.0, 0.0, 20.0)
 RECT = (-3.0, 27.0, 1.0, 11.0)   # non-square domain: x and y cell sizes differ
@@ -52,7 +52,7 @@ def whitened_cloud(rng, n, centre, s):
 def test_import_does_not_load_casadi():
     # in a fresh interpreter: other test modules of the session may have imported casadi
     import subprocess
-    code = "import sys, control; from control import tracking_velocity; print('casadi' in sys.modules)"
+    code = "import sys; from swarmfield.control import tracking_velocity; print('casadi' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from ocp.cli import main
-from ocp.plan import ReferencePlan
+from swarmfield.ocp.cli import main
+from swarmfield.ocp.plan import ReferencePlan
 
 SMALL = ["--nx", "12", "--ny", "10", "--intervals", "3", "--modes", "3", "3"]
 

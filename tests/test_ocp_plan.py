@@ -5,8 +5,8 @@ import os
 import numpy as np
 import pytest
 
-from ocp.basis import velocity_at
-from ocp.plan import KEYS, ReferencePlan
+from swarmfield.ocp.basis import velocity_at
+from swarmfield.ocp.plan import KEYS, ReferencePlan
 
 
 def make_plan(rng, nx=6, ny=5, K=4, N=2, I=3, J=2):

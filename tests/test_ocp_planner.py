@@ -3,11 +3,11 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from ocp.basis import speed_bound
-from ocp.planner import PlannerError, ReferencePlanner
-from ocp.problem import TransportProblem
-from ocp.settings import IpoptSettings, PlannerSettings
-from ocp.transport import simulate
+from swarmfield.ocp.basis import speed_bound
+from swarmfield.ocp.planner import PlannerError, ReferencePlanner
+from swarmfield.ocp.problem import TransportProblem
+from swarmfield.ocp.settings import IpoptSettings, PlannerSettings
+from swarmfield.ocp.transport import simulate
 
 SMALL = dict(domain=(0.0, 10.0, 0.0, 8.0), nx=12, ny=10, horizon=4.0, n_intervals=3, n_modes_x=3, n_modes_y=3,
              v_max=2.0)

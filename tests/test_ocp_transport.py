@@ -2,11 +2,11 @@
 import numpy as np
 import pytest
 
-from ocp.basis import sine_matrix, speed_bound, velocity_at, velocity_on_grid
-from ocp.grid import Grid
-from ocp.problem import TransportProblem
-from ocp.settings import PlannerSettings
-from ocp.transport import advect_field, simulate
+from swarmfield.ocp.basis import sine_matrix, speed_bound, velocity_at, velocity_on_grid
+from swarmfield.ocp.grid import Grid
+from swarmfield.ocp.problem import TransportProblem
+from swarmfield.ocp.settings import PlannerSettings
+from swarmfield.ocp.transport import advect_field, simulate
 
 
 def gaussian(grid, cx, cy, s):

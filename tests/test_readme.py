@@ -4,7 +4,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ocp import ReferencePlan
+from swarmfield.ocp import ReferencePlan
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 

@@ -19,8 +19,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from regression import GaussianProcess, GPSettings, target_density
-from regression.kernels import squared_exponential
+from swarmfield.regression import GaussianProcess, GPSettings, target_density
+from swarmfield.regression.kernels import squared_exponential
 
 sklearn_gp = pytest.importorskip("sklearn.gaussian_process")
 sk_kernels = pytest.importorskip("sklearn.gaussian_process.kernels")
@@ -189,7 +189,7 @@ def test_incremental_add_equals_single_add():
 
 
 def test_large_batches_are_accumulated_in_blocks(monkeypatch):
-    import regression.gp as gpmod
+    import swarmfield.regression.gp as gpmod
 
     X, y = paper_data(8)
     whole = GaussianProcess(COARSE)

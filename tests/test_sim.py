@@ -7,13 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from sim.config import RunConfig, SimSettings, config_from_dict, load_config, to_toml
-from sim.dynamics import advance, euler_maruyama_step, measure, reflect, uniform_in_box
-from sim.fields import (FIELDS, GridField, PlumesField, RidgeField, ScatteredField, SincField, load_field,
+from swarmfield.sim.config import RunConfig, SimSettings, config_from_dict, load_config, to_toml
+from swarmfield.sim.dynamics import advance, euler_maruyama_step, measure, reflect, uniform_in_box
+from swarmfield.sim.fields import (FIELDS, GridField, PlumesField, RidgeField, ScatteredField, SincField, load_field,
                         make_field, save_npz_field)
-from sim.loop import run_simulation
-from sim.metrics import COLUMNS
-from sim.outputs import prepare_output_dir, publish, write_outputs
+from swarmfield.sim.loop import run_simulation
+from swarmfield.sim.metrics import COLUMNS
+from swarmfield.sim.outputs import prepare_output_dir, publish, write_outputs
 
 DOMAIN = (0.0, 20.0, 0.0, 20.0)
 
@@ -372,7 +372,7 @@ def test_run_stops_when_the_variance_falls_below_gamma():
 
 
 def test_planner_failure_keeps_what_was_recorded():
-    from ocp import PlannerError, ReferencePlanner
+    from swarmfield.ocp import PlannerError, ReferencePlanner
 
     cfg = small_config()
 
@@ -425,8 +425,8 @@ def test_open_loop_controller_follows_the_reference_velocity_only():
     """The baseline controller moves robots with v_r alone: with sigma = 0 a robot's displacement over
     one sub-step is exactly h * v_r(t, X) (saturated), unlike the feedback law."""
     import numpy as np
-    from sim.config import config_from_dict
-    from sim.loop import run_simulation
+    from swarmfield.sim.config import config_from_dict
+    from swarmfield.sim.loop import run_simulation
 
     doc = {"sim": {"robots": 30, "max_periods": 1, "substeps": 2, "controller": "open-loop", "gamma": 0.0},
            "feedback": {"sigma": 0.0},
@@ -436,8 +436,8 @@ def test_open_loop_controller_follows_the_reference_velocity_only():
     assert res.config.sim.controller == "open-loop"
     assert len(res.replans) == 1 and res.replans[0]["success"]
     # reproduce the first measurement step by hand: the same (deterministic) plan, then X += h v_r
-    from control import saturate
-    from ocp import ReferencePlanner
+    from swarmfield.control import saturate
+    from swarmfield.ocp import ReferencePlanner
 
     plan = ReferencePlanner(cfg.planner).solve(res.snapshots[0].p_hat, res.snapshots[0].target, t0=0.0)
     h = cfg.sim.dt / cfg.sim.substeps

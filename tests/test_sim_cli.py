@@ -4,8 +4,8 @@ import json
 import numpy as np
 import pytest
 
-from sim.cli import main
-from sim.outputs import MARKER
+from swarmfield.sim.cli import main
+from swarmfield.sim.outputs import MARKER
 
 SMALL_TOML = """
 [sim]
@@ -82,8 +82,8 @@ def test_rerun_into_previous_run_replaces_its_files(tmp_path, cfg, capsys):
 
 
 def test_interrupted_rerun_keeps_the_previous_run(tmp_path, cfg, capsys, monkeypatch):
-    import sim.loop
-    from sim.outputs import STAGING
+    from swarmfield import sim
+    from swarmfield.sim.outputs import STAGING
 
     out = tmp_path / "run"
     code, _, err = run(["--config", cfg, "--out", out, "--quiet"], capsys)

@@ -9,10 +9,10 @@ import math
 import numpy as np
 import pytest
 
-from control import FeedbackSettings, KernelDensity
-from ocp import Grid
-from sim.dynamics import uniform_in_box
-from sim.tracking import (decay_rate, heat_rate, sample_cell_density, sampling_floor, stationary_plan,
+from swarmfield.control import FeedbackSettings, KernelDensity
+from swarmfield.ocp import Grid
+from swarmfield.sim.dynamics import uniform_in_box
+from swarmfield.sim.tracking import (decay_rate, heat_rate, sample_cell_density, sampling_floor, stationary_plan,
                           track_reference)
 
 L = 10.0
