@@ -20,7 +20,6 @@ from .grid import Grid
 from .plan import ReferencePlan
 from .problem import TransportProblem
 from .settings import PlannerSettings, to_dict
-from .transport import simulate
 
 SUCCESS = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 
@@ -133,13 +132,14 @@ class ReferencePlanner:
 
         a = P.coefficients_from_solution(x)
         coef = P.vector_to_coef(a)
-        snapshots = simulate(p0, coef, g, s.interval, P.n_sub, s.upwind_smoothing)
+        snapshots = P.trajectory(p0, coef)
         terms = [float(v) for v in P.objective_terms(a, p0, q, np.log(q))]
         kl0 = float(P.sym_kl(p0, q, np.log(q)))
         kl_end = float(P.sym_kl(snapshots[-1], q, np.log(q)))
         meta = {
             "settings": to_dict(s),
             "substeps": P.n_sub,
+            "transport": P.transport,
             "initial_guess": "warm" if warm_start is not None else "cold",
             "solver": _stats_summary(stats, wall),
             "build_time_s": self.build_time,

@@ -27,7 +27,7 @@ import numpy as np
 
 from .grid import Grid
 from .settings import PlannerSettings
-from .transport import FaceBasis
+from .transport import FaceBasis, simulate
 
 
 def _difference_matrix(n: int) -> ca.DM:
@@ -51,7 +51,34 @@ class TransportProblem:
         self.n_coef = self.N * 2 * self.I * self.J
         self.n_sub = s.substeps
         self.dt = s.interval / self.n_sub
+        self.transport = self._resolve_transport()
         self._build()
+
+    def _resolve_transport(self) -> str:
+        """The kernel actually used: ``settings.transport`` with "auto" resolved (README "Transport kernel").
+
+        The kernels provide first derivatives (reverse mode) only, so an exact-Hessian solve uses the
+        CasADi graph; "auto" without a working C compiler falls back to it with one line on stderr.
+        """
+        s = self.settings
+        choice = s.transport
+        exact = s.ipopt.hessian_approximation == "exact"
+        if choice == "auto":
+            if exact:
+                return "casadi"
+            from . import kernel
+            if kernel.compiled_available():
+                return "compiled"
+            kernel.warn_fallback()
+            return "casadi"
+        if choice != "casadi" and exact:
+            raise ValueError(f"planner.transport = {choice!r} provides first derivatives only; the exact Hessian "
+                             "needs transport = 'casadi' (or 'auto')")
+        if choice == "compiled":
+            from . import kernel
+            if not kernel.compiled_available():
+                raise ValueError(f"planner.transport = 'compiled' but the C kernel is unavailable: {kernel.compile_error()}")
+        return choice
 
     # ------------------------------------------------------------------ symbolic model
     def _build(self):
@@ -95,15 +122,26 @@ class TransportProblem:
         lq = ca.MX.sym("logq", nx, ny)
         A = ca.reshape(a, I * J, 2 * N)           # column (2l + d) holds a[l, d] in (i, j) C order
         tau = s.interval
-        pk = p0
-        states = [pk]
-        kls = [self.sym_kl(pk, qt, lq)]
-        for l in range(N):
-            ax_l = ca.reshape(A[:, 2 * l], J, I).T   # C order (i, j) -> I x J
-            ay_l = ca.reshape(A[:, 2 * l + 1], J, I).T
-            pk = self.interval_map(pk, ax_l, ay_l)
-            states.append(pk)
-            kls.append(self.sym_kl(pk, qt, lq))
+        coefs = [(ca.reshape(A[:, 2 * l], J, I).T, ca.reshape(A[:, 2 * l + 1], J, I).T)   # C order (i, j) -> I x J
+                 for l in range(N)]
+        self.kernel = None
+        if self.transport == "casadi":
+            pk = p0
+            states = [pk]
+            for ax_l, ay_l in coefs:
+                pk = self.interval_map(pk, ax_l, ay_l)
+                states.append(pk)
+        else:
+            # one call for the whole horizon: face velocities (basis product here, in CasADi) and p0 in,
+            # interval-boundary snapshots out; reverse mode runs the kernel's hand-written adjoint
+            from .kernel import TransportKernel, transport_callback
+            self.kernel = TransportKernel(nx, ny, N, self.n_sub, rx, ry, eps, backend=self.transport)
+            self._transport_fn = transport_callback(self.kernel)
+            VX = ca.horzcat(*[ca.vec(ca.mtimes([Sxf, ax_l, Syc_T])) for ax_l, _ in coefs])
+            VY = ca.horzcat(*[ca.vec(ca.mtimes([Sxc, ay_l, Syf_T])) for _, ay_l in coefs])
+            Pk = self._transport_fn(VX, VY, ca.vec(p0))
+            states = [ca.reshape(Pk[:, k], nx, ny) for k in range(N + 1)]
+        kls = [self.sym_kl(pk, qt, lq) for pk in states]
         running = 0.5 * (kls[0] + kls[-1]) + sum(kls[1:-1])   # trapezoid over the interval boundaries
         terminal = kls[-1]
         energy = tau * (g.lx * g.ly / 4.0) * ca.sumsqr(a)
@@ -171,6 +209,20 @@ class TransportProblem:
         return x[: self.n_coef]
 
     # ------------------------------------------------------------------ helpers
+    def face_velocities(self, coef: np.ndarray):
+        """(VX (N, n_fx), VY (N, n_fy)) column-major face velocities of coefficients (N, 2, I, J) (kernel layout)."""
+        coef = np.asarray(coef, dtype=float)
+        vel = [self.basis.face_velocities(c) for c in coef]
+        return (np.stack([vx.ravel(order="F") for vx, _ in vel]), np.stack([vy.ravel(order="F") for _, vy in vel]))
+
+    def trajectory(self, p0: np.ndarray, coef: np.ndarray) -> np.ndarray:
+        """Density at every sub-step (N n_sub + 1, nx, ny) under ``coef``, with this problem's kernel."""
+        if self.kernel is None:
+            return simulate(p0, coef, self.grid, self.settings.interval, self.n_sub, self.settings.upwind_smoothing)
+        VX, VY = self.face_velocities(coef)
+        traj = self.kernel.forward(VX, VY, np.asarray(p0, dtype=float).ravel(order="F"))
+        return traj.reshape(-1, self.grid.ny, self.grid.nx).transpose(0, 2, 1).copy()
+
     def floored_target(self, target: np.ndarray) -> np.ndarray:
         """q = (1 - beta) p_f + beta / |Omega| (unit mass, strictly positive)."""
         beta = self.settings.target_floor

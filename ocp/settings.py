@@ -20,6 +20,9 @@ LINEAR_SOLVERS = ("mumps", "spral", "ma27", "ma57", "ma77", "ma86", "ma97", "par
 #: would take hours, so the settings are refused up front instead.
 MAX_CELL_STEPS = 50_000_000
 
+#: choices of ``PlannerSettings.transport``
+TRANSPORTS = ("auto", "compiled", "numpy", "casadi")
+
 
 @dataclass(frozen=True)
 class IpoptSettings:
@@ -110,6 +113,10 @@ class PlannerSettings:
     log_eps: float = 1e-12
     speed_limit_form: str = "split"
     ipopt: IpoptSettings = field(default_factory=IpoptSettings)
+    #: transport kernel inside the NLP (README "The planner", "Transport kernel"): "compiled" (C loop and
+    #: hand-written adjoint, compiled with the system cc at first use), "numpy" (the same, vectorised),
+    #: "casadi" (the MX graph, the reference), "auto" (compiled if a C compiler works, else casadi)
+    transport: str = "auto"
 
     def __post_init__(self):
         dom = tuple(float(v) for v in self.domain)
@@ -132,6 +139,8 @@ class PlannerSettings:
             raise ValueError(f"planner.cfl must be in (0, 1], got {self.cfl}")
         if self.speed_limit_form not in ("split", "slack"):
             raise ValueError(f"planner.speed_limit_form must be 'split' or 'slack', got {self.speed_limit_form!r}")
+        if self.transport not in TRANSPORTS:
+            raise ValueError(f"planner.transport must be one of {', '.join(TRANSPORTS)}, got {self.transport!r}")
         if not isinstance(self.ipopt, IpoptSettings):
             raise ValueError("planner.ipopt must be an IpoptSettings")
         work = self.n_intervals * self.substeps * self.nx * self.ny

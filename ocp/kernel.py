@@ -1,0 +1,451 @@
+"""Fast transport kernel: the whole horizon of donor-cell sub-steps and its hand-written adjoint.
+
+The scheme is exactly the one of :mod:`ocp.transport` / :mod:`ocp.problem` (smoothed upwind split
+v+ = (v + sqrt(v^2 + eps^2)) / 2, v- = v+ - v, donor-cell fluxes through the interior faces, zero
+wall flux, explicit Euler sub-steps).  The kernel is *basis-agnostic*: it takes the face velocities
+of every control interval (the basis product v = S_x A S_y^T is done outside, in CasADi or NumPy)
+and p0, and returns the density at every sub-step; :meth:`TransportKernel.adjoint` maps adjoint
+seeds on the interval-boundary snapshots back to face velocities and p0 (reverse sweep over the
+stored trajectory: the co-state equation of the discrete problem).
+
+Memory layout (column-major, as CasADi's ``vec``): p[i + nx j] (nx*ny), vx[i + (nx-1) j] on the
+interior x-faces ((nx-1)*ny), vy[i + nx j] on the interior y-faces (nx*(ny-1)).
+
+Backends:
+
+* ``"compiled"``: one fused C loop per sub-step, compiled once with the system C compiler (``cc``,
+  or ``$CC``) into a per-user cache folder keyed by a hash of the source and flags, loaded with
+  ctypes;  :func:`compiled_available` says whether that worked (else one line on stderr and the
+  planner falls back to the CasADi graph);
+* ``"numpy"``: the same loops vectorised per sub-step (no compiler; the reference for the C code).
+
+:func:`transport_callback` exposes a kernel to CasADi as a ``casadi.Callback`` with a reverse
+derivative (another Callback that runs the adjoint), so the NLP stays posed in CasADi.
+"""
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import sysconfig
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+C_SOURCE = r"""
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* smoothed upwind split of n face velocities */
+static void split(long n, const double *v, double eps2, double *vp, double *vm) {
+    for (long k = 0; k < n; k++) {
+        double p = 0.5 * (v[k] + sqrt(v[k] * v[k] + eps2));
+        vp[k] = p;
+        vm[k] = p - v[k];
+    }
+}
+
+/* one explicit donor-cell sub-step q = p - rx (F_i - F_{i-1}) - ry (G_j - G_{j-1}); gprev: nx scratch */
+static void step(int nx, int ny, double rx, double ry, const double *xp, const double *xm,
+                 const double *yp, const double *ym, const double *p, double *q, double *gprev) {
+    int mx = nx - 1;
+    for (int i = 0; i < nx; i++) gprev[i] = 0.0;
+    for (int j = 0; j < ny; j++) {
+        const double *pc = p + (long)nx * j;
+        double *qc = q + (long)nx * j;
+        const double *a = xp + (long)mx * j, *b = xm + (long)mx * j;
+        double fl = 0.0;
+        for (int i = 0; i < mx; i++) {
+            double fr = a[i] * pc[i] - b[i] * pc[i + 1];
+            qc[i] = pc[i] - rx * (fr - fl);
+            fl = fr;
+        }
+        qc[mx] = pc[mx] - rx * (0.0 - fl);
+        if (j < ny - 1) {
+            const double *pn = pc + nx, *c = yp + (long)nx * j, *d = ym + (long)nx * j;
+            for (int i = 0; i < nx; i++) {
+                double gu = c[i] * pc[i] - d[i] * pn[i];
+                qc[i] = qc[i] - ry * (gu - gprev[i]);
+                gprev[i] = gu;
+            }
+        } else {
+            for (int i = 0; i < nx; i++) qc[i] = qc[i] - ry * (0.0 - gprev[i]);
+        }
+    }
+}
+
+/* adjoint of one sub-step: lp = (dq/dp)^T lq, accumulating the adjoints of v+ and v- */
+static void step_adj(int nx, int ny, double rx, double ry, const double *xp, const double *xm,
+                     const double *yp, const double *ym, const double *p, const double *lq, double *lp,
+                     double *axp, double *axm, double *ayp, double *aym) {
+    int mx = nx - 1;
+    long n = (long)nx * ny;
+    memcpy(lp, lq, sizeof(double) * n);
+    for (int j = 0; j < ny; j++) {
+        const double *pc = p + (long)nx * j, *lc = lq + (long)nx * j;
+        double *oc = lp + (long)nx * j;
+        long o = (long)mx * j;
+        for (int i = 0; i < mx; i++) {
+            double g = rx * (lc[i + 1] - lc[i]);
+            oc[i] += g * xp[o + i];
+            oc[i + 1] -= g * xm[o + i];
+            axp[o + i] += g * pc[i];
+            axm[o + i] -= g * pc[i + 1];
+        }
+    }
+    for (long k = 0; k < (long)nx * (ny - 1); k++) {
+        double g = ry * (lq[k + nx] - lq[k]);
+        lp[k] += g * yp[k];
+        lp[k + nx] -= g * ym[k];
+        ayp[k] += g * p[k];
+        aym[k] -= g * p[k + nx];
+    }
+}
+
+/* traj: (N*nsub + 1) * nx*ny, traj[0] = p0 */
+int sf_forward(int nx, int ny, int N, int nsub, double rx, double ry, double eps,
+               const double *vx, const double *vy, const double *p0, double *traj) {
+    long n = (long)nx * ny, nfx = (long)(nx - 1) * ny, nfy = (long)nx * (ny - 1);
+    double *buf = (double *)malloc(sizeof(double) * (2 * nfx + 2 * nfy + nx));
+    if (!buf) return 1;
+    double *xp = buf, *xm = xp + nfx, *yp = xm + nfx, *ym = yp + nfy, *scratch = ym + nfy;
+    memcpy(traj, p0, sizeof(double) * n);
+    for (int l = 0; l < N; l++) {
+        split(nfx, vx + nfx * l, eps * eps, xp, xm);
+        split(nfy, vy + nfy * l, eps * eps, yp, ym);
+        for (int s = 0; s < nsub; s++) {
+            long k = (long)l * nsub + s;
+            step(nx, ny, rx, ry, xp, xm, yp, ym, traj + n * k, traj + n * (k + 1), scratch);
+        }
+    }
+    free(buf);
+    return 0;
+}
+
+/* lsnap: (N+1) * nx*ny adjoint seeds on the interval-boundary snapshots;
+   out: gvx (N*nfx), gvy (N*nfy), gp0 (nx*ny) */
+int sf_adjoint(int nx, int ny, int N, int nsub, double rx, double ry, double eps,
+               const double *vx, const double *vy, const double *traj, const double *lsnap,
+               double *gvx, double *gvy, double *gp0) {
+    long n = (long)nx * ny, nfx = (long)(nx - 1) * ny, nfy = (long)nx * (ny - 1);
+    double *buf = (double *)malloc(sizeof(double) * (4 * nfx + 4 * nfy + 2 * n));
+    if (!buf) return 1;
+    double *xp = buf, *xm = xp + nfx, *yp = xm + nfx, *ym = yp + nfy;
+    double *axp = ym + nfy, *axm = axp + nfx, *ayp = axm + nfx, *aym = ayp + nfy;
+    double *lam = aym + nfy, *tmp = lam + n;
+    memcpy(lam, lsnap + n * N, sizeof(double) * n);
+    for (int l = N - 1; l >= 0; l--) {
+        const double *v = vx + nfx * l, *w = vy + nfy * l;
+        split(nfx, v, eps * eps, xp, xm);
+        split(nfy, w, eps * eps, yp, ym);
+        memset(axp, 0, sizeof(double) * (2 * nfx + 2 * nfy));
+        for (int s = nsub - 1; s >= 0; s--) {
+            long k = (long)l * nsub + s;
+            step_adj(nx, ny, rx, ry, xp, xm, yp, ym, traj + n * k, lam, tmp, axp, axm, ayp, aym);
+            double *t = lam; lam = tmp; tmp = t;
+        }
+        /* dv+/dv = (1 + v/s)/2, dv-/dv = (v/s - 1)/2, s = sqrt(v^2 + eps^2) */
+        for (long k = 0; k < nfx; k++) {
+            double r = v[k] / sqrt(v[k] * v[k] + eps * eps);
+            gvx[nfx * l + k] = 0.5 * (axp[k] * (1.0 + r) + axm[k] * (r - 1.0));
+        }
+        for (long k = 0; k < nfy; k++) {
+            double r = w[k] / sqrt(w[k] * w[k] + eps * eps);
+            gvy[nfy * l + k] = 0.5 * (ayp[k] * (1.0 + r) + aym[k] * (r - 1.0));
+        }
+        const double *ls = lsnap + n * l;
+        for (long k = 0; k < n; k++) lam[k] += ls[k];
+    }
+    memcpy(gp0, lam, sizeof(double) * n);
+    free(buf);
+    return 0;
+}
+"""
+
+CFLAGS = ("-O3", "-fPIC", "-shared", "-fno-fast-math")
+
+_LIB = None
+_LIB_ERROR: str | None = None
+_WARNED = False
+
+
+def cache_dir() -> Path:
+    """Per-user cache folder of the compiled kernel ($SWARMFIELD_CACHE, else $XDG_CACHE_HOME or ~/.cache)."""
+    env = os.environ.get("SWARMFIELD_CACHE")
+    if env:
+        return Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "swarmfield"
+
+
+def _compiler() -> str | None:
+    cc = os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc"
+    exe = cc.split()[0] if cc else "cc"
+    if shutil.which(exe):
+        return exe
+    return shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+
+
+def _load():
+    """Compile (once per source hash) and load the C kernel; returns the ctypes library or None."""
+    global _LIB, _LIB_ERROR
+    if _LIB is not None or _LIB_ERROR is not None:
+        return _LIB
+    try:
+        cc = _compiler()
+        if cc is None:
+            raise RuntimeError("no C compiler found (cc, gcc, clang or $CC)")
+        key = hashlib.sha256((C_SOURCE + " ".join(CFLAGS) + platform.machine() + sys.platform).encode()).hexdigest()[:16]
+        folder = cache_dir()
+        lib_path = folder / f"transport_{key}.so"
+        if not lib_path.exists():
+            folder.mkdir(parents=True, exist_ok=True)
+            with tempfile.TemporaryDirectory(dir=folder) as tmp:
+                src = Path(tmp) / "transport.c"
+                src.write_text(C_SOURCE)
+                out = Path(tmp) / "transport.so"
+                res = subprocess.run([cc, *CFLAGS, str(src), "-o", str(out), "-lm"], capture_output=True, text=True,
+                                     timeout=120)
+                if res.returncode != 0:
+                    raise RuntimeError(f"{cc} failed: {(res.stderr or res.stdout).strip().splitlines()[-1:]}")
+                os.replace(out, lib_path)             # atomic: concurrent processes never see half a file
+        lib = ctypes.CDLL(str(lib_path))
+        dp = np.ctypeslib.ndpointer(dtype=np.float64, flags="C_CONTIGUOUS")
+        i, d = ctypes.c_int, ctypes.c_double
+        lib.sf_forward.argtypes = [i, i, i, i, d, d, d, dp, dp, dp, dp]
+        lib.sf_forward.restype = i
+        lib.sf_adjoint.argtypes = [i, i, i, i, d, d, d, dp, dp, dp, dp, dp, dp, dp]
+        lib.sf_adjoint.restype = i
+        _LIB = lib
+    except Exception as exc:                           # noqa: BLE001 - any failure means: use the fallback
+        _LIB_ERROR = str(exc) or type(exc).__name__
+    return _LIB
+
+
+def compiled_available() -> bool:
+    """True when the C kernel is compiled (or cached) and loaded."""
+    return _load() is not None
+
+
+def compile_error() -> str | None:
+    _load()
+    return _LIB_ERROR
+
+
+def warn_fallback():
+    """One line on stderr, once per process, when the compiled kernel is not available."""
+    global _WARNED
+    if not _WARNED:
+        _WARNED = True
+        print(f"swarmfield: compiled transport kernel unavailable ({compile_error()}); using the CasADi graph "
+              "(slower; set planner.transport = 'casadi' to silence)", file=sys.stderr)
+
+
+class TransportKernel:
+    """Forward trajectory and adjoint of N intervals x n_sub donor-cell sub-steps on an nx x ny grid."""
+
+    def __init__(self, nx: int, ny: int, n_intervals: int, substeps: int, rx: float, ry: float, eps: float,
+                 backend: str = "compiled"):
+        if backend not in ("compiled", "numpy"):
+            raise ValueError(f"kernel backend must be 'compiled' or 'numpy', got {backend!r}")
+        if backend == "compiled" and _load() is None:
+            raise RuntimeError(f"compiled transport kernel unavailable: {compile_error()}")
+        self.nx, self.ny, self.N, self.n_sub = int(nx), int(ny), int(n_intervals), int(substeps)
+        self.rx, self.ry, self.eps = float(rx), float(ry), float(eps)
+        self.backend = backend
+        self.n_cell = self.nx * self.ny
+        self.n_fx = (self.nx - 1) * self.ny
+        self.n_fy = self.nx * (self.ny - 1)
+
+    # shapes: vx (N, n_fx), vy (N, n_fy), p0 (n_cell,), traj (N*n_sub+1, n_cell), all C-contiguous rows
+    def forward(self, vx, vy, p0) -> np.ndarray:
+        vx, vy, p0 = self._check(vx, vy, p0)
+        traj = np.empty((self.N * self.n_sub + 1, self.n_cell))
+        if self.backend == "compiled":
+            if _LIB.sf_forward(self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, vx, vy, p0, traj):
+                raise MemoryError("transport kernel: out of memory")
+            return traj
+        traj[0] = p0
+        k = 0
+        for l in range(self.N):
+            xp, xm, yp, ym = self._split(vx[l], vy[l])
+            for _ in range(self.n_sub):
+                traj[k + 1] = self._step(traj[k], xp, xm, yp, ym)
+                k += 1
+        return traj
+
+    def adjoint(self, vx, vy, traj, lsnap):
+        """Seeds lsnap (N+1, n_cell) on the snapshots traj[::n_sub] -> (gvx (N, n_fx), gvy (N, n_fy), gp0)."""
+        vx, vy, _ = self._check(vx, vy, traj[0])
+        lsnap = np.ascontiguousarray(lsnap, dtype=float).reshape(self.N + 1, self.n_cell)
+        gvx = np.empty((self.N, self.n_fx))
+        gvy = np.empty((self.N, self.n_fy))
+        gp0 = np.empty(self.n_cell)
+        if self.backend == "compiled":
+            traj = np.ascontiguousarray(traj, dtype=float)
+            if _LIB.sf_adjoint(self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, vx, vy, traj,
+                               lsnap, gvx, gvy, gp0):
+                raise MemoryError("transport kernel: out of memory")
+            return gvx, gvy, gp0
+        lam = lsnap[self.N].copy()
+        for l in range(self.N - 1, -1, -1):
+            xp, xm, yp, ym = self._split(vx[l], vy[l])
+            acc = [np.zeros(self.n_fx), np.zeros(self.n_fx), np.zeros(self.n_fy), np.zeros(self.n_fy)]
+            for s in range(self.n_sub - 1, -1, -1):
+                lam = self._step_adj(traj[l * self.n_sub + s], lam, xp, xm, yp, ym, acc)
+            for v, (ap, am), out in ((vx[l], acc[:2], gvx[l]), (vy[l], acc[2:], gvy[l])):
+                r = v / np.sqrt(v * v + self.eps * self.eps)
+                out[:] = 0.5 * (ap * (1.0 + r) + am * (r - 1.0))
+            lam = lam + lsnap[l]
+        gp0[:] = lam
+        return gvx, gvy, gp0
+
+    def snapshots(self, traj) -> np.ndarray:
+        """The interval-boundary densities (N+1, n_cell) of a trajectory."""
+        return traj[:: self.n_sub]
+
+    # ------------------------------------------------------------------ NumPy backend
+    def _check(self, vx, vy, p0):
+        vx = np.ascontiguousarray(vx, dtype=float).reshape(self.N, self.n_fx)
+        vy = np.ascontiguousarray(vy, dtype=float).reshape(self.N, self.n_fy)
+        p0 = np.ascontiguousarray(p0, dtype=float).reshape(self.n_cell)
+        return vx, vy, p0
+
+    def _split(self, vx, vy):
+        e2 = self.eps * self.eps
+        xp = 0.5 * (vx + np.sqrt(vx * vx + e2))
+        yp = 0.5 * (vy + np.sqrt(vy * vy + e2))
+        # column-major vectors -> (ny, nx-1) and (ny-1, nx) arrays (row j = column j of the grid)
+        return ((xp).reshape(self.ny, self.nx - 1), (xp - vx).reshape(self.ny, self.nx - 1),
+                (yp).reshape(self.ny - 1, self.nx), (yp - vy).reshape(self.ny - 1, self.nx))
+
+    def _step(self, p, xp, xm, yp, ym):
+        P = p.reshape(self.ny, self.nx)
+        F = np.zeros((self.ny, self.nx + 1))
+        F[:, 1:-1] = xp * P[:, :-1] - xm * P[:, 1:]
+        G = np.zeros((self.ny + 1, self.nx))
+        G[1:-1] = yp * P[:-1] - ym * P[1:]
+        return (P - self.rx * (F[:, 1:] - F[:, :-1]) - self.ry * (G[1:] - G[:-1])).ravel()
+
+    def _step_adj(self, p, lq, xp, xm, yp, ym, acc):
+        P = p.reshape(self.ny, self.nx)
+        L = lq.reshape(self.ny, self.nx)
+        out = L.copy()
+        gx = self.rx * (L[:, 1:] - L[:, :-1])
+        out[:, :-1] += gx * xp
+        out[:, 1:] -= gx * xm
+        acc[0] += (gx * P[:, :-1]).ravel()
+        acc[1] -= (gx * P[:, 1:]).ravel()
+        gy = self.ry * (L[1:] - L[:-1])
+        out[:-1] += gy * yp
+        out[1:] -= gy * ym
+        acc[2] += (gy * P[:-1]).ravel()
+        acc[3] -= (gy * P[1:]).ravel()
+        return out.ravel()
+
+
+# ---------------------------------------------------------------------------------------- CasADi
+def transport_callback(kernel: TransportKernel, name: str = "transport"):
+    """``casadi.Function`` P = F(VX, VY, p0): VX (n_fx, N), VY (n_fy, N), p0 (n_cell, 1) -> P (n_cell, N+1),
+    the interval-boundary snapshots (column k = vec of p(t_k)).  Its reverse derivative runs
+    :meth:`TransportKernel.adjoint` on the trajectory cached by the last forward call at the same
+    inputs (IPOPT evaluates f and then grad f at the same point; neither re-runs the other's work)."""
+    import casadi as ca
+
+    class _Cache:
+        key = None
+        traj = None
+
+        def get(self, VX, VY, p0):
+            key = (VX, VY, p0)
+            if self.key is not None and all(np.array_equal(a, b) for a, b in zip(self.key, key)):
+                return self.traj
+            self.traj = kernel.forward(VX, VY, p0)
+            self.key = tuple(np.array(a, copy=True) for a in key)
+            return self.traj
+
+    cache = _Cache()
+
+    def buf(view, shape):
+        # a column-major nonzero buffer of a dense (n_rows, m) matrix is m contiguous rows of n_rows
+        return np.frombuffer(view, dtype=np.float64).reshape(shape)
+
+    N1 = kernel.N + 1
+
+    class Reverse(ca.Callback):
+        def __init__(self, nadj, rname, opts):
+            ca.Callback.__init__(self)
+            self.nadj = nadj
+            self.construct(rname, opts)
+
+        def get_n_in(self): return 5
+        def get_n_out(self): return 3
+
+        def get_sparsity_in(self, i):
+            return [ca.Sparsity.dense(kernel.n_fx, kernel.N), ca.Sparsity.dense(kernel.n_fy, kernel.N),
+                    ca.Sparsity.dense(kernel.n_cell, 1), ca.Sparsity.dense(kernel.n_cell, N1),
+                    ca.Sparsity.dense(kernel.n_cell, N1 * self.nadj)][i]
+
+        def get_sparsity_out(self, i):
+            return [ca.Sparsity.dense(kernel.n_fx, kernel.N * self.nadj),
+                    ca.Sparsity.dense(kernel.n_fy, kernel.N * self.nadj),
+                    ca.Sparsity.dense(kernel.n_cell, self.nadj)][i]
+
+        def has_eval_buffer(self):
+            return True
+
+        def eval_buffer(self, arg, res):
+            VX, VY = buf(arg[0], (kernel.N, kernel.n_fx)), buf(arg[1], (kernel.N, kernel.n_fy))
+            p0 = buf(arg[2], (kernel.n_cell,))
+            traj = cache.get(VX, VY, p0)
+            seeds = buf(arg[4], (self.nadj, N1, kernel.n_cell))
+            gx = buf(res[0], (self.nadj, kernel.N, kernel.n_fx))
+            gy = buf(res[1], (self.nadj, kernel.N, kernel.n_fy))
+            g0 = buf(res[2], (self.nadj, kernel.n_cell))
+            for k in range(self.nadj):
+                gx[k], gy[k], g0[k] = kernel.adjoint(VX, VY, traj, seeds[k])
+            return 0
+
+    class Forward(ca.Callback):
+        def __init__(self):
+            ca.Callback.__init__(self)
+            self._reverse = {}
+            self.construct(name, {"enable_fd": False})
+
+        def get_n_in(self): return 3
+        def get_n_out(self): return 1
+
+        def get_sparsity_in(self, i):
+            return [ca.Sparsity.dense(kernel.n_fx, kernel.N), ca.Sparsity.dense(kernel.n_fy, kernel.N),
+                    ca.Sparsity.dense(kernel.n_cell, 1)][i]
+
+        def get_sparsity_out(self, i):
+            return ca.Sparsity.dense(kernel.n_cell, kernel.N + 1)
+
+        def has_eval_buffer(self):
+            return True
+
+        def eval_buffer(self, arg, res):
+            VX, VY = buf(arg[0], (kernel.N, kernel.n_fx)), buf(arg[1], (kernel.N, kernel.n_fy))
+            traj = cache.get(VX, VY, buf(arg[2], (kernel.n_cell,)))
+            buf(res[0], (N1, kernel.n_cell))[:] = kernel.snapshots(traj)
+            return 0
+
+        def has_reverse(self, nadj):
+            return True
+
+        def get_reverse(self, nadj, rname, inames, onames, opts):
+            cb = Reverse(nadj, f"{rname}_cb", {"enable_fd": False})
+            self._reverse[nadj] = cb                           # keep alive as long as this Function
+            nom_in = self.mx_in()
+            nom_out = self.mx_out()
+            seeds = [ca.MX.sym("adj", kernel.n_cell, (kernel.N + 1) * nadj)]
+            return ca.Function(rname, nom_in + nom_out + seeds, cb.call(nom_in + nom_out + seeds), inames, onames)
+
+    return Forward()
