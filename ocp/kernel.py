@@ -80,31 +80,39 @@ static void step(int nx, int ny, double rx, double ry, const double *xp, const d
     }
 }
 
-/* adjoint of one sub-step: lp = (dq/dp)^T lq, accumulating the adjoints of v+ and v- */
+/* adjoint of one sub-step: lp = (dq/dp)^T lq, accumulating the adjoints of v+ and v-
+   (gather form: each lp[i] is written once; gprev carries the y-face term of the column below) */
 static void step_adj(int nx, int ny, double rx, double ry, const double *xp, const double *xm,
                      const double *yp, const double *ym, const double *p, const double *lq, double *lp,
-                     double *axp, double *axm, double *ayp, double *aym) {
+                     double *axp, double *axm, double *ayp, double *aym, double *gprev) {
     int mx = nx - 1;
-    long n = (long)nx * ny;
-    memcpy(lp, lq, sizeof(double) * n);
+    for (int i = 0; i < nx; i++) gprev[i] = 0.0;
     for (int j = 0; j < ny; j++) {
         const double *pc = p + (long)nx * j, *lc = lq + (long)nx * j;
         double *oc = lp + (long)nx * j;
         long o = (long)mx * j;
+        double gml = 0.0;                       /* g * v- of the face left of cell i */
         for (int i = 0; i < mx; i++) {
             double g = rx * (lc[i + 1] - lc[i]);
-            oc[i] += g * xp[o + i];
-            oc[i + 1] -= g * xm[o + i];
+            oc[i] = lc[i] + g * xp[o + i] - gml;
+            gml = g * xm[o + i];
             axp[o + i] += g * pc[i];
             axm[o + i] -= g * pc[i + 1];
         }
-    }
-    for (long k = 0; k < (long)nx * (ny - 1); k++) {
-        double g = ry * (lq[k + nx] - lq[k]);
-        lp[k] += g * yp[k];
-        lp[k + nx] -= g * ym[k];
-        ayp[k] += g * p[k];
-        aym[k] -= g * p[k + nx];
+        oc[mx] = lc[mx] - gml;
+        if (j < ny - 1) {
+            const double *ln = lc + nx, *pn = pc + nx, *c = yp + (long)nx * j, *d = ym + (long)nx * j;
+            double *ac = ayp + (long)nx * j, *bc = aym + (long)nx * j;
+            for (int i = 0; i < nx; i++) {
+                double g = ry * (ln[i] - lc[i]);
+                oc[i] += g * c[i] - gprev[i];
+                gprev[i] = g * d[i];
+                ac[i] += g * pc[i];
+                bc[i] -= g * pn[i];
+            }
+        } else {
+            for (int i = 0; i < nx; i++) oc[i] -= gprev[i];
+        }
     }
 }
 
@@ -134,11 +142,11 @@ int sf_adjoint(int nx, int ny, int N, int nsub, double rx, double ry, double eps
                const double *vx, const double *vy, const double *traj, const double *lsnap,
                double *gvx, double *gvy, double *gp0) {
     long n = (long)nx * ny, nfx = (long)(nx - 1) * ny, nfy = (long)nx * (ny - 1);
-    double *buf = (double *)malloc(sizeof(double) * (4 * nfx + 4 * nfy + 2 * n));
+    double *buf = (double *)malloc(sizeof(double) * (4 * nfx + 4 * nfy + 2 * n + nx));
     if (!buf) return 1;
     double *xp = buf, *xm = xp + nfx, *yp = xm + nfx, *ym = yp + nfy;
     double *axp = ym + nfy, *axm = axp + nfx, *ayp = axm + nfx, *aym = ayp + nfy;
-    double *lam = aym + nfy, *tmp = lam + n;
+    double *lam = aym + nfy, *tmp = lam + n, *scratch = tmp + n;
     memcpy(lam, lsnap + n * N, sizeof(double) * n);
     for (int l = N - 1; l >= 0; l--) {
         const double *v = vx + nfx * l, *w = vy + nfy * l;
@@ -147,7 +155,7 @@ int sf_adjoint(int nx, int ny, int N, int nsub, double rx, double ry, double eps
         memset(axp, 0, sizeof(double) * (2 * nfx + 2 * nfy));
         for (int s = nsub - 1; s >= 0; s--) {
             long k = (long)l * nsub + s;
-            step_adj(nx, ny, rx, ry, xp, xm, yp, ym, traj + n * k, lam, tmp, axp, axm, ayp, aym);
+            step_adj(nx, ny, rx, ry, xp, xm, yp, ym, traj + n * k, lam, tmp, axp, axm, ayp, aym, scratch);
             double *t = lam; lam = tmp; tmp = t;
         }
         /* dv+/dv = (1 + v/s)/2, dv-/dv = (v/s - 1)/2, s = sqrt(v^2 + eps^2) */
@@ -264,9 +272,16 @@ class TransportKernel:
         self.n_fy = self.nx * (self.ny - 1)
 
     # shapes: vx (N, n_fx), vy (N, n_fy), p0 (n_cell,), traj (N*n_sub+1, n_cell), all C-contiguous rows
-    def forward(self, vx, vy, p0) -> np.ndarray:
+    def forward(self, vx, vy, p0, out: np.ndarray | None = None) -> np.ndarray:
+        """Density at every sub-step (N n_sub + 1, n_cell); ``out`` (that shape, C order) is reused if given
+        (a fresh 10-30 MB array per call costs more in page faults than the sub-steps at 80 x 80)."""
         vx, vy, p0 = self._check(vx, vy, p0)
-        traj = np.empty((self.N * self.n_sub + 1, self.n_cell))
+        shape = (self.N * self.n_sub + 1, self.n_cell)
+        if out is None:
+            out = np.empty(shape)
+        elif out.shape != shape or out.dtype != np.float64 or not out.flags.c_contiguous:
+            raise ValueError(f"out must be a C-contiguous float64 array of shape {shape}")
+        traj = out
         if self.backend == "compiled":
             if _LIB.sf_forward(self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, vx, vy, p0, traj):
                 raise MemoryError("transport kernel: out of memory")
@@ -366,7 +381,8 @@ def transport_callback(kernel: TransportKernel, name: str = "transport"):
             key = (VX, VY, p0)
             if self.key is not None and all(np.array_equal(a, b) for a, b in zip(self.key, key)):
                 return self.traj
-            self.traj = kernel.forward(VX, VY, p0)
+            self.key = None
+            self.traj = kernel.forward(VX, VY, p0, out=self.traj)     # one buffer, reused
             self.key = tuple(np.array(a, copy=True) for a in key)
             return self.traj
 

@@ -141,9 +141,19 @@ class TransportProblem:
             VY = ca.horzcat(*[ca.vec(ca.mtimes([Sxc, ay_l, Syf_T])) for _, ay_l in coefs])
             Pk = self._transport_fn(VX, VY, ca.vec(p0))
             states = [ca.reshape(Pk[:, k], nx, ny) for k in range(N + 1)]
-        kls = [self.sym_kl(pk, qt, lq) for pk in states]
-        running = 0.5 * (kls[0] + kls[-1]) + sum(kls[1:-1])   # trapezoid over the interval boundaries
-        terminal = kls[-1]
+        if self.kernel is None:
+            kls = [self.sym_kl(pk, qt, lq) for pk in states]
+            running = 0.5 * (kls[0] + kls[-1]) + sum(kls[1:-1])   # trapezoid over the interval boundaries
+            terminal = kls[-1]
+        else:
+            # the same sums on the (cells x snapshots) matrix at once: a handful of MX nodes, not 13 x 6
+            qv, lqv = ca.vec(qt), ca.vec(lq)
+            ones = ca.DM.ones(1, N + 1)
+            klv = ca.sum1((Pk - ca.mtimes(qv, ones)) * (ca.log(Pk + s.log_eps) - ca.mtimes(lqv, ones))) * g.cell_area
+            trap = np.ones(N + 1)
+            trap[[0, -1]] = 0.5
+            running = ca.mtimes(klv, ca.DM(trap))
+            terminal = klv[N]
         energy = tau * (g.lx * g.ly / 4.0) * ca.sumsqr(a)
         J_f = s.w_f * terminal
         J_p = s.w_p * tau * running

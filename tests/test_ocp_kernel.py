@@ -1,0 +1,161 @@
+"""Transport kernel (ocp.kernel): C and NumPy backends against the reference scheme, the hand-written
+adjoint against finite differences and CasADi's derivatives of the MX graph, the planner with each
+transport, and the fallback when no C compiler is available."""
+import casadi as ca
+import numpy as np
+import pytest
+
+from swarmfield.ocp import kernel as K
+from swarmfield.ocp.planner import ReferencePlanner
+from swarmfield.ocp.problem import TransportProblem
+from swarmfield.ocp.settings import IpoptSettings, PlannerSettings
+from swarmfield.ocp.transport import simulate
+
+SMALL = dict(domain=(0.0, 10.0, 0.0, 8.0), nx=12, ny=10, horizon=4.0, n_intervals=3, n_modes_x=3, n_modes_y=3,
+             v_max=2.0)
+BACKENDS = ["numpy"] + (["compiled"] if K.compiled_available() else [])
+needs_cc = pytest.mark.skipif(not K.compiled_available(), reason=f"no compiled kernel: {K.compile_error()}")
+
+
+def bump(grid, cx, cy, s):
+    X, Y = np.meshgrid(grid.xc, grid.yc, indexing="ij")
+    return grid.normalize(np.exp(-((X - cx) ** 2 + (Y - cy) ** 2) / (2 * s * s)) + 1e-6)
+
+
+def setup(backend, seed=0, **kw):
+    s = PlannerSettings(**{**SMALL, **kw, "transport": "casadi"})
+    P = TransportProblem(s)
+    g = P.grid
+    kern = K.TransportKernel(g.nx, g.ny, P.N, P.n_sub, P.dt / g.dx, P.dt / g.dy, s.upwind_smoothing, backend)
+    rng = np.random.default_rng(seed)
+    coef = 0.4 * rng.standard_normal((P.N, 2, P.I, P.J))
+    p0 = bump(g, 3.0, 3.0, 1.5)
+    return s, P, g, kern, coef, p0, rng
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_kernel_forward_equals_reference_scheme(backend):
+    s, P, g, kern, coef, p0, _ = setup(backend)
+    VX, VY = P.face_velocities(coef)
+    traj = kern.forward(VX, VY, p0.ravel(order="F"))
+    ref = simulate(p0, coef, g, s.interval, P.n_sub, s.upwind_smoothing)
+    got = traj.reshape(-1, g.ny, g.nx).transpose(0, 2, 1)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-15 * np.abs(ref).max())
+    # reusing an output buffer gives the same trajectory
+    out = np.full_like(traj, np.nan)
+    np.testing.assert_array_equal(kern.forward(VX, VY, p0.ravel(order="F"), out=out), traj)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_kernel_adjoint_against_finite_differences(backend):
+    s, P, g, kern, coef, p0, rng = setup(backend, seed=1)
+    VX, VY = P.face_velocities(coef)
+    p = p0.ravel(order="F")
+    lam = rng.standard_normal((P.N + 1, g.nx * g.ny))
+
+    def L(vx, vy, pp):
+        return float(np.sum(kern.snapshots(kern.forward(vx, vy, pp)) * lam))
+
+    gx, gy, g0 = kern.adjoint(VX, VY, kern.forward(VX, VY, p), lam)
+    h = 1e-6
+    for arr, grad in ((VX, gx), (VY, gy), (p, g0)):
+        for idx in [tuple(rng.integers(0, n) for n in arr.shape) for _ in range(6)]:
+            e = np.zeros_like(arr)
+            e[idx] = h
+            args_p = [VX + e if arr is VX else VX, VY + e if arr is VY else VY, p + e if arr is p else p]
+            args_m = [VX - e if arr is VX else VX, VY - e if arr is VY else VY, p - e if arr is p else p]
+            fd = (L(*args_p) - L(*args_m)) / (2 * h)
+            assert grad[idx] == pytest.approx(fd, rel=1e-6, abs=1e-8 * np.abs(grad).max())
+
+
+@needs_cc
+def test_compiled_adjoint_equals_numpy_adjoint():
+    _, P, g, kc, coef, p0, rng = setup("compiled", seed=2)
+    kn = K.TransportKernel(kc.nx, kc.ny, kc.N, kc.n_sub, kc.rx, kc.ry, kc.eps, "numpy")
+    VX, VY = P.face_velocities(coef)
+    lam = rng.standard_normal((P.N + 1, g.nx * g.ny))
+    traj = kc.forward(VX, VY, p0.ravel(order="F"))
+    for a, b in zip(kc.adjoint(VX, VY, traj, lam), kn.adjoint(VX, VY, traj, lam)):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-13 * np.abs(b).max())
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_nlp_value_and_gradient_equal_casadi_graph(backend):
+    """The NLP objective and its gradient with the kernel equal those of the pure-CasADi graph to rounding."""
+    ref = TransportProblem(PlannerSettings(**SMALL, transport="casadi"))
+    fast = TransportProblem(PlannerSettings(**SMALL, transport=backend))
+    assert ref.kernel is None and fast.kernel is not None and fast.transport == backend
+    g = ref.grid
+    par = ref.parameters(bump(g, 3, 3, 1.5), ref.floored_target(bump(g, 7, 5, 1.5)))
+    rng = np.random.default_rng(3)
+    for _ in range(2):
+        x = np.abs(0.3 * rng.standard_normal(2 * ref.n_coef))
+        out = []
+        for P in (ref, fast):
+            fg = ca.Function("fg", [P.nlp["x"], P.nlp["p"]], [P.nlp["f"], ca.gradient(P.nlp["f"], P.nlp["x"])])
+            out.append([np.array(v).ravel() for v in fg(x, par)])
+        (f0, g0), (f1, g1) = out
+        assert f1[0] == pytest.approx(f0[0], rel=1e-13)
+        np.testing.assert_allclose(g1, g0, rtol=0, atol=1e-11 * np.abs(g0).max())
+        # shooting map: the snapshots too
+        a = ref.coefficients_from_solution(x)
+        p0 = par[:g.nx * g.ny].reshape(g.shape, order="F")
+        np.testing.assert_allclose(np.array(fast.shoot(a, p0)), np.array(ref.shoot(a, p0)), rtol=0, atol=1e-15)
+
+
+@needs_cc
+def test_planner_same_optimum_with_each_transport():
+    g = None
+    plans = {}
+    for tr in ("casadi", "compiled"):
+        pl = ReferencePlanner(PlannerSettings(**SMALL, transport=tr))
+        g = pl.grid
+        plans[tr] = pl.solve(bump(g, 2.5, 2.5, 1.2), bump(g, 7.0, 5.0, 1.2))
+        assert plans[tr].meta["transport"] == tr
+        assert plans[tr].meta["settings"]["transport"] == tr
+    a, b = plans["casadi"], plans["compiled"]
+    assert b.meta["solver"]["iterations"] == a.meta["solver"]["iterations"]
+    assert b.meta["objective"] == pytest.approx(a.meta["objective"], rel=1e-9)
+    # rounding-level differences in f and grad f move IPOPT's last iterates a little (tol 1e-6)
+    np.testing.assert_allclose(b.coef, a.coef, atol=1e-4 * np.abs(a.coef).max())
+    np.testing.assert_allclose(b.p, a.p, atol=1e-4 * a.p.max())
+
+
+def test_auto_uses_casadi_for_exact_hessian_and_rejects_kernel_with_it():
+    s = dict(SMALL, n_intervals=2, n_modes_x=2, n_modes_y=2)
+    P = TransportProblem(PlannerSettings(**s, ipopt=IpoptSettings(hessian_approximation="exact")))
+    assert P.transport == "casadi"
+    with pytest.raises(ValueError, match="exact Hessian"):
+        TransportProblem(PlannerSettings(**s, transport="numpy", ipopt=IpoptSettings(hessian_approximation="exact")))
+    with pytest.raises(ValueError, match="transport"):
+        PlannerSettings(transport="fortran")
+
+
+def test_no_compiler_falls_back_to_casadi_with_one_line(monkeypatch, tmp_path, capsys):
+    monkeypatch.setattr(K, "_LIB", None)
+    monkeypatch.setattr(K, "_LIB_ERROR", None)
+    monkeypatch.setattr(K, "_WARNED", False)
+    monkeypatch.setenv("SWARMFIELD_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("PATH", str(tmp_path))            # no cc, gcc or clang on it
+    monkeypatch.delenv("CC", raising=False)
+    monkeypatch.setattr(K.sysconfig, "get_config_var", lambda name: None)
+    assert not K.compiled_available()
+    assert "no C compiler" in K.compile_error()
+    P = TransportProblem(PlannerSettings(**SMALL))
+    assert P.transport == "casadi" and P.kernel is None
+    TransportProblem(PlannerSettings(**SMALL))           # the message is printed once per process
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "compiled transport kernel unavailable" in err
+    with pytest.raises(ValueError, match="C kernel is unavailable"):
+        TransportProblem(PlannerSettings(**SMALL, transport="compiled"))
+    assert TransportProblem(PlannerSettings(**SMALL, transport="numpy")).kernel.backend == "numpy"
+
+
+@needs_cc
+def test_compiles_into_cache_keyed_by_source(monkeypatch, tmp_path):
+    monkeypatch.setattr(K, "_LIB", None)
+    monkeypatch.setattr(K, "_LIB_ERROR", None)
+    monkeypatch.setenv("SWARMFIELD_CACHE", str(tmp_path))
+    assert K.compiled_available()
+    libs = list(tmp_path.glob("transport_*.so"))
+    assert len(libs) == 1 and not [p for p in tmp_path.iterdir() if p.is_dir()]   # no leftover temp folder
