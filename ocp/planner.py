@@ -23,6 +23,9 @@ from .settings import PlannerSettings, to_dict
 
 SUCCESS = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 
+#: solvers of :meth:`ReferencePlanner.solve`: IPOPT on the CasADi NLP, or the paper's GRG (a baseline)
+METHODS = ("ipopt", "grg")
+
 #: Above this many coefficients an exact-Hessian solve is refused (measured: 192 coefficients on a
 #: 16 x 16 grid take 8 s to build and 24 s to solve; 1536 on 20 x 20 did not finish in 90 s).
 MAX_EXACT_HESSIAN_COEFFICIENTS = 400
@@ -62,6 +65,7 @@ class ReferencePlanner:
             reason = re.sub(r"^.*?\.cpp:\d+:\s*", "", str(exc).strip().splitlines()[-1])
             raise ValueError(f"IPOPT rejected the options: {reason}") from None
         self.build_time = time.perf_counter() - t0
+        self._grg = None
 
     @property
     def grid(self) -> Grid:
@@ -91,13 +95,16 @@ class ReferencePlanner:
 
     # ------------------------------------------------------------------ solve
     def solve(self, p0: np.ndarray, target: np.ndarray, t0: float = 0.0,
-              warm_start: ReferencePlan | None = None) -> ReferencePlan:
+              warm_start: ReferencePlan | None = None, method: str = "ipopt") -> ReferencePlan:
         """Solve eq. "optimization problem" from density p0 towards target p_f; both (nx, ny) cell densities.
 
         Both are validated and normalised; p0 is mixed with ``initial_floor`` of the uniform density
-        (the plan's p[0]).  Raises ``ValueError`` on bad densities and :class:`PlannerError` when
-        IPOPT returns no usable solution.
+        (the plan's p[0]).  ``method``: "ipopt" (the NLP in CasADi, default) or "grg" (the paper's
+        generalized reduced gradient, :mod:`ocp.grg`, a baseline).  Raises ``ValueError`` on bad
+        densities and :class:`PlannerError` when the solver returns no usable solution.
         """
+        if method not in METHODS:
+            raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
         g, P, s = self.grid, self.problem, self.settings
         p0 = g.normalize(p0, "initial density")
         p0 = (1.0 - s.initial_floor) * p0 + s.initial_floor / g.area
@@ -105,15 +112,20 @@ class ReferencePlanner:
         if not np.isfinite(t0):
             raise ValueError("plan start time must be finite")
         q = P.floored_target(target)
-        par = P.parameters(p0, q)
 
         coef0 = self.initial_coefficients(warm_start, t0)
         # scale the initial guess into the admissible set, then start strictly interior
         bound = np.abs(coef0).reshape(P.N, -1).sum(axis=1)
         scale = np.minimum(1.0, 0.9 * s.v_max / np.maximum(bound, 1e-300))
-        a0 = P.coef_to_vector(coef0 * scale[:, None, None, None])
-        x0 = P.initial_point(a0)
+        coef0 = coef0 * scale[:, None, None, None]
+        if method == "grg":
+            coef, objective, summary = self.grg_solver().run(p0, q, coef0)
+            if not summary["success"] or not np.all(np.isfinite(coef)):
+                raise PlannerError(f"GRG failed: {summary['status']} after {summary['iterations']} iterations", summary)
+            return self._package(p0, q, target, t0, warm_start, coef, objective, summary)
 
+        par = P.parameters(p0, q)
+        x0 = P.initial_point(P.coef_to_vector(coef0))
         t_start = time.perf_counter()
         with _interrupt_guard() as interrupted:
             sol = self.solver(x0=x0, p=par, lbx=P.lbx, ubx=P.ubx, lbg=P.lbg, ubg=P.ubg)
@@ -129,9 +141,19 @@ class ReferencePlanner:
         if status not in SUCCESS or not np.all(np.isfinite(x)):
             raise PlannerError(f"IPOPT failed: {status} after {stats.get('iter_count', '?')} iterations",
                                _stats_summary(stats, wall))
+        coef = P.vector_to_coef(P.coefficients_from_solution(x))
+        return self._package(p0, q, target, t0, warm_start, coef, float(sol["f"]), _stats_summary(stats, wall))
 
-        a = P.coefficients_from_solution(x)
-        coef = P.vector_to_coef(a)
+    def grg_solver(self):
+        """The GRG baseline on this planner's problem (built on first use; :mod:`ocp.grg`)."""
+        if self._grg is None:
+            from .grg import GRGSolver
+            self._grg = GRGSolver(self.problem)
+        return self._grg
+
+    def _package(self, p0, q, target, t0, warm_start, coef, objective, solver_summary) -> ReferencePlan:
+        g, P, s = self.grid, self.problem, self.settings
+        a = P.coef_to_vector(coef)
         snapshots = P.trajectory(p0, coef)
         terms = [float(v) for v in P.objective_terms(a, p0, q, np.log(q))]
         kl0 = float(P.sym_kl(p0, q, np.log(q)))
@@ -140,10 +162,11 @@ class ReferencePlanner:
             "settings": to_dict(s),
             "substeps": P.n_sub,
             "transport": P.transport,
+            "method": solver_summary.get("method", "ipopt"),
             "initial_guess": "warm" if warm_start is not None else "cold",
-            "solver": _stats_summary(stats, wall),
+            "solver": solver_summary,
             "build_time_s": self.build_time,
-            "objective": float(sol["f"]),
+            "objective": float(objective),
             "objective_terms": {"terminal": terms[0], "running": terms[1], "energy": terms[2]},
             "symmetric_kl_initial": kl0,
             "symmetric_kl_final": kl_end,
@@ -187,6 +210,7 @@ def _interrupt_guard():
 
 def _stats_summary(stats: dict, wall: float) -> dict:
     out = {
+        "method": "ipopt",
         "status": stats.get("return_status", "unknown"),
         "success": bool(stats.get("success", False)),
         "iterations": int(stats.get("iter_count", -1)),
