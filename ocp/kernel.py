@@ -211,9 +211,15 @@ def _load():
             raise RuntimeError("no C compiler found (cc, gcc, clang or $CC)")
         key = hashlib.sha256((C_SOURCE + " ".join(CFLAGS) + platform.machine() + sys.platform).encode()).hexdigest()[:16]
         folder = cache_dir()
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            if not os.access(folder, os.W_OK):
+                raise PermissionError(str(folder))
+        except OSError:                                # read-only home: a per-user temporary folder
+            folder = Path(tempfile.gettempdir()) / f"swarmfield-{os.getuid() if hasattr(os, 'getuid') else 'user'}"
+            folder.mkdir(parents=True, exist_ok=True)
         lib_path = folder / f"transport_{key}.so"
         if not lib_path.exists():
-            folder.mkdir(parents=True, exist_ok=True)
             with tempfile.TemporaryDirectory(dir=folder) as tmp:
                 src = Path(tmp) / "transport.c"
                 src.write_text(C_SOURCE)
