@@ -18,7 +18,10 @@ int_Omega |v_l|^2 dx = (b c / 4) sum_{d,i,j} a[l, d, i, j]^2.
 Speed: the state is a dense nx x ny *matrix* MX and every operation of a step is one matrix
 node (elementwise products, two sparse difference products), so CasADi's virtual machine runs
 ~15 nodes per sub-step instead of ~20 scalar instructions per cell; face velocities use the
-separable basis v = S_x A S_y^T once per interval.
+separable basis v = S_x A S_y^T once per interval.  That graph is the reference and the fallback:
+by default (``settings.transport``, :mod:`ocp.kernel`) the horizon's sub-steps are one call of a
+compiled kernel with a hand-written adjoint, taking the face velocities of all intervals and p0 and
+returning the interval-boundary snapshots; the basis product and the costs stay in CasADi.
 """
 from __future__ import annotations
 
