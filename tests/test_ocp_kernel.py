@@ -159,3 +159,17 @@ def test_compiles_into_cache_keyed_by_source(monkeypatch, tmp_path):
     assert K.compiled_available()
     libs = list(tmp_path.glob("transport_*.so"))
     assert len(libs) == 1 and not [p for p in tmp_path.iterdir() if p.is_dir()]   # no leftover temp folder
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_full_jacobian_of_shooting_map_equals_casadi_graph(backend):
+    """Several adjoint directions at once (CasADi asks the reverse Callback for nadj > 1 seeds)."""
+    s = dict(SMALL, nx=6, ny=5, n_intervals=2, n_modes_x=2, n_modes_y=2)
+    ref = TransportProblem(PlannerSettings(**s, transport="casadi"))
+    fast = TransportProblem(PlannerSettings(**s, transport=backend))
+    a = ca.MX.sym("a", ref.n_coef)
+    p0 = np.random.default_rng(4).uniform(0.5, 1.5, (6, 5))
+    av = 0.3 * np.random.default_rng(5).standard_normal(ref.n_coef)
+    jac = [np.array(ca.Function("j", [a], [ca.jacobian(P.shoot(a, p0), a)])(av)) for P in (ref, fast)]
+    assert np.abs(jac[0]).max() > 0.1
+    np.testing.assert_allclose(jac[1], jac[0], rtol=0, atol=1e-13 * np.abs(jac[0]).max())
