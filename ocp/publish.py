@@ -167,7 +167,9 @@ class OutputFolder:
         if path.exists() and not path.is_dir():
             raise ValueError(f"output {path} exists and is not a folder")
         if path.is_dir():
-            entries = [p for p in path.iterdir()]
+            # this program's own hidden entries (manifest, journal, stages of a running or killed run,
+            # set-aside files) do not make the folder foreign
+            entries = [p for p in path.iterdir() if not p.name.startswith(f".{self.program}")]
             if entries and not self.marker.exists() and not (self.force or self.foreign_ok):
                 raise ValueError(f"output folder {path} is not empty and holds no previous {self.program} run; "
                                  "choose another --out or pass --force")
