@@ -3,9 +3,11 @@
 Without arguments it runs the paper's scenario (100 robots from [0, 7]^2 on [0, 20]^2, field
 2 + sin(2|x|)/|x|, Δt = 0.875 s, T = 7 s, γ = 0.1) with seed 0 into ``./run``.  Flags override
 the ``[sim]`` settings of ``--config``.  Exit codes: 0 run finished (whether or not sup V fell
-below γ; see summary.json), 1 planner failure (the outputs up to that point are written) or a
-simulation or write failure (one line; DIR keeps its previous contents), 2 bad input (one line on
-stderr, nothing written), 130 interrupted (DIR keeps its previous contents).
+below γ; see summary.json), 1 planner failure (the outputs up to that point are published, or set
+aside in DIR/.simulate-swarm-incomplete if DIR holds a complete run) or a simulation or write
+failure (one line; DIR keeps its previous contents), 2 bad input or DIR in use by another run (one
+line on stderr, nothing written), 130 interrupted (DIR keeps its previous contents).  Publication:
+:mod:`ocp.publish`.
 """
 from __future__ import annotations
 
