@@ -13,7 +13,12 @@ import numbers
 
 import numpy as np
 
-__all__ = ["real_array", "real_scalar", "points_array"]
+__all__ = ["MAX_MAGNITUDE", "real_array", "real_scalar", "points_array"]
+
+#: Upper bound of physical settings (variances, gains, bandwidths): far beyond any meaningful
+#: value, low enough that their squares and products stay finite in float64 (a noise variance of
+#: 1e308 overflowed the GP's sums mid-run).
+MAX_MAGNITUDE = 1e100
 
 
 def real_array(x, name: str, *, finite: bool = True) -> np.ndarray:

@@ -23,6 +23,8 @@ MAX_CELL_STEPS = 50_000_000
 #: sub-step counts and densities stay ordinary floating-point numbers (a side of 5e-324 m made the
 #: cell width 0 and the CFL rule divide by zero).
 MAX_COORDINATE = 1e9
+#: NLP variables beyond this exhaust memory while CasADi builds the problem (the paper's: 1536).
+MAX_COEFFICIENTS = 100_000
 MIN_SIDE = 1e-6
 
 
@@ -149,6 +151,11 @@ class PlannerSettings:
             raise ValueError(f"planner.speed_limit_form must be 'split' or 'slack', got {self.speed_limit_form!r}")
         if not isinstance(self.ipopt, IpoptSettings):
             raise ValueError("planner.ipopt must be an IpoptSettings")
+        n_coef = self.n_intervals * 2 * self.n_modes_x * self.n_modes_y
+        if n_coef > MAX_COEFFICIENTS:
+            raise ValueError(f"planner: {self.n_intervals} intervals x 2 x {self.n_modes_x} x {self.n_modes_y} modes is "
+                             f"{n_coef:.3g} velocity coefficients, above the limit {MAX_COEFFICIENTS:.0e} (the paper's: "
+                             "1536); use fewer intervals or modes")
         raw = self._substeps_real()
         if not raw <= MAX_CELL_STEPS:      # also catches inf/nan (v_max or horizon of 1e308)
             raise ValueError(

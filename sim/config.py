@@ -47,6 +47,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..checks import MAX_MAGNITUDE
 from ..control import FeedbackSettings
 from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict
 from ..regression import GPSettings
@@ -61,8 +62,8 @@ def _number(name, v, *, positive=False, nonneg=False):
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         raise ValueError(f"sim.{name} must be a number, got {v!r}")
     v = float(v)
-    if not math.isfinite(v):
-        raise ValueError(f"sim.{name} must be finite, got {v}")
+    if not (math.isfinite(v) and abs(v) <= MAX_MAGNITUDE):
+        raise ValueError(f"sim.{name} must be finite and at most {MAX_MAGNITUDE:g} in magnitude, got {v}")
     if positive and not v > 0:
         raise ValueError(f"sim.{name} must be > 0, got {v:g}")
     if nonneg and v < 0:
@@ -209,8 +210,8 @@ class KDESettings:
     def __post_init__(self):
         if self.bandwidth is not None:
             if isinstance(self.bandwidth, bool) or not isinstance(self.bandwidth, (int, float)) \
-                    or not math.isfinite(self.bandwidth) or self.bandwidth <= 0:
-                raise ValueError(f"kde.bandwidth must be a positive number, got {self.bandwidth!r}")
+                    or not math.isfinite(self.bandwidth) or self.bandwidth <= 0 or self.bandwidth > MAX_MAGNITUDE:
+                raise ValueError(f"kde.bandwidth must be a positive number <= {MAX_MAGNITUDE:g}, got {self.bandwidth!r}")
             object.__setattr__(self, "bandwidth", float(self.bandwidth))
         try:
             bins = tuple(self.bins)

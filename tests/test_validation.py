@@ -149,3 +149,14 @@ def test_gaussian_process_refuses_complex_and_non_finite_values():
         with pytest.raises(ValueError, match="real numbers"):
             gp.predict(np.array([[1.0, 1.0]], dtype=complex))
     assert gp.n_observations == 0 if hasattr(gp, "n_observations") else True
+
+
+@pytest.mark.parametrize("section, key, value", [
+    ("gp", "signal_variance", 1e100), ("gp", "noise_variance", 1e308), ("sim", "noise_variance", 1e308),
+    ("feedback", "alpha", 1e308), ("kde", "bandwidth", 1e308), ("planner", "n_modes_x", 10**6)])
+def test_absurd_magnitudes_are_refused_before_the_run(section, key, value):
+    """Each of these was accepted and ended mid-run in NaNs, a failed Cholesky or an exhausted memory."""
+    from swarmfield.sim.config import config_from_dict
+
+    with pytest.raises(ValueError, match=f"{key}|coefficients"):
+        config_from_dict({section: {key: value}})
