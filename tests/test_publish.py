@@ -92,7 +92,10 @@ def test_solver_study_interrupt_while_writing_keeps_the_previous_study(tmp_path,
     def ctrl_c(rows, path):
         raise KeyboardInterrupt
     monkeypatch.setattr(study, "plot", ctrl_c)
-    code = study.main(["--study", "ipopt", "--quick", "--out", str(tmp_path)])
+    try:
+        code = study.main(["--study", "ipopt", "--quick", "--out", str(tmp_path)])
+    except KeyboardInterrupt:
+        pytest.fail("KeyboardInterrupt escaped solver-study (a traceback on the command line)")
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 130 and "Traceback" not in "\n".join(err)
     assert err[-1].startswith("solver-study: interrupted while writing")

@@ -152,7 +152,7 @@ def test_gaussian_process_refuses_complex_and_non_finite_values():
 
 
 @pytest.mark.parametrize("section, key, value", [
-    ("gp", "signal_variance", 1e100), ("gp", "noise_variance", 1e308), ("sim", "noise_variance", 1e308),
+    ("gp", "signal_variance", 1e100), ("gp", "prior_mean", 1e308), ("sim", "noise_variance", 1e308),
     ("feedback", "alpha", 1e308), ("kde", "bandwidth", 1e308), ("planner", "n_modes_x", 10**6)])
 def test_absurd_magnitudes_are_refused_before_the_run(section, key, value):
     """Each of these was accepted and ended mid-run in NaNs, a failed Cholesky or an exhausted memory."""
