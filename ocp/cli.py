@@ -7,6 +7,7 @@ variance of their first measurements; :mod:`ocp.scenario`) on the default grid a
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import tomllib
 from pathlib import Path
@@ -131,6 +132,8 @@ def run(argv=None) -> int:
         if path is not None:
             check_path(path, what)
     settings = resolve_settings(args)
+    if not math.isfinite(args.t0) or abs(args.t0) > 1e15:
+        raise InputError(f"--t0 must be a finite time of at most 1e15 s, got {args.t0}")
     check_output(args.out, ".npz", "output")
     if args.plot is not None:
         check_output(args.plot, ".png", "plot")
