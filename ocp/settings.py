@@ -36,8 +36,8 @@ def check_domain(dom, name: str) -> tuple:
         raise ValueError(f"{name} must be four numbers [x0, x1, y0, y1], got {dom!r}") from None
     if len(dom) != 4 or not all(math.isfinite(v) and abs(v) <= MAX_COORDINATE for v in dom) \
             or not (dom[1] - dom[0] >= MIN_SIDE and dom[3] - dom[2] >= MIN_SIDE):
-        raise ValueError(f"{name} must be four finite numbers [x0, x1, y0, y1] with |x| <= {MAX_COORDINATE:g}, "
-                         f"x1 - x0 >= {MIN_SIDE:g} and y1 - y0 >= {MIN_SIDE:g}, got {list(dom)}")
+        raise ValueError(f"{name} must be four finite numbers [x0, x1, y0, y1] with x1 > x0 and y1 > y0 (sides of at "
+                         f"least {MIN_SIDE:g}) and |x| <= {MAX_COORDINATE:g}, got {list(dom)}")
     return dom
 
 
