@@ -42,6 +42,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import MAX_MAGNITUDE
+
 __all__ = ["FeedbackSettings", "feedback_velocity", "tracking_velocity", "saturate"]
 
 
@@ -68,6 +70,9 @@ class FeedbackSettings:
             if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)):
                 raise ValueError(f"feedback.{name} must be a number, got {v!r}")
             object.__setattr__(self, name, float(v))
+        for name in ("alpha", "sigma", "p_floor"):
+            if getattr(self, name) > MAX_MAGNITUDE:
+                raise ValueError(f"feedback.{name} must be <= {MAX_MAGNITUDE:g}, got {getattr(self, name)}")
         if not (math.isfinite(self.alpha) and self.alpha > 0):
             raise ValueError(f"feedback.alpha must be finite and > 0, got {self.alpha}")
         if not (math.isfinite(self.sigma) and self.sigma >= 0):

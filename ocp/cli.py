@@ -7,6 +7,7 @@ variance of their first measurements; :mod:`ocp.scenario`) on the default grid a
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import tomllib
 from pathlib import Path
@@ -14,8 +15,9 @@ from pathlib import Path
 import numpy as np
 
 from .atomic import probe_writable
-from .cliargs import OneLineParser, UsageError as InputError
+from .cliargs import OneLineParser, UsageError as InputError, check_path
 from .plan import ReferencePlan
+from .publish import InterruptedAfterPublish, staged_files
 from .settings import PlannerSettings, dataclass_from_dict
 
 PROG = "plan-reference"
@@ -125,7 +127,13 @@ def check_output(path: Path, suffix: str, what: str):
 
 def run(argv=None) -> int:
     args = build_parser().parse_args(argv)
+    for what, path in (("config", args.config), ("output", args.out), ("plot", args.plot), ("initial density", args.initial),
+                       ("target density", args.target), ("warm-start plan", args.warm_start)):
+        if path is not None:
+            check_path(path, what)
     settings = resolve_settings(args)
+    if not math.isfinite(args.t0) or abs(args.t0) > 1e15:
+        raise InputError(f"--t0 must be a finite time of at most 1e15 s, got {args.t0}")
     check_output(args.out, ".npz", "output")
     if args.plot is not None:
         check_output(args.plot, ".png", "plot")
@@ -163,13 +171,24 @@ def run(argv=None) -> int:
         return 1
     plan.meta["initial_density"] = p0_desc
     plan.meta["target_density"] = target_desc
+    # plan and plot are written to temporary files first and renamed together (ocp.publish): an
+    # interrupt or a write error leaves both previous files as they were
+    writing = args.out
     try:
-        plan.save(args.out)
-        if args.plot is not None:
-            from .figures import plot_plan
-            plot_plan(plan, args.plot)
+        with staged_files([args.out] + ([args.plot] if args.plot is not None else [])) as tmp:
+            plan.save(tmp[args.out])
+            if args.plot is not None:
+                from .figures import plot_plan
+                writing = args.plot
+                plot_plan(plan, tmp[args.plot])
+            writing = None
+    except InterruptedAfterPublish:
+        print(f"{PROG}: interrupted after writing {args.out}" + (f" and {args.plot}" if args.plot else ""),
+              file=sys.stderr)
+        return 130
     except OSError as exc:
-        print(f"{PROG}: error: cannot write {exc.filename or args.out}: {exc.strerror or exc}", file=sys.stderr)
+        what = f"{writing}" if writing is not None else f"{args.out}" + (f" and {args.plot}" if args.plot else "")
+        print(f"{PROG}: error: cannot write {what}: {exc.strerror or exc}; no file replaced", file=sys.stderr)
         return 1
     m = plan.meta
     sv = m["solver"]
@@ -194,7 +213,7 @@ def main(argv=None) -> int:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         code = 2
     except KeyboardInterrupt:
-        print(f"{PROG}: interrupted", file=sys.stderr)
+        print(f"{PROG}: interrupted; nothing written", file=sys.stderr)
         code = 130
     if __name__ == "__main__" or argv is None:
         sys.exit(code)

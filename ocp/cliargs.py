@@ -33,3 +33,33 @@ class OneLineParser(argparse.ArgumentParser):
 
     def error(self, message):
         raise UsageError(message)
+
+
+def check_path(path, what: str) -> None:
+    """:class:`UsageError` for a path the file system or the outputs cannot hold: a name that is
+    not valid UTF-8 (it could not be recorded in summary.json or a plan's meta), a component
+    longer than the folder allows (NAME_MAX) or a whole path longer than PATH_MAX.  Checked
+    before any work, so that such a path fails in one line, not after a solve or a run."""
+    import os
+    from pathlib import Path
+
+    text = os.fspath(path)
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        raise UsageError(f"{what} {text.encode('utf-8', 'surrogateescape')!r}: the name is not valid UTF-8") from None
+    p = Path(text)
+    anchor = p.parent if str(p.parent) else Path(".")
+    while not anchor.exists() and anchor != anchor.parent:
+        anchor = anchor.parent
+    try:
+        name_max = os.pathconf(anchor, "PC_NAME_MAX")
+        path_max = os.pathconf(anchor, "PC_PATH_MAX")
+    except (OSError, ValueError):
+        name_max, path_max = 255, 4096
+    if len(os.fsencode(os.path.abspath(text))) >= path_max:
+        raise UsageError(f"{what} path is longer than the file system allows ({path_max} bytes)")
+    for part in p.parts:
+        if len(os.fsencode(part)) > name_max:
+            raise UsageError(f"{what} {text[:40]}...: the name {part[:20]}... is longer than the file system "
+                             f"allows ({name_max} bytes)")

@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import real_array
+
 
 @dataclass(frozen=True)
 class Grid:
@@ -88,7 +90,7 @@ class Grid:
 
     def normalize(self, p: np.ndarray, name: str = "density") -> np.ndarray:
         """Validate a cell density (shape, finite, non-negative, positive mass) and scale it to unit mass."""
-        p = np.asarray(p, dtype=float)
+        p = real_array(p, name, finite=False)
         if p.shape != self.shape:
             raise ValueError(f"{name} has shape {p.shape}, expected {self.shape} (nx, ny) for this grid")
         if not np.all(np.isfinite(p)):

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..checks import points_array, real_scalar
 from .atomic import atomic_path
 from .basis import velocity_at
 from .grid import Grid
@@ -111,12 +112,12 @@ class ReferencePlan:
 
     def density_grid(self, t: float) -> np.ndarray:
         """p_r(t) on the cell centres, (nx, ny), linear in time between snapshots."""
-        k0, k1, w = self._time_weights(float(t))
+        k0, k1, w = self._time_weights(real_scalar(t, "time t"))
         return (1.0 - w) * self.p[k0] + w * self.p[k1]
 
     def _bilinear(self, field2d: np.ndarray, points: np.ndarray, gradient: bool):
         g = self.grid
-        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        pts = points_array(points)
         # fractional index relative to the cell centres
         fx = (pts[:, 0] - g.domain[0]) / g.dx - 0.5
         fy = (pts[:, 1] - g.domain[2]) / g.dy - 0.5
@@ -156,8 +157,8 @@ class ReferencePlan:
 
     def velocity(self, t: float, points: np.ndarray) -> np.ndarray:
         """v_r(t, x) at points (n, 2) -> (n, 2); zero outside the planned time window."""
-        pts = np.asarray(points, dtype=float).reshape(-1, 2)
-        k = self.interval_index(float(t))
+        pts = points_array(points)
+        k = self.interval_index(real_scalar(t, "time t"))
         if k is None:
             return np.zeros_like(pts)
         return velocity_at(self.coef[k], tuple(self.domain), pts)

@@ -16,6 +16,7 @@ import casadi as ca
 import numpy as np
 
 from .. import DISTRIBUTION, __version__, distribution
+from ..checks import real_scalar
 from .grid import Grid
 from .plan import ReferencePlan
 from .problem import TransportProblem
@@ -109,8 +110,7 @@ class ReferencePlanner:
         p0 = g.normalize(p0, "initial density")
         p0 = (1.0 - s.initial_floor) * p0 + s.initial_floor / g.area
         target = g.normalize(target, "target density")
-        if not np.isfinite(t0):
-            raise ValueError("plan start time must be finite")
+        t0 = real_scalar(t0, "plan start time t0")
         q = P.floored_target(target)
 
         coef0 = self.initial_coefficients(warm_start, t0)
@@ -191,9 +191,11 @@ def _interrupt_guard():
     """Record Ctrl-C during an IPOPT solve.  CasADi turns the KeyboardInterrupt raised in its
     callbacks into IPOPT's status ``NonIpopt_Exception_Thrown``; the caller re-raises it after
     the solve, so an interrupt is never reported as a solver failure (main thread only: elsewhere
-    signal handlers cannot be installed and Python's own handling applies)."""
+    signal handlers cannot be installed and Python's own handling applies).  A process that
+    ignores SIGINT (a background job of a script started with it ignored) keeps ignoring it."""
     hits = []
-    if threading.current_thread() is not threading.main_thread():
+    if threading.current_thread() is not threading.main_thread() or \
+            signal.getsignal(signal.SIGINT) in (signal.SIG_IGN, None):
         yield hits
         return
 

@@ -19,6 +19,26 @@ LINEAR_SOLVERS = ("mumps", "spral", "ma27", "ma57", "ma77", "ma86", "ma97", "par
 #: 1.5e5, 0.3 s per solve; 4.1e6 at 120 x 120 takes ~0.4 s per IPOPT iteration): beyond it a solve
 #: would take hours, so the settings are refused up front instead.
 MAX_CELL_STEPS = 50_000_000
+#: Coordinates of a domain are bounded in magnitude and its sides from below, so that cell widths,
+#: sub-step counts and densities stay ordinary floating-point numbers (a side of 5e-324 m made the
+#: cell width 0 and the CFL rule divide by zero).
+MAX_COORDINATE = 1e9
+#: NLP variables beyond this exhaust memory while CasADi builds the problem (the paper's: 1536).
+MAX_COEFFICIENTS = 100_000
+MIN_SIDE = 1e-6
+
+
+def check_domain(dom, name: str) -> tuple:
+    """``(x0, x1, y0, y1)`` as floats; ``ValueError`` unless finite, |x| <= 1e9, sides >= 1e-6."""
+    try:
+        dom = tuple(float(v) for v in dom)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{name} must be four numbers [x0, x1, y0, y1], got {dom!r}") from None
+    if len(dom) != 4 or not all(math.isfinite(v) and abs(v) <= MAX_COORDINATE for v in dom) \
+            or not (dom[1] - dom[0] >= MIN_SIDE and dom[3] - dom[2] >= MIN_SIDE):
+        raise ValueError(f"{name} must be four finite numbers [x0, x1, y0, y1] with x1 > x0 and y1 > y0 (sides of at "
+                         f"least {MIN_SIDE:g}) and |x| <= {MAX_COORDINATE:g}, got {list(dom)}")
+    return dom
 
 #: choices of ``PlannerSettings.transport``
 TRANSPORTS = ("auto", "compiled", "numpy", "casadi")
@@ -119,10 +139,7 @@ class PlannerSettings:
     transport: str = "auto"
 
     def __post_init__(self):
-        dom = tuple(float(v) for v in self.domain)
-        if len(dom) != 4 or not all(math.isfinite(v) for v in dom) or not (dom[1] > dom[0] and dom[3] > dom[2]):
-            raise ValueError(f"planner.domain must be (x0, x1, y0, y1) with x1 > x0, y1 > y0, got {self.domain}")
-        object.__setattr__(self, "domain", dom)
+        object.__setattr__(self, "domain", check_domain(self.domain, "planner.domain"))
         _positive_int(self, "n_intervals", "n_modes_x", "n_modes_y")
         if self.nx < 3 or self.ny < 3:
             raise ValueError(f"planner grid must be at least 3x3 cells, got {self.nx}x{self.ny}")
@@ -143,6 +160,16 @@ class PlannerSettings:
             raise ValueError(f"planner.transport must be one of {', '.join(TRANSPORTS)}, got {self.transport!r}")
         if not isinstance(self.ipopt, IpoptSettings):
             raise ValueError("planner.ipopt must be an IpoptSettings")
+        n_coef = self.n_intervals * 2 * self.n_modes_x * self.n_modes_y
+        if n_coef > MAX_COEFFICIENTS:
+            raise ValueError(f"planner: {self.n_intervals} intervals x 2 x {self.n_modes_x} x {self.n_modes_y} modes is "
+                             f"{n_coef:.3g} velocity coefficients, above the limit {MAX_COEFFICIENTS:.0e} (the paper's: "
+                             "1536); use fewer intervals or modes")
+        raw = self._substeps_real()
+        if not raw <= MAX_CELL_STEPS:      # also catches inf/nan (v_max or horizon of 1e308)
+            raise ValueError(
+                f"planner: the CFL rule needs {raw:.3g} sub-steps per interval (horizon {self.horizon:g} s, "
+                f"v_max {self.v_max:g} m/s, cells of {self._cell_width():.3g} m); use a shorter horizon or a lower v_max")
         work = self.n_intervals * self.substeps * self.nx * self.ny
         if work > MAX_CELL_STEPS:
             raise ValueError(
@@ -165,8 +192,14 @@ class PlannerSettings:
         Keeping this below 1 makes every update a non-negative combination of old cell values:
         p stays >= 0 (> 0 if p0 > 0) for every admissible control.
         """
-        h = min((self.domain[1] - self.domain[0]) / self.nx, (self.domain[3] - self.domain[2]) / self.ny)
-        return max(1, math.ceil(self.interval * 2.0 * (self.v_max + self.upwind_smoothing) / (h * self.cfl) - 1e-12))
+        return max(1, math.ceil(self._substeps_real() - 1e-12))
+
+    def _cell_width(self) -> float:
+        return min((self.domain[1] - self.domain[0]) / self.nx, (self.domain[3] - self.domain[2]) / self.ny)
+
+    def _substeps_real(self) -> float:
+        # plain float arithmetic: an overflow gives inf, which __post_init__ refuses
+        return self.interval * 2.0 * (self.v_max + self.upwind_smoothing) / (self._cell_width() * self.cfl)
 
 
 def _positive(obj, *names):

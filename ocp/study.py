@@ -18,8 +18,9 @@ import sys
 import time
 from pathlib import Path
 
-from .atomic import atomic_path, probe_writable, write_atomic
-from .cliargs import OneLineParser, UsageError
+from .atomic import atomic_path, write_atomic
+from .cliargs import OneLineParser, UsageError, check_path
+from .publish import InterruptedAfterPublish, OutputFolder
 from .settings import PlannerSettings
 
 PROG = "solver-study"
@@ -91,7 +92,11 @@ COLUMNS = ["study", "case", "build_s", "solve_s", "iterations", "status", "objec
            "t_grad_s", "t_hess_s"]
 
 
+OUTPUTS = ("study.csv", "study.md", "study.png")
+
+
 def write_outputs(rows, out: Path):
+    """Write the three files into ``out`` (a staging folder when called from :func:`main`)."""
     import io
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=COLUMNS)
@@ -141,15 +146,23 @@ def main(argv=None) -> int:
     except UsageError as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2
-    if args.out.exists() and not args.out.is_dir():
-        print(f"{PROG}: error: {args.out} exists and is not a folder", file=sys.stderr)
+    # the folder may hold other files (docs/figures); only the three outputs are ever written or
+    # removed there, and they are published together (ocp.publish)
+    folder = OutputFolder(args.out, PROG, OUTPUTS, foreign_ok=True)
+    try:
+        check_path(args.out, "output folder")
+        folder.check()
+        folder.lock()
+    except ValueError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2
     try:
-        args.out.mkdir(parents=True, exist_ok=True)
-        probe_writable(args.out / "study.csv")
-    except OSError as exc:
-        print(f"{PROG}: error: cannot write to {args.out}: {exc.strerror or exc}", file=sys.stderr)
-        return 2
+        return _run(args, folder)
+    finally:
+        folder.unlock()
+
+
+def _run(args, folder: OutputFolder) -> int:
     base = PlannerSettings(nx=12, ny=12, n_intervals=4, n_modes_x=3, n_modes_y=3) if args.quick else PlannerSettings()
     rows = []
     todo = cases(args.study, base, args.quick)
@@ -162,11 +175,24 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted after {len(rows)} of {len(todo)} cases; no table written", file=sys.stderr)
         return 130
+    stage = None
     try:
-        write_outputs(rows, args.out)
-    except OSError as exc:
-        print(f"{PROG}: error: cannot write the study to {args.out}: {exc.strerror or exc}", file=sys.stderr)
+        stage = folder.stage()
+        write_outputs(rows, stage)
+        folder.publish(stage, OUTPUTS)
+    except InterruptedAfterPublish:
+        print(f"{PROG}: interrupted after the study was written to {args.out}", file=sys.stderr)
+        return 130
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted while writing; {args.out} keeps its previous study", file=sys.stderr)
+        return 130
+    except (OSError, ValueError) as exc:
+        print(f"{PROG}: error: cannot write the study to {args.out}: {getattr(exc, 'strerror', None) or exc}; "
+              "its previous study is unchanged", file=sys.stderr)
         return 1
+    finally:
+        if stage is not None:
+            folder.discard(stage)
     print(f"wrote {args.out / 'study.csv'}, {args.out / 'study.md'}, {args.out / 'study.png'}")
     return 0
 

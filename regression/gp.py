@@ -98,6 +98,7 @@ from scipy import sparse
 from scipy.linalg import blas, cho_solve, lapack
 from scipy.optimize import minimize
 
+from ..checks import real_array
 from .basis import BASIS_COEF, PRODUCT_COEF, SplineAxis, bspline_weights
 from .settings import GPSettings
 
@@ -248,14 +249,9 @@ class GaussianProcess:
 
     # ------------------------------------------------------------------ data
     def _points(self, X, name: str) -> np.ndarray:
-        try:
-            X = np.asarray(X, dtype=float)
-        except (TypeError, ValueError):
-            raise ValueError(f"{name} must be a float array of shape (n, 2)") from None
+        X = real_array(X, name)
         if X.ndim != 2 or X.shape[1] != 2:
             raise ValueError(f"{name} must have shape (n, 2), got {X.shape}")
-        if not np.all(np.isfinite(X)):
-            raise ValueError(f"{name} contains non-finite values (NaN or inf)")
         x0, x1, y0, y1 = self._domain
         tol = self._tol
         outside = ((X[:, 0] < x0 - tol) | (X[:, 0] > x1 + tol) | (X[:, 1] < y0 - tol) | (X[:, 1] > y1 + tol))
@@ -275,14 +271,9 @@ class GaussianProcess:
         :meth:`predict`.
         """
         X = self._points(X, "X")
-        try:
-            y = np.asarray(y, dtype=float)
-        except (TypeError, ValueError):
-            raise ValueError("y must be a float array of shape (n,)") from None
+        y = real_array(y, "y")
         if y.ndim != 1 or y.shape[0] != X.shape[0]:
             raise ValueError(f"y must have shape ({X.shape[0]},) to match X, got {y.shape}")
-        if not np.all(np.isfinite(y)):
-            raise ValueError("y contains non-finite values (NaN or inf)")
         n = y.shape[0]
         if n == 0:
             return

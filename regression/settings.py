@@ -9,6 +9,13 @@ import math
 import numbers
 from dataclasses import dataclass
 
+from ..checks import MAX_MAGNITUDE
+
+#: Numerical limits of the GP (measured: signal_variance 1e100 with noise 0.04 fails its Cholesky
+#: factorisation and overflows the float32 variance snapshots of a run).
+MAX_VARIANCE = 1e30
+MAX_SIGNAL_TO_NOISE = 1e10
+
 
 def _finite_positive(name: str, value) -> float:
     if isinstance(value, bool):
@@ -17,8 +24,8 @@ def _finite_positive(name: str, value) -> float:
         v = float(value)
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be a positive finite number, got {value!r}") from None
-    if not math.isfinite(v) or v <= 0.0:
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+    if not math.isfinite(v) or v <= 0.0 or v > MAX_MAGNITUDE:
+        raise ValueError(f"{name} must be a positive finite number <= {MAX_MAGNITUDE:g}, got {value!r}")
     return v
 
 
@@ -67,6 +74,14 @@ class GPSettings:
         object.__setattr__(self, "signal_variance", _finite_positive("signal_variance", self.signal_variance))
         object.__setattr__(self, "length_scale", _finite_positive("length_scale", self.length_scale))
         object.__setattr__(self, "noise_variance", _finite_positive("noise_variance", self.noise_variance))
+        for name in ("signal_variance", "noise_variance"):
+            if getattr(self, name) > MAX_VARIANCE:
+                raise ValueError(f"{name} must be <= {MAX_VARIANCE:g} (variances are stored as float32 in run "
+                                 f"snapshots), got {getattr(self, name):g}")
+        ratio = self.signal_variance / self.noise_variance
+        if not 1.0 / MAX_SIGNAL_TO_NOISE <= ratio <= MAX_SIGNAL_TO_NOISE:
+            raise ValueError(f"signal_variance / noise_variance = {ratio:.3g} is outside [1e-10, 1e10]: beyond it the "
+                             "posterior's Cholesky factorisations lose accuracy (at 1e102 they fail)")
         if self.prior_mean is not None:
             if isinstance(self.prior_mean, bool):
                 raise ValueError(f"prior_mean must be None or a finite number, got {self.prior_mean!r}")
@@ -74,7 +89,7 @@ class GPSettings:
                 m = float(self.prior_mean)
             except (TypeError, ValueError):
                 raise ValueError(f"prior_mean must be None or a finite number, got {self.prior_mean!r}") from None
-            if not math.isfinite(m):
+            if not (math.isfinite(m) and abs(m) <= MAX_MAGNITUDE):
                 raise ValueError(f"prior_mean must be None or a finite number, got {self.prior_mean!r}")
             object.__setattr__(self, "prior_mean", m)
         if self.inducing_spacing is not None:

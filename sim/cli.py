@@ -3,9 +3,11 @@
 Without arguments it runs the paper's scenario (100 robots from [0, 7]^2 on [0, 20]^2, field
 2 + sin(2|x|)/|x|, Δt = 0.875 s, T = 7 s, γ = 0.1) with seed 0 into ``./run``.  Flags override
 the ``[sim]`` settings of ``--config``.  Exit codes: 0 run finished (whether or not sup V fell
-below γ; see summary.json), 1 planner failure (the outputs up to that point are written) or a
-simulation or write failure (one line; DIR keeps its previous contents), 2 bad input (one line on
-stderr, nothing written), 130 interrupted (DIR keeps its previous contents).
+below γ; see summary.json), 1 planner failure (the outputs up to that point are published, or set
+aside in DIR/.simulate-swarm-incomplete if DIR holds a complete run) or a simulation or write
+failure (one line; DIR keeps its previous contents), 2 bad input or DIR in use by another run (one
+line on stderr, nothing written), 130 interrupted (DIR keeps its previous contents).  Publication:
+:mod:`ocp.publish`.
 """
 from __future__ import annotations
 
@@ -15,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..ocp.cliargs import OneLineParser, UsageError as InputError
+from ..ocp.cliargs import OneLineParser, UsageError as InputError, check_path
 
 PROG = "simulate-swarm"
 
@@ -34,6 +36,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-figures", action="store_true", help="write no PNG figures")
     p.add_argument("--force", action="store_true", help="write into a non-empty folder that holds no previous run")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    p.add_argument("--allow-long-run", action="store_true",
+                   help="run settings whose estimated cost (robot sub-steps, memory) is above the limits")
     return p
 
 
@@ -44,12 +48,14 @@ def resolve(args):
     from .loop import check_config
 
     overrides = {"seed": args.seed, "robots": args.robots, "field": args.field, "max_periods": args.max_periods,
-                 "controller": args.controller}
+                 "controller": args.controller, "allow_long_run": True if args.allow_long_run else None}
     for name in ("seed", "robots", "max_periods"):
         v = overrides[name]
         if v is not None and (v < 0 or (v == 0 and name != "seed")):
             flag = "--" + name.replace("_", "-")
             raise InputError(f"{flag} must be {'>= 0' if name == 'seed' else '> 0'}, got {v}")
+    if args.config is not None:
+        check_path(args.config, "config file")
     try:
         config = load_config(args.config, overrides) if args.config is not None else config_from_dict({}, overrides)
         field = make_field(config.sim.field, config.sim.domain)
@@ -81,49 +87,78 @@ def _progress_printer(config):
 def run(argv=None) -> int:
     args = build_parser().parse_args(argv)
     config, field = resolve(args)
-    from .outputs import MARKER, check_output_dir, prepare_output_dir, publish, write_metrics, write_outputs
+    from .outputs import output_folder
 
+    folder = output_folder(args.out, args.force)
     try:
-        check_output_dir(args.out, args.force)
+        check_path(args.out, "output folder")
+        folder.check()
     except ValueError as exc:
         raise InputError(str(exc)) from None
     from ..ocp import ReferencePlanner
-
-    from .loop import run_simulation
 
     try:
         planner = ReferencePlanner(config.planner)
     except ValueError as exc:
         raise InputError(f"planner: {exc}") from None
-    previous_run = (args.out / MARKER).is_file()
     try:
-        stage = prepare_output_dir(args.out, args.force)
+        folder.lock()        # held until the run is published or set aside: a second run into DIR is refused
     except ValueError as exc:
         raise InputError(str(exc)) from None
-    kept = f"{args.out} keeps its previous contents; the metrics of the completed periods are in {stage}"
+    try:
+        return _run_locked(args, argv, config, field, planner, folder)
+    finally:
+        folder.unlock()
+
+
+def _run_locked(args, argv, config, field, planner, folder) -> int:
+    from ..ocp.publish import InterruptedAfterPublish
+    from .loop import run_simulation
+    from .outputs import write_metrics, write_outputs
+
+    try:
+        stage = folder.stage()
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+
+    def kept():
+        where = folder.set_aside(stage)
+        return f"{args.out} keeps its previous contents; the metrics of the completed periods are in {where}"
     progress = None if args.quiet else _progress_printer(config)
     try:
         result = run_simulation(config, field=field, planner=planner, progress=progress,
                                 on_period=lambda res: write_metrics(res, stage))
     except KeyboardInterrupt:
-        print(f"{PROG}: interrupted; {kept}", file=sys.stderr)
+        print(f"{PROG}: interrupted; {kept()}", file=sys.stderr)
         return 130
     except (ValueError, RuntimeError, ArithmeticError, MemoryError, OSError, np.linalg.LinAlgError) as exc:
         # not a planner failure (those end the run normally): one line, the previous run left in place
-        print(f"{PROG}: error: simulation failed: {type(exc).__name__}: {exc}; {kept}", file=sys.stderr)
+        print(f"{PROG}: error: simulation failed: {type(exc).__name__}: {exc}; {kept()}", file=sys.stderr)
         return 1
+    failed = result.stop_reason == "planner_failed"
     try:
         files = write_outputs(result, stage, figures=not args.no_figures, gif=args.gif,
                               extra={"command": [PROG] + [str(a) for a in (sys.argv[1:] if argv is None else argv)],
                                      "planner_build_time_s": planner.build_time})
-        publish(stage, args.out, remove_stale=previous_run)
+        if failed and folder.holds_complete_run():
+            where = folder.set_aside(stage)      # partial results never replace a complete run
+            print(f"{PROG}: error: {result.error}; {args.out} keeps its previous complete run, the outputs up to "
+                  f"t = {result.rows[-1]['t']:g} s are in {where}", file=sys.stderr)
+            return 1
+        folder.publish(stage, files, complete=not failed)
+    except InterruptedAfterPublish:
+        print(f"{PROG}: interrupted after the new run was published in {args.out}", file=sys.stderr)
+        return 130
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted while writing the outputs; {kept()}", file=sys.stderr)
+        return 130
     except OSError as exc:
         print(f"{PROG}: error: cannot write the outputs ({exc.strerror or exc}); {args.out} keeps its previous "
-              f"contents, whatever was written is in {stage}", file=sys.stderr)
+              f"contents, whatever was written is in {folder.set_aside(stage)}", file=sys.stderr)
         return 1
     if not args.quiet:
         print(f"{PROG}: wrote {', '.join(files)} to {args.out}", file=sys.stderr)
-    if result.stop_reason == "planner_failed":
+    if failed:
         print(f"{PROG}: error: {result.error}; outputs up to t = {result.rows[-1]['t']:g} s are in {args.out}",
               file=sys.stderr)
         return 1

@@ -47,8 +47,9 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..checks import MAX_MAGNITUDE
 from ..control import FeedbackSettings
-from ..ocp.settings import PlannerSettings, dataclass_from_dict
+from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict
 from ..regression import GPSettings
 
 __all__ = ["SimSettings", "KDESettings", "RunConfig", "load_config", "config_from_dict", "to_toml", "SECTIONS"]
@@ -61,8 +62,8 @@ def _number(name, v, *, positive=False, nonneg=False):
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         raise ValueError(f"sim.{name} must be a number, got {v!r}")
     v = float(v)
-    if not math.isfinite(v):
-        raise ValueError(f"sim.{name} must be finite, got {v}")
+    if not (math.isfinite(v) and abs(v) <= MAX_MAGNITUDE):
+        raise ValueError(f"sim.{name} must be finite and at most {MAX_MAGNITUDE:g} in magnitude, got {v}")
     if positive and not v > 0:
         raise ValueError(f"sim.{name} must be > 0, got {v:g}")
     if nonneg and v < 0:
@@ -79,13 +80,40 @@ def _integer(name, v, minimum):
 
 
 def _rect(name, v):
-    try:
-        r = tuple(float(x) for x in v)
-    except (TypeError, ValueError):
-        raise ValueError(f"sim.{name} must be [x0, x1, y0, y1], got {v!r}") from None
-    if len(r) != 4 or not all(math.isfinite(x) for x in r) or not (r[1] > r[0] and r[3] > r[2]):
-        raise ValueError(f"sim.{name} must be four finite numbers [x0, x1, y0, y1] with x1 > x0 and y1 > y0, got {v!r}")
-    return r
+    if isinstance(v, (str, bytes)):
+        raise ValueError(f"sim.{name} must be [x0, x1, y0, y1], got {v!r}")
+    return check_domain(v, f"sim.{name}")
+
+
+#: Above these a run is refused unless ``allow_long_run`` (``simulate-swarm --allow-long-run``):
+#: robot sub-steps (each a KDE + feedback evaluation; ~1.6e6 per second at 10,000 robots on this
+#: project's machine, so the limit is about an hour), sub-steps (a KDE fit each, ~3 ms even for few
+#: robots) and the bytes of the stored trajectory.
+MAX_ROBOT_SUBSTEPS = 5e9
+MAX_SUBSTEPS = 1e6
+MAX_TRAJECTORY_BYTES = 2 * 2**30
+
+
+def run_cost(s: "SimSettings") -> dict:
+    """Upper bounds of the work and memory of a run with these settings (it may stop earlier)."""
+    steps = float(s.max_periods) * s.steps_per_period
+    return {"measurement_steps": steps, "substeps": steps * s.substeps,
+            "robot_substeps": steps * s.substeps * s.robots, "trajectory_bytes": (steps + 1) * s.robots * 16.0}
+
+
+def check_run_cost(s: "SimSettings") -> None:
+    c = run_cost(s)
+    over = []
+    if c["robot_substeps"] > MAX_ROBOT_SUBSTEPS:
+        over.append(f"{c['robot_substeps']:.3g} robot sub-steps (limit {MAX_ROBOT_SUBSTEPS:.0e}, about an hour)")
+    if c["substeps"] > MAX_SUBSTEPS:
+        over.append(f"{c['substeps']:.3g} sub-steps (limit {MAX_SUBSTEPS:.0e})")
+    if c["trajectory_bytes"] > MAX_TRAJECTORY_BYTES:
+        over.append(f"a trajectory of {c['trajectory_bytes'] / 2**30:.3g} GiB (limit {MAX_TRAJECTORY_BYTES / 2**30:g} GiB)")
+    if over:
+        raise ValueError(f"sim: this run would take up to {' and '.join(over)} ({s.max_periods} periods x "
+                         f"{s.steps_per_period} steps x {s.substeps} sub-steps x {s.robots} robots); "
+                         "pass --allow-long-run (sim.allow_long_run = true) to run it anyway")
 
 
 @dataclass(frozen=True)
@@ -106,6 +134,7 @@ class SimSettings:
     seed            seed of the ``numpy.random.Generator`` that drives everything random
     substeps        Euler--Maruyama sub-steps per Δt; the feedback velocity and KDE are
                     re-evaluated at each (module docstring: "Defaults ... and why")
+    allow_long_run  accept settings whose run would exceed the limits of :func:`check_run_cost`
     controller      ``feedback``: eq. "density feedback law using estimation" (the paper);
                     ``open-loop``: the robots follow the planned v_r alone (saturated at
                     feedback.v_max), a baseline that shows what the mean-field feedback adds
@@ -124,6 +153,7 @@ class SimSettings:
     seed: int = 0
     substeps: int = 8
     controller: str = "feedback"
+    allow_long_run: bool = False
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -151,6 +181,10 @@ class SimSettings:
         ratio = self.period / self.dt
         if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio) or round(ratio) < 1:
             raise ValueError(f"sim.period ({self.period:g}) must be a whole multiple of sim.dt ({self.dt:g})")
+        if not isinstance(self.allow_long_run, bool):
+            raise ValueError(f"sim.allow_long_run must be true or false, got {self.allow_long_run!r}")
+        if not self.allow_long_run:
+            check_run_cost(self)
 
     @property
     def steps_per_period(self) -> int:
@@ -176,8 +210,8 @@ class KDESettings:
     def __post_init__(self):
         if self.bandwidth is not None:
             if isinstance(self.bandwidth, bool) or not isinstance(self.bandwidth, (int, float)) \
-                    or not math.isfinite(self.bandwidth) or self.bandwidth <= 0:
-                raise ValueError(f"kde.bandwidth must be a positive number, got {self.bandwidth!r}")
+                    or not math.isfinite(self.bandwidth) or self.bandwidth <= 0 or self.bandwidth > MAX_MAGNITUDE:
+                raise ValueError(f"kde.bandwidth must be a positive number <= {MAX_MAGNITUDE:g}, got {self.bandwidth!r}")
             object.__setattr__(self, "bandwidth", float(self.bandwidth))
         try:
             bins = tuple(self.bins)

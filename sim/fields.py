@@ -48,6 +48,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..ocp.cliargs import check_path
+
 __all__ = ["Field", "SincField", "PlumesField", "RidgeField", "GridField", "ScatteredField",
            "FIELDS", "make_field", "load_field", "save_npz_field"]
 
@@ -423,7 +425,8 @@ def make_field(spec, domain=None) -> Field:
         spec = str(spec)
         if spec in FIELDS:
             field = FIELDS[spec]()
-        elif Path(spec).suffix.lower() in (".npz", ".npy", ".csv") or Path(spec).exists():
+        elif check_path(spec, "field file") or Path(spec).suffix.lower() in (".npz", ".npy", ".csv") \
+                or Path(spec).exists():
             field = load_field(spec, default_extent=domain)
         else:
             raise ValueError(f"unknown field {spec!r}; choose one of {', '.join(FIELDS)} or a path to a "

@@ -16,16 +16,18 @@
 figures                 ``panels.png``, ``convergence.png``, ``field_error.png`` and, on request,
                         ``animation.gif`` (:mod:`sim.figures`)
 
-A run writes into the staging folder ``DIR/.simulate-swarm-incomplete`` (the metrics after every
-period, everything else at the end); :func:`publish` then moves its files into DIR, each by one
-rename.  So an interrupted or crashed run leaves the previous run in DIR exactly as it was (its
-completed periods' metrics stay in the staging folder), and a reader never sees a half-written file.
+Publication (:mod:`ocp.publish`, :func:`output_folder`): a run locks DIR, writes into its own new
+staging folder ``DIR/.simulate-swarm-stage-XXXXXXXX`` (the metrics after every period, everything
+else at the end) and publishes the whole set at once (journal, renames with signals deferred,
+manifest ``DIR/.simulate-swarm`` last).  An interrupted, failed or crashed run leaves the previous
+run in DIR exactly as it was; its staged files are kept in ``DIR/.simulate-swarm-incomplete``.  A
+run that ends in a planner failure is published only if DIR holds no complete run; otherwise it is
+set aside there too.  A second run into a locked DIR is refused.
 
-Output folder policy (:func:`check_output_dir`, :func:`prepare_output_dir`): DIR may be missing
-(it is created), empty, or a previous run (it holds the marker file ``.simulate-swarm``; files of
-that run which the new run does not write are removed when it is published, so that no stale
-figure survives).  Any other non-empty folder is refused unless ``force`` is given; then only the
-files named above are (over)written and nothing else in the folder is touched.
+Output folder policy: DIR may be missing (it is created), empty, or a previous run (it holds the
+manifest ``.simulate-swarm``).  Any other non-empty folder is refused unless ``force`` is given;
+then only the files named above are (over)written.  Files a run does not rewrite are removed only
+if the manifest proves that the previous run wrote them; nothing else in DIR is touched.
 """
 from __future__ import annotations
 
@@ -33,9 +35,7 @@ import csv
 import io
 import json
 import math
-import os
 import platform
-import shutil
 import sys
 from importlib import metadata
 from pathlib import Path
@@ -44,15 +44,17 @@ import numpy as np
 
 from .. import DISTRIBUTION, __version__, distribution
 from ..ocp.atomic import write_atomic
+from ..ocp.publish import OutputFolder
 
 from .config import to_toml
 from .metrics import COLUMNS
 
-__all__ = ["MARKER", "STAGING", "OUTPUT_FILES", "check_output_dir", "prepare_output_dir", "publish", "write_atomic",
+__all__ = ["MARKER", "STAGING", "OUTPUT_FILES", "output_folder", "check_output_dir", "write_atomic",
            "write_metrics", "write_summary", "write_outputs", "summary_dict", "versions"]
 
-MARKER = ".simulate-swarm"
-STAGING = ".simulate-swarm-incomplete"
+PROG = "simulate-swarm"
+MARKER = ".simulate-swarm"                 # the manifest of the published run (ocp.publish)
+STAGING = ".simulate-swarm-incomplete"     # where the files of an unfinished run are kept
 FIGURES = ("panels.png", "convergence.png", "field_error.png", "animation.gif")
 OUTPUT_FILES = ("metrics.csv", "replans.csv", "summary.json", "config.toml", "trajectory.npz") + FIGURES
 REPLAN_COLUMNS = ("period", "t0", "max_variance", "rmse", "status", "success", "iterations", "solve_time_s",
@@ -60,63 +62,15 @@ REPLAN_COLUMNS = ("period", "t0", "max_variance", "rmse", "status", "success", "
 
 
 # ------------------------------------------------------------------------------ folder handling
+def output_folder(path, force: bool = False) -> OutputFolder:
+    """The run folder DIR with its lock, staging, manifest and journal (:mod:`ocp.publish`)."""
+    return OutputFolder(path, PROG, OUTPUT_FILES, force=force)
+
+
 def check_output_dir(path, force: bool = False) -> Path:
     """Validate the output folder without touching it; ``ValueError`` if it cannot be used."""
-    path = Path(path)
-    if path.exists() and not path.is_dir():
-        raise ValueError(f"output {path} exists and is not a folder")
-    if path.is_dir():
-        entries = list(path.iterdir())
-        if entries and not (path / MARKER).exists() and not force:
-            raise ValueError(f"output folder {path} is not empty and holds no previous simulate-swarm run; "
-                             "choose another --out or pass --force")
-        if not os.access(path, os.W_OK):
-            raise ValueError(f"output folder {path} is not writable")
-        for name in OUTPUT_FILES + (MARKER,):
-            if (path / name).is_dir():
-                raise ValueError(f"{path / name} is a folder; the run writes a file of that name")
-    else:
-        parent = path.parent
-        while not parent.exists():
-            parent = parent.parent
-        if not parent.is_dir() or not os.access(parent, os.W_OK):
-            raise ValueError(f"cannot create output folder {path}: {parent} is not a writable folder")
-    return path
-
-
-def prepare_output_dir(path, force: bool = False) -> Path:
-    """Create DIR, mark it as a run folder and return a fresh, empty staging folder inside it.
-
-    ``ValueError`` if DIR cannot be used or created; nothing of a previous run is touched."""
-    path = check_output_dir(path, force)
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-        write_atomic(path / MARKER, b"simulate-swarm output folder\n")
-        stage = path / STAGING
-        shutil.rmtree(stage, ignore_errors=True)       # left by an earlier interrupted run
-        stage.mkdir()
-    except OSError as exc:
-        raise ValueError(f"cannot write to output folder {path}: {exc.strerror or exc}") from None
-    return stage
-
-
-def publish(stage, out, remove_stale: bool = True) -> list:
-    """Move the files of a finished run from the staging folder into DIR; returns their names.
-
-    With ``remove_stale`` (DIR held a previous run), files of that run which this run did not
-    write are removed; the rest are replaced one rename each; the staging folder is removed."""
-    stage, out = Path(stage), Path(out)
-    names = sorted(p.name for p in stage.iterdir())
-    for name in OUTPUT_FILES if remove_stale else ():
-        if name not in names:
-            try:
-                (out / name).unlink()
-            except FileNotFoundError:
-                pass
-    for name in names:
-        os.replace(stage / name, out / name)
-    stage.rmdir()
-    return names
+    output_folder(path, force).check()
+    return Path(path)
 
 
 # ------------------------------------------------------------------------------ tables

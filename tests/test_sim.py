@@ -13,7 +13,7 @@ from swarmfield.sim.fields import (FIELDS, GridField, PlumesField, RidgeField, S
                         make_field, save_npz_field)
 from swarmfield.sim.loop import run_simulation
 from swarmfield.sim.metrics import COLUMNS
-from swarmfield.sim.outputs import prepare_output_dir, publish, write_outputs
+from swarmfield.sim.outputs import output_folder, write_outputs
 
 DOMAIN = (0.0, 20.0, 0.0, 20.0)
 
@@ -395,10 +395,12 @@ def test_planner_failure_keeps_what_was_recorded():
 
 def test_outputs_of_a_run(small_run, tmp_path):
     out = tmp_path / "run"
-    stage = prepare_output_dir(out)
-    files = write_outputs(small_run, stage, figures=True, gif=True)
-    assert not (out / "metrics.csv").exists()               # nothing in DIR until the run is published
-    assert publish(stage, out) == sorted(files) and not stage.exists()
+    folder = output_folder(out)
+    with folder:
+        stage = folder.stage()
+        files = write_outputs(small_run, stage, figures=True, gif=True)
+        assert not (out / "metrics.csv").exists()               # nothing in DIR until the run is published
+        assert folder.publish(stage, files) == sorted(files) and not stage.exists()
     for name in ("metrics.csv", "replans.csv", "summary.json", "config.toml", "trajectory.npz",
                  "panels.png", "convergence.png", "field_error.png", "animation.gif"):
         assert name in files and (out / name).stat().st_size > 0, name
