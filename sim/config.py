@@ -116,7 +116,7 @@ class SimSettings:
     lawnmower_lane  ``lawnmower``: spacing of the sweep lanes inside a robot's rectangle [m]
     robot_loss      fraction of the robots (chosen at random) that stop working at ``loss_time``:
                     they no longer move or measure, and the KDE no longer sees them
-    loss_time       time [s] of the loss (default T = 7 s)
+    loss_time       time [s] of the loss (default: the period T, i.e. 7 s in the paper scenario)
     """
 
     robots: int = 100
@@ -137,7 +137,7 @@ class SimSettings:
     greedy_separation: float = 2.0
     lawnmower_lane: float = 1.0
     robot_loss: float = 0.0
-    loss_time: float = 7.0
+    loss_time: float | None = None
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -156,6 +156,8 @@ class SimSettings:
             raise ValueError(f"sim.controller must be one of {', '.join(CONTROLLERS)}, got {self.controller!r}")
         for k in ("diffusion_sigma", "greedy_radius", "lawnmower_lane"):
             set_(k, _number(k, getattr(self, k), positive=True))
+        if self.loss_time is None:
+            set_("loss_time", float(self.period))
         for k in ("greedy_separation", "loss_time"):
             set_(k, _number(k, getattr(self, k), nonneg=True))
         set_("robot_loss", _number("robot_loss", self.robot_loss, nonneg=True))

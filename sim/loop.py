@@ -288,7 +288,7 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
                 res.stop_reason = "max_time"
                 break
             p_f = target_density(var, s.eta, grid.cell_area)
-            if p_f is None:
+            if p_f is None and ctrl.needs_plan:     # nothing left to plan for (the baselines go on)
                 res.stop_reason = "variance_below_eta"
                 break
             snap.target = p_f
