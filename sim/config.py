@@ -117,6 +117,12 @@ class SimSettings:
     robot_loss      fraction of the robots (chosen at random) that stop working at ``loss_time``:
                     they no longer move or measure, and the KDE no longer sees them
     loss_time       time [s] of the loss (default: the period T, i.e. 7 s in the paper scenario)
+    metrics_every   the GP posterior (f̄, V on the grid) and a metrics row are computed every this many
+                    measurement steps and always at the end of a period (Algorithm 1 needs V only at
+                    t = kT); the measurements are added to the GP at every step.  1 (default) records
+                    every step, as the paper's figures do; with thousands of robots each posterior
+                    costs an O(M^3) refactorisation, so 8 (= once per period) makes a step ~8x cheaper
+                    in regression (benchmarks/measurement_step.py)
     """
 
     robots: int = 100
@@ -138,6 +144,7 @@ class SimSettings:
     lawnmower_lane: float = 1.0
     robot_loss: float = 0.0
     loss_time: float | None = None
+    metrics_every: int = 1
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -161,6 +168,7 @@ class SimSettings:
         for k in ("greedy_separation", "loss_time"):
             set_(k, _number(k, getattr(self, k), nonneg=True))
         set_("robot_loss", _number("robot_loss", self.robot_loss, nonneg=True))
+        set_("metrics_every", _integer("metrics_every", self.metrics_every, 1))
         if self.robot_loss > 1:
             raise ValueError(f"sim.robot_loss must be a fraction in [0, 1], got {self.robot_loss:g}")
         if not isinstance(self.field, str) or not self.field:

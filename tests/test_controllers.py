@@ -150,3 +150,18 @@ def test_cli_controller_loss_and_start_box(tmp_path, capsys, no_planner):
     assert s["periods_run"] == 2
     code = main(["--config", str(toml), "--out", str(tmp_path / "bad"), "--robot-loss", "2"])
     assert code == 2 and "robot_loss" in capsys.readouterr().err
+
+
+def test_metrics_every_skips_posteriors_but_not_data():
+    a = run_simulation(cfg(controller="lawnmower", period=3.5))          # 4 steps per period
+    b = run_simulation(cfg(controller="lawnmower", period=3.5, metrics_every=3))
+    ta, tb = [r["t"] for r in a.rows], [r["t"] for r in b.rows]
+    assert len(ta) == 9 and tb == [0.0, 2.625, 3.5, 6.125, 7.0]         # every 3rd step and each period end
+    ra = {r["t"]: r for r in a.rows}
+    for r in b.rows:
+        assert r["n_observations"] == ra[r["t"]]["n_observations"]
+        assert r["max_variance"] == pytest.approx(ra[r["t"]]["max_variance"], rel=1e-8)
+        assert r["rmse"] == pytest.approx(ra[r["t"]]["rmse"], rel=1e-8)
+    assert np.array_equal(a.positions[-1], b.positions[-1])
+    with pytest.raises(ValueError, match="metrics_every"):
+        cfg(metrics_every=0)
