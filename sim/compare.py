@@ -261,7 +261,7 @@ def run(argv=None) -> int:
         raise InputError(str(exc)) from None
     if gamma <= 0:
         gamma = 0.1
-    times = args.times or sorted({1.0, 2.0, float(args.max_periods)})
+    times = args.times or sorted({t for t in (1.0, 2.0) if t < args.max_periods} | {float(args.max_periods)})
     out = args.out
     if out.exists() and not out.is_dir():
         raise InputError(f"output {out} exists and is not a folder")
