@@ -1,4 +1,5 @@
-"""Publishing a command's outputs as one unit (``plan-reference``, ``solver-study``, ``simulate-swarm``).
+"""Publishing a command's outputs as one unit (``plan-reference``, ``solver-study``, ``simulate-swarm``,
+``compare-controllers``).
 
 Every output is first written somewhere the user does not look (a temporary file beside its
 destination, or a private staging folder), and only when *all* of a run's outputs exist are they
@@ -143,7 +144,8 @@ def _signature(path: Path):
 class OutputFolder:
     """A folder of outputs of ``program`` with lock, staging, manifest and journal (module docstring).
 
-    ``outputs`` are the only names the program ever writes into the folder.  ``foreign_ok``:
+    ``outputs`` are the only names the program ever writes into the folder (relative paths; a name
+    may lie in a subfolder, e.g. ``plots/a.png``, created at publication).  ``foreign_ok``:
     a non-empty folder without a manifest is accepted (``solver-study`` writes beside other
     files, e.g. into ``docs/figures``); otherwise such a folder needs ``force``.
     """
@@ -287,6 +289,7 @@ class OutputFolder:
                 pass
         for name in plan["files"]:
             if name in self.outputs and (stage / name).is_file():
+                (self.path / name).parent.mkdir(parents=True, exist_ok=True)    # outputs may sit in subfolders
                 os.replace(stage / name, self.path / name)
         write_atomic(self.marker, json.dumps(plan["manifest"], indent=1) + "\n")
         self.journal.unlink()

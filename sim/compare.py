@@ -24,13 +24,14 @@ import csv
 import hashlib
 import io
 import math
-import os
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from ..ocp.cliargs import OneLineParser, UsageError as InputError
+from ..ocp.atomic import write_atomic
+from ..ocp.cliargs import OneLineParser, UsageError as InputError, check_path
+from ..ocp.publish import InterruptedAfterPublish, OutputFolder
 
 PROG = "compare-controllers"
 ROW_COLUMNS = ("controller", "field", "seed", "robot_loss", "robots", "step", "t", "t_T", "max_variance", "rmse",
@@ -99,19 +100,13 @@ def write_csv(rows, path: Path) -> None:
     w.writerow(ROW_COLUMNS)
     for r in rows:
         w.writerow([_fmt(r.get(c)) for c in ROW_COLUMNS])
-    _atomic(path, buf.getvalue())
+    write_atomic(path, buf.getvalue())
 
 
 def _fmt(v):
     if isinstance(v, float):
         return repr(v) if math.isfinite(v) else "nan"
     return "" if v is None else str(v)
-
-
-def _atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
 
 
 def _value_at(run_rows, t_T):
@@ -168,6 +163,11 @@ def summary_table(runs, gamma: float, times) -> str:
     return "\n".join(lines) + "\n"
 
 
+def plot_name(field: str, robots: int, robot_loss: float) -> str:
+    """File name of the plot of one scenario (field, robot count, loss)."""
+    return f"{field}_n{robots}_loss{int(round(100 * robot_loss))}.png"
+
+
 def write_plots(runs, out: Path, gamma: float) -> list[str]:
     import matplotlib
     matplotlib.use("Agg")
@@ -199,7 +199,7 @@ def write_plots(runs, out: Path, gamma: float) -> list[str]:
         axes[0].legend(fontsize=8)
         fig.suptitle(f"{field}, {n} robots, {100 * loss:.0f} % lost (median and range over seeds)")
         fig.tight_layout()
-        name = f"{field}_n{n}_loss{int(round(100 * loss))}.png"
+        name = plot_name(field, n, loss)
         fig.savefig(out / name, dpi=90)
         plt.close(fig)
         written.append(name)
@@ -236,7 +236,6 @@ def run(argv=None) -> int:
     args = build_parser().parse_args(argv)
     from .config import load_config
     from .controllers import CONTROLLERS
-    from .. import sweep
 
     for name in args.controllers:
         if name not in CONTROLLERS:
@@ -263,9 +262,28 @@ def run(argv=None) -> int:
         gamma = 0.1
     times = args.times or sorted({t for t in (1.0, 2.0) if t < args.max_periods} | {float(args.max_periods)})
     out = args.out
-    if out.exists() and not out.is_dir():
-        raise InputError(f"output {out} exists and is not a folder")
-    out.mkdir(parents=True, exist_ok=True)
+    outputs = ["runs.csv", "summary.md"]
+    if not args.no_plots:
+        outputs += sorted({f"plots/{plot_name(t['field'], t['robots'], t['robot_loss'])}" for t in tasks})
+    # OUT may hold other files (only these names are ever replaced); it is locked for the whole sweep,
+    # and runs.csv, summary.md and the plots are published together (ocp.publish)
+    folder = OutputFolder(out, PROG, outputs, foreign_ok=True)
+    try:
+        check_path(out, "output folder")
+        folder.check()
+        folder.lock()
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    try:
+        return _sweep_and_publish(args, argv, tasks, gamma, times, folder)
+    finally:
+        folder.unlock()
+
+
+def _sweep_and_publish(args, argv, tasks, gamma, times, folder) -> int:
+    from .. import sweep
+
+    out = args.out
     try:
         results = sweep.run_tasks(tasks, run_task, out / "runs", workers=args.workers, scheduler=args.scheduler,
                                   label=PROG, stream=None if args.quiet else sys.stderr)
@@ -278,12 +296,31 @@ def run(argv=None) -> int:
               file=sys.stderr)
         return 130
     runs = list(zip(tasks, results))
-    write_csv([r for rows in results for r in rows], out / "runs.csv")
     table = summary_table(runs, gamma, times)
     cmd = " ".join([PROG] + [str(a) for a in (sys.argv[1:] if argv is None else argv)])
-    _atomic(out / "summary.md", f"Command: `{cmd}`\n\nMedian [min–max] over seeds {args.seeds}; runs of "
-            f"{args.max_periods} T = {args.max_periods * tasks[0]['config']['sim']['period']:g} s.\n\n{table}")
-    plots = [] if args.no_plots else write_plots(runs, out / "plots", gamma)
+    stage = None
+    try:
+        stage = folder.stage()
+        write_csv([r for rows in results for r in rows], stage / "runs.csv")
+        write_atomic(stage / "summary.md", f"Command: `{cmd}`\n\nMedian [min–max] over seeds {args.seeds}; runs of "
+                     f"{args.max_periods} T = {args.max_periods * tasks[0]['config']['sim']['period']:g} s.\n\n{table}")
+        plots = [] if args.no_plots else write_plots(runs, stage / "plots", gamma)
+        folder.publish(stage, ["runs.csv", "summary.md"] + [f"plots/{p}" for p in plots])
+    except InterruptedAfterPublish:
+        print(f"{PROG}: interrupted after the outputs were published in {out}", file=sys.stderr)
+        return 130
+    except KeyboardInterrupt:
+        if stage is not None:
+            folder.discard(stage)
+        print(f"{PROG}: interrupted while writing the outputs; {out} keeps its previous outputs (the runs are "
+              f"stored in {out / 'runs'}: the same command writes them again)", file=sys.stderr)
+        return 130
+    except (OSError, ValueError) as exc:
+        if stage is not None:
+            folder.discard(stage)
+        print(f"{PROG}: error: cannot write the outputs ({getattr(exc, 'strerror', None) or exc}); {out} keeps its "
+              f"previous outputs, the runs are stored in {out / 'runs'}", file=sys.stderr)
+        return 1
     if not args.quiet:
         print(table, end="", file=sys.stderr)
         print(f"{PROG}: wrote runs.csv, summary.md{', ' + str(len(plots)) + ' plots' if plots else ''} to {out}",

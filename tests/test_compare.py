@@ -130,3 +130,37 @@ def test_dask_local_cluster_gives_the_same_table(tmp_path, cfg, capsys):
     a = list(csv.DictReader(open(tmp_path / "local" / "runs.csv")))
     b = list(csv.DictReader(open(tmp_path / "dask" / "runs.csv")))
     assert a == b
+
+
+SMALL_ARGS = ["--controllers", "lawnmower", "--fields", "sinc", "--seeds", "0", "--robot-loss", "0",
+              "--max-periods", "1", "--workers", "1", "--quiet"]
+
+
+def test_second_sweep_into_a_locked_folder_is_refused(tmp_path, cfg, capsys):
+    from swarmfield.ocp.publish import OutputFolder
+
+    out = tmp_path / "cmp"
+    with OutputFolder(out, "compare-controllers", ["runs.csv"], foreign_ok=True):     # a sweep still running
+        code = main(SMALL_ARGS + ["--config", str(cfg), "--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "another compare-controllers run is writing to" in err[0]
+    assert not (out / "runs").exists() and not (out / "runs.csv").exists()
+
+
+def test_interrupt_while_writing_keeps_the_previous_outputs(tmp_path, cfg, capsys, monkeypatch):
+    import swarmfield.sim.compare as compare
+
+    out = tmp_path / "cmp"
+    assert main(SMALL_ARGS + ["--config", str(cfg), "--out", str(out)]) == 0
+    before = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file() and "runs" not in p.parts}
+    assert {"runs.csv", "summary.md"} <= {str(p) for p in before} and any(p.parts[0] == "plots" for p in before)
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(compare, "write_plots", interrupted)
+    code = main(SMALL_ARGS + ["--config", str(cfg), "--out", str(out), "--seeds", "0", "1"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 130 and "interrupted while writing the outputs" in err[-1]
+    after = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file() and "runs" not in p.parts}
+    assert after == before                    # the new runs.csv/summary.md were staged, never published
+    assert not list(out.glob(".compare-controllers-stage-*"))
