@@ -4,6 +4,8 @@
   (DESIGN.md: "CLIs exit non-zero with one readable line").
 * :class:`OneLineParser` — ``argparse`` raises :class:`UsageError` instead of printing the usage
   block and calling ``sys.exit(2)`` itself.
+* :func:`cli_main` — the common ``main``: runs a command, turns :class:`UsageError` into one line
+  and exit 2 and Ctrl-C into one line and exit 130, and exits the process when called as a script.
 * :class:`DefaultsFormatter` — ``--help`` shows "(default: X)" only where there is a default to
   show: options whose default is resolved later from a TOML file (``None``) and plain switches
   (``False``) state their default in their own help text.
@@ -11,6 +13,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 
 class UsageError(ValueError):
@@ -33,6 +36,24 @@ class OneLineParser(argparse.ArgumentParser):
 
     def error(self, message):
         raise UsageError(message)
+
+
+def cli_main(prog: str, run, argv=None, *, value_errors: bool = False) -> int:
+    """Run ``run(argv)`` as the command ``prog``: exit code 2 with one line for a
+    :class:`UsageError` (any ``ValueError`` if ``value_errors``: validation inside the library),
+    130 with one line for Ctrl-C; ``sys.exit`` with the code when ``argv`` is None (console script)."""
+    errors = ValueError if value_errors else UsageError
+    try:
+        code = run(argv)
+    except errors as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        code = 2
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        code = 130
+    if argv is None:
+        sys.exit(code)
+    return code
 
 
 def check_path(path, what: str) -> None:

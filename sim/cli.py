@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..ocp.cliargs import OneLineParser, UsageError as InputError, check_path
+from ..ocp.cliargs import OneLineParser, UsageError as InputError, cli_main, check_path
 
 PROG = "simulate-swarm"
 
@@ -186,17 +186,7 @@ def _run_locked(args, argv, config, field, planner, folder) -> int:
 
 
 def main(argv=None) -> int:
-    try:
-        code = run(argv)
-    except InputError as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        code = 2
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted", file=sys.stderr)
-        code = 130
-    if argv is None:
-        sys.exit(code)
-    return code
+    return cli_main(PROG, run, argv)
 
 
 if __name__ == "__main__":

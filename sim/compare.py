@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..ocp.atomic import write_atomic
-from ..ocp.cliargs import OneLineParser, UsageError as InputError, check_path
+from ..ocp.cliargs import OneLineParser, UsageError as InputError, cli_main, check_path
 from ..ocp.publish import InterruptedAfterPublish, OutputFolder
 
 PROG = "compare-controllers"
@@ -329,14 +329,7 @@ def _sweep_and_publish(args, argv, tasks, gamma, times, folder) -> int:
 
 
 def main(argv=None) -> int:
-    try:
-        code = run(argv)
-    except InputError as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        code = 2
-    if argv is None:
-        sys.exit(code)
-    return code
+    return cli_main(PROG, run, argv)
 
 
 if __name__ == "__main__":

@@ -164,3 +164,13 @@ def test_interrupt_while_writing_keeps_the_previous_outputs(tmp_path, cfg, capsy
     after = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file() and "runs" not in p.parts}
     assert after == before                    # the new runs.csv/summary.md were staged, never published
     assert not list(out.glob(".compare-controllers-stage-*"))
+
+
+def test_ctrl_c_before_the_sweep_is_one_line_and_exit_130(tmp_path, cfg, capsys, monkeypatch):
+    import swarmfield.sim.compare as compare
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(compare, "make_tasks", interrupted)
+    code = main(SMALL_ARGS + ["--config", str(cfg), "--out", str(tmp_path / "cmp")])
+    assert code == 130 and capsys.readouterr().err.strip().splitlines() == ["compare-controllers: interrupted"]
