@@ -383,10 +383,13 @@ class GaussianProcess:
         kcy, sy = self._ay.prior_factor(length_scale)
         bmat = signal_variance * self._sandwich(sx, sy, a)
         bmat[np.diag_indices_from(bmat)] += 1.0
-        chol, info = lapack.dpotrf(bmat, lower=1, clean=1, overwrite_a=1)
+        # bmat.T is the Fortran-ordered view of bmat, whose upper triangle is bmat's lower one:
+        # LAPACK factorises it in place (passing the C-ordered bmat would make f2py copy the
+        # M x M array first). U = L^T with the lower factor L of B, so U.T is L in C order.
+        chol_u, info = lapack.dpotrf(bmat.T, lower=0, clean=1, overwrite_a=1)
         if info != 0:
             raise np.linalg.LinAlgError(f"Cholesky factorisation of I + S A S failed (info={info})")
-        return chol, sx, sy, kcx, kcy
+        return chol_u.T, sx, sy, kcx, kcy
 
     def _get_posterior(self):
         """(m, mu, Sigma, kcx, kcy) for the current data, hyperparameters and prior mean."""
@@ -427,10 +430,12 @@ class GaussianProcess:
             self._pending, self._pending_n = None, 0
             a, _ = self._assemble(self.prior_mean)
             chol, sx, sy, kcx, kcy = self._factorize(s2, ell, a)
-            binv, info = lapack.dpotri(chol, lower=1, overwrite_c=1)
+            # chol.T is the Fortran-ordered upper factor: dpotri works in place on it (no copy)
+            binv_f, info = lapack.dpotri(chol.T, lower=0, overwrite_c=1)
             if info != 0:
                 raise np.linalg.LinAlgError(f"inverse of I + S A S failed (info={info})")
-            _mirror_lower(binv)              # dpotri fills the lower triangle only
+            binv = binv_f.T                  # C order; dpotri filled its lower triangle only
+            _mirror_lower(binv)
             sigma = self._sandwich(sx, sy, binv)
             sigma *= s2
             cov = _Covariance(hyper, self._version, sigma, kcx, kcy, 0)
