@@ -4,6 +4,8 @@
 * :mod:`sim.dynamics` -- eq. "Langevin equation" by Euler--Maruyama with reflecting walls; measurements
 * :mod:`sim.config`   -- ``SimSettings``, ``KDESettings``, ``RunConfig`` and their TOML form
 * :mod:`sim.loop`     -- Algorithm 1: GP regression, target density, planner, feedback, metrics
+* :mod:`sim.controllers` -- the controller interface: the paper's feedback, open loop and baselines
+  (diffusion, coverage, greedy, lawnmower); a user's own strategy is one ``Controller`` subclass
 * :mod:`sim.tracking` -- the feedback law alone towards a given plan (Theorems "Exponential
   stability" and "ISS" at the particle level)
 * :mod:`sim.metrics`, :mod:`sim.outputs`, :mod:`sim.figures` -- metrics.csv, summary.json, figures
@@ -15,8 +17,9 @@
 from .config import KDESettings, RunConfig, SimSettings, config_from_dict, load_config, to_toml
 from .dynamics import advance, euler_maruyama_step, measure, reflect
 from .fields import FIELDS, make_field
+from .controllers import CONTROLLERS, Context, Controller, register
 from .loop import SimulationResult, run_simulation
 
 __all__ = ["SimSettings", "KDESettings", "RunConfig", "config_from_dict", "load_config", "to_toml",
            "reflect", "euler_maruyama_step", "advance", "measure", "FIELDS", "make_field",
-           "SimulationResult", "run_simulation"]
+           "SimulationResult", "run_simulation", "Controller", "Context", "CONTROLLERS", "register"]

@@ -20,6 +20,11 @@ from ..ocp.cliargs import OneLineParser, UsageError as InputError
 PROG = "simulate-swarm"
 
 
+def _controller_names():
+    from .controllers import CONTROLLERS
+    return list(CONTROLLERS)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0])
     p.add_argument("--config", type=Path, help="TOML file with [sim], [gp], [kde], [feedback], [planner] tables")
@@ -27,8 +32,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, help="random seed (default 0)")
     p.add_argument("--robots", type=int, help="number of robots (default 100)")
     p.add_argument("--field", help="sinc | plumes | ridge | path to a .npz/.npy/.csv field file (default sinc)")
-    p.add_argument("--controller", choices=["feedback", "open-loop"],
-                   help="feedback: the paper's mean-field law (default); open-loop: follow v_r alone (baseline)")
+    p.add_argument("--controller", choices=_controller_names(),
+                   help="feedback: the paper's mean-field law (default); open-loop: follow v_r alone; baselines "
+                        "without a planner: diffusion (Brownian motion only), coverage (feedback towards the "
+                        "uniform density), greedy (to the highest GP variance nearby), lawnmower (fixed strips)")
+    p.add_argument("--robot-loss", type=float, metavar="FRACTION",
+                   help="fraction of the robots (random) that stop moving and measuring at --loss-time (default 0)")
+    p.add_argument("--loss-time", type=float, metavar="SECONDS", help="time of the robot loss (default 7 = T)")
+    p.add_argument("--start-box", type=float, nargs=4, metavar=("X0", "X1", "Y0", "Y1"),
+                   help="the swarm is released uniformly on this box (default 0 7 0 7)")
+    p.add_argument("--diffusion-sigma", type=float, metavar="M2_PER_S",
+                   help="diffusion coefficient of the diffusion controller (default 3)")
     p.add_argument("--max-periods", type=int, help="stop after this many re-planning periods T (default 20)")
     p.add_argument("--gif", action="store_true", help="also write animation.gif")
     p.add_argument("--no-figures", action="store_true", help="write no PNG figures")
@@ -44,7 +58,9 @@ def resolve(args):
     from .loop import check_config
 
     overrides = {"seed": args.seed, "robots": args.robots, "field": args.field, "max_periods": args.max_periods,
-                 "controller": args.controller}
+                 "controller": args.controller, "robot_loss": getattr(args, "robot_loss", None),
+                 "loss_time": getattr(args, "loss_time", None), "diffusion_sigma": getattr(args, "diffusion_sigma", None),
+                 "start_box": None if getattr(args, "start_box", None) is None else list(args.start_box)}
     for name in ("seed", "robots", "max_periods"):
         v = overrides[name]
         if v is not None and (v < 0 or (v == 0 and name != "seed")):
@@ -87,14 +103,16 @@ def run(argv=None) -> int:
         check_output_dir(args.out, args.force)
     except ValueError as exc:
         raise InputError(str(exc)) from None
-    from ..ocp import ReferencePlanner
-
+    from .controllers import CONTROLLERS
     from .loop import run_simulation
 
-    try:
-        planner = ReferencePlanner(config.planner)
-    except ValueError as exc:
-        raise InputError(f"planner: {exc}") from None
+    planner = None
+    if CONTROLLERS[config.sim.controller].needs_plan:     # the baselines never build the planner
+        from ..ocp import ReferencePlanner
+        try:
+            planner = ReferencePlanner(config.planner)
+        except ValueError as exc:
+            raise InputError(f"planner: {exc}") from None
     previous_run = (args.out / MARKER).is_file()
     try:
         stage = prepare_output_dir(args.out, args.force)
@@ -115,7 +133,7 @@ def run(argv=None) -> int:
     try:
         files = write_outputs(result, stage, figures=not args.no_figures, gif=args.gif,
                               extra={"command": [PROG] + [str(a) for a in (sys.argv[1:] if argv is None else argv)],
-                                     "planner_build_time_s": planner.build_time})
+                                     "planner_build_time_s": None if planner is None else planner.build_time})
         publish(stage, args.out, remove_stale=previous_run)
     except OSError as exc:
         print(f"{PROG}: error: cannot write the outputs ({exc.strerror or exc}); {args.out} keeps its previous "

@@ -54,7 +54,6 @@ from ..regression import GPSettings
 __all__ = ["SimSettings", "KDESettings", "RunConfig", "load_config", "config_from_dict", "to_toml", "SECTIONS"]
 
 SECTIONS = ("sim", "gp", "kde", "feedback", "planner")
-CONTROLLERS = ("feedback", "open-loop")
 
 
 def _number(name, v, *, positive=False, nonneg=False):
@@ -108,7 +107,22 @@ class SimSettings:
                     re-evaluated at each (module docstring: "Defaults ... and why")
     controller      ``feedback``: eq. "density feedback law using estimation" (the paper);
                     ``open-loop``: the robots follow the planned v_r alone (saturated at
-                    feedback.v_max), a baseline that shows what the mean-field feedback adds
+                    feedback.v_max), a baseline that shows what the mean-field feedback adds;
+                    ``diffusion``, ``coverage``, ``greedy``, ``lawnmower``: baselines without a
+                    planner (:mod:`sim.controllers`, which also lets you add your own)
+    diffusion_sigma diffusion coefficient [m^2/s] of the robots under the ``diffusion`` controller
+    greedy_radius   ``greedy``: a robot looks for the highest GP variance within this distance [m]
+    greedy_separation  ``greedy``: a goal excludes the cells within this distance from other robots' goals [m]
+    lawnmower_lane  ``lawnmower``: spacing of the sweep lanes inside a robot's rectangle [m]
+    robot_loss      fraction of the robots (chosen at random) that stop working at ``loss_time``:
+                    they no longer move or measure, and the KDE no longer sees them
+    loss_time       time [s] of the loss (default: the period T, i.e. 7 s in the paper scenario)
+    metrics_every   the GP posterior (f̄, V on the grid) and a metrics row are computed every this many
+                    measurement steps and always at the end of a period (Algorithm 1 needs V only at
+                    t = kT); the measurements are added to the GP at every step.  1 (default) records
+                    every step, as the paper's figures do; with thousands of robots each posterior
+                    costs an O(M^3) refactorisation, so 8 (= once per period) makes a step ~8x cheaper
+                    in regression (benchmarks/measurement_step.py)
     """
 
     robots: int = 100
@@ -124,6 +138,13 @@ class SimSettings:
     seed: int = 0
     substeps: int = 8
     controller: str = "feedback"
+    diffusion_sigma: float = 3.0
+    greedy_radius: float = 5.0
+    greedy_separation: float = 2.0
+    lawnmower_lane: float = 1.0
+    robot_loss: float = 0.0
+    loss_time: float | None = None
+    metrics_every: int = 1
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -137,8 +158,19 @@ class SimSettings:
         set_("max_periods", _integer("max_periods", self.max_periods, 1))
         set_("seed", _integer("seed", self.seed, 0))
         set_("substeps", _integer("substeps", self.substeps, 1))
+        from .controllers import CONTROLLERS
         if self.controller not in CONTROLLERS:
             raise ValueError(f"sim.controller must be one of {', '.join(CONTROLLERS)}, got {self.controller!r}")
+        for k in ("diffusion_sigma", "greedy_radius", "lawnmower_lane"):
+            set_(k, _number(k, getattr(self, k), positive=True))
+        if self.loss_time is None:
+            set_("loss_time", float(self.period))
+        for k in ("greedy_separation", "loss_time"):
+            set_(k, _number(k, getattr(self, k), nonneg=True))
+        set_("robot_loss", _number("robot_loss", self.robot_loss, nonneg=True))
+        set_("metrics_every", _integer("metrics_every", self.metrics_every, 1))
+        if self.robot_loss > 1:
+            raise ValueError(f"sim.robot_loss must be a fraction in [0, 1], got {self.robot_loss:g}")
         if not isinstance(self.field, str) or not self.field:
             raise ValueError(f"sim.field must be a field name or a file path, got {self.field!r}")
         x0, x1, y0, y1 = self.domain

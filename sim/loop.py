@@ -36,7 +36,7 @@ from ..control import KernelDensity, saturate, tracking_velocity
 from ..regression import GaussianProcess, target_density
 
 from .config import RunConfig
-from .dynamics import advance, measure, uniform_in_box
+from .dynamics import euler_maruyama_step, measure, uniform_in_box
 from .fields import Field, make_field
 from .metrics import l2_norm, rmse
 
@@ -79,6 +79,9 @@ class SimulationResult:
     stop_reason: str = "running"
     error: str | None = None
     wall_time: float = 0.0
+    path_length: np.ndarray | None = None                  # (n,) ∫|v| dt per robot (commanded velocity)
+    energy: np.ndarray | None = None                       # (n,) ∫|v|^2 dt per robot
+    alive: np.ndarray | None = None                        # (n,) robots still working at the end
     timings: dict = dc_field(default_factory=lambda: {"planner": 0.0, "regression": 0.0, "dynamics": 0.0})
 
     @property
@@ -146,23 +149,34 @@ def _quiver_points(domain, q=QUIVER_POINTS):
 
 def run_simulation(config: RunConfig | None = None, *, field: Field | None = None, planner=None,
                    progress: Callable[[dict], None] | None = None,
-                   on_period: Callable[[SimulationResult], None] | None = None) -> SimulationResult:
+                   on_period: Callable[[SimulationResult], None] | None = None,
+                   controller=None) -> SimulationResult:
     """Run Algorithm 1 with ``config``; returns a :class:`SimulationResult`.
 
     ``field`` overrides ``config.sim.field``; ``planner`` may be a prebuilt ``ocp.ReferencePlanner``
-    for ``config.planner`` (it is built here otherwise).  ``progress(info)`` is called after every
-    re-plan (``info["event"] == "plan"``) and at the end (``"done"``); ``on_period(result)`` after
-    every completed period (the CLI writes the outputs so far there).
+    for ``config.planner`` (it is built here otherwise, and only if the controller needs a plan).
+    ``controller`` is a :class:`sim.controllers.Controller` instance (default: the one named by
+    ``config.sim.controller``).  ``progress(info)`` is called after every period start
+    (``info["event"] == "plan"``) and at the end (``"done"``); ``on_period(result)`` after every
+    completed period (the CLI writes the outputs so far there).
     """
-    from ..ocp import PlannerError, ReferencePlanner
+    from ..ocp import Grid
+    from .controllers import Context, make_controller
 
     config = config or RunConfig.default()
     s, fb = config.sim, config.feedback
     wall0 = time.perf_counter()
     field = make_field(s.field if field is None else field, s.domain)
-    if planner is None:
-        planner = ReferencePlanner(config.planner)
-    grid = planner.grid
+    ctrl = make_controller(s.controller, config) if controller is None else controller
+    if ctrl.needs_plan:
+        from ..ocp import PlannerError, ReferencePlanner
+        if planner is None:
+            planner = ReferencePlanner(config.planner)
+        grid = planner.grid
+    else:
+        PlannerError = ()  # noqa: N806 -- nothing to catch without a planner
+        grid = planner.grid if planner is not None else Grid(config.planner.domain, config.planner.nx,
+                                                              config.planner.ny)
     if tuple(grid.domain) != tuple(s.domain):
         raise ValueError(f"planner grid domain {grid.domain} differs from sim.domain {s.domain}")
     centers = grid.centers()
@@ -176,6 +190,12 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
     kde = KernelDensity(domain=s.domain, bandwidth=config.kde.bandwidth, bins=config.kde.bins)
     res = SimulationResult(config=config, field=field, grid=grid, f_true=f_true)
     tm = res.timings
+    n = s.robots
+    alive = np.ones(n, bool)
+    path_length = np.zeros(n)
+    energy = np.zeros(n)
+    res.path_length, res.energy, res.alive = path_length, energy, alive
+    h = s.dt / s.substeps
 
     def regress(X, y):
         t0 = time.perf_counter()
@@ -189,6 +209,18 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
     def p_hat_grid(est):
         return grid.normalize(est.on_grid(grid.nx, grid.ny), "KDE of the robots")
 
+    def reporting(X):
+        """Positions of the robots that still work (the array itself while all do)."""
+        return X if alive.all() else X[alive]
+
+    def lose_robots(t):
+        """At sim.loss_time, a random fraction of the robots stops (own generator: the run's stream
+        is unchanged)."""
+        if s.robot_loss > 0 and alive.all() and t >= s.loss_time - 1e-9 * s.period:
+            m = int(round(s.robot_loss * n))
+            lost = np.random.default_rng([s.seed, 0x105]).choice(n, size=min(m, n - 1), replace=False)
+            alive[lost] = False
+
     def record(step, t, period, X, mean, var, p_hat, p_r, speed):
         err = mean - f_true
         res.rows.append({
@@ -197,20 +229,52 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
             "rmse": rmse(f_true, mean), "l2_error": l2_norm(err, grid.cell_area),
             "tracking_error": math.nan if p_r is None else l2_norm(p_hat - p_r, grid.cell_area),
             "mean_speed": speed, "n_observations": gp.n_observations,
+            "alive": int(alive.sum()), "path_length": float(path_length.mean()), "energy": float(energy.mean()),
         })
         res.times.append(t)
         res.positions.append(X.copy())
         res.variances.append(var.astype(np.float32))
 
+    def context(t, k, X, mean, var, plan=None):
+        return Context(t=t, period=k, X=X, alive=alive, mean=mean, var=var, centers=centers, domain=s.domain,
+                       h=h, plan=plan, estimate=fit_kde, rng=rng)
+
+    def move(X, t):
+        """Δt of eq. "Langevin equation" in ``substeps`` Euler--Maruyama steps (as dynamics.advance),
+        lost robots frozen, the controller's velocity saturated at its speed limit."""
+        speed = 0.0
+        vmax = ctrl.v_max
+        for i in range(s.substeps):
+            v = np.asarray(ctrl.velocity(t + i * h, X, alive), dtype=float)
+            if not alive.all():
+                v = np.where(alive[:, None], v, 0.0)
+            sp = np.hypot(v[:, 0], v[:, 1])
+            over = sp > vmax * (1 + 1e-9)        # the feedback laws saturate already: leave their bits alone
+            if np.any(over):
+                v = v.copy()
+                v[over] *= (vmax / sp[over])[:, None]
+                sp = np.hypot(v[:, 0], v[:, 1])
+            speed += float(np.mean(sp)) if alive.all() else float(np.mean(sp[alive]))
+            path_length[:] += sp * h
+            energy[:] += sp * sp * h
+            Xn = euler_maruyama_step(X, v, h, ctrl.sigma, rng, s.domain)
+            if not alive.all():
+                Xn[~alive] = X[~alive]
+            X = Xn
+        return X, speed / s.substeps
+
     # --- initial positions, D_0, regression on D_0 (Algorithm 1, first two lines)
     X = uniform_in_box(s.robots, s.start_box, rng)
-    mean, var = regress(X, measure(field, X, s.noise_variance, rng))
-    est = fit_kde(X)
+    lose_robots(0.0)
+    Xa = reporting(X)
+    mean, var = regress(Xa, measure(field, Xa, s.noise_variance, rng))
+    est = fit_kde(Xa)
     p_hat = p_hat_grid(est)
     t, step, k = 0.0, 0, 0
     record(step, t, 0, X, mean, var, p_hat, None, 0.0)
     plan = None
     n_steps = s.steps_per_period
+    ctrl.start(context(t, k, X, mean, var))
 
     try:
         while True:
@@ -224,56 +288,67 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
                 res.stop_reason = "max_time"
                 break
             p_f = target_density(var, s.eta, grid.cell_area)
-            if p_f is None:
+            if p_f is None and ctrl.needs_plan:     # nothing left to plan for (the baselines go on)
                 res.stop_reason = "variance_below_eta"
                 break
             snap.target = p_f
-            # --- reference model for [t, t + T] (eqs. "optimization problem", "reference model")
-            t_plan = time.perf_counter()
-            try:
-                new_plan = planner.solve(p_hat, p_f, t0=t, warm_start=plan)
-            except PlannerError as exc:
-                info = dict(getattr(exc, "stats", {}) or {})
-                res.replans.append({"period": k, "t0": t, "max_variance": sup_v, "rmse": res.rows[-1]["rmse"],
-                                    "status": info.get("status", "failed"), "success": False,
-                                    "iterations": info.get("iterations", -1),
-                                    "solve_time_s": time.perf_counter() - t_plan})
-                res.stop_reason = "planner_failed"
-                res.error = f"planner failed at t = {t:g} s (period {k}): {exc}"
-                break
-            tm["planner"] += time.perf_counter() - t_plan
-            plan = new_plan
-            sv = plan.meta.get("solver", {})
-            res.replans.append({
-                "period": k, "t0": t, "max_variance": sup_v, "rmse": res.rows[-1]["rmse"],
-                "status": sv.get("status", "?"), "success": True, "iterations": sv.get("iterations", -1),
-                "solve_time_s": sv.get("wall_time_s", time.perf_counter() - t_plan),
-                "objective": plan.meta.get("objective"),
-                "symmetric_kl_initial": plan.meta.get("symmetric_kl_initial"),
-                "symmetric_kl_final": plan.meta.get("symmetric_kl_final"),
-            })
-            if k == 0 and math.isnan(res.rows[0]["tracking_error"]):
-                res.rows[0]["tracking_error"] = l2_norm(p_hat - plan.density_grid(t), grid.cell_area)
-            snap.velocity = tracking_velocity(qpts, plan, t, est, fb).reshape(QUIVER_POINTS, QUIVER_POINTS, 2)
+            if ctrl.needs_plan:
+                # --- reference model for [t, t + T] (eqs. "optimization problem", "reference model")
+                t_plan = time.perf_counter()
+                try:
+                    new_plan = planner.solve(p_hat, p_f, t0=t, warm_start=plan)
+                except PlannerError as exc:
+                    info = dict(getattr(exc, "stats", {}) or {})
+                    res.replans.append({"period": k, "t0": t, "max_variance": sup_v, "rmse": res.rows[-1]["rmse"],
+                                        "status": info.get("status", "failed"), "success": False,
+                                        "iterations": info.get("iterations", -1),
+                                        "solve_time_s": time.perf_counter() - t_plan})
+                    res.stop_reason = "planner_failed"
+                    res.error = f"planner failed at t = {t:g} s (period {k}): {exc}"
+                    break
+                tm["planner"] += time.perf_counter() - t_plan
+                plan = new_plan
+                sv = plan.meta.get("solver", {})
+                res.replans.append({
+                    "period": k, "t0": t, "max_variance": sup_v, "rmse": res.rows[-1]["rmse"],
+                    "status": sv.get("status", "?"), "success": True, "iterations": sv.get("iterations", -1),
+                    "solve_time_s": sv.get("wall_time_s", time.perf_counter() - t_plan),
+                    "objective": plan.meta.get("objective"),
+                    "symmetric_kl_initial": plan.meta.get("symmetric_kl_initial"),
+                    "symmetric_kl_final": plan.meta.get("symmetric_kl_final"),
+                })
+                if k == 0 and math.isnan(res.rows[0]["tracking_error"]):
+                    res.rows[0]["tracking_error"] = l2_norm(p_hat - plan.density_grid(t), grid.cell_area)
+                snap.velocity = tracking_velocity(qpts, plan, t, est, fb).reshape(QUIVER_POINTS, QUIVER_POINTS, 2)
+            ctrl.start_period(context(t, k, X, mean, var, plan))
             if progress is not None:
+                info = res.replans[-1] if ctrl.needs_plan else \
+                    {"status": "no planner", "iterations": 0, "solve_time_s": 0.0}
                 progress({"event": "plan", "period": k, "t": t, "max_variance": sup_v,
-                          "rmse": res.rows[-1]["rmse"], **res.replans[-1]})
+                          "rmse": res.rows[-1]["rmse"], **info})
 
-            # --- inner loop: T / Δt measurement steps under the feedback law
+            # --- inner loop: T / Δt measurement steps under the controller
             t0 = k * s.period
-            velocity = controller_velocity(s.controller, plan, fb, fit_kde)
-
             for j in range(1, n_steps + 1):
                 t_dyn = time.perf_counter()
-                X, speed = advance(X, t, s.dt, s.substeps, velocity, fb.sigma, rng, s.domain)
+                lose_robots(t)
+                X, speed = move(X, t)
                 t = t0 + j * s.dt          # k T + j Δt: no accumulated rounding
-                y = measure(field, X, s.noise_variance, rng)
-                est = fit_kde(X)
+                Xa = reporting(X)
+                y = measure(field, Xa, s.noise_variance, rng)
+                est = fit_kde(Xa)
+                step += 1
+                if j % s.metrics_every and j != n_steps:      # posterior not needed now: data only
+                    tm["dynamics"] += time.perf_counter() - t_dyn
+                    t_reg = time.perf_counter()
+                    gp.add(Xa, y)
+                    tm["regression"] += time.perf_counter() - t_reg
+                    continue
                 p_hat = p_hat_grid(est)
                 tm["dynamics"] += time.perf_counter() - t_dyn
-                mean, var = regress(X, y)
-                step += 1
-                record(step, t, k, X, mean, var, p_hat, plan.density_grid(t), speed)
+                mean, var = regress(Xa, y)
+                record(step, t, k, X, mean, var, p_hat, None if plan is None else plan.density_grid(t), speed)
+                ctrl.observe(context(t, k, X, mean, var, plan))
             k += 1
             if on_period is not None:
                 res.mean, res.var = mean, var

@@ -175,6 +175,16 @@ def _clean(o):
     return str(o)
 
 
+def _motion(result) -> dict:
+    """Per-robot path length ∫|v| dt and energy ∫|v|^2 dt (commanded velocity), robots still working."""
+    pl, en, alive = (getattr(result, k, None) for k in ("path_length", "energy", "alive"))
+    if pl is None:
+        return {}
+    return {"path_length_mean": float(np.mean(pl)), "path_length_max": float(np.max(pl)),
+            "energy_mean": float(np.mean(en)), "energy_max": float(np.max(en)),
+            "robots_alive": int(np.sum(alive)), "robots": int(len(alive))}
+
+
 def summary_dict(result, files=(), extra: dict | None = None) -> dict:
     cfg = result.config
     s = cfg.sim
@@ -192,7 +202,10 @@ def summary_dict(result, files=(), extra: dict | None = None) -> dict:
         "periods_to_threshold": result.periods_to_threshold,
         "gamma": s.gamma,
         "period": s.period,
-        "periods_run": sum(1 for r in result.replans if r.get("success")),
+        "periods_run": sum(1 for r in result.replans if r.get("success")) if result.replans or not rows
+        else int(rows[-1]["period"]) + (1 if len(rows) > 1 else 0),
+        "controller": s.controller,
+        "motion": _motion(result),
         "stop_time": final.get("t"),
         "final": {k: final.get(k) for k in ("t", "rmse", "l2_error", "max_variance", "mean_variance",
                                             "tracking_error", "mean_speed", "n_observations")},

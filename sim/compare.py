@@ -1,0 +1,306 @@
+"""``compare-controllers``: controllers x fields x seeds x robot losses x robot counts, in parallel.
+
+Every run is one closed-loop simulation (:func:`sim.loop.run_simulation`) of ``--max-periods``
+periods; the runs go through the generic runner :mod:`swarmfield.sweep` (local worker processes, or a
+Dask cluster with ``--scheduler``; resumable: a restarted sweep skips the runs stored in
+``OUT/runs/``).  Outputs in ``OUT``:
+
+``runs.csv``      tidy: one row per run and measurement time (controller, field, seed, robot_loss,
+                  robots, t, t_T = t/T, max_variance, rmse, alive, path_length, energy, ...)
+``summary.md``    Markdown table, one line per (field, robots, robot loss, controller): median and
+                  [min-max] over seeds of the time to sup V <= gamma (in periods T), the RMSE of f̄ at
+                  fixed times, the mean path length and energy per robot at the end
+``plots/*.png``   RMSE and sup V against t/T, a band (min-max over seeds) and the median per controller
+
+Comparison runs do not stop at sup V <= gamma (sim.gamma is set to 0 for the run and gamma is used
+only to read the time off the metrics), so that every controller is scored at the same times.
+A feedback run stops early only if sup V falls below eta (nothing left to plan for); its last
+estimate then stands for the later times.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import hashlib
+import io
+import math
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from ..ocp.cliargs import OneLineParser, UsageError as InputError
+
+PROG = "compare-controllers"
+ROW_COLUMNS = ("controller", "field", "seed", "robot_loss", "robots", "step", "t", "t_T", "max_variance", "rmse",
+               "alive", "path_length", "energy", "n_observations", "stop_reason")
+KEYS = ("field", "robots", "robot_loss", "controller")
+
+
+# ------------------------------------------------------------------------------ one run
+def run_task(task: dict) -> list[dict]:
+    """One comparison run (module level: pickled to the workers)."""
+    from .config import config_from_dict
+    from .loop import run_simulation
+
+    cfg = config_from_dict(task["config"])
+    res = run_simulation(cfg)
+    T = cfg.sim.period
+    label = {k: task[k] for k in ("controller", "field", "seed", "robot_loss", "robots")}
+    return [{**label, "step": r["step"], "t": r["t"], "t_T": r["t"] / T, "max_variance": r["max_variance"],
+             "rmse": r["rmse"], "alive": r["alive"], "path_length": r["path_length"], "energy": r["energy"],
+             "n_observations": r["n_observations"], "stop_reason": res.stop_reason} for r in res.rows]
+
+
+def _field_label(field: str) -> str:
+    from .fields import FIELDS
+    return field if field in FIELDS else Path(field).stem
+
+
+def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, loss_time=None, start_box=None,
+               max_periods=4) -> list[dict]:
+    """The sweep's task dicts: every combination, each with its fully resolved configuration."""
+    from .config import config_from_dict
+    from .fields import FIELDS
+
+    tasks = []
+    for field in fields:
+        fsig = field
+        if field not in FIELDS:
+            path = Path(field).resolve()
+            if not path.is_file():
+                raise ValueError(f"field {field!r} is neither a known field ({', '.join(FIELDS)}) nor a file")
+            fsig = f"{path}#sha256={hashlib.sha256(path.read_bytes()).hexdigest()[:16]}"
+            field = str(path)
+        for n in robots:
+            for loss in losses:
+                for ctrl in controllers:
+                    for seed in seeds:
+                        sim = dict(base_doc.get("sim", {}))
+                        sim.update(controller=ctrl, field=field, seed=int(seed), robots=int(n), robot_loss=float(loss),
+                                   max_periods=int(max_periods), gamma=0.0)
+                        if loss_time is not None:
+                            sim["loss_time"] = float(loss_time)
+                        if start_box is not None:
+                            sim["start_box"] = list(start_box)
+                        doc = {**base_doc, "sim": sim}
+                        cfg = config_from_dict(doc)          # validates every combination up front
+                        tasks.append({"controller": ctrl, "field": _field_label(field), "field_source": fsig,
+                                      "seed": int(seed), "robot_loss": float(loss), "robots": int(n),
+                                      "config": cfg.as_dict()})
+    return tasks
+
+
+# ------------------------------------------------------------------------------ tables and plots
+def write_csv(rows, path: Path) -> None:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(ROW_COLUMNS)
+    for r in rows:
+        w.writerow([_fmt(r.get(c)) for c in ROW_COLUMNS])
+    _atomic(path, buf.getvalue())
+
+
+def _fmt(v):
+    if isinstance(v, float):
+        return repr(v) if math.isfinite(v) else "nan"
+    return "" if v is None else str(v)
+
+
+def _atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def _value_at(run_rows, t_T):
+    """Row at time t_T (in periods), the last row if the run stopped earlier."""
+    best = None
+    for r in run_rows:
+        if r["t_T"] <= t_T + 1e-9:
+            best = r
+    return best
+
+
+def _group(runs):
+    groups = {}
+    for task, rows in runs:
+        groups.setdefault(tuple(task[k] for k in KEYS), []).append((task, rows))
+    return groups
+
+
+def _stat(vals, fmt="{:.3f}"):
+    vals = [v for v in vals if v is not None and math.isfinite(v)]
+    if not vals:
+        return "—"
+    med = float(np.median(vals))
+    lo, hi = min(vals), max(vals)
+    if len(vals) == 1 or lo == hi:
+        return fmt.format(med)
+    return f"{fmt.format(med)} [{fmt.format(lo)}–{fmt.format(hi)}]"
+
+
+def summary_table(runs, gamma: float, times) -> str:
+    """Markdown table (deterministic: sorted keys, formatted numbers) of ``runs = [(task, rows), ...]``."""
+    head = ["field", "robots", "loss", "controller", f"sup V ≤ {gamma:g} at [T]"] + \
+        [f"RMSE at {t:g}T" for t in times] + ["path length [m]", "energy [m²/s]"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    order = {}
+    for task, _ in runs:
+        order.setdefault(task["controller"], len(order))
+    for key in sorted(_group(runs), key=lambda k: (k[0], k[1], k[2], order[k[3]])):
+        grp = _group(runs)[key]
+        ttt, reached = [], 0
+        for _, rows in grp:
+            hit = next((r["t_T"] for r in rows if r["max_variance"] <= gamma), None)
+            ttt.append(hit)
+            reached += hit is not None
+        tcell = _stat([x for x in ttt if x is not None], "{:.2f}")
+        if reached < len(grp):
+            tcell += f" ({len(grp) - reached}/{len(grp)} never)"
+        cells = [key[0], str(key[1]), f"{100 * key[2]:.0f} %", key[3], tcell]
+        for t in times:
+            cells.append(_stat([(_value_at(rows, t) or {}).get("rmse") for _, rows in grp]))
+        cells.append(_stat([rows[-1]["path_length"] for _, rows in grp], "{:.1f}"))
+        cells.append(_stat([rows[-1]["energy"] for _, rows in grp], "{:.1f}"))
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def write_plots(runs, out: Path, gamma: float) -> list[str]:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    by_scenario = {}
+    for task, rows in runs:
+        by_scenario.setdefault((task["field"], task["robots"], task["robot_loss"]), {}) \
+            .setdefault(task["controller"], []).append(rows)
+    for (field, n, loss), ctrls in sorted(by_scenario.items()):
+        fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+        for ci, (ctrl, runs_c) in enumerate(ctrls.items()):
+            m = min(len(r) for r in runs_c)
+            t = np.array([r["t_T"] for r in runs_c[0][:m]])
+            for ax, col in zip(axes, ("rmse", "max_variance")):
+                Y = np.array([[r[col] for r in rows[:m]] for rows in runs_c])
+                color = f"C{ci}"
+                ax.fill_between(t, Y.min(0), Y.max(0), color=color, alpha=0.2, lw=0)
+                ax.plot(t, np.median(Y, 0), color=color, label=ctrl)
+        axes[0].set_ylabel("RMSE of f̄ on the grid")
+        axes[1].set_ylabel("sup V")
+        axes[1].axhline(gamma, color="k", ls=":", lw=1)
+        axes[1].set_yscale("log")
+        for ax in axes:
+            ax.set_xlabel("t / T")
+            ax.grid(alpha=0.3)
+        axes[0].legend(fontsize=8)
+        fig.suptitle(f"{field}, {n} robots, {100 * loss:.0f} % lost (median and range over seeds)")
+        fig.tight_layout()
+        name = f"{field}_n{n}_loss{int(round(100 * loss))}.png"
+        fig.savefig(out / name, dpi=90)
+        plt.close(fig)
+        written.append(name)
+    return written
+
+
+# ------------------------------------------------------------------------------ CLI
+def build_parser():
+    from .controllers import CONTROLLERS
+
+    p = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0])
+    p.add_argument("--controllers", nargs="+", default=list(CONTROLLERS), metavar="NAME",
+                   help=f"controllers to compare (default all: {' '.join(CONTROLLERS)})")
+    p.add_argument("--fields", nargs="+", default=["sinc"], metavar="FIELD", help="sinc | plumes | ridge | FILE ...")
+    p.add_argument("--seeds", nargs="+", type=int, default=[0], metavar="S")
+    p.add_argument("--robot-loss", nargs="+", type=float, default=[0.0], metavar="FRACTION")
+    p.add_argument("--loss-time", type=float, metavar="SECONDS", help="time of the loss (default T)")
+    p.add_argument("--robots", nargs="+", type=int, default=None, metavar="N",
+                   help="robot counts (default: the configuration's, 100)")
+    p.add_argument("--start-box", type=float, nargs=4, metavar=("X0", "X1", "Y0", "Y1"))
+    p.add_argument("--max-periods", type=int, default=4, help="length of every run in periods T (default 4)")
+    p.add_argument("--times", nargs="+", type=float, default=None, metavar="K",
+                   help="RMSE columns at these multiples of T (default 1 2 and --max-periods)")
+    p.add_argument("--config", type=Path, help="TOML base configuration ([sim], [gp], ...)")
+    p.add_argument("--out", type=Path, default=Path("compare"), help="output folder (reused: finished runs are skipped)")
+    p.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
+    p.add_argument("--scheduler", help="Dask scheduler address (tcp://host:8786): run the sweep on that cluster")
+    p.add_argument("--no-plots", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    return p
+
+
+def run(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    from .config import load_config
+    from .controllers import CONTROLLERS
+    from .. import sweep
+
+    for name in args.controllers:
+        if name not in CONTROLLERS:
+            raise InputError(f"unknown controller {name!r}; known: {', '.join(CONTROLLERS)}")
+    if args.robots is not None and any(n < 2 for n in args.robots) or args.max_periods < 1 or any(s < 0 for s in args.seeds):
+        raise InputError("--robots must be >= 2, --max-periods >= 1, --seeds >= 0")
+    if args.workers is not None and args.workers < 1:
+        raise InputError("--workers must be >= 1")
+    try:
+        base = load_config(args.config) if args.config else None
+        base_doc = base.as_dict() if base else {}
+        gamma = base.sim.gamma if base else 0.1
+        if base_doc:       # derived entries follow [sim] again (domain, horizon, noise)
+            base_doc["planner"].pop("domain", None)
+            if base_doc["planner"].get("horizon") == base.sim.period:
+                base_doc["planner"].pop("horizon")
+            base_doc["gp"].pop("noise_variance", None)
+        robots = args.robots or [base.sim.robots if base else 100]
+        tasks = make_tasks(base_doc, args.controllers, args.fields, args.seeds, args.robot_loss, robots,
+                           loss_time=args.loss_time, start_box=args.start_box, max_periods=args.max_periods)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    if gamma <= 0:
+        gamma = 0.1
+    times = args.times or sorted({1.0, 2.0, float(args.max_periods)})
+    out = args.out
+    if out.exists() and not out.is_dir():
+        raise InputError(f"output {out} exists and is not a folder")
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        results = sweep.run_tasks(tasks, run_task, out / "runs", workers=args.workers, scheduler=args.scheduler,
+                                  label=PROG, stream=None if args.quiet else sys.stderr)
+    except sweep.SweepError as exc:
+        print(f"{PROG}: error: {exc}; the finished runs are stored in {out / 'runs'}: run the same command again "
+              "to retry only the failed ones", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted; finished runs are kept in {out / 'runs'} (the same command resumes)",
+              file=sys.stderr)
+        return 130
+    runs = list(zip(tasks, results))
+    write_csv([r for rows in results for r in rows], out / "runs.csv")
+    table = summary_table(runs, gamma, times)
+    cmd = " ".join([PROG] + [str(a) for a in (sys.argv[1:] if argv is None else argv)])
+    _atomic(out / "summary.md", f"Command: `{cmd}`\n\nMedian [min–max] over seeds {args.seeds}; runs of "
+            f"{args.max_periods} T = {args.max_periods * tasks[0]['config']['sim']['period']:g} s.\n\n{table}")
+    plots = [] if args.no_plots else write_plots(runs, out / "plots", gamma)
+    if not args.quiet:
+        print(table, end="", file=sys.stderr)
+        print(f"{PROG}: wrote runs.csv, summary.md{', ' + str(len(plots)) + ' plots' if plots else ''} to {out}",
+              file=sys.stderr)
+    return 0
+
+
+def main(argv=None) -> int:
+    try:
+        code = run(argv)
+    except InputError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        code = 2
+    if argv is None:
+        sys.exit(code)
+    return code
+
+
+if __name__ == "__main__":
+    main()
