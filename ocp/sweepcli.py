@@ -55,8 +55,11 @@ def build_tasks(args) -> list[dict]:
     return expand(parse_spec(raw), base)
 
 
-def run_sweep(tasks, out: Path, workers=None, scheduler=None, stream=sys.stderr) -> list[dict]:
-    """Run the tasks through the one runner; a worker that dies is recorded as a failed row."""
+def run_sweep(tasks, out: Path, workers=None, scheduler=None, stream="stderr") -> list[dict]:
+    """Run the tasks through the one runner; a worker that dies is recorded as a failed row.
+    ``stream``: progress lines (default: the current ``sys.stderr``; None: quiet)."""
+    if stream == "stderr":
+        stream = sys.stderr
     from swarmfield.sweep import SweepError, run_tasks
 
     from .sweepspec import run_planner_task
@@ -103,12 +106,12 @@ def write_sweep_outputs(rows, out: Path) -> list[Path]:
     w.writeheader()
     w.writerows(rows)
     write_atomic(out / "study.csv", buf.getvalue())
-    lines = ["| case | method | transport | cells | build [s] | solve [s] | it | status | objective | final sym. KL "
+    lines = ["| case | method | kernel used | cells | build [s] | solve [s] | it | status | objective | final sym. KL "
              "| peak RSS [MB] |", "|---|---|---|---:|---:|---:|---:|---|---:|---:|---:|"]
     for r in rows:
         cells = (r.get("nx") or 0) * (r.get("ny") or 0)
         status = r.get("status", "") if not r.get("error") else f"{r.get('status', '')}: {r['error'][:60]}"
-        lines.append(f"| {r.get('case')} | {r.get('method')} | {r.get('transport', '')} | {cells} | "
+        lines.append(f"| {r.get('case')} | {r.get('method')} | {r.get('kernel') or r.get('transport', '')} | {cells} | "
                      f"{_f(r.get('build_s'), '.2f')} | {_f(r.get('solve_s'), '.2f')} | {r.get('iterations', '')} | "
                      f"{status} | {_f(r.get('objective'), '.5g')} | {_f(r.get('kl_final'), '.4f')} | "
                      f"{_f(r.get('peak_rss_mb'), '.0f')} |")
@@ -152,7 +155,7 @@ def _groups(rows):
     for r in rows:
         if r.get("error") or not r.get("nx"):
             continue
-        key = f"{r.get('method')} / {r.get('transport')}"
+        key = f"{r.get('method')} / {r.get('kernel') or r.get('transport')}"
         groups.setdefault(key, []).append((r["nx"] * r["ny"], float(r["solve_s"]), float(r["objective"])))
     return groups
 

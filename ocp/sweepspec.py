@@ -218,7 +218,7 @@ def preset_tasks(name: str, base: PlannerSettings | None = None, quick: bool = F
             for st, label, s in cases(name, base, quick)]
 
 
-COLUMNS = ["study", "case", "method", "transport", "nx", "ny", "n_intervals", "n_modes", "horizon", "w_f", "w_p",
+COLUMNS = ["study", "case", "method", "transport", "kernel", "nx", "ny", "n_intervals", "n_modes", "horizon", "w_f", "w_p",
            "w_v", "v_max", "hessian", "tol", "mu_strategy", "linear_solver", "warm_start", "seed", "build_s",
            "solve_s", "iterations", "status", "success", "error", "objective", "J_terminal", "J_running",
            "J_effort", "kl_final", "peak_rss_mb", "rss_growth_mb", "settings"]
@@ -248,7 +248,7 @@ def run_planner_task(task: dict) -> list[dict]:
            "linear_solver": s.ipopt.linear_solver, "warm_start": task["warm_start"], "seed": task["seed"],
            "settings": json.dumps(task["settings"], sort_keys=True, default=str)}
     nan = math.nan
-    row.update(build_s=nan, solve_s=nan, iterations=-1, status="", success=False, error="", objective=nan,
+    row.update(kernel="", build_s=nan, solve_s=nan, iterations=-1, status="", success=False, error="", objective=nan,
                J_terminal=nan, J_running=nan, J_effort=nan, kl_final=nan)
     rss0 = _rss_mb()
     try:
@@ -271,7 +271,9 @@ def run_planner_task(task: dict) -> list[dict]:
         sv = m.get("solver", {})
         row.update(solve_s=sv.get("wall_time_s", wall), iterations=sv.get("iterations", -1),
                    status=sv.get("status", ""), success=bool(sv.get("success", True)),
-                   objective=m.get("objective", nan), kl_final=m.get("symmetric_kl_final", nan))
+                   objective=m.get("objective", nan), kl_final=m.get("symmetric_kl_final", nan),
+                   # the kernel actually used: GRG always runs on the transport kernel (compiled, or NumPy)
+                   kernel=sv.get("kernel", m.get("transport", "")))
         terms = m.get("objective_terms", {}) or {}
         for k_row, k_meta in (("J_terminal", "terminal"), ("J_running", "running"), ("J_effort", "energy")):
             if k_meta in terms:
