@@ -111,3 +111,14 @@ def test_task_holds_no_casadi_objects():
     rows = run_planner_task(task)
     pickle.loads(pickle.dumps(rows))
     assert rows[0]["success"] and rows[0]["nx"] == 8
+
+
+def test_plan_reference_method_and_transport(tmp_path):
+    from swarmfield.ocp import ReferencePlan
+    from swarmfield.ocp.cli import main
+    out = tmp_path / "p.npz"
+    assert main(["--nx", "8", "--ny", "8", "--intervals", "2", "--modes", "3", "3", "--method", "grg",
+                 "--transport", "numpy", "--out", str(out)]) == 0
+    meta = ReferencePlan.load(out).meta
+    assert meta["method"] == "grg" and meta["transport"] == "numpy"
+    assert main(["--nx", "8", "--ny", "8", "--solver", "simplex", "--out", str(tmp_path / "q.npz")]) == 2
