@@ -44,6 +44,10 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--w-v", type=float, help="velocity weight (default 0.01)")
     g.add_argument("--v-max", type=float, help="speed limit: sum |a| per interval [m/s] (default 3)")
     g.add_argument("--target-floor", type=float, help="uniform fraction mixed into the target (default 0.05)")
+    g.add_argument("--transport", choices=["auto", "compiled", "numpy", "casadi"],
+                   help="transport kernel inside the NLP (default auto)")
+    g.add_argument("--method", "--solver", dest="method", choices=["ipopt", "grg"], default="ipopt",
+                   help="solver: IPOPT on the NLP, or the paper's GRG baseline")
     s = p.add_argument_group("IPOPT")
     s.add_argument("--tol", type=float, help="IPOPT tol (default 1e-6)")
     s.add_argument("--max-iter", type=int, help="IPOPT max_iter (default 500)")
@@ -72,7 +76,7 @@ def resolve_settings(args) -> PlannerSettings:
         cfg = dict(cfg)
     flags = {"nx": args.nx, "ny": args.ny, "n_intervals": args.intervals, "horizon": args.horizon,
              "w_f": args.w_f, "w_p": args.w_p, "w_v": args.w_v, "v_max": args.v_max,
-             "target_floor": args.target_floor}
+             "target_floor": args.target_floor, "transport": args.transport}
     if args.modes is not None:
         flags["n_modes_x"], flags["n_modes_y"] = args.modes
     cfg.update({k: v for k, v in flags.items() if v is not None})
@@ -165,7 +169,7 @@ def run(argv=None) -> int:
 
     planner = ReferencePlanner(settings)
     try:
-        plan = planner.solve(p0, target, t0=args.t0, warm_start=warm)
+        plan = planner.solve(p0, target, t0=args.t0, warm_start=warm, method=args.method)
     except PlannerError as exc:
         print(f"{PROG}: error: {exc}; no plan written", file=sys.stderr)
         return 1

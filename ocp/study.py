@@ -141,11 +141,15 @@ def main(argv=None) -> int:
                     help="which settings to vary")
     ap.add_argument("--out", type=Path, default=Path("study"), help="folder for study.csv, study.md, study.png")
     ap.add_argument("--quick", action="store_true", help="small grid (12x12, N=4, I=J=3) for a fast check")
+    from .sweepcli import add_sweep_arguments, run_sweep_cli, wants_sweep
+    add_sweep_arguments(ap)
     try:
         args = ap.parse_args(argv)
     except UsageError as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2
+    if wants_sweep(args):
+        return run_sweep_cli(args, PROG)
     # the folder may hold other files (docs/figures); only the three outputs are ever written or
     # removed there, and they are published together (ocp.publish)
     folder = OutputFolder(args.out, PROG, OUTPUTS, foreign_ok=True)
