@@ -117,6 +117,10 @@ class ReferencePlanner:
         # scale the initial guess into the admissible set, then start strictly interior
         bound = np.abs(coef0).reshape(P.N, -1).sum(axis=1)
         scale = np.minimum(1.0, 0.9 * s.v_max / np.maximum(bound, 1e-300))
+        if s.speed_limit == "face":
+            from .speedlimit import face_bound, face_speeds
+            fb = face_speeds(P.basis, coef0).max(axis=1)
+            scale = np.minimum(1.0, 0.9 * face_bound(s) / np.maximum(fb, 1e-300))
         coef0 = coef0 * scale[:, None, None, None]
         if method == "grg":
             coef, objective, summary = self.grg_solver().run(p0, q, coef0)
@@ -171,6 +175,8 @@ class ReferencePlanner:
             "symmetric_kl_initial": kl0,
             "symmetric_kl_final": kl_end,
             "speed_bound": [float(v) for v in np.abs(coef).reshape(P.N, -1).sum(axis=1)],
+            **({"speed_limit": s.speed_limit, "face_speed_max": [float(v) for v in _face_max(P, coef)]}
+               if s.speed_limit != "l1" else {}),
             "distribution": distribution(),
             "versions": _versions(),
         }
@@ -230,3 +236,8 @@ def _stats_summary(stats: dict, wall: float) -> dict:
 
 def _versions() -> dict:
     return {DISTRIBUTION: __version__, "casadi": ca.__version__, "numpy": np.__version__}
+
+
+def _face_max(P, coef):
+    from .speedlimit import face_speeds
+    return face_speeds(P.basis, coef).max(axis=1)

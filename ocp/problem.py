@@ -192,9 +192,18 @@ class TransportProblem:
         am = ca.MX.sym("a_minus", self.n_coef)
         energy = s.interval * (g.lx * g.ly / 4.0) * (ca.sumsqr(ap) + ca.sumsqr(am))
         f = ca.substitute(kl_terms, a, ap - am) + s.w_v * energy
-        self.nlp = {"x": ca.vertcat(ap, am), "p": param, "f": f, "g": ca.mtimes(self._block(), ap + am)}
-        self.lbg = np.full(self.N, -np.inf)
-        self.ubg = np.full(self.N, s.v_max)
+        if s.speed_limit == "face":      # pointwise face bounds |v| <= b, linear in a (ocp.speedlimit)
+            from .speedlimit import face_bound, face_matrix
+            M = face_matrix(self.basis, self.N).tocoo()
+            Mc = ca.DM.triplet(M.row.tolist(), M.col.tolist(), ca.DM(M.data), M.shape[0], M.shape[1])
+            b = face_bound(s)
+            self.nlp = {"x": ca.vertcat(ap, am), "p": param, "f": f, "g": ca.mtimes(Mc, ap - am)}
+            self.lbg = np.full(M.shape[0], -b)
+            self.ubg = np.full(M.shape[0], b)
+        else:
+            self.nlp = {"x": ca.vertcat(ap, am), "p": param, "f": f, "g": ca.mtimes(self._block(), ap + am)}
+            self.lbg = np.full(self.N, -np.inf)
+            self.ubg = np.full(self.N, s.v_max)
         self.lbx = np.zeros(2 * self.n_coef)
         self.ubx = np.full(2 * self.n_coef, np.inf)
 

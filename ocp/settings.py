@@ -132,6 +132,10 @@ class PlannerSettings:
     cfl: float = 0.9
     log_eps: float = 1e-12
     speed_limit_form: str = "split"
+    #: "l1" (default, the paper's): sum |a| <= v_max per interval; "face": |v_x| <= b on every x-face and
+    #: |v_y| <= b on every y-face, b = v_max / (sqrt 2 * speed_limit_safety) (:mod:`ocp.speedlimit`, issue 10)
+    speed_limit: str = "l1"
+    speed_limit_safety: float = 1.0     # extra margin on top of kappa (PlannerSettings.face_speed_bound)
     ipopt: IpoptSettings = field(default_factory=IpoptSettings)
     #: transport kernel inside the NLP (README "The planner", "Transport kernel"): "compiled" (C loop and
     #: hand-written adjoint, compiled with the system cc at first use), "numpy" (the same, vectorised),
@@ -156,6 +160,13 @@ class PlannerSettings:
             raise ValueError(f"planner.cfl must be in (0, 1], got {self.cfl}")
         if self.speed_limit_form not in ("split", "slack"):
             raise ValueError(f"planner.speed_limit_form must be 'split' or 'slack', got {self.speed_limit_form!r}")
+        if self.speed_limit not in ("l1", "face"):
+            raise ValueError(f"planner.speed_limit must be 'l1' or 'face', got {self.speed_limit!r}")
+        if not (isinstance(self.speed_limit_safety, (int, float)) and math.isfinite(self.speed_limit_safety)
+                and self.speed_limit_safety >= 1):
+            raise ValueError(f"planner.speed_limit_safety must be a number >= 1, got {self.speed_limit_safety!r}")
+        if self.speed_limit == "face" and self.speed_limit_form != "split":
+            raise ValueError("planner.speed_limit = 'face' needs speed_limit_form = 'split'")
         if self.transport not in TRANSPORTS:
             raise ValueError(f"planner.transport must be one of {', '.join(TRANSPORTS)}, got {self.transport!r}")
         if not isinstance(self.ipopt, IpoptSettings):
@@ -194,11 +205,30 @@ class PlannerSettings:
         """
         return max(1, math.ceil(self._substeps_real() - 1e-12))
 
+    @property
+    def face_speed_bound(self) -> float:
+        """``speed_limit = "face"``: bound b on |v_x| at x-faces and |v_y| at y-faces,
+
+            b = v_max / (sqrt 2 * kappa * speed_limit_safety),  kappa = sec(pi I / (2 nx)) sec(pi J / (2 ny)),
+
+        kappa being the Ehlich--Zeller factor by which a sine series of I modes can exceed its values on
+        an equispaced grid of nx cells (per direction), so that |v| <= v_max also between the faces.
+        """
+        kappa = 1.0 / (math.cos(math.pi * self.n_modes_x / (2 * self.nx)) * math.cos(math.pi * self.n_modes_y / (2 * self.ny)))
+        return self.v_max / (math.sqrt(2.0) * kappa * self.speed_limit_safety)
+
     def _cell_width(self) -> float:
         return min((self.domain[1] - self.domain[0]) / self.nx, (self.domain[3] - self.domain[2]) / self.ny)
 
     def _substeps_real(self) -> float:
         # plain float arithmetic: an overflow gives inf, which __post_init__ refuses
+        if self.speed_limit == "face":
+            # |v_x| <= b on x-faces, |v_y| <= b on y-faces: outflow <= dt ((2b + eps)/dx + (2b + eps)/dy)
+            b = self.face_speed_bound
+            dx = (self.domain[1] - self.domain[0]) / self.nx
+            dy = (self.domain[3] - self.domain[2]) / self.ny
+            return self.interval * ((2.0 * b + self.upwind_smoothing) / dx
+                                    + (2.0 * b + self.upwind_smoothing) / dy) / self.cfl
         return self.interval * 2.0 * (self.v_max + self.upwind_smoothing) / (self._cell_width() * self.cfl)
 
 

@@ -13,6 +13,6 @@ NumPy/SciPy only; imports nothing from ``ocp``, ``control`` or ``sim``.
 from .gp import GaussianProcess
 from .kernels import squared_exponential
 from .settings import GPSettings
-from .target import target_density
+from .target import reachable_target_density, target_density
 
-__all__ = ["GPSettings", "GaussianProcess", "target_density", "squared_exponential"]
+__all__ = ["GPSettings", "GaussianProcess", "target_density", "reachable_target_density", "squared_exponential"]

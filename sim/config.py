@@ -152,6 +152,9 @@ class SimSettings:
                     every step, as the paper's figures do; with thousands of robots each posterior
                     costs an O(M^3) refactorisation, so 8 (= once per period) makes a step ~8x cheaper
                     in regression (benchmarks/measurement_step.py)
+    target          ``variance`` (paper): p_f = max(V - eta, 0) / int; ``reachable``: the same weighted by
+                    R = p̂ convolved with a Gaussian of standard deviation planner.v_max * T / 2 (2 sd =
+                    where the reference can get in one period), floored at 1e-3 max R (regression.reachable_target_density; issue 10)
     """
 
     robots: int = 100
@@ -175,6 +178,7 @@ class SimSettings:
     robot_loss: float = 0.0
     loss_time: float | None = None
     metrics_every: int = 1
+    target: str = "variance"
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -199,6 +203,8 @@ class SimSettings:
             set_(k, _number(k, getattr(self, k), nonneg=True))
         set_("robot_loss", _number("robot_loss", self.robot_loss, nonneg=True))
         set_("metrics_every", _integer("metrics_every", self.metrics_every, 1))
+        if self.target not in ("variance", "reachable"):
+            raise ValueError(f"sim.target must be 'variance' or 'reachable', got {self.target!r}")
         if self.robot_loss > 1:
             raise ValueError(f"sim.robot_loss must be a fraction in [0, 1], got {self.robot_loss:g}")
         if not isinstance(self.field, str) or not self.field:

@@ -33,7 +33,7 @@ from typing import Callable
 import numpy as np
 
 from ..control import KernelDensity, saturate, tracking_velocity
-from ..regression import GaussianProcess, target_density
+from ..regression import GaussianProcess, reachable_target_density, target_density
 
 from .config import RunConfig
 from .dynamics import euler_maruyama_step, measure, uniform_in_box
@@ -287,7 +287,12 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
             if k >= s.max_periods or t >= s.max_time - 1e-9 * s.period:
                 res.stop_reason = "max_time"
                 break
-            p_f = target_density(var, s.eta, grid.cell_area)
+            if s.target == "reachable":
+                p_f = reachable_target_density(var, s.eta, grid.cell_area, p_hat,
+                                               0.5 * config.planner.v_max * s.period,   # 2 sd = v_max T
+                                               grid.dx, grid.dy)
+            else:
+                p_f = target_density(var, s.eta, grid.cell_area)
             if p_f is None and ctrl.needs_plan:     # nothing left to plan for (the baselines go on)
                 res.stop_reason = "variance_below_eta"
                 break

@@ -1,0 +1,116 @@
+"""planner.speed_limit = "face" (issue 10, item 2): pointwise face bounds instead of sum |a| <= v_max.
+
+Feasible points are tried at the boundary of the feasible set (largest face |v| = b exactly), the
+worst case for both claims: sup |v| on a 4x finer grid <= v_max, and the transport scheme keeps
+p >= 0 and mass 1 with the sub-step count of the CFL rule.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from swarmfield.ocp.basis import velocity_on_grid
+from swarmfield.ocp.grid import Grid
+from swarmfield.ocp.problem import TransportProblem
+from swarmfield.ocp.settings import PlannerSettings
+from swarmfield.ocp.speedlimit import face_matrix, face_speeds
+from swarmfield.ocp.transport import FaceBasis, simulate
+
+S = dict(nx=12, ny=12, n_intervals=2, n_modes_x=3, n_modes_y=3, v_max=3.0, speed_limit="face")
+
+
+def boundary_points(s, rng, n=40):
+    """Random coefficients scaled so that every interval touches the face bound b."""
+    basis = FaceBasis(Grid(s.domain, s.nx, s.ny), s.n_modes_x, s.n_modes_y)
+    out = []
+    for k in range(n):
+        c = rng.standard_normal((s.n_intervals, 2, s.n_modes_x, s.n_modes_y))
+        if k % 2:
+            c[rng.random(c.shape) < 0.7] = 0.0        # sparse: speed concentrated in a few modes
+        c[:, :, -1, -1] += 1.0 if k % 3 else 0.0     # highest mode: the largest overshoot between faces
+        fm = face_speeds(basis, c).max(axis=1)
+        out.append(c * (s.face_speed_bound / fm)[:, None, None, None])
+    return basis, out
+
+
+def test_face_matrix_equals_face_velocities():
+    s = PlannerSettings(**S)
+    P = TransportProblem(s)
+    rng = np.random.default_rng(0)
+    coef = rng.standard_normal((s.n_intervals, 2, s.n_modes_x, s.n_modes_y))
+    M = face_matrix(P.basis, s.n_intervals)
+    got = M @ P.coef_to_vector(coef)
+    VX, VY = P.face_velocities(coef)
+    want = np.concatenate([np.concatenate([VX[l], VY[l]]) for l in range(s.n_intervals)])
+    np.testing.assert_allclose(got, want, atol=1e-12)
+
+
+@pytest.mark.parametrize("modes", [3, 6])
+def test_sup_speed_on_fine_grid_never_above_vmax(modes):
+    s = PlannerSettings(**{**S, "n_modes_x": modes, "n_modes_y": modes})
+    _, pts = boundary_points(s, np.random.default_rng(modes))
+    xs = np.linspace(0.0, 20.0, 4 * s.nx + 1)
+    sups = [max(np.hypot(*velocity_on_grid(c, s.domain, xs, xs)).max() for c in coef) for coef in pts]
+    assert max(sups) <= s.v_max * (1 + 1e-12)
+    assert max(sups) >= s.face_speed_bound          # and the points tried do reach the face bound
+
+
+def test_sup_speed_fails_without_the_between_face_factor():
+    # the same test with kappa = 1 (b = v_max / sqrt 2): a pure highest mode overshoots between faces
+    s = PlannerSettings(**S)
+    kappa = 1.0 / (math.cos(math.pi * 3 / 24) ** 2)
+    c = np.zeros((1, 2, 3, 3))
+    c[0, 0, 2, 2] = 1.0
+    basis = FaceBasis(Grid(s.domain, s.nx, s.ny), 3, 3)
+    c *= s.face_speed_bound * kappa / face_speeds(basis, c).max()
+    xs = np.linspace(0.0, 20.0, 4 * s.nx + 1)
+    assert np.abs(velocity_on_grid(c[0], s.domain, xs, xs)).max() > s.face_speed_bound * kappa * 1.05
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_positivity_and_mass_for_every_admissible_control(seed):
+    s = PlannerSettings(**S)
+    g = Grid(s.domain, s.nx, s.ny)
+    _, pts = boundary_points(s, np.random.default_rng(10 + seed), n=10)
+    p0 = np.zeros(g.shape)
+    p0[1:4, 2:5] = 1.0                              # compact support: zeros must stay >= 0
+    p0 = g.normalize(p0)
+    for coef in pts:
+        snaps = simulate(p0, coef, g, s.interval, s.substeps, s.upwind_smoothing)
+        assert snaps.min() >= 0.0
+        assert np.max(np.abs(snaps.sum(axis=(1, 2)) * g.cell_area - 1.0)) <= 1e-10
+
+
+def test_cfl_rule_is_needed():
+    # with the l1 rule's sub-step count (fewer) the same boundary controls go negative somewhere
+    s = PlannerSettings(**S)
+    l1 = PlannerSettings(**{**S, "speed_limit": "l1"})
+    assert s.substeps > l1.substeps
+    g = Grid(s.domain, s.nx, s.ny)
+    p0 = np.zeros(g.shape)
+    p0[5, 5] = 1.0
+    p0 = g.normalize(p0)
+    c = np.zeros((s.n_intervals, 2, 3, 3))
+    c[:, 0, 0, 0] = 1.0
+    basis = FaceBasis(g, 3, 3)
+    c *= s.face_speed_bound / face_speeds(basis, c).max()
+    c[:, 1] = c[:, 0]
+    ok = simulate(p0, c, g, s.interval, s.substeps, s.upwind_smoothing)
+    bad = simulate(p0, c, g, s.interval, max(1, s.substeps // 3), s.upwind_smoothing)
+    assert ok.min() >= 0.0
+    assert bad.min() < 0.0
+
+
+def test_planner_solution_is_feasible_and_recorded_in_meta():
+    from swarmfield.ocp import ReferencePlanner
+    s = PlannerSettings(**S)
+    pl = ReferencePlanner(s)
+    g = pl.grid
+    X, Y = np.meshgrid(g.xc, g.yc, indexing="ij")
+    plan = pl.solve(np.exp(-((X - 3) ** 2 + (Y - 3) ** 2) / 4), np.exp(-((X - 15) ** 2 + (Y - 15) ** 2) / 20))
+    assert plan.meta["settings"]["speed_limit"] == "face"
+    assert max(plan.meta["face_speed_max"]) <= s.face_speed_bound * (1 + 1e-6)
+    assert max(plan.meta["face_speed_max"]) > 0.9 * s.face_speed_bound      # the limit is used
+    xs = np.linspace(0.0, 20.0, 4 * s.nx + 1)
+    assert max(np.hypot(*velocity_on_grid(c, s.domain, xs, xs)).max() for c in plan.coef) <= s.v_max * (1 + 1e-6)
+    assert plan.p.min() >= 0.0
