@@ -280,6 +280,17 @@ class OutputFolder:
         _commit(lambda: self._roll_forward(plan))
         return files
 
+    def write_and_publish(self, write, *, complete: bool = True) -> list:
+        """Stage, ``write(stage)`` (returns the names it wrote) and publish those as one unit; returns
+        the names.  On any failure or interrupt the stage is removed and the exception propagates, so
+        the folder keeps its previous outputs (publication itself removes the stage on success)."""
+        stage = self.stage()
+        try:
+            return self.publish(stage, write(stage), complete=complete)
+        except BaseException:
+            self.discard(stage)
+            raise
+
     def _roll_forward(self, plan: dict) -> None:
         stage = self.path / plan["stage"]
         for name in plan["remove"]:

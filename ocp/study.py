@@ -179,11 +179,11 @@ def _run(args, folder: OutputFolder) -> int:
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted after {len(rows)} of {len(todo)} cases; no table written", file=sys.stderr)
         return 130
-    stage = None
-    try:
-        stage = folder.stage()
+    def write(stage):
         write_outputs(rows, stage)
-        folder.publish(stage, OUTPUTS)
+        return OUTPUTS
+    try:
+        folder.write_and_publish(write)
     except InterruptedAfterPublish:
         print(f"{PROG}: interrupted after the study was written to {args.out}", file=sys.stderr)
         return 130
@@ -194,9 +194,6 @@ def _run(args, folder: OutputFolder) -> int:
         print(f"{PROG}: error: cannot write the study to {args.out}: {getattr(exc, 'strerror', None) or exc}; "
               "its previous study is unchanged", file=sys.stderr)
         return 1
-    finally:
-        if stage is not None:
-            folder.discard(stage)
     print(f"wrote {args.out / 'study.csv'}, {args.out / 'study.md'}, {args.out / 'study.png'}")
     return 0
 

@@ -199,26 +199,19 @@ def _sweep_and_publish(args, prog, tasks, folder, InterruptedAfterPublish) -> in
     except RuntimeError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return 1
-    stage = None
     try:
-        stage = folder.stage()
-        paths = write_sweep_outputs(rows, stage)
-        folder.publish(stage, [p.name for p in paths])
+        names = folder.write_and_publish(lambda stage: [p.name for p in write_sweep_outputs(rows, stage)])
     except InterruptedAfterPublish:
         print(f"{prog}: interrupted after the study was published in {args.out}", file=sys.stderr)
         return 130
     except KeyboardInterrupt:
-        if stage is not None:
-            folder.discard(stage)
         print(f"{prog}: interrupted while writing; {args.out} keeps its previous study (the runs are stored in "
               f"{args.out / 'runs'}: the same command writes it again)", file=sys.stderr)
         return 130
     except (OSError, ValueError) as exc:
-        if stage is not None:
-            folder.discard(stage)
         print(f"{prog}: error: cannot write the study to {args.out}: {getattr(exc, 'strerror', None) or exc}",
               file=sys.stderr)
         return 1
     failed = sum(1 for r in rows if r.get("error"))
-    print(f"wrote {', '.join(str(args.out / p.name) for p in paths)} ({len(rows)} runs, {failed} failed)")
+    print(f"wrote {', '.join(str(args.out / n) for n in names)} ({len(rows)} runs, {failed} failed)")
     return 0

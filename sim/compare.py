@@ -298,26 +298,25 @@ def _sweep_and_publish(args, argv, tasks, gamma, times, folder) -> int:
     runs = list(zip(tasks, results))
     table = summary_table(runs, gamma, times)
     cmd = " ".join([PROG] + [str(a) for a in (sys.argv[1:] if argv is None else argv)])
-    stage = None
-    try:
-        stage = folder.stage()
+    plots = []
+
+    def write(stage):
         write_csv([r for rows in results for r in rows], stage / "runs.csv")
         write_atomic(stage / "summary.md", f"Command: `{cmd}`\n\nMedian [min–max] over seeds {args.seeds}; runs of "
                      f"{args.max_periods} T = {args.max_periods * tasks[0]['config']['sim']['period']:g} s.\n\n{table}")
-        plots = [] if args.no_plots else write_plots(runs, stage / "plots", gamma)
-        folder.publish(stage, ["runs.csv", "summary.md"] + [f"plots/{p}" for p in plots])
+        if not args.no_plots:
+            plots.extend(write_plots(runs, stage / "plots", gamma))
+        return ["runs.csv", "summary.md"] + [f"plots/{p}" for p in plots]
+    try:
+        folder.write_and_publish(write)
     except InterruptedAfterPublish:
         print(f"{PROG}: interrupted after the outputs were published in {out}", file=sys.stderr)
         return 130
     except KeyboardInterrupt:
-        if stage is not None:
-            folder.discard(stage)
         print(f"{PROG}: interrupted while writing the outputs; {out} keeps its previous outputs (the runs are "
               f"stored in {out / 'runs'}: the same command writes them again)", file=sys.stderr)
         return 130
     except (OSError, ValueError) as exc:
-        if stage is not None:
-            folder.discard(stage)
         print(f"{PROG}: error: cannot write the outputs ({getattr(exc, 'strerror', None) or exc}); {out} keeps its "
               f"previous outputs, the runs are stored in {out / 'runs'}", file=sys.stderr)
         return 1
