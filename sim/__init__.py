@@ -12,14 +12,16 @@
 * :mod:`sim.cli`      -- the ``simulate-swarm`` command
 
     from swarmfield.sim import RunConfig, run_simulation
-    result = run_simulation(RunConfig.default())
+    result = run_simulation(RunConfig.default())            # the paper's configuration
+    result = run_simulation(RunConfig.from_preset("tuned"))  # beyond the paper (README)
 """
 from .config import KDESettings, RunConfig, SimSettings, config_from_dict, load_config, to_toml
+from .presets import PRESETS
 from .dynamics import advance, euler_maruyama_step, measure, reflect
 from .fields import FIELDS, make_field
 from .controllers import CONTROLLERS, Context, Controller, register
 from .loop import SimulationResult, run_simulation
 
-__all__ = ["SimSettings", "KDESettings", "RunConfig", "config_from_dict", "load_config", "to_toml",
+__all__ = ["SimSettings", "KDESettings", "RunConfig", "PRESETS", "config_from_dict", "load_config", "to_toml",
            "reflect", "euler_maruyama_step", "advance", "measure", "FIELDS", "make_field",
            "SimulationResult", "run_simulation", "Controller", "Context", "CONTROLLERS", "register"]

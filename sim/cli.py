@@ -27,9 +27,17 @@ def _controller_names():
     return list(CONTROLLERS)
 
 
+def _preset_names():
+    from .presets import PRESETS
+    return list(PRESETS)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0])
     p.add_argument("--config", type=Path, help="TOML file with [sim], [gp], [kde], [feedback], [planner] tables")
+    p.add_argument("--preset", choices=_preset_names(),
+                   help="paper: the paper's configuration (default); tuned: the measured best configuration "
+                        "beyond the paper (README, 'Beyond the paper'). Laid under --config and the flags")
     p.add_argument("--out", type=Path, default=Path("run"), help="output folder")
     p.add_argument("--seed", type=int, help="random seed (default 0)")
     p.add_argument("--robots", type=int, help="number of robots (default 100)")
@@ -74,7 +82,9 @@ def resolve(args):
     if args.config is not None:
         check_path(args.config, "config file")
     try:
-        config = load_config(args.config, overrides) if args.config is not None else config_from_dict({}, overrides)
+        preset = getattr(args, "preset", None)
+        config = load_config(args.config, overrides, preset) if args.config is not None else \
+            config_from_dict({}, overrides, preset)
         field = make_field(config.sim.field, config.sim.domain)
         check_config(config)
     except ValueError as exc:

@@ -34,9 +34,9 @@ from ..ocp.cliargs import OneLineParser, UsageError as InputError, cli_main, che
 from ..ocp.publish import InterruptedAfterPublish, OutputFolder
 
 PROG = "compare-controllers"
-ROW_COLUMNS = ("controller", "field", "seed", "robot_loss", "robots", "step", "t", "t_T", "max_variance", "rmse",
+ROW_COLUMNS = ("preset", "controller", "field", "seed", "robot_loss", "robots", "step", "t", "t_T", "max_variance", "rmse",
                "alive", "path_length", "energy", "n_observations", "stop_reason")
-KEYS = ("field", "robots", "robot_loss", "controller")
+KEYS = ("field", "robots", "robot_loss", "preset", "controller")
 
 
 # ------------------------------------------------------------------------------ one run
@@ -48,7 +48,7 @@ def run_task(task: dict) -> list[dict]:
     cfg = config_from_dict(task["config"])
     res = run_simulation(cfg)
     T = cfg.sim.period
-    label = {k: task[k] for k in ("controller", "field", "seed", "robot_loss", "robots")}
+    label = {k: task[k] for k in ("preset", "controller", "field", "seed", "robot_loss", "robots")}
     return [{**label, "step": r["step"], "t": r["t"], "t_T": r["t"] / T, "max_variance": r["max_variance"],
              "rmse": r["rmse"], "alive": r["alive"], "path_length": r["path_length"], "energy": r["energy"],
              "n_observations": r["n_observations"], "stop_reason": res.stop_reason} for r in res.rows]
@@ -60,11 +60,19 @@ def _field_label(field: str) -> str:
 
 
 def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, loss_time=None, start_box=None,
-               max_periods=4) -> list[dict]:
-    """The sweep's task dicts: every combination, each with its fully resolved configuration."""
+               max_periods=4, presets=None) -> list[dict]:
+    """The sweep's task dicts: every combination, each with its fully resolved configuration.
+
+    ``base_doc`` is a configuration document as written in a TOML file (only the values the user
+    gives); each of ``presets`` (:mod:`sim.presets`; default: the document's own ``preset`` key, else
+    ``paper``) is laid under it, so the baselines of a preset share its GP and stopping settings."""
     from .config import config_from_dict
     from .fields import FIELDS
+    from .presets import DEFAULT_PRESET
 
+    if presets is None:
+        presets = [base_doc.get("preset", DEFAULT_PRESET)]
+    base_doc = {k: v for k, v in base_doc.items() if k != "preset"}
     tasks = []
     for field in fields:
         fsig = field
@@ -76,7 +84,7 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
             field = str(path)
         for n in robots:
             for loss in losses:
-                for ctrl in controllers:
+                for preset, ctrl in [(p, c) for p in presets for c in controllers]:
                     for seed in seeds:
                         sim = dict(base_doc.get("sim", {}))
                         sim.update(controller=ctrl, field=field, seed=int(seed), robots=int(n), robot_loss=float(loss),
@@ -86,8 +94,8 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
                         if start_box is not None:
                             sim["start_box"] = list(start_box)
                         doc = {**base_doc, "sim": sim}
-                        cfg = config_from_dict(doc)          # validates every combination up front
-                        tasks.append({"controller": ctrl, "field": _field_label(field), "field_source": fsig,
+                        cfg = config_from_dict(doc, preset=preset)   # validates every combination up front
+                        tasks.append({"preset": preset, "controller": ctrl, "field": _field_label(field), "field_source": fsig,
                                       "seed": int(seed), "robot_loss": float(loss), "robots": int(n),
                                       "config": cfg.as_dict()})
     return tasks
@@ -138,13 +146,13 @@ def _stat(vals, fmt="{:.3f}"):
 
 def summary_table(runs, gamma: float, times) -> str:
     """Markdown table (deterministic: sorted keys, formatted numbers) of ``runs = [(task, rows), ...]``."""
-    head = ["field", "robots", "loss", "controller", f"sup V ≤ {gamma:g} at [T]"] + \
+    head = ["field", "robots", "loss", "preset", "controller", f"sup V ≤ {gamma:g} at [T]"] + \
         [f"RMSE at {t:g}T" for t in times] + ["path length [m]", "energy [m²/s]"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     order = {}
     for task, _ in runs:
-        order.setdefault(task["controller"], len(order))
-    for key in sorted(_group(runs), key=lambda k: (k[0], k[1], k[2], order[k[3]])):
+        order.setdefault((task["preset"], task["controller"]), len(order))
+    for key in sorted(_group(runs), key=lambda k: (k[0], k[1], k[2], order[k[3], k[4]])):
         grp = _group(runs)[key]
         ttt, reached = [], 0
         for _, rows in grp:
@@ -154,7 +162,7 @@ def summary_table(runs, gamma: float, times) -> str:
         tcell = _stat([x for x in ttt if x is not None], "{:.2f}")
         if reached < len(grp):
             tcell += f" ({len(grp) - reached}/{len(grp)} never)"
-        cells = [key[0], str(key[1]), f"{100 * key[2]:.0f} %", key[3], tcell]
+        cells = [key[0], str(key[1]), f"{100 * key[2]:.0f} %", key[3], key[4], tcell]
         for t in times:
             cells.append(_stat([(_value_at(rows, t) or {}).get("rmse") for _, rows in grp]))
         cells.append(_stat([rows[-1]["path_length"] for _, rows in grp], "{:.1f}"))
@@ -176,9 +184,11 @@ def write_plots(runs, out: Path, gamma: float) -> list[str]:
     out.mkdir(parents=True, exist_ok=True)
     written = []
     by_scenario = {}
+    several = len({task["preset"] for task, _ in runs}) > 1
     for task, rows in runs:
+        label = f"{task['controller']} ({task['preset']})" if several else task["controller"]
         by_scenario.setdefault((task["field"], task["robots"], task["robot_loss"]), {}) \
-            .setdefault(task["controller"], []).append(rows)
+            .setdefault(label, []).append(rows)
     for (field, n, loss), ctrls in sorted(by_scenario.items()):
         fig, axes = plt.subplots(1, 2, figsize=(11, 4))
         for ci, (ctrl, runs_c) in enumerate(ctrls.items()):
@@ -207,6 +217,11 @@ def write_plots(runs, out: Path, gamma: float) -> list[str]:
 
 
 # ------------------------------------------------------------------------------ CLI
+def _preset_names():
+    from .presets import PRESETS
+    return list(PRESETS)
+
+
 def build_parser():
     from .controllers import CONTROLLERS
 
@@ -224,6 +239,9 @@ def build_parser():
     p.add_argument("--times", nargs="+", type=float, default=None, metavar="K",
                    help="RMSE columns at these multiples of T (default 1 2 and --max-periods)")
     p.add_argument("--config", type=Path, help="TOML base configuration ([sim], [gp], ...)")
+    p.add_argument("--presets", nargs="+", choices=_preset_names(), default=None, metavar="PRESET",
+                   help="presets laid under --config, one sweep axis: paper (default) and/or tuned; every "
+                        "controller runs with each preset's GP and stopping settings")
     p.add_argument("--out", type=Path, default=Path("compare"), help="output folder (reused: finished runs are skipped)")
     p.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
     p.add_argument("--scheduler", help="Dask scheduler address (tcp://host:8786): run the sweep on that cluster")
@@ -234,7 +252,7 @@ def build_parser():
 
 def run(argv=None) -> int:
     args = build_parser().parse_args(argv)
-    from .config import load_config
+    from .config import load_config, read_toml
     from .controllers import CONTROLLERS
 
     for name in args.controllers:
@@ -245,17 +263,14 @@ def run(argv=None) -> int:
     if args.workers is not None and args.workers < 1:
         raise InputError("--workers must be >= 1")
     try:
+        # the file as written (values the user gave), validated; presets are laid under it per task
         base = load_config(args.config) if args.config else None
-        base_doc = base.as_dict() if base else {}
+        base_doc = read_toml(args.config) if args.config else {}
         gamma = base.sim.gamma if base else 0.1
-        if base_doc:       # derived entries follow [sim] again (domain, horizon, noise)
-            base_doc["planner"].pop("domain", None)
-            if base_doc["planner"].get("horizon") == base.sim.period:
-                base_doc["planner"].pop("horizon")
-            base_doc["gp"].pop("noise_variance", None)
         robots = args.robots or [base.sim.robots if base else 100]
         tasks = make_tasks(base_doc, args.controllers, args.fields, args.seeds, args.robot_loss, robots,
-                           loss_time=args.loss_time, start_box=args.start_box, max_periods=args.max_periods)
+                           loss_time=args.loss_time, start_box=args.start_box, max_periods=args.max_periods,
+                           presets=args.presets)
     except ValueError as exc:
         raise InputError(str(exc)) from None
     if gamma <= 0:

@@ -2,8 +2,10 @@
 
 A run is fully described by a :class:`RunConfig`: the simulation settings (:class:`SimSettings`),
 the GP (``regression.GPSettings``), the KDE (:class:`KDESettings`), the feedback law
-(``control.FeedbackSettings``) and the planner (``ocp.PlannerSettings``).  In TOML::
+(``control.FeedbackSettings``) and the planner (``ocp.PlannerSettings``), laid over a named preset
+(:mod:`sim.presets`: ``paper``, the default, or ``tuned``).  In TOML::
 
+    preset = "tuned"   (optional top-level key; --preset on the command line wins)
     [sim]        robots, domain, start_box, dt, period, gamma, eta, noise_variance,
                  max_periods, field, seed, substeps
     [gp]         signal_variance, length_scale, noise_variance, prior_mean, ...
@@ -51,8 +53,10 @@ from ..checks import MAX_MAGNITUDE
 from ..control import FeedbackSettings
 from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict
 from ..regression import GPSettings
+from .presets import DEFAULT_PRESET, PRESETS, merge_under_preset
 
-__all__ = ["SimSettings", "KDESettings", "RunConfig", "load_config", "config_from_dict", "to_toml", "SECTIONS"]
+__all__ = ["SimSettings", "KDESettings", "RunConfig", "load_config", "read_toml", "config_from_dict", "to_toml",
+           "SECTIONS"]
 
 SECTIONS = ("sim", "gp", "kde", "feedback", "planner")
 
@@ -269,8 +273,12 @@ class RunConfig:
     kde: KDESettings = field(default_factory=KDESettings)
     feedback: FeedbackSettings = field(default_factory=FeedbackSettings)
     planner: PlannerSettings = field(default_factory=PlannerSettings)
+    #: name of the preset (:mod:`sim.presets`) the settings were laid over; recorded, not applied here
+    preset: str = DEFAULT_PRESET
 
     def __post_init__(self):
+        if self.preset not in PRESETS:
+            raise ValueError(f"unknown preset {self.preset!r}; known: {', '.join(PRESETS)}")
         s, p = self.sim, self.planner
         if tuple(p.domain) != tuple(s.domain):
             raise ValueError(f"planner.domain {list(p.domain)} differs from sim.domain {list(s.domain)}; "
@@ -293,17 +301,22 @@ class RunConfig:
         """The paper scenario with this project's defaults."""
         return config_from_dict({})
 
+    @classmethod
+    def from_preset(cls, name: str = DEFAULT_PRESET, **sim_changes) -> "RunConfig":
+        """Preset ``name`` (``"paper"`` or ``"tuned"``, :mod:`sim.presets`) with some ``[sim]`` changes."""
+        return config_from_dict({}, sim_changes, preset=name)
+
     def replace(self, **sim_changes) -> "RunConfig":
         """A copy with some :class:`SimSettings` fields changed (planner domain/horizon, GP noise follow)."""
         return config_from_dict(_with_sim(self.as_dict(), sim_changes))
 
     def as_dict(self) -> dict:
-        """Plain nested dict of all settings (JSON/TOML friendly)."""
-        return {name: dataclasses.asdict(getattr(self, name)) for name in SECTIONS}
+        """Plain nested dict of all settings (JSON/TOML friendly), with the ``preset`` name."""
+        return {"preset": self.preset, **{name: dataclasses.asdict(getattr(self, name)) for name in SECTIONS}}
 
 
 def _with_sim(doc: dict, sim_changes: dict) -> dict:
-    doc = {k: dict(v) for k, v in doc.items()}
+    doc = {k: (dict(v) if isinstance(v, dict) else v) for k, v in doc.items()}
     old = doc.get("sim", {})
     new = {**old, **sim_changes}
     # derived entries follow the simulation settings they default to
@@ -317,20 +330,29 @@ def _with_sim(doc: dict, sim_changes: dict) -> dict:
     return doc
 
 
-def config_from_dict(doc: dict, overrides: dict | None = None) -> RunConfig:
+def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | None = None) -> RunConfig:
     """Build a :class:`RunConfig` from a TOML-like mapping; ``overrides`` replace ``[sim]`` entries.
 
-    Raises ``ValueError`` naming unknown tables/keys and bad values.
+    The document's tables are laid over a preset (:mod:`sim.presets`): ``preset`` if given, else
+    the document's top-level ``preset`` key, else ``"paper"``.  Raises ``ValueError`` naming
+    unknown tables/keys, an unknown preset and bad values.
     """
     if not isinstance(doc, dict):
         raise ValueError("configuration must be a table")
+    doc = dict(doc)
+    name = doc.pop("preset", DEFAULT_PRESET)
+    if preset is not None:
+        name = preset
+    if not isinstance(name, str) or name not in PRESETS:
+        raise ValueError(f"unknown preset {name!r}; known: {', '.join(PRESETS)}")
     unknown = sorted(set(doc) - set(SECTIONS))
     if unknown:
         raise ValueError(f"unknown table(s) {', '.join('[' + u + ']' for u in unknown)}; "
-                         f"known: {', '.join('[' + s + ']' for s in SECTIONS)}")
-    for name in SECTIONS:
-        if name in doc and not isinstance(doc[name], dict):
-            raise ValueError(f"[{name}] must be a table")
+                         f"known: {', '.join('[' + s + ']' for s in SECTIONS)} and the key preset")
+    for section in SECTIONS:
+        if section in doc and not isinstance(doc[section], dict):
+            raise ValueError(f"[{section}] must be a table")
+    doc = merge_under_preset(doc, name)
     sim_map = dict(doc.get("sim", {}))
     sim_map.update({k: v for k, v in (overrides or {}).items() if v is not None})
     sim = dataclass_from_dict(SimSettings, sim_map, "sim")
@@ -348,11 +370,12 @@ def config_from_dict(doc: dict, overrides: dict | None = None) -> RunConfig:
         except (TypeError, ValueError):
             raise ValueError(f"planner.domain must be [x0, x1, y0, y1], got {pl_map['domain']!r}") from None
     planner = dataclass_from_dict(PlannerSettings, pl_map, "planner")
-    return RunConfig(sim=sim, gp=gp, kde=kde, feedback=fb, planner=planner)
+    return RunConfig(sim=sim, gp=gp, kde=kde, feedback=fb, planner=planner, preset=name)
 
 
-def load_config(path, overrides: dict | None = None) -> RunConfig:
-    """Read a TOML file (see module docstring); ``ValueError`` with the file name on any problem."""
+def read_toml(path) -> dict:
+    """The document of a TOML configuration file, unvalidated; ``ValueError`` naming the file if it
+    cannot be read or parsed."""
     path = Path(path)
     try:
         with open(path, "rb") as fh:
@@ -367,8 +390,16 @@ def load_config(path, overrides: dict | None = None) -> RunConfig:
         raise ValueError(f"config file {path} is not valid TOML: not UTF-8 text") from None
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"config file {path} is not valid TOML: {exc}") from None
+    return doc
+
+
+def load_config(path, overrides: dict | None = None, preset: str | None = None) -> RunConfig:
+    """Read a TOML file (see module docstring); ``ValueError`` with the file name on any problem.
+
+    ``preset`` (if given) replaces the file's own top-level ``preset`` key."""
+    doc = read_toml(path)
     try:
-        return config_from_dict(doc, overrides)
+        return config_from_dict(doc, overrides, preset)
     except ValueError as exc:
         raise ValueError(f"config file {path}: {exc}") from None
 
@@ -415,7 +446,9 @@ def _toml_table(name: str, d: dict, lines: list):
 
 def to_toml(config: RunConfig) -> str:
     """The resolved configuration as TOML text (round-trips through :func:`load_config`)."""
-    lines = ["# simulate-swarm: resolved configuration of a run (repeat it with --config this-file)", ""]
+    lines = ["# simulate-swarm: resolved configuration of a run (repeat it with --config this-file)",
+             "# every value is spelled out, so later changes to the preset do not change this run", "",
+             f"preset = {_toml_value(config.preset)}", ""]
     d = config.as_dict()
     for name in SECTIONS:
         _toml_table(name, d[name], lines)

@@ -148,6 +148,7 @@ def summary_dict(result, files=(), extra: dict | None = None) -> dict:
     final = result.final
     summary = {
         "program": "simulate-swarm",
+        "preset": cfg.preset,
         "stop_reason": result.stop_reason,
         "error": result.error,
         "seed": s.seed,
