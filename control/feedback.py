@@ -57,20 +57,29 @@ class FeedbackSettings:
     p_floor : lower bound on p_hat in the denominator (> 0); the default 2.5e-4 is 1/10 of the
             uniform density on the paper's 20 x 20 domain.
     v_max : speed limit (> 0, ``math.inf`` for none); faster velocities are scaled to v_max.
+    stir_speed : speed u [m/s] of the density-preserving stirring flux J added to the numerator
+            (:mod:`control.stirring`; beyond the paper, issue 10); 0 (default) is the paper's law.
+    stir_cells : number k of stirring cells per axis (k and k + 1 alternate between periods).
     """
 
     alpha: float = 1.0
     sigma: float = 0.05
     p_floor: float = 2.5e-4
     v_max: float = 4.0
+    stir_speed: float = 0.0
+    stir_cells: int = 2
 
     def __post_init__(self):
-        for name in ("alpha", "sigma", "p_floor", "v_max"):
+        k = self.stir_cells
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer, float)) or k != int(k) or not 1 <= k <= 64:
+            raise ValueError(f"feedback.stir_cells must be an integer in [1, 64], got {k!r}")
+        object.__setattr__(self, "stir_cells", int(k))
+        for name in ("alpha", "sigma", "p_floor", "v_max", "stir_speed"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)):
                 raise ValueError(f"feedback.{name} must be a number, got {v!r}")
             object.__setattr__(self, name, float(v))
-        for name in ("alpha", "sigma", "p_floor"):
+        for name in ("alpha", "sigma", "p_floor", "stir_speed"):
             if getattr(self, name) > MAX_MAGNITUDE:
                 raise ValueError(f"feedback.{name} must be <= {MAX_MAGNITUDE:g}, got {getattr(self, name)}")
         if not (math.isfinite(self.alpha) and self.alpha > 0):
@@ -79,6 +88,8 @@ class FeedbackSettings:
             raise ValueError(f"feedback.sigma must be finite and >= 0, got {self.sigma}")
         if not (math.isfinite(self.p_floor) and self.p_floor > 0):
             raise ValueError(f"feedback.p_floor must be finite and > 0, got {self.p_floor}")
+        if not (math.isfinite(self.stir_speed) and self.stir_speed >= 0):
+            raise ValueError(f"feedback.stir_speed must be finite and >= 0, got {self.stir_speed}")
         if not (self.v_max > 0) or math.isnan(self.v_max):
             raise ValueError(f"feedback.v_max must be > 0 (inf allowed), got {self.v_max}")
 
@@ -116,12 +127,15 @@ def saturate(v: np.ndarray, v_max: float) -> np.ndarray:
     return v
 
 
-def feedback_velocity(p_hat, grad_p_hat, p_r, grad_p_r, v_r, settings: FeedbackSettings) -> np.ndarray:
+def feedback_velocity(p_hat, grad_p_hat, p_r, grad_p_r, v_r, settings: FeedbackSettings,
+                      flux=None) -> np.ndarray:
     """Velocity of eq. "density feedback law using estimation" at m points, then saturated.
 
-        v = ( -alpha (grad p_hat - grad p_r) + sigma grad p_hat + v_r p_r ) / max(p_hat, p_floor)
+        v = ( -alpha (grad p_hat - grad p_r) + sigma grad p_hat + v_r p_r [+ J] ) / max(p_hat, p_floor)
 
     Shapes: p_hat (m,), grad_p_hat (m, 2), p_r (m,), grad_p_r (m, 2), v_r (m, 2) -> v (m, 2).
+    ``flux`` (m, 2): an optional divergence-free flux J (:mod:`control.stirring`) added to the
+    numerator; it leaves the closed-loop density equation unchanged.
     Densities must be finite and >= 0; every mismatch or bad value raises ``ValueError``.
     """
     if not isinstance(settings, FeedbackSettings):
@@ -138,17 +152,21 @@ def feedback_velocity(p_hat, grad_p_hat, p_r, grad_p_r, v_r, settings: FeedbackS
         raise ValueError(f"p_r has negative values (min {p_r.min():.3g}); a reference density must be >= 0")
     s = settings
     num = -s.alpha * (grad_p_hat - grad_p_r) + s.sigma * grad_p_hat + v_r * p_r[:, None]
+    if flux is not None:
+        num = num + _field(flux, "flux", m)
     v = num / np.maximum(p_hat, s.p_floor)[:, None]
     return saturate(v, s.v_max)
 
 
-def tracking_velocity(X, plan, t: float, est, settings: FeedbackSettings) -> np.ndarray:
+def tracking_velocity(X, plan, t: float, est, settings: FeedbackSettings, stir_pattern=None) -> np.ndarray:
     """Feedback velocity for robots at X (n, 2) at time t, from a plan and a density estimate.
 
     Evaluates p_r, grad p_r (``plan.density_and_gradient``), v_r (``plan.velocity``) of eq.
     "reference model" and p_hat, grad p_hat (``est.evaluate``, eq. "KDE") at the robots, then
     :func:`feedback_velocity`.  ``plan`` is an :class:`ocp.plan.ReferencePlan`; ``est`` a
-    :class:`control.kde.DensityEstimate` on the same domain.
+    :class:`control.kde.DensityEstimate` on the same domain.  With ``settings.stir_speed > 0`` the
+    stirring flux of :mod:`control.stirring` with ``stir_pattern = (k, sense)`` (default
+    ``(settings.stir_cells, 1)``) is added.
     """
     X = np.asarray(X, dtype=float)
     if X.ndim != 2 or X.shape[1] != 2:
@@ -164,4 +182,9 @@ def tracking_velocity(X, plan, t: float, est, settings: FeedbackSettings) -> np.
     p_hat, grad_p_hat = est.evaluate(X)          # also rejects robots outside the domain
     p_r, grad_p_r = plan.density_and_gradient(t, X)
     v_r = plan.velocity(t, X)
-    return feedback_velocity(p_hat, grad_p_hat, p_r, grad_p_r, v_r, settings)
+    flux = None
+    if settings.stir_speed > 0:
+        from .stirring import stirring_flux
+        k, sense = stir_pattern if stir_pattern is not None else (settings.stir_cells, 1.0)
+        flux = stirring_flux(X, p_r, grad_p_r, plan_dom, settings.stir_speed, k, sense)
+    return feedback_velocity(p_hat, grad_p_hat, p_r, grad_p_r, v_r, settings, flux)

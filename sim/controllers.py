@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..control import feedback_velocity, saturate, tracking_velocity
+from ..control.stirring import stirring_pattern
 
 __all__ = ["Context", "Controller", "FeedbackController", "OpenLoopController", "DiffusionController",
            "CoverageController", "GreedyController", "LawnmowerController", "CONTROLLERS", "register",
@@ -101,17 +102,22 @@ class FeedbackController(Controller):
         super().__init__(config)
         self.v_max = float(config.feedback.v_max)
         self.plan = self.estimate = None
+        self.periods = 0          # periods started: selects the stirring pattern (control.stirring)
+        self.stir = None
 
     def start_period(self, ctx):
         self.plan, self.estimate = ctx.plan, ctx.estimate
+        self.stir = stirring_pattern(self.periods, self.config.feedback.stir_cells)
+        self.periods += 1
 
     def velocity(self, t, X, alive):
+        fb = self.config.feedback
         if alive.all():
-            return tracking_velocity(X, self.plan, t, self.estimate(X), self.config.feedback)
+            return tracking_velocity(X, self.plan, t, self.estimate(X), fb, self.stir)
         v = np.zeros_like(X)
         Xa = X[alive]
         if len(Xa):     # the KDE sees only the robots that report
-            v[alive] = tracking_velocity(Xa, self.plan, t, self.estimate(Xa), self.config.feedback)
+            v[alive] = tracking_velocity(Xa, self.plan, t, self.estimate(Xa), fb, self.stir)
         return v
 
 
