@@ -159,6 +159,8 @@ class SimSettings:
     target          ``variance`` (paper): p_f = max(V - eta, 0) / int; ``reachable``: the same weighted by
                     R = p̂ convolved with a Gaussian of standard deviation planner.v_max * T / 2 (2 sd =
                     where the reference can get in one period), floored at 1e-3 max R (regression.reachable_target_density; issue 10)
+    reach           standard deviation [m] of that Gaussian for ``target = "reachable"``; None (default):
+                    planner.v_max * T / 2
     """
 
     robots: int = 100
@@ -183,6 +185,7 @@ class SimSettings:
     loss_time: float | None = None
     metrics_every: int = 1
     target: str = "variance"
+    reach: float | None = None
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -209,6 +212,8 @@ class SimSettings:
         set_("metrics_every", _integer("metrics_every", self.metrics_every, 1))
         if self.target not in ("variance", "reachable"):
             raise ValueError(f"sim.target must be 'variance' or 'reachable', got {self.target!r}")
+        if self.reach is not None:
+            set_("reach", _number("reach", self.reach, positive=True))
         if self.robot_loss > 1:
             raise ValueError(f"sim.robot_loss must be a fraction in [0, 1], got {self.robot_loss:g}")
         if not isinstance(self.field, str) or not self.field:

@@ -288,9 +288,8 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
                 res.stop_reason = "max_time"
                 break
             if s.target == "reachable":
-                p_f = reachable_target_density(var, s.eta, grid.cell_area, p_hat,
-                                               0.5 * config.planner.v_max * s.period,   # 2 sd = v_max T
-                                               grid.dx, grid.dy)
+                reach = 0.5 * config.planner.v_max * s.period if s.reach is None else s.reach   # 2 sd = v_max T
+                p_f = reachable_target_density(var, s.eta, grid.cell_area, p_hat, reach, grid.dx, grid.dy)
             else:
                 p_f = target_density(var, s.eta, grid.cell_area)
             if p_f is None and ctrl.needs_plan:     # nothing left to plan for (the baselines go on)

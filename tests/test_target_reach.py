@@ -68,3 +68,24 @@ def test_closed_loop_uses_the_reachable_target_and_default_is_the_paper_one():
             assert not np.allclose(snap.target, base)
     with pytest.raises(ValueError):
         small_config(target="nearby")
+
+
+def test_sim_reach_sets_the_kernel_width():
+    from test_sim import small_config
+    from swarmfield.sim.loop import run_simulation
+
+    targets = {}
+    for reach in (None, 1.0):
+        cfg = small_config(controller="lawnmower", max_periods=1, gamma=0.0, eta=0.0, target="reachable", reach=reach)
+        snap = run_simulation(cfg).snapshots[0]
+        default_reach = 0.5 * cfg.planner.v_max * cfg.sim.period
+        x0, x1, y0, y1 = cfg.sim.domain
+        dx, dy = (x1 - x0) / cfg.planner.nx, (y1 - y0) / cfg.planner.ny
+        expected = reachable_target_density(snap.var, 0.0, dx * dy, snap.p_hat,
+                                            default_reach if reach is None else reach, dx, dy)
+        np.testing.assert_allclose(snap.target, expected, rtol=1e-12)
+        targets[reach] = snap.target
+    assert not np.allclose(targets[None], targets[1.0])
+    for bad in (0.0, -2.0, "far"):
+        with pytest.raises(ValueError, match="reach"):
+            small_config(reach=bad)
