@@ -106,6 +106,9 @@ class ReferencePlanner:
         """
         if method not in METHODS:
             raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+        if method == "grg" and self.settings.speed_limit != "l1":
+            raise ValueError(f"method 'grg' projects onto the l1 speed limit only; planner.speed_limit is "
+                             f"{self.settings.speed_limit!r}: use method 'ipopt'")
         g, P, s = self.grid, self.problem, self.settings
         p0 = g.normalize(p0, "initial density")
         p0 = (1.0 - s.initial_floor) * p0 + s.initial_floor / g.area
@@ -117,6 +120,9 @@ class ReferencePlanner:
         # scale the initial guess into the admissible set, then start strictly interior
         bound = np.abs(coef0).reshape(P.N, -1).sum(axis=1)
         scale = np.minimum(1.0, 0.9 * s.v_max / np.maximum(bound, 1e-300))
+        if s.speed_limit == "norm":
+            norm = np.hypot(*np.abs(coef0).reshape(P.N, 2, -1).sum(axis=2).T)
+            scale = np.minimum(1.0, 0.9 * s.v_max / np.maximum(norm, 1e-300))
         if s.speed_limit == "face":
             from .speedlimit import face_bound, face_speeds
             fb = face_speeds(P.basis, coef0).max(axis=1)

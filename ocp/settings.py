@@ -133,7 +133,10 @@ class PlannerSettings:
     log_eps: float = 1e-12
     speed_limit_form: str = "split"
     #: "l1" (default, the paper's): sum |a| <= v_max per interval; "face": |v_x| <= b on every x-face and
-    #: |v_y| <= b on every y-face, b = v_max / (sqrt 2 * speed_limit_safety) (:mod:`ocp.speedlimit`, issue 10)
+    #: |v_y| <= b on every y-face, b = v_max / (sqrt 2 * speed_limit_safety) (:mod:`ocp.speedlimit`, issue 10);
+    #: "norm": (B_x, B_y) in a polygon inscribed in the disc of radius v_max, B_d = sum_ij |a[l, d, i, j]|
+    #: (6 linear rows per interval, ocp.problem.norm_polygon): sup |v| <= sqrt(sup|v_x|^2 + sup|v_y|^2)
+    #: <= sqrt(B_x^2 + B_y^2) <= v_max, with up to sqrt 2 more coefficient budget than "l1"
     speed_limit: str = "l1"
     speed_limit_safety: float = 1.0     # extra margin on top of kappa (PlannerSettings.face_speed_bound)
     ipopt: IpoptSettings = field(default_factory=IpoptSettings)
@@ -160,13 +163,13 @@ class PlannerSettings:
             raise ValueError(f"planner.cfl must be in (0, 1], got {self.cfl}")
         if self.speed_limit_form not in ("split", "slack"):
             raise ValueError(f"planner.speed_limit_form must be 'split' or 'slack', got {self.speed_limit_form!r}")
-        if self.speed_limit not in ("l1", "face"):
-            raise ValueError(f"planner.speed_limit must be 'l1' or 'face', got {self.speed_limit!r}")
+        if self.speed_limit not in ("l1", "face", "norm"):
+            raise ValueError(f"planner.speed_limit must be 'l1', 'face' or 'norm', got {self.speed_limit!r}")
         if not (isinstance(self.speed_limit_safety, (int, float)) and math.isfinite(self.speed_limit_safety)
                 and self.speed_limit_safety >= 1):
             raise ValueError(f"planner.speed_limit_safety must be a number >= 1, got {self.speed_limit_safety!r}")
-        if self.speed_limit == "face" and self.speed_limit_form != "split":
-            raise ValueError("planner.speed_limit = 'face' needs speed_limit_form = 'split'")
+        if self.speed_limit != "l1" and self.speed_limit_form != "split":
+            raise ValueError(f"planner.speed_limit = {self.speed_limit!r} needs speed_limit_form = 'split'")
         if self.transport not in TRANSPORTS:
             raise ValueError(f"planner.transport must be one of {', '.join(TRANSPORTS)}, got {self.transport!r}")
         if not isinstance(self.ipopt, IpoptSettings):
@@ -229,7 +232,9 @@ class PlannerSettings:
             dy = (self.domain[3] - self.domain[2]) / self.ny
             return self.interval * ((2.0 * b + self.upwind_smoothing) / dx
                                     + (2.0 * b + self.upwind_smoothing) / dy) / self.cfl
-        return self.interval * 2.0 * (self.v_max + self.upwind_smoothing) / (self._cell_width() * self.cfl)
+        # "norm": sup|v_x| + sup|v_y| <= B_x + B_y <= sqrt(2) v_max when B_x^2 + B_y^2 <= v_max^2
+        budget = math.sqrt(2.0) * self.v_max if self.speed_limit == "norm" else self.v_max
+        return self.interval * 2.0 * (budget + self.upwind_smoothing) / (self._cell_width() * self.cfl)
 
 
 def _positive(obj, *names):

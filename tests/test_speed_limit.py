@@ -114,3 +114,73 @@ def test_planner_solution_is_feasible_and_recorded_in_meta():
     xs = np.linspace(0.0, 20.0, 4 * s.nx + 1)
     assert max(np.hypot(*velocity_on_grid(c, s.domain, xs, xs)).max() for c in plan.coef) <= s.v_max * (1 + 1e-6)
     assert plan.p.min() >= 0.0
+
+
+# ---------------------------------------------------------------- speed_limit = "norm"
+N_S = dict(nx=12, ny=12, n_intervals=2, n_modes_x=3, n_modes_y=3, v_max=3.0, speed_limit="norm")
+
+
+def norm_boundary_points(s, rng, n=30):
+    """Random coefficients with B_x^2 + B_y^2 = v_max^2 exactly per interval (B_d = sum |a[d]|), some
+    with one component only, some concentrated in the lowest mode (largest |v| where both peak)."""
+    out = []
+    for k in range(n):
+        c = rng.standard_normal((s.n_intervals, 2, s.n_modes_x, s.n_modes_y))
+        if k % 3 == 0:
+            c[:, :, 1:, :] = 0.0
+            c[:, :, :, 1:] = 0.0                      # the (1, 1) mode alone: |sin sin| = 1 at the centre
+        if k % 4 == 1:
+            c[:, 1] = 0.0
+        B = np.abs(c).reshape(s.n_intervals, 2, -1).sum(axis=2)
+        out.append(c * (s.v_max / np.hypot(B[:, 0], B[:, 1]))[:, None, None, None])
+    return out
+
+
+def test_norm_limit_bounds_sup_speed_and_allows_more_than_l1():
+    s = PlannerSettings(**N_S)
+    xs = np.linspace(0.0, 20.0, 8 * s.nx + 1)
+    sups = [max(np.hypot(*velocity_on_grid(c, s.domain, xs, xs)).max() for c in coef)
+            for coef in norm_boundary_points(s, np.random.default_rng(3))]
+    assert max(sups) <= s.v_max * (1 + 1e-12)
+    assert max(sups) > 0.99 * s.v_max                   # attained: the bound is tight
+    # the l1 limit allows at most v_max / sqrt 2 = 2.12 m/s for a diagonal field of the (1, 1) mode
+    c = np.zeros((1, 2, 3, 3))
+    c[0, :, 0, 0] = s.v_max / math.sqrt(2.0)
+    assert np.abs(c).sum() > s.v_max                    # infeasible under l1, feasible under norm
+    assert np.hypot(*velocity_on_grid(c[0], s.domain, xs, xs)).max() == pytest.approx(s.v_max, rel=1e-6)
+
+
+def test_norm_limit_keeps_positivity_with_its_cfl_rule():
+    s = PlannerSettings(**N_S)
+    l1 = PlannerSettings(**{**N_S, "speed_limit": "l1"})
+    assert s.substeps > l1.substeps
+    g = Grid(s.domain, s.nx, s.ny)
+    p0 = np.zeros(g.shape)
+    p0[5, 5] = 1.0
+    p0 = g.normalize(p0)
+    for coef in norm_boundary_points(s, np.random.default_rng(5), n=12):
+        snaps = simulate(p0, coef, g, s.interval, s.substeps, s.upwind_smoothing)
+        assert snaps.min() >= 0.0
+        assert np.max(np.abs(snaps.sum(axis=(1, 2)) * g.cell_area - 1.0)) <= 1e-10
+
+
+def test_norm_planner_solution_is_feasible_and_faster_than_l1():
+    from swarmfield.ocp import ReferencePlanner
+    sups = {}
+    for limit in ("l1", "norm"):
+        s = PlannerSettings(**{**N_S, "speed_limit": limit})
+        pl = ReferencePlanner(s)
+        g = pl.grid
+        X, Y = np.meshgrid(g.xc, g.yc, indexing="ij")
+        plan = pl.solve(np.exp(-((X - 3) ** 2 + (Y - 3) ** 2) / 4), np.exp(-((X - 15) ** 2 + (Y - 15) ** 2) / 20))
+        assert plan.meta["settings"]["speed_limit"] == limit
+        B = np.abs(plan.coef).reshape(s.n_intervals, 2, -1).sum(axis=2)
+        if limit == "norm":
+            assert np.hypot(B[:, 0], B[:, 1]).max() <= s.v_max * (1 + 1e-6)
+            with pytest.raises(ValueError, match="grg"):
+                pl.solve(np.ones(g.shape), np.ones(g.shape), method="grg")
+        xs = np.linspace(0.0, 20.0, 4 * s.nx + 1)
+        sups[limit] = max(np.hypot(*velocity_on_grid(c, s.domain, xs, xs)).max() for c in plan.coef)
+        assert sups[limit] <= s.v_max * (1 + 1e-6)
+        assert plan.p.min() >= 0.0
+    assert sups["norm"] > sups["l1"]
