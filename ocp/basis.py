@@ -1,4 +1,4 @@
-"""Fourier sine velocity basis (paper, "Simulation studies").
+"""Velocity bases: the paper's Fourier sine basis and the sine-cosine basis (issue 10, item 3).
 
 On control interval l, velocity component d is
 
@@ -8,7 +8,25 @@ with b = x1 - x0, c = y1 - y0.  (The paper prints sin(i pi x1/b) twice; the seco
 sin(j pi x2/c).)  Every basis function vanishes on the walls, so v . n = 0 there and the
 reflecting boundary condition of eq. "reference model" holds by construction.
 
-The basis is separable, so on a tensor grid v = S_x A S_y^T with S_x[k, i] = sin(i pi xi_k):
+``basis = "sine-cosine"`` (beyond the paper) keeps the sine factor only in each component's
+*normal* direction and uses a cosine along the wall:
+
+    v_x = sum_ij a[l, 0, i-1, j-1] sin(i pi x~) cos((j-1) pi y~),
+    v_y = sum_ij a[l, 1, i-1, j-1] cos((i-1) pi x~) sin(j pi y~),     x~ = (x - x0)/b, y~ = (y - y0)/c.
+
+v . n still vanishes on every wall (v_x = 0 at x~ in {0, 1}, v_y = 0 at y~ in {0, 1}), so the
+reflecting boundary condition of eq. "reference model" holds by construction, but the tangential
+component does not: the reference can slide mass along a wall and into the corners, which the sine
+basis (both components zero on every wall, v = O(distance^2) near a corner) cannot.  ``coef``
+keeps its shape (N, 2, I, J); its meaning follows the plan's ``meta["basis"]`` (absent = "sine").
+Every basis function is still bounded by 1 in absolute value, so the speed bounds of
+:func:`speed_bound` and the CFL rule of ``PlannerSettings.substeps`` hold unchanged; the
+between-face factor of the face limit also holds (a cosine series of degree J - 1 sampled at the
+ny cell centres is an even trigonometric polynomial on 2 ny equispaced points of its period, so
+the Ehlich--Zeller factor sec(pi (J - 1) / 2 ny) <= sec(pi J / 2 ny) applies).
+
+The basis is separable, so on a tensor grid v_d = X_d A_d Y_d^T with X_d[k, i] the x-factor of
+component d at x_k (sine for d = x, cosine for d = y in the sine-cosine basis):
 O(I J (nx + ny) + nx ny min(I, J)) per component instead of a dense (nx ny) x (I J) product.
 """
 from __future__ import annotations
@@ -35,35 +53,90 @@ def _sine_rows(xi: np.ndarray, n_modes: int) -> np.ndarray:
     return R
 
 
+def _cosine_rows(xi: np.ndarray, n_modes: int) -> np.ndarray:
+    """R[i-1, k] = cos((i-1) pi xi_k), i = 1..n_modes (mode 0 is the constant 1), by the same
+    three-term recurrence as :func:`_sine_rows`."""
+    u = np.pi * xi
+    R = np.empty((n_modes, xi.size))
+    R[0] = 1.0
+    if n_modes > 1:
+        R[1] = np.cos(u)
+        c2 = 2.0 * R[1]
+        for i in range(2, n_modes):
+            R[i] = c2 * R[i - 1] - R[i - 2]
+    return R
+
+
+#: the velocity bases; a plan without ``meta["basis"]`` is "sine"
+BASES = ("sine", "sine-cosine")
+
+
+def check_basis(basis) -> str:
+    """``basis`` if it names a known basis, else ``ValueError`` listing them."""
+    if not isinstance(basis, str) or basis not in BASES:
+        raise ValueError(f"unknown velocity basis {basis!r}; known: {', '.join(BASES)}")
+    return basis
+
+
+def _rows(kind: str, xi: np.ndarray, n_modes: int) -> np.ndarray:
+    return _sine_rows(xi, n_modes) if kind == "sin" else _cosine_rows(xi, n_modes)
+
+
+def _factors(basis: str):
+    """Kinds of the (x-factor, y-factor) of v_x and of v_y: normal direction sine, tangential
+    direction sine ("sine") or cosine ("sine-cosine")."""
+    tangential = "sin" if check_basis(basis) == "sine" else "cos"
+    return (("sin", tangential), (tangential, "sin"))
+
+
 def sine_matrix(s: np.ndarray, n_modes: int, length: float, start: float = 0.0) -> np.ndarray:
     """S[k, i-1] = sin(i pi (s_k - start) / length), i = 1..n_modes; exactly 0 on the two walls."""
     xi = (np.asarray(s, dtype=float).reshape(-1) - start) / length
     return _sine_rows(xi, n_modes).T
 
 
-def velocity_at(coef: np.ndarray, domain, points: np.ndarray) -> np.ndarray:
+def cosine_matrix(s: np.ndarray, n_modes: int, length: float, start: float = 0.0) -> np.ndarray:
+    """C[k, i-1] = cos((i-1) pi (s_k - start) / length), i = 1..n_modes."""
+    xi = (np.asarray(s, dtype=float).reshape(-1) - start) / length
+    return _cosine_rows(xi, n_modes).T
+
+
+def factor_matrix(kind: str, s: np.ndarray, n_modes: int, length: float, start: float = 0.0) -> np.ndarray:
+    """:func:`sine_matrix` (``kind = "sin"``) or :func:`cosine_matrix` (``"cos"``)."""
+    return sine_matrix(s, n_modes, length, start) if kind == "sin" else cosine_matrix(s, n_modes, length, start)
+
+
+def velocity_at(coef: np.ndarray, domain, points: np.ndarray, basis: str = "sine") -> np.ndarray:
     """Velocity (n, 2) at arbitrary points from one interval's coefficients ``coef`` (2, I, J)."""
     coef = np.asarray(coef, dtype=float)
     x0, x1, y0, y1 = domain
     pts = np.asarray(points, dtype=float).reshape(-1, 2).T                      # (2, n), contiguous rows
-    rx = _sine_rows(np.clip((pts[0] - x0) / (x1 - x0), 0.0, 1.0), coef.shape[1])   # (I, n)
-    ry = _sine_rows(np.clip((pts[1] - y0) / (y1 - y0), 0.0, 1.0), coef.shape[2])   # (J, n)
-    # v_d[n] = sum_i Sx[n,i] (sum_j a[d,i,j] Sy[n,j])
-    W = (coef.reshape(-1, coef.shape[2]) @ ry).reshape(2, coef.shape[1], -1)       # (2, I, n)
-    return np.einsum("din,in->nd", W, rx)
+    xi = np.clip((pts[0] - x0) / (x1 - x0), 0.0, 1.0)
+    eta = np.clip((pts[1] - y0) / (y1 - y0), 0.0, 1.0)
+    out = np.empty((pts.shape[1], 2))
+    for d, (kx, ky) in enumerate(_factors(basis)):
+        rx = _rows(kx, xi, coef.shape[1])                                       # (I, n)
+        ry = _rows(ky, eta, coef.shape[2])                                      # (J, n)
+        # v_d[n] = sum_i X[n,i] (sum_j a[d,i,j] Y[n,j])
+        out[:, d] = np.einsum("in,in->n", coef[d] @ ry, rx)
+    return out
 
 
-def velocity_on_grid(coef: np.ndarray, domain, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Velocity (2, len(x), len(y)) on the tensor grid x by y: v_d = S_x a_d S_y^T."""
+def velocity_on_grid(coef: np.ndarray, domain, x: np.ndarray, y: np.ndarray, basis: str = "sine") -> np.ndarray:
+    """Velocity (2, len(x), len(y)) on the tensor grid x by y: v_d = X_d a_d Y_d^T."""
     coef = np.asarray(coef, dtype=float)
     x0, x1, y0, y1 = domain
-    Sx = sine_matrix(x, coef.shape[1], x1 - x0, x0)
-    Sy = sine_matrix(y, coef.shape[2], y1 - y0, y0)
-    return np.stack([Sx @ coef[d] @ Sy.T for d in range(2)])
+    out = []
+    for d, (kx, ky) in enumerate(_factors(basis)):
+        X = factor_matrix(kx, x, coef.shape[1], x1 - x0, x0)
+        Y = factor_matrix(ky, y, coef.shape[2], y1 - y0, y0)
+        out.append(X @ coef[d] @ Y.T)
+    return np.stack(out)
 
 
 def speed_bound(coef: np.ndarray) -> np.ndarray:
-    """Upper bound on sup|v| per interval: sum over d, i, j of |a| (each basis function is bounded by 1).
+    """Upper bound on sup|v| per interval: sum over d, i, j of |a| (each basis function of either
+    basis is bounded by 1).
 
     ``coef`` (N, 2, I, J) -> (N,).  Since |v| <= |v_x| + |v_y| <= sum |a|, this bound is what the
     planner constrains; it also bounds |v_x| + |v_y|, which is what the CFL condition needs.

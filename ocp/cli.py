@@ -44,6 +44,12 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--w-v", type=float, help="velocity weight (default 0.01)")
     g.add_argument("--v-max", type=float, help="speed limit: sum |a| per interval [m/s] (default 3)")
     g.add_argument("--target-floor", type=float, help="uniform fraction mixed into the target (default 0.05)")
+    g.add_argument("--basis", choices=["sine", "sine-cosine"],
+                   help="velocity basis: sine (the paper's, default) or sine-cosine (only the normal component "
+                        "vanishes on the walls)")
+    g.add_argument("--speed-limit", choices=["l1", "norm", "face"],
+                   help="l1: sum |a| <= v_max (the paper's, default); norm: (sum|a_x|, sum|a_y|) in the disc of "
+                        "radius v_max; face: pointwise face bounds (slow)")
     g.add_argument("--transport", choices=["auto", "compiled", "numpy", "casadi"],
                    help="transport kernel inside the NLP (default auto)")
     g.add_argument("--method", "--solver", dest="method", choices=["ipopt", "grg"], default="ipopt",
@@ -76,7 +82,8 @@ def resolve_settings(args) -> PlannerSettings:
         cfg = dict(cfg)
     flags = {"nx": args.nx, "ny": args.ny, "n_intervals": args.intervals, "horizon": args.horizon,
              "w_f": args.w_f, "w_p": args.w_p, "w_v": args.w_v, "v_max": args.v_max,
-             "target_floor": args.target_floor, "transport": args.transport}
+             "target_floor": args.target_floor, "transport": args.transport,
+             "basis": getattr(args, "basis", None), "speed_limit": getattr(args, "speed_limit", None)}
     if args.modes is not None:
         flags["n_modes_x"], flags["n_modes_y"] = args.modes
     cfg.update({k: v for k, v in flags.items() if v is not None})

@@ -24,7 +24,7 @@ def plot_plan(plan: ReferencePlan, path, n_snapshots: int = 4, arrows: int = 12)
     for ax, t in zip(axes, times):
         im = ax.imshow(plan.density_grid(t).T, origin="lower", extent=g.domain, vmin=0, vmax=vmax, cmap="viridis")
         k = plan.interval_index(min(t, np.nextafter(plan.t_end, -np.inf)))
-        v = velocity_on_grid(plan.coef[k], g.domain, xa, ya)
+        v = velocity_on_grid(plan.coef[k], g.domain, xa, ya, plan.basis)
         XA, YA = np.meshgrid(xa, ya, indexing="ij")
         ax.quiver(XA, YA, v[0], v[1], color="w", angles="xy")
         ax.set_title(f"$p_r$, $v_r$ at t = {t:.2f} s")

@@ -9,14 +9,15 @@ key              shape            meaning
 ``t``            (K+1,)           times of the density snapshots, ``t[0]`` = plan start
 ``p``            (K+1, nx, ny)    reference density on cell centres, ``sum(p[k]) dx dy == 1``
 ``t_intervals``  (N+1,)           boundaries of the N control intervals
-``coef``         (N, 2, I, J)     sine coefficients of v_r on each interval (see :mod:`ocp.basis`)
+``coef``         (N, 2, I, J)     coefficients of v_r on each interval in the basis ``meta["basis"]``
+                                  ("sine", the paper's, when absent; or "sine-cosine"; :mod:`ocp.basis`)
 ``target``       (nx, ny)         the target density p_f used
 ``meta``         () str           JSON: settings, solver status, iterations, timings, costs, versions
 ===============  ===============  ==============================================================
 
 Evaluation: ``p_r`` is piecewise linear in time between snapshots and bilinear in space between
 cell centres (constant beyond the outermost centres, i.e. zero normal derivative at the walls);
-``v_r`` is the sine series of the interval containing ``t`` (piecewise constant in time).
+``v_r`` is the series (basis ``meta["basis"]``) of the interval containing ``t`` (piecewise constant in time).
 Outside ``[t[0], t[-1]]`` the plan is held: first/last density, zero velocity after the end.
 """
 from __future__ import annotations
@@ -29,7 +30,7 @@ import numpy as np
 
 from ..checks import points_array, real_scalar
 from .atomic import atomic_path
-from .basis import velocity_at
+from .basis import check_basis, velocity_at
 from .grid import Grid
 
 KEYS = ("domain", "t", "p", "t_intervals", "coef", "target", "meta")
@@ -57,7 +58,16 @@ class ReferencePlan:
         self._validate()
 
     # ------------------------------------------------------------------ validation
+    @property
+    def basis(self) -> str:
+        """The velocity basis of ``coef``: ``meta["basis"]``, "sine" for plans without the key."""
+        return self.meta.get("basis", "sine") if isinstance(self.meta, dict) else "sine"
+
     def _validate(self):
+        try:
+            check_basis(self.basis)
+        except ValueError as exc:
+            raise ValueError(f"plan: meta: {exc}") from None
         if self.domain.shape != (4,):
             raise ValueError(f"plan: domain must have shape (4,), got {self.domain.shape}")
         if self.p.ndim != 3 or self.p.shape[0] != self.t.shape[0]:
@@ -161,7 +171,7 @@ class ReferencePlan:
         k = self.interval_index(real_scalar(t, "time t"))
         if k is None:
             return np.zeros_like(pts)
-        return velocity_at(self.coef[k], tuple(self.domain), pts)
+        return velocity_at(self.coef[k], tuple(self.domain), pts, self.basis)
 
     # ------------------------------------------------------------------ I/O
     def save(self, path) -> Path:

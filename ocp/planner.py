@@ -84,6 +84,9 @@ class ReferencePlanner:
         prev = np.asarray(warm_start.coef)
         if prev.shape != shape:
             raise ValueError(f"warm-start plan has coefficients of shape {prev.shape}, this planner uses {shape}")
+        if warm_start.basis != self.settings.basis:
+            raise ValueError(f"warm-start plan uses the {warm_start.basis!r} velocity basis, this planner the "
+                             f"{self.settings.basis!r} one")
         if not np.allclose(warm_start.domain, self.grid.domain, rtol=0.0, atol=1e-12):
             raise ValueError(f"warm-start plan is for the domain {tuple(float(v) for v in warm_start.domain)}, "
                              f"this planner's is {self.grid.domain}")
@@ -148,11 +151,37 @@ class ReferencePlanner:
         if status == "Invalid_Option":
             raise PlannerError(f"IPOPT failed: {status} (is linear solver {s.ipopt.linear_solver!r} available? "
                                "the HSL solvers need ipopt.extra.hsllib)", _stats_summary(stats, wall))
-        if status not in SUCCESS or not np.all(np.isfinite(x)):
-            raise PlannerError(f"IPOPT failed: {status} after {stats.get('iter_count', '?')} iterations",
-                               _stats_summary(stats, wall))
+        summary = _stats_summary(stats, wall)
         coef = P.vector_to_coef(P.coefficients_from_solution(x))
-        return self._package(p0, q, target, t0, warm_start, coef, float(sol["f"]), _stats_summary(stats, wall))
+        objective = float(sol["f"])
+        if status not in SUCCESS or not np.all(np.isfinite(x)):
+            used = self._usable_iterate(coef, x0, p0, q) if s.accept_feasible_iterate else None
+            if used is None:
+                raise PlannerError(f"IPOPT failed: {status} after {stats.get('iter_count', '?')} iterations", summary)
+            coef, objective = used
+            summary["status"] = f"{status} (feasible iterate used)"
+        return self._package(p0, q, target, t0, warm_start, coef, objective, summary)
+
+    def _usable_iterate(self, coef, x0, p0, q):
+        """(coef, objective) of IPOPT's last iterate scaled per interval into the speed limit (a scaled
+        velocity stays admissible, the CFL rule included), if finite and better than the starting
+        point; else None (``PlannerSettings.accept_feasible_iterate``)."""
+        P, s = self.problem, self.settings
+        if not np.all(np.isfinite(coef)):
+            return None
+        sums = np.abs(coef).reshape(P.N, 2, -1).sum(axis=2)
+        if s.speed_limit == "face":
+            from .speedlimit import face_bound, face_speeds
+            ratio = face_speeds(P.basis, coef).max(axis=1) / face_bound(s)
+        elif s.speed_limit == "norm":
+            ratio = np.hypot(sums[:, 0], sums[:, 1]) / s.v_max
+        else:
+            ratio = sums.sum(axis=1) / s.v_max
+        coef = coef / np.maximum(ratio, 1.0)[:, None, None, None]
+        logq = np.log(q)
+        f = float(P.objective(P.coef_to_vector(coef), p0, q, logq))
+        f0 = float(P.objective(P.coefficients_from_solution(x0), p0, q, logq))
+        return (coef, f) if np.isfinite(f) and f < f0 else None
 
     def grg_solver(self):
         """The GRG baseline on this planner's problem (built on first use; :mod:`ocp.grg`)."""
@@ -170,6 +199,7 @@ class ReferencePlanner:
         kl_end = float(P.sym_kl(snapshots[-1], q, np.log(q)))
         meta = {
             "settings": to_dict(s),
+            "basis": s.basis,
             "substeps": P.n_sub,
             "transport": P.transport,
             "method": solver_summary.get("method", "ipopt"),

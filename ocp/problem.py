@@ -66,7 +66,7 @@ class TransportProblem:
         self.settings = s
         self.grid = Grid(s.domain, s.nx, s.ny)
         g = self.grid
-        self.basis = FaceBasis(g, s.n_modes_x, s.n_modes_y)
+        self.basis = FaceBasis(g, s.n_modes_x, s.n_modes_y, s.basis)
         self.N, self.I, self.J = s.n_intervals, s.n_modes_x, s.n_modes_y
         self.n_coef = self.N * 2 * self.I * self.J
         self.n_sub = s.substeps
@@ -284,7 +284,8 @@ class TransportProblem:
     def trajectory(self, p0: np.ndarray, coef: np.ndarray) -> np.ndarray:
         """Density at every sub-step (N n_sub + 1, nx, ny) under ``coef``, with this problem's kernel."""
         if self.kernel is None:
-            return simulate(p0, coef, self.grid, self.settings.interval, self.n_sub, self.settings.upwind_smoothing)
+            return simulate(p0, coef, self.grid, self.settings.interval, self.n_sub, self.settings.upwind_smoothing,
+                            self.settings.basis)
         VX, VY = self.face_velocities(coef)
         traj = self.kernel.forward(VX, VY, np.asarray(p0, dtype=float).ravel(order="F"))
         return traj.reshape(-1, self.grid.ny, self.grid.nx).transpose(0, 2, 1).copy()

@@ -9,6 +9,8 @@ import math
 import typing
 from dataclasses import dataclass, field
 
+from .basis import BASES
+
 
 #: IPOPT's linear solvers; the CasADi wheel ships MUMPS (and SPRAL on Linux x86_64); the HSL
 #: solvers need a separately supplied libhsl (``extra = {hsllib = "/path/libhsl.so"}``).
@@ -138,14 +140,23 @@ class PlannerSettings:
     #: (6 linear rows per interval, ocp.problem.norm_polygon): sup |v| <= sqrt(sup|v_x|^2 + sup|v_y|^2)
     #: <= sqrt(B_x^2 + B_y^2) <= v_max, with up to sqrt 2 more coefficient budget than "l1"
     speed_limit: str = "l1"
+    #: velocity basis (:mod:`ocp.basis`): "sine" (the paper's: both components vanish on every wall) or
+    #: "sine-cosine" (only the normal component vanishes; issue 10, item 3); recorded as the plan's meta["basis"]
+    basis: str = "sine"
     speed_limit_safety: float = 1.0     # extra margin on top of kappa (PlannerSettings.face_speed_bound)
     ipopt: IpoptSettings = field(default_factory=IpoptSettings)
     #: transport kernel inside the NLP (README "The planner", "Transport kernel"): "compiled" (C loop and
     #: hand-written adjoint, compiled with the system cc at first use), "numpy" (the same, vectorised),
     #: "casadi" (the MX graph, the reference), "auto" (compiled if a C compiler works, else casadi)
     transport: str = "auto"
+    #: when IPOPT stops at max_iter (or in restoration) with a *feasible* iterate whose objective is below
+    #: the starting point's, use that iterate instead of failing (status recorded with "feasible iterate
+    #: used"); off by default (the paper's behaviour: a failed solve is an error)
+    accept_feasible_iterate: bool = False
 
     def __post_init__(self):
+        if not isinstance(self.accept_feasible_iterate, bool):
+            raise ValueError(f"planner.accept_feasible_iterate must be true or false, got {self.accept_feasible_iterate!r}")
         object.__setattr__(self, "domain", check_domain(self.domain, "planner.domain"))
         _positive_int(self, "n_intervals", "n_modes_x", "n_modes_y")
         if self.nx < 3 or self.ny < 3:
@@ -163,6 +174,8 @@ class PlannerSettings:
             raise ValueError(f"planner.cfl must be in (0, 1], got {self.cfl}")
         if self.speed_limit_form not in ("split", "slack"):
             raise ValueError(f"planner.speed_limit_form must be 'split' or 'slack', got {self.speed_limit_form!r}")
+        if not isinstance(self.basis, str) or self.basis not in BASES:
+            raise ValueError(f"planner.basis must be one of {', '.join(BASES)}, got {self.basis!r}")
         if self.speed_limit not in ("l1", "face", "norm"):
             raise ValueError(f"planner.speed_limit must be 'l1', 'face' or 'norm', got {self.speed_limit!r}")
         if not (isinstance(self.speed_limit_safety, (int, float)) and math.isfinite(self.speed_limit_safety)

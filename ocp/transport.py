@@ -18,20 +18,27 @@ from __future__ import annotations
 
 import numpy as np
 
-from .basis import sine_matrix
+from .basis import check_basis, factor_matrix, sine_matrix
 from .grid import Grid
 
 
 class FaceBasis:
-    """Sine basis sampled on the interior faces and cell centres of a grid (separable form)."""
+    """Velocity basis (:mod:`ocp.basis`) sampled on the interior faces and cell centres of a grid.
 
-    def __init__(self, grid: Grid, n_modes_x: int, n_modes_y: int):
+    v_x lives on the x-faces: its x-factor (normal direction, always sine) on the faces, its
+    y-factor (tangential: sine, or cosine in the "sine-cosine" basis) at the cell centres; v_y the
+    other way round.  Hence the face matrices are sines and the cell matrices follow the basis.
+    """
+
+    def __init__(self, grid: Grid, n_modes_x: int, n_modes_y: int, basis: str = "sine"):
         x0, x1, y0, y1 = grid.domain
         self.grid = grid
-        self.Sx_face = sine_matrix(grid.xf[1:-1], n_modes_x, grid.lx, x0)   # (nx-1, I)
-        self.Sx_cell = sine_matrix(grid.xc, n_modes_x, grid.lx, x0)         # (nx, I)
-        self.Sy_face = sine_matrix(grid.yf[1:-1], n_modes_y, grid.ly, y0)   # (ny-1, J)
-        self.Sy_cell = sine_matrix(grid.yc, n_modes_y, grid.ly, y0)         # (ny, J)
+        self.basis = check_basis(basis)
+        tangential = "sin" if basis == "sine" else "cos"
+        self.Sx_face = sine_matrix(grid.xf[1:-1], n_modes_x, grid.lx, x0)                   # (nx-1, I)
+        self.Sx_cell = factor_matrix(tangential, grid.xc, n_modes_x, grid.lx, x0)           # (nx, I)
+        self.Sy_face = sine_matrix(grid.yf[1:-1], n_modes_y, grid.ly, y0)                   # (ny-1, J)
+        self.Sy_cell = factor_matrix(tangential, grid.yc, n_modes_y, grid.ly, y0)           # (ny, J)
 
     def face_velocities(self, coef_k: np.ndarray):
         """(vx on interior x-faces (nx-1, ny), vy on interior y-faces (nx, ny-1)) from coef_k (2, I, J)."""
@@ -59,10 +66,12 @@ def upwind_step(p: np.ndarray, vx, vy, dt: float, dx: float, dy: float, eps: flo
     return p - dt / dx * np.diff(fx, axis=0) - dt / dy * np.diff(fy, axis=1)
 
 
-def simulate(p0: np.ndarray, coef: np.ndarray, grid: Grid, interval: float, substeps: int, eps: float) -> np.ndarray:
-    """Density snapshots (N * substeps + 1, nx, ny) under the piecewise-constant sine velocity ``coef``."""
+def simulate(p0: np.ndarray, coef: np.ndarray, grid: Grid, interval: float, substeps: int, eps: float,
+             basis: str = "sine") -> np.ndarray:
+    """Density snapshots (N * substeps + 1, nx, ny) under the piecewise-constant velocity ``coef``
+    of ``basis`` (:mod:`ocp.basis`)."""
     coef = np.asarray(coef, dtype=float)
-    basis = FaceBasis(grid, coef.shape[2], coef.shape[3])
+    basis = FaceBasis(grid, coef.shape[2], coef.shape[3], basis)
     dt = interval / substeps
     out = np.empty((coef.shape[0] * substeps + 1,) + grid.shape)
     out[0] = p = np.asarray(p0, dtype=float)

@@ -187,3 +187,29 @@ def test_ctrl_c_during_a_solve_is_an_interrupt_not_a_solver_failure(small_planne
     with pytest.raises(KeyboardInterrupt):
         small_planner.solve(bump(g, 2.5, 2.5, 1.2), bump(g, 7.0, 5.0, 1.2))
     assert signal.getsignal(signal.SIGINT) is before
+
+
+def test_accept_feasible_iterate_at_max_iter():
+    """With accept_feasible_iterate, a solve stopped at max_iter returns IPOPT's feasible, improved
+    iterate (status says so); without it, the same solve is a PlannerError."""
+    from swarmfield.ocp.planner import PlannerError, ReferencePlanner
+    from swarmfield.ocp.settings import IpoptSettings, PlannerSettings
+    base = dict(nx=12, ny=12, n_intervals=3, n_modes_x=3, n_modes_y=3, speed_limit="norm",
+                ipopt=IpoptSettings(max_iter=4))
+    g = None
+    for accept in (False, True):
+        pl = ReferencePlanner(PlannerSettings(**base, accept_feasible_iterate=accept))
+        g = pl.grid
+        X, Y = np.meshgrid(g.xc, g.yc, indexing="ij")
+        p0, pf = np.exp(-((X - 3) ** 2 + (Y - 3) ** 2) / 4), np.exp(-((X - 15) ** 2 + (Y - 15) ** 2) / 20)
+        if not accept:
+            with pytest.raises(PlannerError, match="Maximum_Iterations_Exceeded"):
+                pl.solve(p0, pf)
+            continue
+        plan = pl.solve(p0, pf)
+        assert plan.meta["solver"]["status"] == "Maximum_Iterations_Exceeded (feasible iterate used)"
+        B = np.abs(plan.coef).reshape(3, 2, -1).sum(axis=2)
+        assert np.hypot(B[:, 0], B[:, 1]).max() <= 3.0 * (1 + 1e-9)
+        assert plan.meta["symmetric_kl_final"] < plan.meta["symmetric_kl_initial"]
+    with pytest.raises(ValueError, match="accept_feasible_iterate"):
+        PlannerSettings(accept_feasible_iterate="yes")
