@@ -184,6 +184,7 @@ class GaussianProcess:
         self._domain = _validate_domain(domain)
         x0, x1, y0, y1 = self._domain
         self._spacing = settings.resolved_inducing_spacing
+        self._initial_settings = settings
         self._ax = SplineAxis(x0, x1, self._spacing)
         self._ay = SplineAxis(y0, y1, self._spacing)
         self._n_nodes = self._ax.n_nodes * self._ay.n_nodes
@@ -541,6 +542,19 @@ class GaussianProcess:
                              f"{1.5 * self._spacing:g}, got {length_scale!r}")
         return self._lml(s2, ell, *self._assemble(self.prior_mean))
 
+    def refit_online(self) -> GPSettings:
+        """One online MAP refit (``settings.learn_hyperparameters``, :mod:`regression.hyper`): from the
+        running sums coarsened ``hyper_coarsening`` times, warm start from the current values, prior
+        centred at the construction-time values, ``hyper_maxiter`` iterations.  Updates and returns
+        the settings (the posterior is recomputed at the next ``predict``)."""
+        from .hyper import refit
+        s0 = self._initial_settings
+        s2, ell, _ = refit(self, (s0.signal_variance, s0.length_scale, s0.hyper_prior_sd), s0.hyper_maxiter,
+                           s0.hyper_coarsening)
+        self._settings = dataclasses.replace(self._settings, signal_variance=s2, length_scale=ell,
+                                             inducing_spacing=self._spacing)
+        return self._settings
+
     def _lml(self, s2: float, ell: float, a: np.ndarray, b: np.ndarray) -> float:
         sn2 = self._settings.noise_variance
         m = self.prior_mean
@@ -552,7 +566,7 @@ class GaussianProcess:
         return -0.5 * (rr / sn2 - quad + logdet + self._n * math.log(2.0 * math.pi * sn2))
 
     def fit_hyperparameters(self, signal_variance_bounds=(1e-4, 1e3), length_scale_bounds=None,
-                            maxiter: int = 50) -> GPSettings:
+                            maxiter: int = 50, prior=None) -> GPSettings:
         """Maximum-likelihood ``signal_variance`` and ``length_scale`` (noise fixed).
 
         Maximises :meth:`log_marginal_likelihood` over (log s_f^2, log l) with L-BFGS-B and
@@ -562,6 +576,9 @@ class GaussianProcess:
         ``(1.5 h, max domain side)``). Updates this GP's settings (the posterior is recomputed at
         the next ``predict``) and returns them; the returned settings pin ``inducing_spacing``
         so that a new GP built from them uses the same grid.
+
+        ``prior = (s_f^2_0, l_0, sd)`` adds independent normal priors N(log s_f^2_0, sd^2) and
+        N(log l_0, sd^2) on the log hyperparameters (maximum a posteriori instead of ML).
         """
         if self._n < 2:
             raise ValueError("fit_hyperparameters needs at least two observations")
@@ -582,8 +599,15 @@ class GaussianProcess:
         a, b = self._assemble(self.prior_mean)
         n = self._n
 
+        if prior is not None:
+            c = np.array([math.log(float(prior[0])), math.log(float(prior[1]))])
+            psd = float(prior[2])
+
         def objective(theta):
-            return -self._lml(math.exp(theta[0]), math.exp(theta[1]), a, b) / n
+            val = -self._lml(math.exp(theta[0]), math.exp(theta[1]), a, b)
+            if prior is not None:
+                val += 0.5 * float(np.sum(((theta - c) / psd) ** 2))
+            return val / n
 
         s = self._settings
         theta0 = np.array([np.clip(math.log(s.signal_variance), *bounds[0]),

@@ -61,6 +61,21 @@ class GPSettings:
         ``predict`` after new data costs one dense M x M Cholesky factorisation and inverse
         (~0.3 s at M = 1849, growing like M^3; memory ~ 6 M^2 doubles), so the bound turns an
         accidental fine grid into a clear error instead of a stall.
+    learn_hyperparameters
+        Refit (signal_variance, length_scale) by maximum a posteriori each re-planning period
+        (``sim.loop``), warm-started from the previous period's values (default False: the
+        paper's fixed hyperparameters). The inducing grid stays the one built from the initial
+        settings, so the fitted length scale is bounded below by 1.5 x that spacing.
+    hyper_prior_sd
+        Standard deviation of the independent normal priors on log s_f^2 and log l, centred at
+        the initial ``signal_variance`` and ``length_scale`` (log-normal priors; MAP instead of
+        ML keeps early fits on few data sane).
+    hyper_maxiter
+        L-BFGS-B iterations per online refit.
+    hyper_coarsening
+        The refit evaluates the likelihood on a spline grid this many times coarser, with the
+        exact sufficient statistics of the data (:mod:`regression.hyper`; ~30x cheaper at 2);
+        the learned length scale is then >= 1.5 x the coarse spacing (1.5 m at the defaults).
     """
 
     signal_variance: float = 0.25
@@ -69,6 +84,10 @@ class GPSettings:
     prior_mean: float | None = None
     inducing_spacing: float | None = None
     max_inducing_points: int = 4096
+    learn_hyperparameters: bool = False
+    hyper_prior_sd: float = 1.0
+    hyper_maxiter: int = 15
+    hyper_coarsening: int = 2
 
     def __post_init__(self):
         object.__setattr__(self, "signal_variance", _finite_positive("signal_variance", self.signal_variance))
@@ -104,6 +123,17 @@ class GPSettings:
         if isinstance(mip, bool) or not integral or int(mip) < 16:
             raise ValueError(f"max_inducing_points must be an integer >= 16, got {mip!r}")
         object.__setattr__(self, "max_inducing_points", int(mip))
+        if not isinstance(self.learn_hyperparameters, bool):
+            raise ValueError(f"learn_hyperparameters must be true or false, got {self.learn_hyperparameters!r}")
+        object.__setattr__(self, "hyper_prior_sd", _finite_positive("hyper_prior_sd", self.hyper_prior_sd))
+        it = self.hyper_maxiter
+        if isinstance(it, bool) or not isinstance(it, numbers.Integral) or int(it) < 1:
+            raise ValueError(f"hyper_maxiter must be an integer >= 1, got {it!r}")
+        object.__setattr__(self, "hyper_maxiter", int(it))
+        c = self.hyper_coarsening
+        if isinstance(c, bool) or not isinstance(c, numbers.Integral) or not 1 <= int(c) <= 16:
+            raise ValueError(f"hyper_coarsening must be an integer in [1, 16], got {c!r}")
+        object.__setattr__(self, "hyper_coarsening", int(c))
 
     @property
     def resolved_inducing_spacing(self) -> float:

@@ -34,8 +34,9 @@ from ..ocp.cliargs import OneLineParser, UsageError as InputError, cli_main, che
 from ..ocp.publish import InterruptedAfterPublish, OutputFolder
 
 PROG = "compare-controllers"
-ROW_COLUMNS = ("preset", "controller", "field", "seed", "robot_loss", "robots", "step", "t", "t_T", "max_variance", "rmse",
-               "alive", "path_length", "energy", "n_observations", "stop_reason")
+ROW_COLUMNS = ("preset", "controller", "field", "seed", "robot_loss", "robots", "step", "t", "t_T", "max_variance",
+               "threshold", "rmse", "alive", "path_length", "energy", "n_observations", "signal_variance",
+               "length_scale", "stop_reason")
 KEYS = ("field", "robots", "robot_loss", "preset", "controller")
 
 
@@ -48,10 +49,13 @@ def run_task(task: dict) -> list[dict]:
     cfg = config_from_dict(task["config"])
     res = run_simulation(cfg)
     T = cfg.sim.period
+    rule, level = task["stop_rule"]          # the configuration's own rule (the run itself never stops at it)
     label = {k: task[k] for k in ("preset", "controller", "field", "seed", "robot_loss", "robots")}
     return [{**label, "step": r["step"], "t": r["t"], "t_T": r["t"] / T, "max_variance": r["max_variance"],
+             "threshold": level * r["signal_variance"] if rule == "relative" else level,
              "rmse": r["rmse"], "alive": r["alive"], "path_length": r["path_length"], "energy": r["energy"],
-             "n_observations": r["n_observations"], "stop_reason": res.stop_reason} for r in res.rows]
+             "n_observations": r["n_observations"], "signal_variance": r["signal_variance"],
+             "length_scale": r["length_scale"], "stop_reason": res.stop_reason} for r in res.rows]
 
 
 def _field_label(field: str) -> str:
@@ -93,9 +97,15 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
                             sim["loss_time"] = float(loss_time)
                         if start_box is not None:
                             sim["start_box"] = list(start_box)
+                        own = config_from_dict({**base_doc, "sim": {k: v for k, v in sim.items()
+                                                                       if k not in ("gamma", "gamma_relative")}},
+                                               preset=preset).sim
+                        rule = ("relative", own.gamma_relative) if own.stop_rule == "relative" else \
+                            ("absolute", own.gamma)
+                        sim["gamma_relative"] = 0.0
                         doc = {**base_doc, "sim": sim}
                         cfg = config_from_dict(doc, preset=preset)   # validates every combination up front
-                        tasks.append({"preset": preset, "controller": ctrl, "field": _field_label(field), "field_source": fsig,
+                        tasks.append({"preset": preset, "controller": ctrl, "stop_rule": list(rule), "field": _field_label(field), "field_source": fsig,
                                       "seed": int(seed), "robot_loss": float(loss), "robots": int(n),
                                       "config": cfg.as_dict()})
     return tasks
@@ -146,7 +156,7 @@ def _stat(vals, fmt="{:.3f}"):
 
 def summary_table(runs, gamma: float, times) -> str:
     """Markdown table (deterministic: sorted keys, formatted numbers) of ``runs = [(task, rows), ...]``."""
-    head = ["field", "robots", "loss", "preset", "controller", f"sup V ≤ {gamma:g} at [T]"] + \
+    head = ["field", "robots", "loss", "preset", "controller", "sup V ≤ γ at [T]"] + \
         [f"RMSE at {t:g}T" for t in times] + ["path length [m]", "energy [m²/s]"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     order = {}
@@ -156,7 +166,7 @@ def summary_table(runs, gamma: float, times) -> str:
         grp = _group(runs)[key]
         ttt, reached = [], 0
         for _, rows in grp:
-            hit = next((r["t_T"] for r in rows if r["max_variance"] <= gamma), None)
+            hit = next((r["t_T"] for r in rows if r["max_variance"] <= r.get("threshold", gamma)), None)
             ttt.append(hit)
             reached += hit is not None
         tcell = _stat([x for x in ttt if x is not None], "{:.2f}")
@@ -317,7 +327,9 @@ def _sweep_and_publish(args, argv, tasks, gamma, times, folder) -> int:
 
     def write(stage):
         write_csv([r for rows in results for r in rows], stage / "runs.csv")
-        write_atomic(stage / "summary.md", f"Command: `{cmd}`\n\nMedian [min–max] over seeds {args.seeds}; runs of "
+        write_atomic(stage / "summary.md", f"Command: `{cmd}`\n\nγ is each configuration's own stopping threshold "
+                     f"(sim.gamma = {gamma:g}, or sim.gamma_relative × the GP's current s_f² with "
+                     f"sim.stop_rule = relative).  Median [min–max] over seeds {args.seeds}; runs of "
                      f"{args.max_periods} T = {args.max_periods * tasks[0]['config']['sim']['period']:g} s.\n\n{table}")
         if not args.no_plots:
             plots.extend(write_plots(runs, stage / "plots", gamma))

@@ -132,6 +132,11 @@ class SimSettings:
                     on the variance (the run lasts max_periods)
     eta             tolerance of the target density p_f = max(V - eta, 0) / int (paper: "small"); below gamma
     noise_variance  variance of the measurement noise (paper: 0.04)
+    stop_rule       "absolute" (paper): stop when sup V <= gamma; "relative": stop when
+                    sup V <= gamma_relative * s_f^2 (s_f^2 possibly learned, gp.learn_hyperparameters)
+    gamma_relative  relative threshold (default 0.4 = the paper's 0.1 / 0.25)
+    eta_relative    with stop_rule "relative", the target's tolerance is eta_relative * s_f^2 (default
+                    0.2 = the paper's 0.05 / 0.25); below gamma_relative
     max_periods     stop after this many re-planning periods even if sup V > gamma
     field           unknown field: ``sinc`` (paper), ``plumes``, ``ridge`` or a file (see sim.fields)
     seed            seed of the ``numpy.random.Generator`` that drives everything random
@@ -176,6 +181,9 @@ class SimSettings:
     seed: int = 0
     substeps: int = 8
     controller: str = "feedback"
+    stop_rule: str = "absolute"
+    gamma_relative: float = 0.4
+    eta_relative: float = 0.2
     allow_long_run: bool = False
     diffusion_sigma: float = 3.0
     greedy_radius: float = 5.0
@@ -199,6 +207,15 @@ class SimSettings:
         set_("max_periods", _integer("max_periods", self.max_periods, 1))
         set_("seed", _integer("seed", self.seed, 0))
         set_("substeps", _integer("substeps", self.substeps, 1))
+        if self.stop_rule not in ("absolute", "relative"):
+            raise ValueError(f"sim.stop_rule must be 'absolute' or 'relative', got {self.stop_rule!r}")
+        set_("gamma_relative", _number("gamma_relative", self.gamma_relative, nonneg=True))
+        set_("eta_relative", _number("eta_relative", self.eta_relative, nonneg=True))
+        if not self.gamma_relative < 1.0:
+            raise ValueError(f"sim.gamma_relative must be below 1 (sup V starts at s_f^2), got {self.gamma_relative!r}")
+        if self.gamma_relative > 0 and self.eta_relative >= self.gamma_relative:
+            raise ValueError(f"sim.eta_relative ({self.eta_relative:g}) must be below sim.gamma_relative "
+                             f"({self.gamma_relative:g})")
         from .controllers import CONTROLLERS
         if self.controller not in CONTROLLERS:
             raise ValueError(f"sim.controller must be one of {', '.join(CONTROLLERS)}, got {self.controller!r}")

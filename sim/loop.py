@@ -86,10 +86,10 @@ class SimulationResult:
 
     @property
     def time_to_threshold(self) -> float | None:
-        """First measurement time with sup V <= gamma, or None."""
+        """First measurement time with sup V <= gamma (the row's threshold), or None."""
         g = self.config.sim.gamma
         for r in self.rows:
-            if r["max_variance"] <= g:
+            if r["max_variance"] <= r.get("threshold", g):
                 return float(r["t"])
         return None
 
@@ -102,6 +102,23 @@ class SimulationResult:
     @property
     def final(self) -> dict:
         return dict(self.rows[-1]) if self.rows else {}
+
+
+def stop_threshold(config: RunConfig, signal_variance: float) -> float:
+    """Algorithm 1's gamma: ``sim.gamma`` (absolute, the paper) or, with ``sim.stop_rule =
+    "relative"``, ``sim.gamma_relative * s_f^2`` at the current (possibly learned) s_f^2."""
+    s = config.sim
+    if s.stop_rule == "relative":
+        return s.gamma_relative * signal_variance
+    return s.gamma
+
+
+def target_tolerance(config: RunConfig, signal_variance: float) -> float:
+    """eta of p_f = max(V - eta, 0): ``sim.eta`` or, relative, ``sim.eta_relative * s_f^2``."""
+    s = config.sim
+    if s.stop_rule == "relative":
+        return s.eta_relative * signal_variance
+    return s.eta
 
 
 def check_config(config: RunConfig) -> None:
@@ -230,6 +247,8 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
             "tracking_error": math.nan if p_r is None else l2_norm(p_hat - p_r, grid.cell_area),
             "mean_speed": speed, "n_observations": gp.n_observations,
             "alive": int(alive.sum()), "path_length": float(path_length.mean()), "energy": float(energy.mean()),
+            "signal_variance": gp.settings.signal_variance, "length_scale": gp.settings.length_scale,
+            "threshold": stop_threshold(config, gp.settings.signal_variance),
         })
         res.times.append(t)
         res.positions.append(X.copy())
@@ -278,20 +297,27 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
 
     try:
         while True:
+            if config.gp.learn_hyperparameters and gp.n_observations >= 2:
+                t0 = time.perf_counter()
+                gp.refit_online()            # MAP, warm start (issue 10); posterior recomputed below
+                m_, v_ = gp.predict(centers)
+                mean, var = m_.reshape(grid.shape), v_.reshape(grid.shape)
+                tm["regression"] += time.perf_counter() - t0
             sup_v = float(var.max())
             snap = Snapshot(t=t, period=k, X=X.copy(), mean=mean, var=var, p_hat=p_hat)
             res.snapshots.append(snap)
-            if sup_v <= s.gamma:
+            if sup_v <= stop_threshold(config, gp.settings.signal_variance):
                 res.stop_reason = "threshold"
                 break
             if k >= s.max_periods or t >= s.max_time - 1e-9 * s.period:
                 res.stop_reason = "max_time"
                 break
+            eta = target_tolerance(config, gp.settings.signal_variance)
             if s.target == "reachable":
                 reach = 0.5 * config.planner.v_max * s.period if s.reach is None else s.reach   # 2 sd = v_max T
-                p_f = reachable_target_density(var, s.eta, grid.cell_area, p_hat, reach, grid.dx, grid.dy)
+                p_f = reachable_target_density(var, eta, grid.cell_area, p_hat, reach, grid.dx, grid.dy)
             else:
-                p_f = target_density(var, s.eta, grid.cell_area)
+                p_f = target_density(var, eta, grid.cell_area)
             if p_f is None and ctrl.needs_plan:     # nothing left to plan for (the baselines go on)
                 res.stop_reason = "variance_below_eta"
                 break

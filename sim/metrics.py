@@ -11,6 +11,9 @@ p_f and the reference p_r live; 40 x 40 cells of 0.5 m by default):
                     the reference density (eq. "reference model"); the Phi of Theorem "ISS"
 ``mean_speed``      mean over robots and sub-steps of the commanded speed |v| during the last Δt
 ``n_observations``  number of measurements in the data set
+``signal_variance``, ``length_scale``  the GP hyperparameters in use (learned once per period with
+                    ``gp.learn_hyperparameters``)
+``threshold``       the stopping threshold in effect: sim.gamma, or gamma_relative * signal_variance
 """
 from __future__ import annotations
 
@@ -20,7 +23,7 @@ __all__ = ["COLUMNS", "rmse", "l2_norm", "max_variance"]
 
 #: Column order of ``metrics.csv``.
 COLUMNS = ("step", "t", "period", "max_variance", "mean_variance", "rmse", "l2_error", "tracking_error",
-           "mean_speed", "n_observations")
+           "mean_speed", "n_observations", "signal_variance", "length_scale", "threshold")
 
 
 def rmse(f_true: np.ndarray, f_bar: np.ndarray) -> float:

@@ -163,7 +163,9 @@ def summary_dict(result, files=(), extra: dict | None = None) -> dict:
         "motion": _motion(result),
         "stop_time": final.get("t"),
         "final": {k: final.get(k) for k in ("t", "rmse", "l2_error", "max_variance", "mean_variance",
-                                            "tracking_error", "mean_speed", "n_observations")},
+                                            "tracking_error", "mean_speed", "n_observations", "signal_variance",
+                                            "length_scale", "threshold")},
+        "stop_rule": s.stop_rule,
         "final_rmse": final.get("rmse"),
         "final_max_variance": final.get("max_variance"),
         "metrics_definition": "fields on the planner grid cell centres: rmse = sqrt(mean (f - f_bar)^2), "
