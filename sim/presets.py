@@ -46,6 +46,11 @@ PRESETS: dict[str, dict] = {
         # a fixed KDE bandwidth of 1 m (Silverman's rule gives ~2-3 m once the swarm has spread):
         # the law resolves gaps of the robots' own size
         "kde": {"bandwidth": 1.0},
+        # (s_f^2, l) learned once per period by MAP from the GP's running sums (regression.hyper)
+        "gp": {"learn_hyperparameters": True, "hyper_maxiter": 8},
+        # a learned s_f^2 changes the scale of V: stop at sup V <= 0.4 s_f^2 and target
+        # max(V - 0.2 s_f^2, 0), the paper's 0.1 and 0.05 relative to its s_f^2 = 0.25
+        "sim": {"stop_rule": "relative"},
     },
 }
 
