@@ -41,6 +41,7 @@ def main():
              "|---|---|---|---|---|"]
     for ax, name in zip(axes.ravel(), names):
         cfg = RunConfig.from_preset(args.preset).replace(controller=name, seed=args.seed, field=args.field, gamma=0.0,
+                                                        gamma_relative=0.0,
                                           max_periods=args.periods)
         res = run_simulation(cfg)
         P = np.concatenate(res.positions)          # every robot at every measurement time
