@@ -114,11 +114,14 @@ def velocity_at(coef: np.ndarray, domain, points: np.ndarray, basis: str = "sine
     xi = np.clip((pts[0] - x0) / (x1 - x0), 0.0, 1.0)
     eta = np.clip((pts[1] - y0) / (y1 - y0), 0.0, 1.0)
     out = np.empty((pts.shape[1], 2))
+    rows_x, rows_y = {}, {}             # each factor evaluated once (the sine basis shares them)
     for d, (kx, ky) in enumerate(_factors(basis)):
-        rx = _rows(kx, xi, coef.shape[1])                                       # (I, n)
-        ry = _rows(ky, eta, coef.shape[2])                                      # (J, n)
+        if kx not in rows_x:
+            rows_x[kx] = _rows(kx, xi, coef.shape[1])                           # (I, n)
+        if ky not in rows_y:
+            rows_y[ky] = _rows(ky, eta, coef.shape[2])                          # (J, n)
         # v_d[n] = sum_i X[n,i] (sum_j a[d,i,j] Y[n,j])
-        out[:, d] = np.einsum("in,in->n", coef[d] @ ry, rx)
+        out[:, d] = np.einsum("in,in->n", coef[d] @ rows_y[ky], rows_x[kx])
     return out
 
 

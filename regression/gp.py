@@ -355,28 +355,32 @@ class GaussianProcess:
 
     def _kron_left(self, sx: np.ndarray, sy: np.ndarray, z: np.ndarray) -> np.ndarray:
         """(sx (x) sy) @ z for z of shape (M, K), without forming the Kronecker product."""
-        gx, gy = sx.shape[0], sy.shape[0]
-        k = z.shape[1]
-        z = (sx @ np.ascontiguousarray(z).reshape(gx, gy * k)).reshape(gx, gy, k)
-        return np.matmul(sy, z).reshape(gx * gy, k)
+        return self._kron_apply(sx, sy, np.ascontiguousarray(z))
 
     def _sandwich(self, sx: np.ndarray, sy: np.ndarray, a: np.ndarray) -> np.ndarray:
         """S a S for S = sx (x) sy (symmetric) and symmetric a, in O(M^2 (gx + gy)) flops.
 
-        With a as the tensor a[i, j, k, l] (row node (i, j), column node (k, l)) the four factors
-        act on one index each: sx on i (one GEMM), sy on j (gx GEMMs), sy on l (one GEMM) and sx
-        on k (M small GEMMs), without transposing M x M arrays. The result is symmetric up to
-        round-off (only its lower triangle feeds the Cholesky factorisation; predictions use
-        quadratic forms, which are insensitive to the skew part).
+        S a S = S (S a)^T because a and S are symmetric, so only the *left* product is needed,
+        twice: with a as the tensor a[i, j, c] (row node (i, j), column c), sx acts on i (one
+        GEMM with an inner dimension gx and M gy columns) and sy on j (gx GEMMs of gy x gy by
+        gy x M), all with long contiguous operands; one M x M transpose copy in between.
+        (Measured 1.8x faster at M = 1849 than applying the four factors in place, whose last
+        step is M tiny GEMMs.)  The result is symmetric up to round-off (only its lower triangle
+        feeds the Cholesky factorisation; predictions use quadratic forms, which are insensitive
+        to the skew part).
         """
-        gx, gy = sx.shape[0], sy.shape[0]
-        m = gx * gy
         if not a.flags.c_contiguous and a.flags.f_contiguous:
             a = a.T                                              # same matrix (symmetric), C-ordered
-        t = (sx @ a.reshape(gx, gy * m)).reshape(gx, gy, m)     # sx on i
-        t = np.matmul(sy, t).reshape(m * gx, gy)                # sy on j
-        t = (t @ sy).reshape(m, gx, gy)                         # sy on l (sy is symmetric)
-        return np.matmul(sx, t).reshape(m, m)                   # sx on k (sx is symmetric)
+        b = self._kron_apply(sx, sy, a)                         # S a
+        return self._kron_apply(sx, sy, np.ascontiguousarray(b.T))   # S (S a)^T = S a S
+
+    @staticmethod
+    def _kron_apply(sx: np.ndarray, sy: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """(sx (x) sy) @ z for a C-contiguous z of shape (M, K)."""
+        gx, gy = sx.shape[0], sy.shape[0]
+        k = z.shape[1]
+        t = (sx @ z.reshape(gx, gy * k)).reshape(gx, gy, k)     # sx on i
+        return np.matmul(sy, t).reshape(gx * gy, k)            # sy on j
 
     def _factorize(self, signal_variance: float, length_scale: float, a: np.ndarray):
         """Cholesky factor of B = I + s_f^2 S A S and the unit prior factors."""
