@@ -1,10 +1,11 @@
 """``solver-study``: how formulation, discretisation and IPOPT options change solve time, iterations and optimum.
 
 Every case solves the paper's first planning step (robots uniform on [0,7]^2, target from the GP
-variance; :mod:`ocp.scenario`) with one setting changed from the defaults, in one process, one
-after another, and records build time, solve time, iterations, IPOPT status, objective and the
-final symmetric KL to the target.  Results go to ``DIR/study.csv``, ``DIR/study.md`` and
-``DIR/study.png``.  Objectives of different grids are different discrete problems; compare them
+variance; :mod:`ocp.scenario`) with one setting changed from the defaults (:func:`cases`).  The
+fixed studies are presets of the one sweep runner (:mod:`ocp.sweepcli`, :mod:`swarmfield.sweep`):
+parallel worker processes or a Dask cluster, resumable from ``DIR/runs/``.  Results go to
+``DIR/study.csv``, ``DIR/study.md``, ``DIR/study.png`` (solve time per case, one panel per study)
+and the sweep plots.  Objectives of different grids are different discrete problems; compare them
 within a study, not across.
 
     solver-study --out study            # all studies at the paper size (minutes)
@@ -12,15 +13,13 @@ within a study, not across.
 """
 from __future__ import annotations
 
-import csv
 import dataclasses
+import math
 import sys
-import time
 from pathlib import Path
 
-from .atomic import atomic_path, write_atomic
-from .cliargs import OneLineParser, UsageError, check_path
-from .publish import InterruptedAfterPublish, OutputFolder
+from .atomic import atomic_path
+from .cliargs import OneLineParser, UsageError
 from .settings import PlannerSettings
 
 PROG = "solver-study"
@@ -62,74 +61,32 @@ def cases(study: str, base: PlannerSettings, quick: bool):
     return out
 
 
-def run_case(settings: PlannerSettings, seed: int = 0) -> dict:
-    from .grid import Grid
-    from .planner import PlannerError, ReferencePlanner
-    from .scenario import box_density, first_step_target
-
-    grid = Grid(settings.domain, settings.nx, settings.ny)
-    p0 = box_density(grid)
-    target, _ = first_step_target(grid, seed=seed)
-    t0 = time.perf_counter()
-    planner = ReferencePlanner(settings)
-    build = time.perf_counter() - t0
-    try:
-        plan = planner.solve(p0, target)
-    except PlannerError as exc:
-        st = exc.stats
-        return {"build_s": build, "solve_s": st.get("wall_time_s", float("nan")), "iterations": st.get("iterations", -1),
-                "status": st.get("status", str(exc)), "objective": float("nan"), "kl_final": float("nan"),
-                "t_f_s": st.get("t_wall_nlp_f", 0.0), "t_grad_s": st.get("t_wall_nlp_grad_f", 0.0),
-                "t_hess_s": st.get("t_wall_nlp_hess_l", 0.0)}
-    sv = plan.meta["solver"]
-    return {"build_s": build, "solve_s": sv["wall_time_s"], "iterations": sv["iterations"], "status": sv["status"],
-            "objective": plan.meta["objective"], "kl_final": plan.meta["symmetric_kl_final"],
-            "t_f_s": sv.get("t_wall_nlp_f", 0.0), "t_grad_s": sv.get("t_wall_nlp_grad_f", 0.0),
-            "t_hess_s": sv.get("t_wall_nlp_hess_l", 0.0)}
-
-
-COLUMNS = ["study", "case", "build_s", "solve_s", "iterations", "status", "objective", "kl_final", "t_f_s",
-           "t_grad_s", "t_hess_s"]
-
-
-OUTPUTS = ("study.csv", "study.md", "study.png")
-
-
-def write_outputs(rows, out: Path):
-    """Write the three files into ``out`` (a staging folder when called from :func:`main`)."""
-    import io
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=COLUMNS)
-    w.writeheader()
-    w.writerows(rows)
-    write_atomic(out / "study.csv", buf.getvalue())
-    lines = ["| study | case | build [s] | solve [s] | iterations | status | objective | final sym. KL |",
-             "|---|---|---:|---:|---:|---|---:|---:|"]
-    for r in rows:
-        lines.append(f"| {r['study']} | {r['case']} | {r['build_s']:.2f} | {r['solve_s']:.2f} | {r['iterations']} | "
-                     f"{r['status']} | {r['objective']:.4f} | {r['kl_final']:.4f} |")
-    write_atomic(out / "study.md", "\n".join(lines) + "\n")
-    plot(rows, out / "study.png")
-
-
 def plot(rows, path: Path):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    studies = list(dict.fromkeys(r["study"] for r in rows))
+    def num(v):
+        try:
+            v = float(v)
+        except (TypeError, ValueError):
+            return 0.0
+        return v if math.isfinite(v) else 0.0
+
+    studies = list(dict.fromkeys(r.get("study", "") for r in rows))
     fig, axes = plt.subplots(1, len(studies), figsize=(4.6 * len(studies), 4.2), squeeze=False, constrained_layout=True)
     for ax, st in zip(axes[0], studies):
-        rs = [r for r in rows if r["study"] == st]
+        rs = [r for r in rows if r.get("study", "") == st]
         y = range(len(rs))
-        ax.barh(y, [r["solve_s"] for r in rs], color="tab:blue")
+        ax.barh(y, [num(r.get("solve_s")) for r in rs], color="tab:blue")
         for k, r in enumerate(rs):
-            ax.text(r["solve_s"], k, f" {r['iterations']} it, J={r['objective']:.3g}", va="center", fontsize=7)
-        ax.set_yticks(list(y), [r["case"] for r in rs], fontsize=7)
+            label = f" {r.get('iterations')} it, J={num(r.get('objective')):.3g}" if not r.get("error") else " failed"
+            ax.text(num(r.get("solve_s")), k, label, va="center", fontsize=7)
+        ax.set_yticks(list(y), [str(r.get("case")) for r in rs], fontsize=7)
         ax.invert_yaxis()
-        ax.set_xlabel("IPOPT wall time [s]")
+        ax.set_xlabel("solve wall time [s]")
         ax.set_title(st)
-        ax.set_xlim(0, 1.6 * max(r["solve_s"] for r in rs))
+        ax.set_xlim(0, 1.6 * max([num(r.get("solve_s")) for r in rs] + [1e-3]))
     with atomic_path(path, ".png") as tmp:
         fig.savefig(tmp, dpi=110, format="png")
     plt.close(fig)
@@ -138,64 +95,19 @@ def plot(rows, path: Path):
 def main(argv=None) -> int:
     ap = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0])
     ap.add_argument("--study", choices=["all", "formulation", "ipopt", "discretisation", "hessian"], default="all",
-                    help="which settings to vary")
-    ap.add_argument("--out", type=Path, default=Path("study"), help="folder for study.csv, study.md, study.png")
+                    help="which of the paper's fixed studies to run (the same as --preset; ignored with sweep axes)")
+    ap.add_argument("--out", type=Path, default=Path("study"), help="folder for study.csv, study.md and the plots")
     ap.add_argument("--quick", action="store_true", help="small grid (12x12, N=4, I=J=3) for a fast check")
-    from .sweepcli import add_sweep_arguments, run_sweep_cli, wants_sweep
+    from .sweepcli import AXES, add_sweep_arguments, run_sweep_cli
     add_sweep_arguments(ap)
     try:
         args = ap.parse_args(argv)
     except UsageError as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2
-    if wants_sweep(args):
-        return run_sweep_cli(args, PROG)
-    # the folder may hold other files (docs/figures); only the three outputs are ever written or
-    # removed there, and they are published together (ocp.publish)
-    folder = OutputFolder(args.out, PROG, OUTPUTS, foreign_ok=True)
-    try:
-        check_path(args.out, "output folder")
-        folder.check()
-        folder.lock()
-    except ValueError as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
-    try:
-        return _run(args, folder)
-    finally:
-        folder.unlock()
-
-
-def _run(args, folder: OutputFolder) -> int:
-    base = PlannerSettings(nx=12, ny=12, n_intervals=4, n_modes_x=3, n_modes_y=3) if args.quick else PlannerSettings()
-    rows = []
-    todo = cases(args.study, base, args.quick)
-    try:
-        for k, (st, label, s) in enumerate(todo, 1):
-            r = {"study": st, "case": label, **run_case(s)}
-            rows.append(r)
-            print(f"[{k}/{len(todo)}] {st:<15s} {label:<45s} solve {r['solve_s']:7.2f} s  {r['iterations']:4d} it  "
-                  f"J = {r['objective']:.5g}  {r['status']}", file=sys.stderr, flush=True)
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted after {len(rows)} of {len(todo)} cases; no table written", file=sys.stderr)
-        return 130
-    def write(stage):
-        write_outputs(rows, stage)
-        return OUTPUTS
-    try:
-        folder.write_and_publish(write)
-    except InterruptedAfterPublish:
-        print(f"{PROG}: interrupted after the study was written to {args.out}", file=sys.stderr)
-        return 130
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted while writing; {args.out} keeps its previous study", file=sys.stderr)
-        return 130
-    except (OSError, ValueError) as exc:
-        print(f"{PROG}: error: cannot write the study to {args.out}: {getattr(exc, 'strerror', None) or exc}; "
-              "its previous study is unchanged", file=sys.stderr)
-        return 1
-    print(f"wrote {args.out / 'study.csv'}, {args.out / 'study.md'}, {args.out / 'study.png'}")
-    return 0
+    if args.preset is None and args.spec is None and all(getattr(args, f"sw_{a}") is None for a in AXES):
+        args.preset = args.study            # the fixed studies are presets of the one sweep runner
+    return run_sweep_cli(args, PROG)
 
 
 if __name__ == "__main__":

@@ -99,7 +99,7 @@ def _f(v, fmt):
         return str(v)
 
 
-SWEEP_OUTPUTS = ("study.csv", "study.md", "study_scaling.png", "study_time_objective.png")
+SWEEP_OUTPUTS = ("study.csv", "study.md", "study_scaling.png", "study_time_objective.png", "study.png")
 
 
 def write_sweep_outputs(rows, out: Path) -> list[Path]:
@@ -109,12 +109,12 @@ def write_sweep_outputs(rows, out: Path) -> list[Path]:
     w.writeheader()
     w.writerows(rows)
     write_atomic(out / "study.csv", buf.getvalue())
-    lines = ["| case | method | kernel used | cells | build [s] | solve [s] | it | status | objective | final sym. KL "
-             "| peak RSS [MB] |", "|---|---|---|---:|---:|---:|---:|---|---:|---:|---:|"]
+    lines = ["| study | case | method | kernel used | cells | build [s] | solve [s] | it | status | objective "
+             "| final sym. KL | peak RSS [MB] |", "|---|---|---|---|---:|---:|---:|---:|---|---:|---:|---:|"]
     for r in rows:
         cells = (r.get("nx") or 0) * (r.get("ny") or 0)
         status = r.get("status", "") if not r.get("error") else f"{r.get('status', '')}: {r['error'][:60]}"
-        lines.append(f"| {r.get('case')} | {r.get('method')} | {r.get('kernel') or r.get('transport', '')} | {cells} | "
+        lines.append(f"| {r.get('study')} | {r.get('case')} | {r.get('method')} | {r.get('kernel') or r.get('transport', '')} | {cells} | "
                      f"{_f(r.get('build_s'), '.2f')} | {_f(r.get('solve_s'), '.2f')} | {r.get('iterations', '')} | "
                      f"{status} | {_f(r.get('objective'), '.5g')} | {_f(r.get('kl_final'), '.4f')} | "
                      f"{_f(r.get('peak_rss_mb'), '.0f')} |")
@@ -150,7 +150,9 @@ def write_sweep_outputs(rows, out: Path) -> list[Path]:
     with atomic_path(out / "study_time_objective.png", ".png") as tmp:
         fig.savefig(tmp, dpi=110, format="png")
     plt.close(fig)
-    return paths + [out / "study_scaling.png", out / "study_time_objective.png"]
+    from .study import plot
+    plot(rows, out / "study.png")            # solve time per case, one panel per study
+    return paths + [out / "study_scaling.png", out / "study_time_objective.png", out / "study.png"]
 
 
 def _groups(rows):

@@ -221,7 +221,7 @@ def preset_tasks(name: str, base: PlannerSettings | None = None, quick: bool = F
 COLUMNS = ["study", "case", "method", "transport", "kernel", "nx", "ny", "n_intervals", "n_modes", "horizon", "w_f", "w_p",
            "w_v", "v_max", "hessian", "tol", "mu_strategy", "linear_solver", "warm_start", "seed", "build_s",
            "solve_s", "iterations", "status", "success", "error", "objective", "J_terminal", "J_running",
-           "J_effort", "kl_final", "peak_rss_mb", "rss_growth_mb", "settings"]
+           "J_effort", "kl_final", "t_f_s", "t_grad_s", "t_hess_s", "peak_rss_mb", "rss_growth_mb", "settings"]
 
 
 def _rss_mb():
@@ -249,7 +249,7 @@ def run_planner_task(task: dict) -> list[dict]:
            "settings": json.dumps(task["settings"], sort_keys=True, default=str)}
     nan = math.nan
     row.update(kernel="", build_s=nan, solve_s=nan, iterations=-1, status="", success=False, error="", objective=nan,
-               J_terminal=nan, J_running=nan, J_effort=nan, kl_final=nan)
+               J_terminal=nan, J_running=nan, J_effort=nan, kl_final=nan, t_f_s=0.0, t_grad_s=0.0, t_hess_s=0.0)
     rss0 = _rss_mb()
     try:
         grid = Grid(s.domain, s.nx, s.ny)
@@ -273,7 +273,10 @@ def run_planner_task(task: dict) -> list[dict]:
                    status=sv.get("status", ""), success=bool(sv.get("success", True)),
                    objective=m.get("objective", nan), kl_final=m.get("symmetric_kl_final", nan),
                    # the kernel actually used: GRG always runs on the transport kernel (compiled, or NumPy)
-                   kernel=sv.get("kernel", m.get("transport", "")))
+                   kernel=sv.get("kernel", m.get("transport", "")),
+                   # IPOPT's time in the objective, its gradient and the Hessian of the Lagrangian
+                   t_f_s=sv.get("t_wall_nlp_f", 0.0), t_grad_s=sv.get("t_wall_nlp_grad_f", 0.0),
+                   t_hess_s=sv.get("t_wall_nlp_hess_l", 0.0))
         terms = m.get("objective_terms", {}) or {}
         for k_row, k_meta in (("J_terminal", "terminal"), ("J_running", "running"), ("J_effort", "energy")):
             if k_meta in terms:

@@ -16,6 +16,12 @@ def test_quick_hessian_study(tmp_path, capsys):
     assert float(rows[1]["t_hess_s"]) > 0 and float(rows[0]["t_hess_s"]) == 0
     assert (tmp_path / "study.png").stat().st_size > 1000
     assert "| hessian |" in (tmp_path / "study.md").read_text()
+    # the fixed study went through the sweep runner: its runs are stored, and a rerun resumes
+    assert len(list((tmp_path / "runs").glob("*.json"))) == 2
+    capsys.readouterr()
+    assert main(["--study", "hessian", "--quick", "--out", str(tmp_path)]) == 0
+    assert "2 runs, 2 already done" in capsys.readouterr().err
+    assert list(csv.DictReader(open(tmp_path / "study.csv"))) == rows
 
 
 def test_out_must_be_a_folder(tmp_path, capsys):

@@ -77,15 +77,17 @@ def test_plan_reference_full_disk_while_plotting_names_the_plot_and_keeps_the_pl
 
 
 # ------------------------------------------------------------------------------ 1. solver-study
-def fake_case(settings, seed=0):
-    return {"build_s": 0.01, "solve_s": 0.02, "iterations": 3, "status": "Solve_Succeeded", "objective": 1.0,
-            "kl_final": 0.5, "t_f_s": 0.0, "t_grad_s": 0.0, "t_hess_s": 0.0}
+def fake_task(task):
+    return [{"study": task["study"], "case": task["case"], "method": "ipopt", "build_s": 0.01, "solve_s": 0.02,
+             "iterations": 3, "status": "Solve_Succeeded", "success": True, "error": "", "objective": 1.0,
+             "kl_final": 0.5, "nx": 12, "ny": 12}]
 
 
 def test_solver_study_interrupt_while_writing_keeps_the_previous_study(tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr(study, "run_case", fake_case)
+    from swarmfield.ocp import sweepspec
+    monkeypatch.setattr(sweepspec, "run_planner_task", fake_task)   # one worker: runs in this process
     (tmp_path / "notes.md").write_text("mine")                 # solver-study writes beside other files
-    assert study.main(["--study", "hessian", "--quick", "--out", str(tmp_path)]) == 0
+    assert study.main(["--study", "hessian", "--quick", "--workers", "1", "--out", str(tmp_path)]) == 0
     before = snapshot(tmp_path)
     capsys.readouterr()
 
@@ -93,13 +95,14 @@ def test_solver_study_interrupt_while_writing_keeps_the_previous_study(tmp_path,
         raise KeyboardInterrupt
     monkeypatch.setattr(study, "plot", ctrl_c)
     try:
-        code = study.main(["--study", "ipopt", "--quick", "--out", str(tmp_path)])
+        code = study.main(["--study", "ipopt", "--quick", "--workers", "1", "--out", str(tmp_path)])
     except KeyboardInterrupt:
         pytest.fail("KeyboardInterrupt escaped solver-study (a traceback on the command line)")
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 130 and "Traceback" not in "\n".join(err)
     assert err[-1].startswith("solver-study: interrupted while writing")
-    assert snapshot(tmp_path) == before and not [p for p in tmp_path.iterdir() if p.is_dir()]
+    assert snapshot(tmp_path) == before
+    assert [p.name for p in tmp_path.iterdir() if p.is_dir()] == ["runs"]     # only the runner's stored runs
 
 
 # ------------------------------------------------------------------------------ 1. simulate-swarm
