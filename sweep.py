@@ -90,9 +90,15 @@ class _Progress:
 
 
 def run_tasks(tasks: list[dict], fn: Callable[[dict], list], runs_dir, *, workers: int | None = None,
-              scheduler=None, label: str = "sweep", stream=sys.stderr) -> list[list]:
+              scheduler=None, label: str = "sweep", stream=sys.stderr, isolate: bool = False) -> list[list]:
     """Run ``fn`` on every task not yet stored in ``runs_dir``; return the rows of all tasks, in
-    the order of ``tasks``.  Raises :class:`SweepError` if any task failed (the rest are stored)."""
+    the order of ``tasks``.  Raises :class:`SweepError` if any task failed (the rest are stored).
+
+    ``isolate``: every task in a fresh worker process (local runs only; ``max_tasks_per_child=1``
+    with the forkserver start method), so that per-process measurements such as the peak resident
+    memory belong to that task alone; costs one interpreter start (and imports) per task."""
+    if isolate and scheduler is not None:
+        raise ValueError("isolate (a fresh process per task) is for local workers; a Dask cluster reuses its workers")
     runs_dir = Path(runs_dir)
     runs_dir.mkdir(parents=True, exist_ok=True)
     keys = [task_key(t) for t in tasks]
@@ -116,7 +122,7 @@ def run_tasks(tasks: list[dict], fn: Callable[[dict], list], runs_dir, *, worker
 
     if todo and scheduler is not None:
         _run_dask(todo, fn, scheduler, finished)
-    elif todo and (workers or os.cpu_count() or 1) == 1:
+    elif todo and (workers or os.cpu_count() or 1) == 1 and not isolate:
         for task in todo:
             try:
                 rows = fn(task)
@@ -125,7 +131,11 @@ def run_tasks(tasks: list[dict], fn: Callable[[dict], list], runs_dir, *, worker
             else:
                 finished(task, rows)
     elif todo:
-        with cf.ProcessPoolExecutor(max_workers=min(workers or os.cpu_count() or 1, len(todo))) as pool:
+        extra = {}
+        if isolate:
+            import multiprocessing
+            extra = {"mp_context": multiprocessing.get_context("forkserver"), "max_tasks_per_child": 1}
+        with cf.ProcessPoolExecutor(max_workers=min(workers or os.cpu_count() or 1, len(todo)), **extra) as pool:
             futs = {pool.submit(fn, t): t for t in todo}
             try:
                 for fut in cf.as_completed(futs):

@@ -32,11 +32,9 @@ def add_sweep_arguments(ap) -> None:
     g.add_argument("--preset", choices=PRESETS, default=None, help="the paper's fixed studies through the runner")
     g.add_argument("--workers", type=int, default=None, help="parallel worker processes (default: CPU count)")
     g.add_argument("--scheduler", default=None, help="Dask scheduler address (tcp://host:8786)")
-
-
-def wants_sweep(args) -> bool:
-    return (args.spec is not None or args.preset is not None or args.workers is not None
-            or args.scheduler is not None or any(getattr(args, f"sw_{a}") is not None for a in AXES))
+    g.add_argument("--isolate", action="store_true",
+                   help="every run in a fresh worker process, so that peak_rss_mb is that run's own peak "
+                        "(otherwise a reused worker's lifetime maximum: an upper bound); local workers only")
 
 
 def build_tasks(args) -> list[dict]:
@@ -55,7 +53,7 @@ def build_tasks(args) -> list[dict]:
     return expand(parse_spec(raw), base)
 
 
-def run_sweep(tasks, out: Path, workers=None, scheduler=None, stream="stderr") -> list[dict]:
+def run_sweep(tasks, out: Path, workers=None, scheduler=None, stream="stderr", isolate=False) -> list[dict]:
     """Run the tasks through the one runner; a worker that dies is recorded as a failed row.
     ``stream``: progress lines (default: the current ``sys.stderr``; None: quiet)."""
     if stream == "stderr":
@@ -65,8 +63,9 @@ def run_sweep(tasks, out: Path, workers=None, scheduler=None, stream="stderr") -
     from .sweepspec import run_planner_task
     try:
         results = run_tasks(tasks, run_planner_task, out / "runs", workers=workers, scheduler=scheduler,
-                            label="solver-study", stream=stream)
-        return [r for rows in results for r in rows]
+                            label="solver-study", stream=stream, isolate=isolate)
+        scope = "run" if isolate else "worker"
+        return [{**r, "peak_rss_scope": r.get("peak_rss_scope", scope)} for rows in results for r in rows]
     except SweepError as exc:
         from swarmfield.sweep import load_results, task_key
         done = load_results(out / "runs", tasks)
@@ -174,6 +173,9 @@ def run_sweep_cli(args, prog: str) -> int:
     if args.workers is not None and args.workers < 1:
         print(f"{prog}: error: --workers must be at least 1", file=sys.stderr)
         return 2
+    if getattr(args, "isolate", False) and args.scheduler is not None:
+        print(f"{prog}: error: --isolate runs local workers; it cannot be combined with --scheduler", file=sys.stderr)
+        return 2
     from .cliargs import UsageError, check_path
     from .publish import InterruptedAfterPublish, OutputFolder
 
@@ -194,7 +196,8 @@ def run_sweep_cli(args, prog: str) -> int:
 
 def _sweep_and_publish(args, prog, tasks, folder, InterruptedAfterPublish) -> int:
     try:
-        rows = run_sweep(tasks, args.out, workers=args.workers, scheduler=args.scheduler)
+        rows = run_sweep(tasks, args.out, workers=args.workers, scheduler=args.scheduler,
+                         isolate=getattr(args, "isolate", False))
     except KeyboardInterrupt:
         print(f"{prog}: interrupted; finished runs are kept in {args.out / 'runs'} (rerun to resume)", file=sys.stderr)
         return 130

@@ -221,7 +221,8 @@ def preset_tasks(name: str, base: PlannerSettings | None = None, quick: bool = F
 COLUMNS = ["study", "case", "method", "transport", "kernel", "nx", "ny", "n_intervals", "n_modes", "horizon", "w_f", "w_p",
            "w_v", "v_max", "hessian", "tol", "mu_strategy", "linear_solver", "warm_start", "seed", "build_s",
            "solve_s", "iterations", "status", "success", "error", "objective", "J_terminal", "J_running",
-           "J_effort", "kl_final", "t_f_s", "t_grad_s", "t_hess_s", "peak_rss_mb", "rss_growth_mb", "settings"]
+           "J_effort", "kl_final", "t_f_s", "t_grad_s", "t_hess_s", "peak_rss_mb", "peak_rss_scope", "rss_growth_mb",
+           "settings"]
 
 
 def _rss_mb():
