@@ -52,8 +52,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "radius v_max; face: pointwise face bounds (slow)")
     g.add_argument("--transport", choices=["auto", "compiled", "numpy", "casadi"],
                    help="transport kernel inside the NLP (default auto)")
-    g.add_argument("--method", "--solver", dest="method", choices=["ipopt", "grg"], default="ipopt",
-                   help="solver: IPOPT on the NLP, or the paper's GRG baseline")
+    g.add_argument("--method", "--solver", dest="method", choices=["ipopt", "grg"], default=None,
+                   help="solver: IPOPT on the NLP (default), or the paper's GRG baseline")
     s = p.add_argument_group("IPOPT")
     s.add_argument("--tol", type=float, help="IPOPT tol (default 1e-6)")
     s.add_argument("--max-iter", type=int, help="IPOPT max_iter (default 500)")
@@ -83,7 +83,8 @@ def resolve_settings(args) -> PlannerSettings:
     flags = {"nx": args.nx, "ny": args.ny, "n_intervals": args.intervals, "horizon": args.horizon,
              "w_f": args.w_f, "w_p": args.w_p, "w_v": args.w_v, "v_max": args.v_max,
              "target_floor": args.target_floor, "transport": args.transport,
-             "basis": getattr(args, "basis", None), "speed_limit": getattr(args, "speed_limit", None)}
+             "basis": getattr(args, "basis", None), "speed_limit": getattr(args, "speed_limit", None),
+             "method": getattr(args, "method", None)}
     if args.modes is not None:
         flags["n_modes_x"], flags["n_modes_y"] = args.modes
     cfg.update({k: v for k, v in flags.items() if v is not None})
@@ -176,7 +177,7 @@ def run(argv=None) -> int:
 
     planner = ReferencePlanner(settings)
     try:
-        plan = planner.solve(p0, target, t0=args.t0, warm_start=warm, method=args.method)
+        plan = planner.solve(p0, target, t0=args.t0, warm_start=warm)
     except PlannerError as exc:
         print(f"{PROG}: error: {exc}; no plan written", file=sys.stderr)
         return 1

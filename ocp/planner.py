@@ -99,14 +99,16 @@ class ReferencePlanner:
 
     # ------------------------------------------------------------------ solve
     def solve(self, p0: np.ndarray, target: np.ndarray, t0: float = 0.0,
-              warm_start: ReferencePlan | None = None, method: str = "ipopt") -> ReferencePlan:
+              warm_start: ReferencePlan | None = None, method: str | None = None) -> ReferencePlan:
         """Solve eq. "optimization problem" from density p0 towards target p_f; both (nx, ny) cell densities.
 
         Both are validated and normalised; p0 is mixed with ``initial_floor`` of the uniform density
-        (the plan's p[0]).  ``method``: "ipopt" (the NLP in CasADi, default) or "grg" (the paper's
+        (the plan's p[0]).  ``method`` (default ``settings.method``): "ipopt" (the NLP in CasADi) or "grg" (the paper's
         generalized reduced gradient, :mod:`ocp.grg`, a baseline).  Raises ``ValueError`` on bad
         densities and :class:`PlannerError` when the solver returns no usable solution.
         """
+        if method is None:
+            method = self.settings.method
         if method not in METHODS:
             raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
         if method == "grg" and self.settings.speed_limit != "l1":

@@ -153,8 +153,15 @@ class PlannerSettings:
     #: the starting point's, use that iterate instead of failing (status recorded with "feasible iterate
     #: used"); off by default (the paper's behaviour: a failed solve is an error)
     accept_feasible_iterate: bool = False
+    #: solver of every plan (also of the closed loop): "ipopt" (the NLP in CasADi, default) or "grg"
+    #: (the paper's generalized reduced gradient with its own adjoint, ocp.grg; l1 speed limit only)
+    method: str = "ipopt"
 
     def __post_init__(self):
+        if self.method not in ("ipopt", "grg"):
+            raise ValueError(f"planner.method must be 'ipopt' or 'grg', got {self.method!r}")
+        if self.method == "grg" and self.speed_limit != "l1":
+            raise ValueError(f"planner.method = 'grg' projects onto the l1 speed limit only, not {self.speed_limit!r}")
         if not isinstance(self.accept_feasible_iterate, bool):
             raise ValueError(f"planner.accept_feasible_iterate must be true or false, got {self.accept_feasible_iterate!r}")
         object.__setattr__(self, "domain", check_domain(self.domain, "planner.domain"))
