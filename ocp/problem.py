@@ -83,6 +83,8 @@ class TransportProblem:
         s = self.settings
         choice = s.transport
         exact = s.ipopt.hessian_approximation == "exact"
+        if s.scheme != "upwind":          # the kernels implement the donor-cell step only
+            return "casadi"
         if choice == "auto":
             if exact:
                 return "casadi"
@@ -121,11 +123,29 @@ class TransportProblem:
         vxm = vxp - vx
         vyp = 0.5 * (vy + ca.sqrt(vy * vy + eps * eps))
         vym = vyp - vy
-        q = p
-        for _ in range(self.n_sub):
+        def upwind(q):
             fx = vxp * q[: nx - 1, :] - vxm * q[1:, :]
             fy = vyp * q[:, : ny - 1] - vym * q[:, 1:]
-            q = q - rx * ca.mtimes(Dx, fx) - ry * ca.mtimes(fy, DyT)
+            return q - rx * ca.mtimes(Dx, fx) - ry * ca.mtimes(fy, DyT)
+
+        def minmod(a, b):
+            return 0.5 * (ca.sign(a) + ca.sign(b)) * ca.fmin(ca.fabs(a), ca.fabs(b))
+
+        def muscl_euler(q):       # ocp.transport._muscl_euler: limited face values, same upwind split
+            dxq = q[1:, :] - q[: nx - 1, :]
+            dyq = q[:, 1:] - q[:, : ny - 1]
+            sx = ca.vertcat(ca.MX.zeros(1, ny), minmod(dxq[: nx - 2, :], dxq[1:, :]), ca.MX.zeros(1, ny))
+            sy = ca.horzcat(ca.MX.zeros(nx, 1), minmod(dyq[:, : ny - 2], dyq[:, 1:]), ca.MX.zeros(nx, 1))
+            fx = vxp * (q[: nx - 1, :] + 0.5 * sx[: nx - 1, :]) - vxm * (q[1:, :] - 0.5 * sx[1:, :])
+            fy = vyp * (q[:, : ny - 1] + 0.5 * sy[:, : ny - 1]) - vym * (q[:, 1:] - 0.5 * sy[:, 1:])
+            return q - rx * ca.mtimes(Dx, fx) - ry * ca.mtimes(fy, DyT)
+
+        q = p
+        for _ in range(self.n_sub):
+            if s.scheme == "muscl":          # SSP-RK2 (Heun) of the MUSCL operator: ocp.transport.muscl_step
+                q = 0.5 * q + 0.5 * muscl_euler(muscl_euler(q))
+            else:
+                q = upwind(q)
         self.interval_map = ca.Function("interval_map", [p, ax, ay], [q], ["p", "ax", "ay"], ["p_next"])
 
         # symmetric KL to the floored target (log q is a parameter: computed once in NumPy)
@@ -285,7 +305,7 @@ class TransportProblem:
         """Density at every sub-step (N n_sub + 1, nx, ny) under ``coef``, with this problem's kernel."""
         if self.kernel is None:
             return simulate(p0, coef, self.grid, self.settings.interval, self.n_sub, self.settings.upwind_smoothing,
-                            self.settings.basis)
+                            self.settings.basis, self.settings.scheme)
         VX, VY = self.face_velocities(coef)
         traj = self.kernel.forward(VX, VY, np.asarray(p0, dtype=float).ravel(order="F"))
         return traj.reshape(-1, self.grid.ny, self.grid.nx).transpose(0, 2, 1).copy()

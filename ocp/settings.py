@@ -156,8 +156,17 @@ class PlannerSettings:
     #: solver of every plan (also of the closed loop): "ipopt" (the NLP in CasADi, default) or "grg"
     #: (the paper's generalized reduced gradient with its own adjoint, ocp.grg; l1 speed limit only)
     method: str = "ipopt"
+    #: finite-volume scheme of the transport: "upwind" (first-order donor cell, default) or "muscl"
+    #: (minmod-limited MUSCL with SSP-RK2, second order, positivity kept with 1.5x the sub-steps;
+    #: CasADi graph only: transport "auto"/"casadi", method "ipopt"; ocp.transport.muscl_step)
+    scheme: str = "upwind"
 
     def __post_init__(self):
+        if self.scheme not in ("upwind", "muscl"):
+            raise ValueError(f"planner.scheme must be 'upwind' or 'muscl', got {self.scheme!r}")
+        if self.scheme == "muscl" and (self.transport not in ("auto", "casadi") or self.method != "ipopt"):
+            raise ValueError("planner.scheme = 'muscl' runs on the CasADi graph only: transport 'auto' or 'casadi' "
+                             f"and method 'ipopt' (got transport {self.transport!r}, method {self.method!r})")
         if self.method not in ("ipopt", "grg"):
             raise ValueError(f"planner.method must be 'ipopt' or 'grg', got {self.method!r}")
         if self.method == "grg" and self.speed_limit != "l1":
@@ -251,10 +260,12 @@ class PlannerSettings:
             dx = (self.domain[1] - self.domain[0]) / self.nx
             dy = (self.domain[3] - self.domain[2]) / self.ny
             return self.interval * ((2.0 * b + self.upwind_smoothing) / dx
-                                    + (2.0 * b + self.upwind_smoothing) / dy) / self.cfl
+                                    + (2.0 * b + self.upwind_smoothing) / dy) / self.cfl \
+                * (1.5 if self.scheme == "muscl" else 1.0)
         # "norm": sup|v_x| + sup|v_y| <= B_x + B_y <= sqrt(2) v_max when B_x^2 + B_y^2 <= v_max^2
         budget = math.sqrt(2.0) * self.v_max if self.speed_limit == "norm" else self.v_max
-        return self.interval * 2.0 * (budget + self.upwind_smoothing) / (self._cell_width() * self.cfl)
+        return self.interval * 2.0 * (budget + self.upwind_smoothing) / (self._cell_width() * self.cfl) \
+            * (1.5 if self.scheme == "muscl" else 1.0)
 
 
 def _positive(obj, *names):

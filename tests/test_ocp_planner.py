@@ -213,3 +213,13 @@ def test_accept_feasible_iterate_at_max_iter():
         assert plan.meta["symmetric_kl_final"] < plan.meta["symmetric_kl_initial"]
     with pytest.raises(ValueError, match="accept_feasible_iterate"):
         PlannerSettings(accept_feasible_iterate="yes")
+
+
+def test_muscl_planner_solves_and_records_the_scheme():
+    s = PlannerSettings(nx=12, ny=12, n_intervals=3, n_modes_x=3, n_modes_y=3, scheme="muscl")
+    pl = ReferencePlanner(s)
+    g = pl.grid
+    X, Y = np.meshgrid(g.xc, g.yc, indexing="ij")
+    plan = pl.solve(np.exp(-((X - 3) ** 2 + (Y - 3) ** 2) / 4), np.exp(-((X - 15) ** 2 + (Y - 15) ** 2) / 20))
+    assert plan.meta["settings"]["scheme"] == "muscl" and plan.meta["transport"] == "casadi"
+    assert plan.p.min() >= 0.0 and plan.meta["symmetric_kl_final"] < plan.meta["symmetric_kl_initial"]

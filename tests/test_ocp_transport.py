@@ -113,3 +113,61 @@ def test_casadi_shooting_equals_numpy_scheme():
     cas = np.array(P.shoot(P.coef_to_vector(coef), p0))
     for l in range(s.n_intervals + 1):
         np.testing.assert_allclose(cas[:, l].reshape(g.shape, order="F"), ref[l * P.n_sub], atol=1e-14)
+
+
+# ------------------------------------------------------------------ limited second-order scheme (issue 10)
+def _scheme_errors(velocity, exact_end, t_end, sizes, scheme):
+    errs = []
+    for n in sizes:
+        g = Grid((0.0, 20.0, 0.0, 20.0), n, n)
+        p = advect_field(gaussian(g, 7.0, 10.0, 1.5), g, velocity, t_end, scheme=scheme)
+        assert p.min() >= 0.0
+        errs.append(np.sqrt(np.sum((p - exact_end(g)) ** 2) * g.cell_area))
+    return np.array(errs)
+
+
+@pytest.mark.parametrize("case", ["translation", "rotation"])
+def test_muscl_converges_at_second_order_rates(case):
+    """Minmod-limited MUSCL + SSP-RK2: L2 orders 1.4-1.7 (the limiter clips the extremum, the textbook
+    ~1.5 in L2), against 0.8 for the donor cell on the same tests; errors 5-10x smaller at 80 cells."""
+    om = 2 * np.pi / 12.0
+    if case == "translation":
+        vel, t_end = (lambda x, y: (np.full_like(x, 1.0), np.full_like(x, 0.5))), 6.0
+        exact = lambda g: gaussian(g, 13.0, 13.0, 1.5)                       # noqa: E731
+    else:
+        vel, t_end = (lambda x, y: (-om * (y - 10.0), om * (x - 10.0))), 3.0
+        exact = lambda g: gaussian(g, 10.0 - 3.0 * np.cos(om * 3.0), 10.0 - 3.0 * np.sin(om * 3.0), 1.5)  # noqa: E731
+    sizes = (20, 40, 80)
+    second = _scheme_errors(vel, exact, t_end, sizes, "muscl")
+    first = _scheme_errors(vel, exact, t_end, sizes, "upwind")
+    orders = np.log2(second[:-1] / second[1:])
+    assert orders[-1] > 1.3, (second, orders)
+    assert np.log2(first[-2] / first[-1]) < 1.0
+    assert second[-1] < first[-1] / 3
+
+
+def test_muscl_casadi_graph_equals_numpy_and_stays_positive():
+    s = PlannerSettings(domain=(0.0, 10.0, 0.0, 8.0), nx=12, ny=10, horizon=4.0, n_intervals=3, n_modes_x=3,
+                        n_modes_y=3, v_max=2.0, scheme="muscl")
+    upwind = PlannerSettings(**{**{k: getattr(s, k) for k in ("domain", "nx", "ny", "horizon", "n_intervals",
+                                                               "n_modes_x", "n_modes_y", "v_max")}})
+    assert s.substeps == int(np.ceil(1.5 * upwind._substeps_real() - 1e-12)) > upwind.substeps
+    P = TransportProblem(s)
+    assert P.transport == "casadi"
+    g = P.grid
+    for seed in range(3):
+        coef = admissible_coef(np.random.default_rng(seed), s)
+        p0 = np.zeros(g.shape)
+        p0[1:4, 2:5] = 1.0                              # compact support: the zeros must stay >= 0
+        p0 = g.normalize(p0)
+        ref = simulate(p0, coef, g, s.interval, P.n_sub, s.upwind_smoothing, s.basis, "muscl")
+        assert ref.min() >= 0.0
+        np.testing.assert_allclose(ref.sum(axis=(1, 2)) * g.cell_area, 1.0, atol=1e-12)
+        cas = np.array(P.shoot(P.coef_to_vector(coef), p0))
+        for k in range(s.n_intervals + 1):
+            np.testing.assert_allclose(cas[:, k].reshape(g.shape, order="F"), ref[k * P.n_sub], atol=1e-14)
+    for bad in ({"transport": "compiled"}, {"transport": "numpy"}, {"method": "grg"}):
+        with pytest.raises(ValueError, match="muscl"):
+            PlannerSettings(scheme="muscl", **bad)
+    with pytest.raises(ValueError, match="scheme"):
+        PlannerSettings(scheme="weno")
