@@ -122,6 +122,6 @@ def refit(gp, prior: tuple[float, float, float] | None, maxiter: int, factor: in
     theta0 = np.array([np.clip(math.log(s.signal_variance), *bounds[0]), np.clip(math.log(s.length_scale), *bounds[1])])
     f0 = objective(theta0)
     res = minimize(objective, theta0, method="L-BFGS-B", bounds=bounds,
-                   options={"maxiter": int(maxiter), "eps": 1e-6})
+                   options={"maxiter": int(maxiter), "eps": 1e-6, "ftol": 1e-7})
     theta = res.x if np.all(np.isfinite(res.x)) and res.fun <= f0 else theta0
     return float(math.exp(theta[0])), float(math.exp(theta[1])), evals[0]

@@ -150,3 +150,22 @@ def test_learning_run_with_relative_rule_records_hyperparameters_and_does_not_st
         assert r["threshold"] == pytest.approx(0.05 * r["signal_variance"])
     with pytest.raises(ValueError, match="eta_relative"):
         SimSettings(stop_rule="relative", gamma_relative=0.2, eta_relative=0.3)
+
+
+@pytest.mark.parametrize("domain,factor", [((0, 20, 0, 13.0), 2), ((0, 20, 0, 13.3), 1), ((-3, 9, 2, 7.9), 2)])
+def test_refit_on_rectangles_coarsens_only_when_the_grid_tiles(domain, factor):
+    from swarmfield.regression.hyper import coarsened, coarsening_factor
+    rng = np.random.default_rng(3)
+    x0, x1, y0, y1 = domain
+    X = np.column_stack([rng.uniform(x0, x1, 400), rng.uniform(y0, y1, 400)])
+    y = np.sin(X[:, 0] / 2) + 0.2 * rng.normal(size=400)
+    gp = GaussianProcess(GPSettings(learn_hyperparameters=True, hyper_maxiter=5, prior_mean=0.0), domain=domain)
+    gp.add(X, y)
+    c = coarsening_factor(gp, 2)
+    assert c == factor
+    if c > 1:
+        coarse = coarsened(gp, c)
+        assert coarse.inducing_shape == (gp._ax.n_cells // c + 3, gp._ay.n_cells // c + 3)
+        assert coarse._mom[:, 0, 0].sum() == pytest.approx(400)           # every point counted once
+    new = gp.refit_online()
+    assert np.isfinite(new.signal_variance) and new.length_scale >= 1.5 * c * min(gp._ax.h, gp._ay.h) - 1e-9
