@@ -129,7 +129,7 @@ def _scheme_errors(velocity, exact_end, t_end, sizes, scheme):
 @pytest.mark.parametrize("case", ["translation", "rotation"])
 def test_muscl_converges_at_second_order_rates(case):
     """Minmod-limited MUSCL + SSP-RK2: L2 orders 1.4-1.7 (the limiter clips the extremum, the textbook
-    ~1.5 in L2), against 0.8 for the donor cell on the same tests; errors 5-10x smaller at 80 cells."""
+    ~1.5 in L2), against 0.8 for the donor cell on the same tests; errors 4-5x smaller at 80 cells."""
     om = 2 * np.pi / 12.0
     if case == "translation":
         vel, t_end = (lambda x, y: (np.full_like(x, 1.0), np.full_like(x, 0.5))), 6.0
