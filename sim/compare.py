@@ -5,17 +5,19 @@ periods; the runs go through the generic runner :mod:`swarmfield.sweep` (local w
 Dask cluster with ``--scheduler``; resumable: a restarted sweep skips the runs stored in
 ``OUT/runs/``).  Outputs in ``OUT``:
 
-``runs.csv``      tidy: one row per run and measurement time (controller, field, seed, robot_loss,
-                  robots, t, t_T = t/T, max_variance, rmse, alive, path_length, energy, ...)
+``runs.csv``      tidy: one row per run and measurement time (preset, controller, field, seed,
+                  robot_loss, robots, t, t_T = t/T, max_variance, threshold, rmse, alive, path_length,
+                  energy, signal_variance, length_scale, ...)
 ``summary.md``    Markdown table, one line per (field, robots, robot loss, controller): median and
                   [min-max] over seeds of the time to sup V <= gamma (in periods T), the RMSE of f̄ at
                   fixed times, the mean path length and energy per robot at the end
 ``plots/*.png``   RMSE and sup V against t/T, a band (min-max over seeds) and the median per controller
 
-Comparison runs do not stop at sup V <= gamma (sim.gamma is set to 0 for the run and gamma is used
-only to read the time off the metrics), so that every controller is scored at the same times.
-A feedback run stops early only if sup V falls below eta (nothing left to plan for); its last
-estimate then stands for the later times.
+Comparison runs do not stop at sup V <= gamma (sim.gamma and sim.gamma_relative are set to 0 for
+the run; each configuration's own threshold -- gamma, or gamma_relative times the GP's current
+s_f^2 -- is recorded per row and only read the time off the metrics), so that every controller is
+scored at the same times.  A feedback run stops early only if sup V falls below eta (nothing left
+to plan for); its last estimate then stands for the later times.
 """
 from __future__ import annotations
 
@@ -105,7 +107,8 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
                         sim["gamma_relative"] = 0.0
                         doc = {**base_doc, "sim": sim}
                         cfg = config_from_dict(doc, preset=preset)   # validates every combination up front
-                        tasks.append({"preset": preset, "controller": ctrl, "stop_rule": list(rule), "field": _field_label(field), "field_source": fsig,
+                        tasks.append({"preset": preset, "controller": ctrl, "stop_rule": list(rule),
+                                      "field": _field_label(field), "field_source": fsig,
                                       "seed": int(seed), "robot_loss": float(loss), "robots": int(n),
                                       "config": cfg.as_dict()})
     return tasks
