@@ -266,10 +266,15 @@ class KDESettings:
 
     bandwidth  kernel width h; ``None`` = Silverman's rule, refitted at every estimate
     bins       minimum binning resolution (raised automatically to h/4)
+    hold_substeps  the feedback law's p̂ is refitted every this many Euler sub-steps and held in
+               between (1, default: every sub-step, the continuous-time law; ``sim.substeps``: once
+               per measurement step, ~8x fewer KDE fits for large swarms); always refitted at a
+               measurement
     """
 
     bandwidth: float | None = None
     bins: tuple = (128, 128)
+    hold_substeps: int = 1
 
     def __post_init__(self):
         if self.bandwidth is not None:
@@ -284,6 +289,9 @@ class KDESettings:
         if len(bins) != 2 or any(isinstance(b, bool) or not isinstance(b, int) or b < 2 for b in bins):
             raise ValueError(f"kde.bins must be two integers >= 2, got {self.bins!r}")
         object.__setattr__(self, "bins", bins)
+        h = self.hold_substeps
+        if isinstance(h, bool) or not isinstance(h, int) or not 1 <= h <= 1000:
+            raise ValueError(f"kde.hold_substeps must be an integer in [1, 1000], got {h!r}")
 
 
 @dataclass(frozen=True)

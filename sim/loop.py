@@ -136,15 +136,23 @@ def check_config(config: RunConfig) -> None:
 
 class LatestEstimate:
     """KDE of the most recent position array, refitted only when a new array arrives: the estimate
-    made for the metrics after a step is also the one the next step's first feedback evaluation needs."""
+    made for the metrics after a step is also the one the next step's first feedback evaluation needs.
 
-    def __init__(self, kde: KernelDensity):
+    ``hold`` (``kde.hold_substeps``): the controllers' sub-step calls refit only every ``hold`` new
+    arrays and otherwise reuse the last estimate (a zero-order hold of p̂, as a swarm whose density
+    estimate arrives at a fixed rate would see it); ``fresh=True`` (the measurement steps) always refits."""
+
+    def __init__(self, kde: KernelDensity, hold: int = 1):
         self.kde = kde
-        self._X, self._est = None, None
+        self.hold = int(hold)
+        self._X, self._est, self._age = None, None, 0
 
-    def __call__(self, X):
+    def __call__(self, X, fresh: bool = False):
         if X is not self._X:
-            self._X, self._est = X, self.kde.fit(X)
+            self._age += 1
+            if fresh or self._est is None or self._age >= self.hold:
+                self._est, self._age = self.kde.fit(X), 0
+            self._X = X
         return self._est
 
 
@@ -221,7 +229,7 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
         tm["regression"] += time.perf_counter() - t0
         return mean.reshape(grid.shape), var.reshape(grid.shape)
 
-    fit_kde = LatestEstimate(kde)
+    fit_kde = LatestEstimate(kde, config.kde.hold_substeps)
 
     def p_hat_grid(est):
         return grid.normalize(est.on_grid(grid.nx, grid.ny), "KDE of the robots")
@@ -287,7 +295,7 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
     lose_robots(0.0)
     Xa = reporting(X)
     mean, var = regress(Xa, measure(field, Xa, s.noise_variance, rng))
-    est = fit_kde(Xa)
+    est = fit_kde(Xa, fresh=True)
     p_hat = p_hat_grid(est)
     t, step, k = 0.0, 0, 0
     record(step, t, 0, X, mean, var, p_hat, None, 0.0)
@@ -366,7 +374,7 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
                 t = t0 + j * s.dt          # k T + j Δt: no accumulated rounding
                 Xa = reporting(X)
                 y = measure(field, Xa, s.noise_variance, rng)
-                est = fit_kde(Xa)
+                est = fit_kde(Xa, fresh=True)
                 step += 1
                 if j % s.metrics_every and j != n_steps:      # posterior not needed now: data only
                     tm["dynamics"] += time.perf_counter() - t_dyn

@@ -449,3 +449,32 @@ def test_open_loop_controller_follows_the_reference_velocity_only():
     np.testing.assert_allclose(res.positions[1], X, atol=1e-6)
     with pytest.raises(ValueError, match="controller"):
         config_from_dict({"sim": {"controller": "magic"}})
+
+
+def test_kde_hold_refits_once_per_measurement_step(monkeypatch):
+    """kde.hold_substeps = substeps: the feedback law's p̂ is refitted once per measurement step
+    (a zero-order hold) instead of at every Euler sub-step; the default refits every sub-step."""
+    from swarmfield.control.kde import KernelDensity
+    fits = []
+    real = KernelDensity.fit
+
+    def counting(self, X):
+        fits.append(len(X))
+        return real(self, X)
+    monkeypatch.setattr(KernelDensity, "fit", counting)
+    counts = {}
+    for hold in (1, 2):
+        doc = copy.deepcopy(SMALL)
+        doc["sim"].update(max_periods=1, gamma=0.0)
+        doc["kde"] = {**doc.get("kde", {}), "hold_substeps": hold}
+        cfg = config_from_dict(doc)
+        fits.clear()
+        run_simulation(cfg)
+        counts[hold] = len(fits)
+    steps, sub = cfg.sim.steps_per_period, cfg.sim.substeps
+    assert sub >= 2
+    # default: the measurement fit doubles as the first sub-step's, then one fit per further sub-step
+    assert counts[1] == 1 + steps * sub
+    assert counts[2] == 1 + steps * (1 + (sub - 1) // 2)
+    with pytest.raises(ValueError, match="hold_substeps"):
+        config_from_dict({"kde": {"hold_substeps": 0}})
