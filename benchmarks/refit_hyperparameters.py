@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from swarmfield.regression import GaussianProcess, GPSettings
-from swarmfield.regression.hyper import coarsening_factor
+from swarmfield.regression.hyper import coarsening_factor, refit_online
 
 
 def _data(rng, n):
@@ -28,13 +28,13 @@ def main(n=3200, maxiter=15, fine=False):
     gp = GaussianProcess(GPSettings(learn_hyperparameters=True, hyper_maxiter=maxiter), domain=(0, 20, 0, 20))
     gp.add(*_data(rng, n))
     t0 = time.perf_counter()
-    s = gp.refit_online()
+    s = refit_online(gp)
     cold = time.perf_counter() - t0
     warm = []
     for _ in range(5):
         gp.add(*_data(rng, 100))
         t0 = time.perf_counter()
-        s = gp.refit_online()
+        s = refit_online(gp)
         warm.append(time.perf_counter() - t0)
     M = gp.inducing_shape[0] * gp.inducing_shape[1]
     print(f"n={n} M={M} coarse factor={coarsening_factor(gp, gp.settings.hyper_coarsening)} maxiter={maxiter}: cold {cold:.3f} s, "

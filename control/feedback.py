@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import MAX_MAGNITUDE
+from ..runtime.validation import MAX_MAGNITUDE
 
 __all__ = ["FeedbackSettings", "feedback_velocity", "tracking_velocity", "saturate"]
 

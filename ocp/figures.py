@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .atomic import atomic_path
+from ..runtime.atomic import atomic_path
 from .basis import velocity_on_grid
 from .plan import ReferencePlan
 

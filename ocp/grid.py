@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import real_array
+from ..runtime.validation import real_array
 
 
 @dataclass(frozen=True)

@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..checks import points_array, real_scalar
-from .atomic import atomic_path
+from ..runtime.validation import points_array, real_scalar
+from ..runtime.atomic import atomic_path
 from .basis import check_basis, velocity_at
 from .grid import Grid
 

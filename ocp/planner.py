@@ -16,7 +16,7 @@ import casadi as ca
 import numpy as np
 
 from .. import DISTRIBUTION, __version__, distribution
-from ..checks import real_scalar
+from ..runtime.validation import real_scalar
 from .grid import Grid
 from .plan import ReferencePlan
 from .problem import TransportProblem

@@ -59,7 +59,7 @@ when the pending batch is larger than the update rank, and after ``refactor_ever
 50) consecutive updates, which bounds round-off growth. Measured agreement with the
 from-scratch posterior: ~1e-13 relative in mean and variance after 200 updates of 100 points at
 the paper's setting, ~3e-10 at s_f^2 / s_n^2 = 1000. :meth:`log_marginal_likelihood` and
-:meth:`fit_hyperparameters` always use the power sums. ``n_factorizations`` and
+:meth:`fit_hyperparameters` (and :func:`regression.hyper.refit_online`) always use the power sums. ``n_factorizations`` and
 ``n_woodbury_updates`` count the two paths.
 
 Alternatives considered: the projected-process (DTC) statistics with the exact k_u(x) touch a
@@ -98,7 +98,7 @@ from scipy import sparse
 from scipy.linalg import blas, cho_solve, lapack
 from scipy.optimize import minimize
 
-from ..checks import real_array
+from ..runtime.validation import real_array
 from .basis import BASIS_COEF, PRODUCT_COEF, SplineAxis, bspline_weights
 from .settings import GPSettings
 
@@ -546,17 +546,16 @@ class GaussianProcess:
                              f"{1.5 * self._spacing:g}, got {length_scale!r}")
         return self._lml(s2, ell, *self._assemble(self.prior_mean))
 
-    def refit_online(self) -> GPSettings:
-        """One online MAP refit (``settings.learn_hyperparameters``, :mod:`regression.hyper`): from the
-        running sums coarsened ``hyper_coarsening`` times, warm start from the current values, prior
-        centred at the construction-time values, ``hyper_maxiter`` iterations.  Updates and returns
-        the settings (the posterior is recomputed at the next ``predict``)."""
-        from .hyper import refit
-        s0 = self._initial_settings
-        s2, ell, _ = refit(self, (s0.signal_variance, s0.length_scale, s0.hyper_prior_sd), s0.hyper_maxiter,
-                           s0.hyper_coarsening)
-        self._settings = dataclasses.replace(self._settings, signal_variance=s2, length_scale=ell,
-                                             inducing_spacing=self._spacing)
+    @property
+    def initial_settings(self) -> GPSettings:
+        """The settings this GP was built with (the prior centre of online refits)."""
+        return self._initial_settings
+
+    def set_hyperparameters(self, signal_variance: float, length_scale: float) -> GPSettings:
+        """Replace (s_f^2, l), keeping the inducing grid; the posterior is recomputed at the next
+        :meth:`predict`.  Returns the new settings."""
+        self._settings = dataclasses.replace(self._settings, signal_variance=float(signal_variance),
+                                             length_scale=float(length_scale), inducing_spacing=self._spacing)
         return self._settings
 
     def _lml(self, s2: float, ell: float, a: np.ndarray, b: np.ndarray) -> float:

@@ -29,7 +29,9 @@ import math
 import numpy as np
 from scipy.optimize import minimize
 
-__all__ = ["coarsening_factor", "coarsened", "refit"]
+from .gp import _N_POW, _N_POW_Y, GaussianProcess
+
+__all__ = ["coarsening_factor", "coarsened", "refit", "refit_online"]
 
 
 def _offset_maps(c: int, n_pow: int) -> np.ndarray:
@@ -55,8 +57,6 @@ def coarsened(gp, factor: int, length_scale: float | None = None):
     """A :class:`GaussianProcess` on the grid of cell width ``factor`` x gp's, holding exactly the
     sufficient statistics of gp's data (module docstring); its settings are gp's with that spacing
     and ``length_scale`` (default: gp's, raised to the coarse grid's lower bound 1.5 W)."""
-    from .gp import _N_POW, _N_POW_Y, GaussianProcess
-
     c = int(factor)
     ax, ay = gp._ax, gp._ay
     if c < 1 or ax.n_cells % c or ay.n_cells % c:
@@ -125,3 +125,14 @@ def refit(gp, prior: tuple[float, float, float] | None, maxiter: int, factor: in
                    options={"maxiter": int(maxiter), "eps": 1e-6, "ftol": 1e-7})
     theta = res.x if np.all(np.isfinite(res.x)) and res.fun <= f0 else theta0
     return float(math.exp(theta[0])), float(math.exp(theta[1])), evals[0]
+
+
+def refit_online(gp: GaussianProcess):
+    """One online MAP refit of gp (``settings.learn_hyperparameters``): from the running sums
+    coarsened ``hyper_coarsening`` times, warm start from the current values, prior centred at the
+    construction-time values, ``hyper_maxiter`` iterations.  Updates gp's settings (the posterior is
+    recomputed at the next ``predict``) and returns them."""
+    s0 = gp.initial_settings
+    s2, ell, _ = refit(gp, (s0.signal_variance, s0.length_scale, s0.hyper_prior_sd), s0.hyper_maxiter,
+                       s0.hyper_coarsening)
+    return gp.set_hyperparameters(s2, ell)

@@ -9,7 +9,7 @@ import math
 import numbers
 from dataclasses import dataclass
 
-from ..checks import MAX_MAGNITUDE
+from ..runtime.validation import MAX_MAGNITUDE
 
 #: Numerical limits of the GP (measured: signal_variance 1e100 with noise 0.04 fails its Cholesky
 #: factorisation and overflows the float32 variance snapshots of a run).

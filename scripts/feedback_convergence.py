@@ -29,7 +29,7 @@ import numpy as np
 
 from swarmfield.control import FeedbackSettings
 from swarmfield.ocp import Grid, ReferencePlan
-from swarmfield.ocp.atomic import atomic_path, write_atomic
+from swarmfield.runtime.atomic import atomic_path, write_atomic
 from swarmfield.sim.dynamics import uniform_in_box
 from swarmfield.sim.tracking import decay_rate, heat_rate, sampling_floor, stationary_plan, track_reference
 

@@ -9,7 +9,6 @@
 * :mod:`sim.tracking` -- the feedback law alone towards a given plan (Theorems "Exponential
   stability" and "ISS" at the particle level)
 * :mod:`sim.metrics`, :mod:`sim.outputs`, :mod:`sim.figures` -- metrics.csv, summary.json, figures
-* :mod:`sim.cli`      -- the ``simulate-swarm`` command
 
     from swarmfield.sim import RunConfig, run_simulation
     result = run_simulation(RunConfig.default())            # the paper's configuration

@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..ocp.cliargs import check_path
+from ..runtime.cliargs import check_path
 
 __all__ = ["Field", "SincField", "PlumesField", "RidgeField", "GridField", "ScatteredField",
            "FIELDS", "make_field", "load_field", "save_npz_field"]

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..ocp.atomic import atomic_path
+from ..runtime.atomic import atomic_path
 
 __all__ = ["write_figures", "plot_panels", "plot_convergence", "plot_field_error", "write_animation",
            "panel_snapshots"]

@@ -34,6 +34,7 @@ import numpy as np
 
 from ..control import KernelDensity, saturate, tracking_velocity
 from ..regression import GaussianProcess, reachable_target_density, target_density
+from ..regression.hyper import refit_online
 
 from .config import RunConfig
 from .dynamics import euler_maruyama_step, measure, uniform_in_box
@@ -307,7 +308,7 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
         while True:
             if config.gp.learn_hyperparameters and gp.n_observations >= 2:
                 t0 = time.perf_counter()
-                gp.refit_online()            # MAP, warm start (issue 10); posterior recomputed below
+                refit_online(gp)          # MAP, warm start (issue 10); posterior recomputed below
                 m_, v_ = gp.predict(centers)
                 mean, var = m_.reshape(grid.shape), v_.reshape(grid.shape)
                 tm["regression"] += time.perf_counter() - t0

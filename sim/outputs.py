@@ -16,7 +16,7 @@
 figures                 ``panels.png``, ``convergence.png``, ``field_error.png`` and, on request,
                         ``animation.gif`` (:mod:`sim.figures`)
 
-Publication (:mod:`ocp.publish`, :func:`output_folder`): a run locks DIR, writes into its own new
+Publication (:mod:`runtime.publish`, :func:`output_folder`): a run locks DIR, writes into its own new
 staging folder ``DIR/.simulate-swarm-stage-XXXXXXXX`` (the metrics after every period, everything
 else at the end) and publishes the whole set at once (journal, renames with signals deferred,
 manifest ``DIR/.simulate-swarm`` last).  An interrupted, failed or crashed run leaves the previous
@@ -43,8 +43,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import DISTRIBUTION, __version__, distribution
-from ..ocp.atomic import write_atomic
-from ..ocp.publish import OutputFolder
+from ..runtime.atomic import write_atomic
+from ..runtime.publish import OutputFolder
 
 from .config import to_toml
 from .metrics import COLUMNS
@@ -53,7 +53,7 @@ __all__ = ["MARKER", "STAGING", "OUTPUT_FILES", "output_folder", "check_output_d
            "write_metrics", "write_summary", "write_outputs", "summary_dict", "versions"]
 
 PROG = "simulate-swarm"
-MARKER = ".simulate-swarm"                 # the manifest of the published run (ocp.publish)
+MARKER = ".simulate-swarm"                 # the manifest of the published run (runtime.publish)
 STAGING = ".simulate-swarm-incomplete"     # where the files of an unfinished run are kept
 FIGURES = ("panels.png", "convergence.png", "field_error.png", "animation.gif")
 OUTPUT_FILES = ("metrics.csv", "replans.csv", "summary.json", "config.toml", "trajectory.npz") + FIGURES
@@ -63,7 +63,7 @@ REPLAN_COLUMNS = ("period", "t0", "max_variance", "rmse", "status", "success", "
 
 # ------------------------------------------------------------------------------ folder handling
 def output_folder(path, force: bool = False) -> OutputFolder:
-    """The run folder DIR with its lock, staging, manifest and journal (:mod:`ocp.publish`)."""
+    """The run folder DIR with its lock, staging, manifest and journal (:mod:`runtime.publish`)."""
     return OutputFolder(path, PROG, OUTPUT_FILES, force=force)
 
 

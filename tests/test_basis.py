@@ -155,7 +155,7 @@ def test_old_plans_without_the_key_are_sine_and_unknown_bases_are_refused(tmp_pa
 
 
 def test_cli_basis_flag_and_simulation_config(tmp_path):
-    from swarmfield.ocp.cli import main as plan_main
+    from swarmfield.cli.plan_reference import main as plan_main
     from swarmfield.sim import config_from_dict
     out = tmp_path / "plan.npz"
     code = plan_main(["--nx", "12", "--ny", "12", "--intervals", "2", "--modes", "3", "3", "--basis", "sine-cosine",

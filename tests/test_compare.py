@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from swarmfield import sweep
-from swarmfield.sim.compare import main
+from swarmfield.studies import runner as sweep
+from swarmfield.studies.compare import main
 
 SMALL_TOML = """
 [sim]
@@ -137,7 +137,7 @@ SMALL_ARGS = ["--controllers", "lawnmower", "--fields", "sinc", "--seeds", "0", 
 
 
 def test_second_sweep_into_a_locked_folder_is_refused(tmp_path, cfg, capsys):
-    from swarmfield.ocp.publish import OutputFolder
+    from swarmfield.runtime.publish import OutputFolder
 
     out = tmp_path / "cmp"
     with OutputFolder(out, "compare-controllers", ["runs.csv"], foreign_ok=True):     # a sweep still running
@@ -148,7 +148,7 @@ def test_second_sweep_into_a_locked_folder_is_refused(tmp_path, cfg, capsys):
 
 
 def test_interrupt_while_writing_keeps_the_previous_outputs(tmp_path, cfg, capsys, monkeypatch):
-    import swarmfield.sim.compare as compare
+    import swarmfield.studies.compare as compare
 
     out = tmp_path / "cmp"
     assert main(SMALL_ARGS + ["--config", str(cfg), "--out", str(out)]) == 0
@@ -167,7 +167,7 @@ def test_interrupt_while_writing_keeps_the_previous_outputs(tmp_path, cfg, capsy
 
 
 def test_ctrl_c_before_the_sweep_is_one_line_and_exit_130(tmp_path, cfg, capsys, monkeypatch):
-    import swarmfield.sim.compare as compare
+    import swarmfield.studies.compare as compare
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt

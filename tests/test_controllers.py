@@ -4,7 +4,7 @@ import json
 import numpy as np
 import pytest
 
-from swarmfield.sim.cli import main
+from swarmfield.cli.simulate_swarm import main
 from swarmfield.sim.config import config_from_dict
 from swarmfield.sim.controllers import CONTROLLERS, Controller, FeedbackController, register
 from swarmfield.sim.loop import run_simulation

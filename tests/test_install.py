@@ -97,13 +97,13 @@ def test_console_scripts_run_beside_python_control(env_with_control):
     assert summary["n_measurement_steps"] >= 2
     # removing python-control leaves ours whole (uninstalling one used to delete the other's files)
     _run([py, "-m", "pip", "uninstall", "--yes", "--quiet", "control"], where, env)
-    _run([py, "-c", "from swarmfield.control import FeedbackSettings; from swarmfield.sim.cli import main"], where, env)
+    _run([py, "-c", "from swarmfield.control import FeedbackSettings; from swarmfield.cli.simulate_swarm import main"], where, env)
 
 
 def test_editable_install_maps_the_namespace_onto_the_source_tree(env_with_control):
     where, py, env = env_with_control
     _run([py, "-m", "pip", "install", "--quiet", "--no-deps", "--disable-pip-version-check", "-e", ROOT], where, env)
-    code = ("import swarmfield, swarmfield.ocp.planner as p, swarmfield.sim.cli;"
+    code = ("import swarmfield, swarmfield.ocp.planner as p, swarmfield.cli.simulate_swarm;"
             "print(swarmfield.__file__); print(p.__file__)")
     files = [Path(f) for f in _run([py, "-c", code], where, env).split()]
     assert files == [ROOT / "__init__.py", ROOT / "ocp" / "planner.py"]

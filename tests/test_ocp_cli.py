@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from swarmfield.ocp.cli import main
+from swarmfield.cli.plan_reference import main
 from swarmfield.ocp.plan import ReferencePlan
 
 SMALL = ["--nx", "12", "--ny", "10", "--intervals", "3", "--modes", "3", "3"]

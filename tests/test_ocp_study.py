@@ -3,7 +3,7 @@ import csv
 
 import pytest
 
-from swarmfield.ocp.study import main
+from swarmfield.studies.solver_study import main
 
 
 def test_quick_hessian_study(tmp_path, capsys):

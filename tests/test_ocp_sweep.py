@@ -3,9 +3,9 @@ recorded, resumability, CSV columns, Dask == local (issue 11)."""
 import csv
 import pytest
 
-from swarmfield.ocp import study, sweepcli, sweepspec
+from swarmfield.studies import solver_spec as sweepspec, solver_study as study, sweepcli
 from swarmfield.ocp.settings import PlannerSettings
-from swarmfield.ocp.sweepspec import SpecError, expand, parse_spec, preset_tasks, run_planner_task
+from swarmfield.studies.solver_spec import SpecError, expand, parse_spec, preset_tasks, run_planner_task
 
 TINY = ["--quick", "--intervals", "2", "--modes", "3"]
 
@@ -50,10 +50,10 @@ def test_presets_reproduce_todays_studies():
     base = PlannerSettings()
     for name in ("formulation", "ipopt", "discretisation", "hessian", "all"):
         tasks = preset_tasks(name, base)
-        old = study.cases(name, base, quick=False)
+        old = sweepspec.cases(name, base, quick=False)
         assert [(t["study"], t["case"]) for t in tasks] == [(st, lab) for st, lab, _ in old]
         assert [t["settings"] for t in tasks] == [sweepspec.to_dict(s) for _, _, s in old]
-    assert len(preset_tasks("all", base)) == len(study.cases("all", base, False)) > 10
+    assert len(preset_tasks("all", base)) == len(sweepspec.cases("all", base, False)) > 10
 
 
 def test_failed_run_is_recorded_and_the_rest_go_on(tmp_path, capsys):
@@ -115,7 +115,7 @@ def test_task_holds_no_casadi_objects():
 
 def test_plan_reference_method_and_transport(tmp_path):
     from swarmfield.ocp import ReferencePlan
-    from swarmfield.ocp.cli import main
+    from swarmfield.cli.plan_reference import main
     out = tmp_path / "p.npz"
     assert main(["--nx", "8", "--ny", "8", "--intervals", "2", "--modes", "3", "3", "--method", "grg",
                  "--transport", "numpy", "--out", str(out)]) == 0
@@ -125,7 +125,7 @@ def test_plan_reference_method_and_transport(tmp_path):
 
 
 def test_a_sweep_into_a_locked_folder_is_refused_before_any_run(tmp_path, capsys):
-    from swarmfield.ocp.publish import OutputFolder
+    from swarmfield.runtime.publish import OutputFolder
 
     out = tmp_path / "o"
     with OutputFolder(out, "solver-study", ["study.csv"], foreign_ok=True):        # another study still writing

@@ -7,8 +7,8 @@ import tomllib
 import pytest
 
 from swarmfield.sim import PRESETS, RunConfig, config_from_dict, to_toml
-from swarmfield.sim.cli import main as simulate_main
-from swarmfield.sim.compare import main as compare_main
+from swarmfield.cli.simulate_swarm import main as simulate_main
+from swarmfield.studies.compare import main as compare_main
 from swarmfield.sim.presets import merge_under_preset
 
 SMALL = {

@@ -16,9 +16,9 @@ import pytest
 
 from test_sim_cli import SMALL_TOML
 
-from swarmfield.ocp import cli as ocp_cli
-from swarmfield.ocp import study
-from swarmfield.sim import cli as sim_cli
+from swarmfield.cli import plan_reference as ocp_cli
+from swarmfield.studies import solver_study as study, sweepcli
+from swarmfield.cli import simulate_swarm as sim_cli
 from swarmfield.sim.outputs import MARKER, OUTPUT_FILES, STAGING
 
 SMALL_PLAN = ["--nx", "12", "--ny", "10", "--intervals", "3", "--modes", "3", "3"]
@@ -84,7 +84,7 @@ def fake_task(task):
 
 
 def test_solver_study_interrupt_while_writing_keeps_the_previous_study(tmp_path, capsys, monkeypatch):
-    from swarmfield.ocp import sweepspec
+    from swarmfield.studies import solver_spec as sweepspec
     monkeypatch.setattr(sweepspec, "run_planner_task", fake_task)   # one worker: runs in this process
     (tmp_path / "notes.md").write_text("mine")                 # solver-study writes beside other files
     assert study.main(["--study", "hessian", "--quick", "--workers", "1", "--out", str(tmp_path)]) == 0
@@ -93,7 +93,7 @@ def test_solver_study_interrupt_while_writing_keeps_the_previous_study(tmp_path,
 
     def ctrl_c(rows, path):
         raise KeyboardInterrupt
-    monkeypatch.setattr(study, "plot", ctrl_c)
+    monkeypatch.setattr(sweepcli, "plot_cases", ctrl_c)
     try:
         code = study.main(["--study", "ipopt", "--quick", "--workers", "1", "--out", str(tmp_path)])
     except KeyboardInterrupt:
@@ -132,7 +132,7 @@ def test_signal_between_the_renames_of_simulate_swarm_never_mixes_two_runs(tmp_p
 
 
 def test_killed_publication_is_completed_by_the_next_run(tmp_path, cfg, capsys, monkeypatch):
-    from swarmfield.ocp import publish
+    from swarmfield.runtime import publish
 
     out = tmp_path / "run"
     code, err = sim(["--config", cfg, "--out", out, "--max-periods", 1, "--quiet", "--no-figures"], capsys)
@@ -188,7 +188,7 @@ def test_second_concurrent_run_into_one_folder_is_refused_and_the_first_finishes
     slow = tmp_path / "slow.toml"             # never stops on the variance: runs all its periods
     slow.write_text(SMALL_TOML.replace("substeps = 4", "substeps = 4\ngamma = 0.0"))
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
-    first = subprocess.Popen([sys.executable, "-m", "swarmfield.sim.cli", "--config", str(slow), "--out", str(out),
+    first = subprocess.Popen([sys.executable, "-m", "swarmfield.cli.simulate_swarm", "--config", str(slow), "--out", str(out),
                               "--max-periods", "8", "--quiet", "--no-figures"], env=env, cwd=tmp_path,
                              stderr=subprocess.PIPE, text=True)
     try:
@@ -248,7 +248,7 @@ def test_force_beside_a_file_named_like_the_staging_folder(tmp_path, cfg, capsys
 
 # ------------------------------------------------------------------------------ 5. signals
 def test_deferred_signals_deliver_after_the_block_and_keep_ignored_ones_ignored():
-    from swarmfield.ocp.publish import deferred_signals
+    from swarmfield.runtime.publish import deferred_signals
 
     done = []
     with pytest.raises(KeyboardInterrupt):

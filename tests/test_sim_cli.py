@@ -4,7 +4,7 @@ import json
 import numpy as np
 import pytest
 
-from swarmfield.sim.cli import main
+from swarmfield.cli.simulate_swarm import main
 from swarmfield.sim.outputs import MARKER
 
 SMALL_TOML = """

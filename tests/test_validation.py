@@ -14,10 +14,10 @@ import pytest
 
 from test_sim_cli import SMALL_TOML
 
-from swarmfield.ocp import cli as ocp_cli
+from swarmfield.cli import plan_reference as ocp_cli
 from swarmfield.ocp.plan import ReferencePlan
 from swarmfield.ocp.settings import PlannerSettings
-from swarmfield.sim import cli as sim_cli
+from swarmfield.cli import simulate_swarm as sim_cli
 from swarmfield.sim.config import SimSettings
 
 SMALL_PLAN = ["--nx", "12", "--ny", "10", "--intervals", "3", "--modes", "3", "3"]
@@ -68,7 +68,7 @@ def test_simulate_swarm_says_up_front_that_a_run_would_be_very_long(tmp_path):
     cfg = tmp_path / "long.toml"
     cfg.write_text(SMALL_TOML.replace("substeps = 4", "substeps = 1000000000"))
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
-    proc = subprocess.run([sys.executable, "-m", "swarmfield.sim.cli", "--config", str(cfg), "--out",
+    proc = subprocess.run([sys.executable, "-m", "swarmfield.cli.simulate_swarm", "--config", str(cfg), "--out",
                            str(tmp_path / "run")], env=env, cwd=tmp_path, capture_output=True, text=True, timeout=60)
     lines = proc.stderr.strip().splitlines()
     assert proc.returncode == 2 and len(lines) == 1 and "--allow-long-run" in lines[0], proc.stderr

@@ -1,6 +1,6 @@
 """Sweep specifications for ``solver-study``: parse and validate a sweep (command line or TOML),
 expand the Cartesian product into picklable task dicts, and run one task (:func:`run_planner_task`)
-through the one generic runner :mod:`swarmfield.sweep` (local processes or Dask, resumable).
+through the one generic runner :mod:`studies.runner` (local processes or Dask, resumable).
 
 A spec is a dict of axis -> list of values.  Axes (all optional; a missing axis keeps the default):
 
@@ -11,7 +11,7 @@ A spec is a dict of axis -> list of values.  Axes (all optional; a missing axis 
 
 Every value is checked and every task's :class:`PlannerSettings` is built *before* any run
 starts (:class:`SpecError` otherwise).  Presets name the paper's four fixed studies
-(:func:`preset_tasks`, same cases as :func:`ocp.study.cases`).
+(:func:`preset_tasks`, same cases as :func:`cases`).
 
 Peak memory: each task records ``peak_rss_mb`` = ``ru_maxrss`` of the worker process after the run
 and ``rss_growth_mb`` = its growth during the run.  ``ru_maxrss`` is the process's lifetime maximum,
@@ -26,7 +26,7 @@ import resource
 import sys
 import time
 
-from .settings import TRANSPORTS, IpoptSettings, PlannerSettings, dataclass_from_dict, to_dict
+from ..ocp.settings import TRANSPORTS, IpoptSettings, PlannerSettings, dataclass_from_dict, to_dict
 
 __all__ = ["SpecError", "AXES", "parse_spec", "expand", "preset_tasks", "run_planner_task", "COLUMNS"]
 
@@ -205,12 +205,47 @@ def expand(spec: dict, base: PlannerSettings | None = None, study: str = "sweep"
     return tasks
 
 
+def cases(study: str, base: PlannerSettings, quick: bool):
+    """(study, label, settings) triples; each changes one thing of ``base``."""
+    ip = base.ipopt
+    rep = dataclasses.replace
+    out = []
+    if study in ("formulation", "all"):
+        for form in ("split", "slack"):
+            for aug in ("extended", "sherman-morrison"):
+                out.append(("formulation", f"speed limit {form}, {aug}",
+                            rep(base, speed_limit_form=form, ipopt=rep(ip, limited_memory_aug_solver=aug))))
+    if study in ("ipopt", "all"):
+        for h in (3, 6, 12, 30):
+            out.append(("ipopt", f"L-BFGS history {h}", rep(base, ipopt=rep(ip, limited_memory_max_history=h))))
+        out.append(("ipopt", "mu monotone, mu_init 0.1",
+                    rep(base, ipopt=rep(ip, mu_strategy="monotone", mu_init=0.1))))
+        out.append(("ipopt", "mu adaptive, mu_init 0.1", rep(base, ipopt=rep(ip, mu_init=0.1))))
+        out.append(("ipopt", "tol 1e-8, acceptable off",
+                    rep(base, ipopt=rep(ip, tol=1e-8, acceptable_iter=1000))))
+        out.append(("ipopt", "acceptable_tol 1e-4", rep(base, ipopt=rep(ip, acceptable_tol=1e-4))))
+    if study in ("discretisation", "all"):
+        sizes = (10, 20) if quick else (20, 30, 40, 60)
+        for n in sizes:
+            out.append(("discretisation", f"grid {n}x{n}", rep(base, nx=n, ny=n)))
+        for m in ((3, 4) if quick else (4, 6, 8, 10)):
+            out.append(("discretisation", f"modes {m}x{m}", rep(base, n_modes_x=m, n_modes_y=m)))
+        for cfl in (0.45, 0.9):
+            out.append(("discretisation", f"CFL {cfl} ({rep(base, cfl=cfl).substeps} sub-steps)", rep(base, cfl=cfl)))
+    if study in ("hessian", "all"):
+        small = rep(base, nx=10, ny=10, n_intervals=4, n_modes_x=3, n_modes_y=3) if quick else \
+            rep(base, nx=16, ny=16, n_intervals=6, n_modes_x=4, n_modes_y=4)
+        for hess in ("limited-memory", "exact"):
+            out.append(("hessian", f"{hess} ({small.nx}x{small.ny}, N={small.n_intervals}, I=J={small.n_modes_x})",
+                        rep(small, ipopt=rep(small.ipopt, hessian_approximation=hess))))
+    return out
+
+
 PRESETS = ("formulation", "ipopt", "discretisation", "hessian", "all")
 
 
 def preset_tasks(name: str, base: PlannerSettings | None = None, quick: bool = False) -> list[dict]:
-    """Today's fixed studies (:func:`ocp.study.cases`) as task dicts."""
-    from .study import cases
+    """Today's fixed studies (:func:`cases`) as task dicts."""
     if name not in PRESETS:
         raise SpecError(f"unknown preset {name!r}; known: {', '.join(PRESETS)}")
     base = base or PlannerSettings()
@@ -237,9 +272,9 @@ def run_planner_task(task: dict) -> list[dict]:
     import json
     import math
 
-    from .grid import Grid
-    from .planner import ReferencePlanner
-    from .scenario import box_density, first_step_target
+    from ..ocp.grid import Grid
+    from ..ocp.planner import ReferencePlanner
+    from ..ocp.scenario import box_density, first_step_target
 
     s = dataclass_from_dict(PlannerSettings, task["settings"])
     row = {"study": task["study"], "case": task["case"], "method": task["method"], "transport": s.transport,

@@ -14,11 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import probe_writable
-from .cliargs import OneLineParser, UsageError as InputError, check_path
-from .plan import ReferencePlan
-from .publish import InterruptedAfterPublish, staged_files
-from .settings import PlannerSettings, dataclass_from_dict
+from ..runtime.atomic import probe_writable
+from ..runtime.cliargs import OneLineParser, UsageError as InputError, check_path
+from ..ocp.plan import ReferencePlan
+from ..runtime.publish import InterruptedAfterPublish, staged_files
+from ..ocp.settings import PlannerSettings, dataclass_from_dict
 
 PROG = "plan-reference"
 
@@ -149,8 +149,8 @@ def run(argv=None) -> int:
     check_output(args.out, ".npz", "output")
     if args.plot is not None:
         check_output(args.plot, ".png", "plot")
-    from .grid import Grid
-    from .scenario import box_density, first_step_target
+    from ..ocp.grid import Grid
+    from ..ocp.scenario import box_density, first_step_target
 
     grid = Grid(settings.domain, settings.nx, settings.ny)
     warm = None
@@ -173,7 +173,7 @@ def run(argv=None) -> int:
         target, target_desc = load_density(args.target, grid.shape, "target density"), str(args.target)
     else:
         target, target_desc = first_step_target(grid, seed=args.seed)
-    from .planner import PlannerError, ReferencePlanner
+    from ..ocp.planner import PlannerError, ReferencePlanner
 
     planner = ReferencePlanner(settings)
     try:
@@ -183,14 +183,14 @@ def run(argv=None) -> int:
         return 1
     plan.meta["initial_density"] = p0_desc
     plan.meta["target_density"] = target_desc
-    # plan and plot are written to temporary files first and renamed together (ocp.publish): an
+    # plan and plot are written to temporary files first and renamed together (runtime.publish): an
     # interrupt or a write error leaves both previous files as they were
     writing = args.out
     try:
         with staged_files([args.out] + ([args.plot] if args.plot is not None else [])) as tmp:
             plan.save(tmp[args.out])
             if args.plot is not None:
-                from .figures import plot_plan
+                from ..ocp.figures import plot_plan
                 writing = args.plot
                 plot_plan(plan, tmp[args.plot])
             writing = None

@@ -1,7 +1,7 @@
 """``compare-controllers``: controllers x fields x seeds x robot losses x robot counts, in parallel.
 
 Every run is one closed-loop simulation (:func:`sim.loop.run_simulation`) of ``--max-periods``
-periods; the runs go through the generic runner :mod:`swarmfield.sweep` (local worker processes, or a
+periods; the runs go through the generic runner :mod:`studies.runner` (local worker processes, or a
 Dask cluster with ``--scheduler``; resumable: a restarted sweep skips the runs stored in
 ``OUT/runs/``).  Outputs in ``OUT``:
 
@@ -31,9 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..ocp.atomic import write_atomic
-from ..ocp.cliargs import OneLineParser, UsageError as InputError, cli_main, check_path
-from ..ocp.publish import InterruptedAfterPublish, OutputFolder
+from ..runtime.atomic import write_atomic
+from ..runtime.cliargs import OneLineParser, UsageError as InputError, cli_main, check_path
+from ..runtime.publish import InterruptedAfterPublish, OutputFolder
 
 PROG = "compare-controllers"
 ROW_COLUMNS = ("preset", "controller", "field", "seed", "robot_loss", "robots", "step", "t", "t_T", "max_variance",
@@ -45,8 +45,8 @@ KEYS = ("field", "robots", "robot_loss", "preset", "controller")
 # ------------------------------------------------------------------------------ one run
 def run_task(task: dict) -> list[dict]:
     """One comparison run (module level: pickled to the workers)."""
-    from .config import config_from_dict
-    from .loop import run_simulation
+    from ..sim.config import config_from_dict
+    from ..sim.loop import run_simulation
 
     cfg = config_from_dict(task["config"])
     res = run_simulation(cfg)
@@ -61,7 +61,7 @@ def run_task(task: dict) -> list[dict]:
 
 
 def _field_label(field: str) -> str:
-    from .fields import FIELDS
+    from ..sim.fields import FIELDS
     return field if field in FIELDS else Path(field).stem
 
 
@@ -72,9 +72,9 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
     ``base_doc`` is a configuration document as written in a TOML file (only the values the user
     gives); each of ``presets`` (:mod:`sim.presets`; default: the document's own ``preset`` key, else
     ``paper``) is laid under it, so the baselines of a preset share its GP and stopping settings."""
-    from .config import config_from_dict
-    from .fields import FIELDS
-    from .presets import DEFAULT_PRESET
+    from ..sim.config import config_from_dict
+    from ..sim.fields import FIELDS
+    from ..sim.presets import DEFAULT_PRESET
 
     if presets is None:
         presets = [base_doc.get("preset", DEFAULT_PRESET)]
@@ -232,12 +232,12 @@ def write_plots(runs, out: Path, gamma: float) -> list[str]:
 
 # ------------------------------------------------------------------------------ CLI
 def _preset_names():
-    from .presets import PRESETS
+    from ..sim.presets import PRESETS
     return list(PRESETS)
 
 
 def build_parser():
-    from .controllers import CONTROLLERS
+    from ..sim.controllers import CONTROLLERS
 
     p = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0])
     p.add_argument("--controllers", nargs="+", default=list(CONTROLLERS), metavar="NAME",
@@ -266,8 +266,8 @@ def build_parser():
 
 def run(argv=None) -> int:
     args = build_parser().parse_args(argv)
-    from .config import load_config, read_toml
-    from .controllers import CONTROLLERS
+    from ..sim.config import load_config, read_toml
+    from ..sim.controllers import CONTROLLERS
 
     for name in args.controllers:
         if name not in CONTROLLERS:
@@ -295,7 +295,7 @@ def run(argv=None) -> int:
     if not args.no_plots:
         outputs += sorted({f"plots/{plot_name(t['field'], t['robots'], t['robot_loss'])}" for t in tasks})
     # OUT may hold other files (only these names are ever replaced); it is locked for the whole sweep,
-    # and runs.csv, summary.md and the plots are published together (ocp.publish)
+    # and runs.csv, summary.md and the plots are published together (runtime.publish)
     folder = OutputFolder(out, PROG, outputs, foreign_ok=True)
     try:
         check_path(out, "output folder")
@@ -310,7 +310,7 @@ def run(argv=None) -> int:
 
 
 def _sweep_and_publish(args, argv, tasks, gamma, times, folder) -> int:
-    from .. import sweep
+    from . import runner as sweep
 
     out = args.out
     try:

@@ -1,10 +1,10 @@
-"""``solver-study`` sweeps shaped by the user (command line or TOML) through :mod:`swarmfield.sweep`.
+"""``solver-study`` sweeps shaped by the user (command line or TOML) through :mod:`studies.runner`.
 
     solver-study --grid 20 40 80 --solver ipopt grg --transport compiled casadi --out study
     solver-study --spec sweep.toml --workers 2          # [sweep] grid = [20, 40], solver = ["ipopt"]
     solver-study --preset all --scheduler tcp://host:8786
 
-Writes ``study.csv`` (one row per run, :data:`ocp.sweepspec.COLUMNS`), ``study.md``,
+Writes ``study.csv`` (one row per run, :data:`studies.solver_spec.COLUMNS`), ``study.md``,
 ``study_scaling.png`` (solve time against cells, log-log, fitted exponent per solver/transport),
 ``study_time_objective.png`` (objective against solve time per solver) and ``runs/`` (one file per
 finished run: a restarted sweep skips them).
@@ -17,7 +17,8 @@ import math
 import sys
 from pathlib import Path
 
-from .sweepspec import AXES, COLUMNS, PRESETS, SpecError, expand, load_toml, parse_spec, preset_tasks
+from ..runtime.atomic import atomic_path, write_atomic
+from .solver_spec import AXES, COLUMNS, PRESETS, SpecError, expand, load_toml, parse_spec, preset_tasks
 
 #: axis -> command-line flag
 FLAGS = {a: "--" + a.replace("_", "-") for a in AXES}
@@ -39,7 +40,7 @@ def add_sweep_arguments(ap) -> None:
 
 def build_tasks(args) -> list[dict]:
     """Parse, validate and expand (raises :class:`SpecError` before any run)."""
-    from .settings import PlannerSettings
+    from ..ocp.settings import PlannerSettings
     base = PlannerSettings(nx=12, ny=12, n_intervals=4, n_modes_x=3, n_modes_y=3) if args.quick else PlannerSettings()
     if args.preset is not None:
         if args.spec is not None or any(getattr(args, f"sw_{a}") is not None for a in AXES):
@@ -58,16 +59,16 @@ def run_sweep(tasks, out: Path, workers=None, scheduler=None, stream="stderr", i
     ``stream``: progress lines (default: the current ``sys.stderr``; None: quiet)."""
     if stream == "stderr":
         stream = sys.stderr
-    from swarmfield.sweep import SweepError, run_tasks
+    from .runner import SweepError, run_tasks
 
-    from .sweepspec import run_planner_task
+    from .solver_spec import run_planner_task
     try:
         results = run_tasks(tasks, run_planner_task, out / "runs", workers=workers, scheduler=scheduler,
                             label="solver-study", stream=stream, isolate=isolate)
         scope = "run" if isolate else "worker"
         return [{**r, "peak_rss_scope": r.get("peak_rss_scope", scope)} for rows in results for r in rows]
     except SweepError as exc:
-        from swarmfield.sweep import load_results, task_key
+        from .runner import load_results, task_key
         done = load_results(out / "runs", tasks)
         failed = {task_key(t): msg for t, msg in exc.failures}
         rows = []
@@ -102,7 +103,6 @@ SWEEP_OUTPUTS = ("study.csv", "study.md", "study_scaling.png", "study_time_objec
 
 
 def write_sweep_outputs(rows, out: Path) -> list[Path]:
-    from .atomic import atomic_path, write_atomic
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=COLUMNS, extrasaction="ignore")
     w.writeheader()
@@ -149,8 +149,7 @@ def write_sweep_outputs(rows, out: Path) -> list[Path]:
     with atomic_path(out / "study_time_objective.png", ".png") as tmp:
         fig.savefig(tmp, dpi=110, format="png")
     plt.close(fig)
-    from .study import plot
-    plot(rows, out / "study.png")            # solve time per case, one panel per study
+    plot_cases(rows, out / "study.png")            # solve time per case, one panel per study
     return paths + [out / "study_scaling.png", out / "study_time_objective.png", out / "study.png"]
 
 
@@ -176,10 +175,10 @@ def run_sweep_cli(args, prog: str) -> int:
     if getattr(args, "isolate", False) and args.scheduler is not None:
         print(f"{prog}: error: --isolate runs local workers; it cannot be combined with --scheduler", file=sys.stderr)
         return 2
-    from .cliargs import UsageError, check_path
-    from .publish import InterruptedAfterPublish, OutputFolder
+    from ..runtime.cliargs import UsageError, check_path
+    from ..runtime.publish import InterruptedAfterPublish, OutputFolder
 
-    # OUT is locked for the sweep; the study files are staged and published together (ocp.publish)
+    # OUT is locked for the sweep; the study files are staged and published together (runtime.publish)
     folder = OutputFolder(args.out, prog, SWEEP_OUTPUTS, foreign_ok=True)
     try:
         check_path(args.out, "output folder")
@@ -220,3 +219,34 @@ def _sweep_and_publish(args, prog, tasks, folder, InterruptedAfterPublish) -> in
     failed = sum(1 for r in rows if r.get("error"))
     print(f"wrote {', '.join(str(args.out / n) for n in names)} ({len(rows)} runs, {failed} failed)")
     return 0
+
+
+def plot_cases(rows, path: Path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    def num(v):
+        try:
+            v = float(v)
+        except (TypeError, ValueError):
+            return 0.0
+        return v if math.isfinite(v) else 0.0
+
+    studies = list(dict.fromkeys(r.get("study", "") for r in rows))
+    fig, axes = plt.subplots(1, len(studies), figsize=(4.6 * len(studies), 4.2), squeeze=False, constrained_layout=True)
+    for ax, st in zip(axes[0], studies):
+        rs = [r for r in rows if r.get("study", "") == st]
+        y = range(len(rs))
+        ax.barh(y, [num(r.get("solve_s")) for r in rs], color="tab:blue")
+        for k, r in enumerate(rs):
+            label = f" {r.get('iterations')} it, J={num(r.get('objective')):.3g}" if not r.get("error") else " failed"
+            ax.text(num(r.get("solve_s")), k, label, va="center", fontsize=7)
+        ax.set_yticks(list(y), [str(r.get("case")) for r in rs], fontsize=7)
+        ax.invert_yaxis()
+        ax.set_xlabel("solve wall time [s]")
+        ax.set_title(st)
+        ax.set_xlim(0, 1.6 * max([num(r.get("solve_s")) for r in rs] + [1e-3]))
+    with atomic_path(path, ".png") as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)

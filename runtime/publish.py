@@ -37,7 +37,7 @@ Two forms:
       failure when DIR holds a complete run) are kept in ``DIR/.<program>-incomplete`` (replacing
       an older one of ours), never in place of a published run.
 
-Single-file writes (:mod:`ocp.atomic`) stay atomic on their own.
+Single-file writes (:mod:`runtime.atomic`) stay atomic on their own.
 """
 from __future__ import annotations
 

@@ -7,7 +7,7 @@ below γ; see summary.json), 1 planner failure (the outputs up to that point are
 aside in DIR/.simulate-swarm-incomplete if DIR holds a complete run) or a simulation or write
 failure (one line; DIR keeps its previous contents), 2 bad input or DIR in use by another run (one
 line on stderr, nothing written), 130 interrupted (DIR keeps its previous contents).  Publication:
-:mod:`ocp.publish`.
+:mod:`runtime.publish`.
 """
 from __future__ import annotations
 
@@ -17,18 +17,18 @@ from pathlib import Path
 
 import numpy as np
 
-from ..ocp.cliargs import OneLineParser, UsageError as InputError, cli_main, check_path
+from ..runtime.cliargs import OneLineParser, UsageError as InputError, cli_main, check_path
 
 PROG = "simulate-swarm"
 
 
 def _controller_names():
-    from .controllers import CONTROLLERS
+    from ..sim.controllers import CONTROLLERS
     return list(CONTROLLERS)
 
 
 def _preset_names():
-    from .presets import PRESETS
+    from ..sim.presets import PRESETS
     return list(PRESETS)
 
 
@@ -65,9 +65,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def resolve(args):
     """Configuration and field from the arguments; ``InputError`` for every bad input."""
-    from .config import RunConfig, config_from_dict, load_config
-    from .fields import make_field
-    from .loop import check_config
+    from ..sim.config import RunConfig, config_from_dict, load_config
+    from ..sim.fields import make_field
+    from ..sim.loop import check_config
 
     overrides = {"seed": args.seed, "robots": args.robots, "field": args.field, "max_periods": args.max_periods,
                  "controller": args.controller, "allow_long_run": True if args.allow_long_run else None,
@@ -114,7 +114,7 @@ def _progress_printer(config):
 def run(argv=None) -> int:
     args = build_parser().parse_args(argv)
     config, field = resolve(args)
-    from .outputs import output_folder
+    from ..sim.outputs import output_folder
 
     folder = output_folder(args.out, args.force)
     try:
@@ -122,7 +122,7 @@ def run(argv=None) -> int:
         folder.check()
     except ValueError as exc:
         raise InputError(str(exc)) from None
-    from .controllers import CONTROLLERS
+    from ..sim.controllers import CONTROLLERS
 
     planner = None
     if CONTROLLERS[config.sim.controller].needs_plan:     # the baselines never build the planner
@@ -142,9 +142,9 @@ def run(argv=None) -> int:
 
 
 def _run_locked(args, argv, config, field, planner, folder) -> int:
-    from ..ocp.publish import InterruptedAfterPublish
-    from .loop import run_simulation
-    from .outputs import write_metrics, write_outputs
+    from ..runtime.publish import InterruptedAfterPublish
+    from ..sim.loop import run_simulation
+    from ..sim.outputs import write_metrics, write_outputs
 
     try:
         stage = folder.stage()
