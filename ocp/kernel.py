@@ -8,6 +8,11 @@ and p0, and returns the density at every sub-step; :meth:`TransportKernel.adjoin
 seeds on the interval-boundary snapshots back to face velocities and p0 (reverse sweep over the
 stored trajectory: the co-state equation of the discrete problem).
 
+Free-cell masks (issue 19, :mod:`ocp.mask`): the face masks (1 open, 0 closed) are data of the kernel;
+the split velocities v+ and v- of every face are multiplied by them (zero flux through a face next to
+a blocked cell, as at the walls), and the face-velocity adjoint by the same masks.  Without a mask
+they are ones, which leaves every result unchanged bit for bit.
+
 Memory layout (column-major, as CasADi's ``vec``): p[i + nx j] (nx*ny), vx[i + (nx-1) j] on the
 interior x-faces ((nx-1)*ny), vy[i + nx j] on the interior y-faces (nx*(ny-1)).
 
@@ -42,12 +47,12 @@ C_SOURCE = r"""
 #include <stdlib.h>
 #include <string.h>
 
-/* smoothed upwind split of n face velocities */
-static void split(long n, const double *v, double eps2, double *vp, double *vm) {
+/* smoothed upwind split of n face velocities, times the face mask m (1 open, 0 closed) */
+static void split(long n, const double *v, double eps2, const double *m, double *vp, double *vm) {
     for (long k = 0; k < n; k++) {
         double p = 0.5 * (v[k] + sqrt(v[k] * v[k] + eps2));
-        vp[k] = p;
-        vm[k] = p - v[k];
+        vp[k] = m[k] * p;
+        vm[k] = m[k] * (p - v[k]);
     }
 }
 
@@ -117,16 +122,16 @@ static void step_adj(int nx, int ny, double rx, double ry, const double *xp, con
 }
 
 /* traj: (N*nsub + 1) * nx*ny, traj[0] = p0 */
-int sf_forward(int nx, int ny, int N, int nsub, double rx, double ry, double eps,
-               const double *vx, const double *vy, const double *p0, double *traj) {
+int sf_forward(int nx, int ny, int N, int nsub, double rx, double ry, double eps, const double *mx,
+               const double *my, const double *vx, const double *vy, const double *p0, double *traj) {
     long n = (long)nx * ny, nfx = (long)(nx - 1) * ny, nfy = (long)nx * (ny - 1);
     double *buf = (double *)malloc(sizeof(double) * (2 * nfx + 2 * nfy + nx));
     if (!buf) return 1;
     double *xp = buf, *xm = xp + nfx, *yp = xm + nfx, *ym = yp + nfy, *scratch = ym + nfy;
     memcpy(traj, p0, sizeof(double) * n);
     for (int l = 0; l < N; l++) {
-        split(nfx, vx + nfx * l, eps * eps, xp, xm);
-        split(nfy, vy + nfy * l, eps * eps, yp, ym);
+        split(nfx, vx + nfx * l, eps * eps, mx, xp, xm);
+        split(nfy, vy + nfy * l, eps * eps, my, yp, ym);
         for (int s = 0; s < nsub; s++) {
             long k = (long)l * nsub + s;
             step(nx, ny, rx, ry, xp, xm, yp, ym, traj + n * k, traj + n * (k + 1), scratch);
@@ -138,8 +143,8 @@ int sf_forward(int nx, int ny, int N, int nsub, double rx, double ry, double eps
 
 /* lsnap: (N+1) * nx*ny adjoint seeds on the interval-boundary snapshots;
    out: gvx (N*nfx), gvy (N*nfy), gp0 (nx*ny) */
-int sf_adjoint(int nx, int ny, int N, int nsub, double rx, double ry, double eps,
-               const double *vx, const double *vy, const double *traj, const double *lsnap,
+int sf_adjoint(int nx, int ny, int N, int nsub, double rx, double ry, double eps, const double *mx,
+               const double *my, const double *vx, const double *vy, const double *traj, const double *lsnap,
                double *gvx, double *gvy, double *gp0) {
     long n = (long)nx * ny, nfx = (long)(nx - 1) * ny, nfy = (long)nx * (ny - 1);
     double *buf = (double *)malloc(sizeof(double) * (4 * nfx + 4 * nfy + 2 * n + nx));
@@ -150,22 +155,22 @@ int sf_adjoint(int nx, int ny, int N, int nsub, double rx, double ry, double eps
     memcpy(lam, lsnap + n * N, sizeof(double) * n);
     for (int l = N - 1; l >= 0; l--) {
         const double *v = vx + nfx * l, *w = vy + nfy * l;
-        split(nfx, v, eps * eps, xp, xm);
-        split(nfy, w, eps * eps, yp, ym);
+        split(nfx, v, eps * eps, mx, xp, xm);
+        split(nfy, w, eps * eps, my, yp, ym);
         memset(axp, 0, sizeof(double) * (2 * nfx + 2 * nfy));
         for (int s = nsub - 1; s >= 0; s--) {
             long k = (long)l * nsub + s;
             step_adj(nx, ny, rx, ry, xp, xm, yp, ym, traj + n * k, lam, tmp, axp, axm, ayp, aym, scratch);
             double *t = lam; lam = tmp; tmp = t;
         }
-        /* dv+/dv = (1 + v/s)/2, dv-/dv = (v/s - 1)/2, s = sqrt(v^2 + eps^2) */
+        /* dv+/dv = m (1 + v/s)/2, dv-/dv = m (v/s - 1)/2, s = sqrt(v^2 + eps^2), m the face mask */
         for (long k = 0; k < nfx; k++) {
             double r = v[k] / sqrt(v[k] * v[k] + eps * eps);
-            gvx[nfx * l + k] = 0.5 * (axp[k] * (1.0 + r) + axm[k] * (r - 1.0));
+            gvx[nfx * l + k] = mx[k] * (0.5 * (axp[k] * (1.0 + r) + axm[k] * (r - 1.0)));
         }
         for (long k = 0; k < nfy; k++) {
             double r = w[k] / sqrt(w[k] * w[k] + eps * eps);
-            gvy[nfy * l + k] = 0.5 * (ayp[k] * (1.0 + r) + aym[k] * (r - 1.0));
+            gvy[nfy * l + k] = my[k] * (0.5 * (ayp[k] * (1.0 + r) + aym[k] * (r - 1.0)));
         }
         const double *ls = lsnap + n * l;
         for (long k = 0; k < n; k++) lam[k] += ls[k];
@@ -232,9 +237,9 @@ def _load():
         lib = ctypes.CDLL(str(lib_path))
         dp = np.ctypeslib.ndpointer(dtype=np.float64, flags="C_CONTIGUOUS")
         i, d = ctypes.c_int, ctypes.c_double
-        lib.sf_forward.argtypes = [i, i, i, i, d, d, d, dp, dp, dp, dp]
+        lib.sf_forward.argtypes = [i, i, i, i, d, d, d, dp, dp, dp, dp, dp, dp]
         lib.sf_forward.restype = i
-        lib.sf_adjoint.argtypes = [i, i, i, i, d, d, d, dp, dp, dp, dp, dp, dp, dp]
+        lib.sf_adjoint.argtypes = [i, i, i, i, d, d, d, dp, dp, dp, dp, dp, dp, dp, dp, dp]
         lib.sf_adjoint.restype = i
         _LIB = lib
     except Exception as exc:                           # noqa: BLE001 - any failure means: use the fallback
@@ -262,10 +267,15 @@ def warn_fallback():
 
 
 class TransportKernel:
-    """Forward trajectory and adjoint of N intervals x n_sub donor-cell sub-steps on an nx x ny grid."""
+    """Forward trajectory and adjoint of N intervals x n_sub donor-cell sub-steps on an nx x ny grid.
+
+    ``free``: optional free-cell mask (nx, ny) (:mod:`ocp.mask`); the kernel multiplies the split face
+    velocities v+, v- by the face masks (1 open, 0 closed: zero flux as at the walls), and the
+    face-velocity adjoint by the same masks.  Without a mask the masks are ones (multiplying by 1.0 is
+    exact: the rectangle's results are unchanged bit for bit)."""
 
     def __init__(self, nx: int, ny: int, n_intervals: int, substeps: int, rx: float, ry: float, eps: float,
-                 backend: str = "compiled"):
+                 backend: str = "compiled", free=None):
         if backend not in ("compiled", "numpy"):
             raise ValueError(f"kernel backend must be 'compiled' or 'numpy', got {backend!r}")
         if backend == "compiled" and _load() is None:
@@ -276,6 +286,12 @@ class TransportKernel:
         self.n_cell = self.nx * self.ny
         self.n_fx = (self.nx - 1) * self.ny
         self.n_fy = self.nx * (self.ny - 1)
+        from .mask import check_free, face_masks
+        self.free = check_free(free, (self.nx, self.ny), "kernel free-cell mask")
+        open_x, open_y = face_masks(self.free)
+        # column-major face vectors, as vx and vy
+        self.mask_x = np.ones(self.n_fx) if open_x is None else np.ascontiguousarray(open_x.ravel(order="F"))
+        self.mask_y = np.ones(self.n_fy) if open_y is None else np.ascontiguousarray(open_y.ravel(order="F"))
 
     # shapes: vx (N, n_fx), vy (N, n_fy), p0 (n_cell,), traj (N*n_sub+1, n_cell), all C-contiguous rows
     def forward(self, vx, vy, p0, out: np.ndarray | None = None) -> np.ndarray:
@@ -289,7 +305,8 @@ class TransportKernel:
             raise ValueError(f"out must be a C-contiguous float64 array of shape {shape}")
         traj = out
         if self.backend == "compiled":
-            if _LIB.sf_forward(self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, vx, vy, p0, traj):
+            if _LIB.sf_forward(self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, self.mask_x,
+                               self.mask_y, vx, vy, p0, traj):
                 raise MemoryError("transport kernel: out of memory")
             return traj
         traj[0] = p0
@@ -310,8 +327,8 @@ class TransportKernel:
         gp0 = np.empty(self.n_cell)
         if self.backend == "compiled":
             traj = np.ascontiguousarray(traj, dtype=float)
-            if _LIB.sf_adjoint(self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, vx, vy, traj,
-                               lsnap, gvx, gvy, gp0):
+            if _LIB.sf_adjoint(self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, self.mask_x,
+                               self.mask_y, vx, vy, traj, lsnap, gvx, gvy, gp0):
                 raise MemoryError("transport kernel: out of memory")
             return gvx, gvy, gp0
         lam = lsnap[self.N].copy()
@@ -320,9 +337,9 @@ class TransportKernel:
             acc = [np.zeros(self.n_fx), np.zeros(self.n_fx), np.zeros(self.n_fy), np.zeros(self.n_fy)]
             for s in range(self.n_sub - 1, -1, -1):
                 lam = self._step_adj(traj[l * self.n_sub + s], lam, xp, xm, yp, ym, acc)
-            for v, (ap, am), out in ((vx[l], acc[:2], gvx[l]), (vy[l], acc[2:], gvy[l])):
+            for v, (ap, am), m, out in ((vx[l], acc[:2], self.mask_x, gvx[l]), (vy[l], acc[2:], self.mask_y, gvy[l])):
                 r = v / np.sqrt(v * v + self.eps * self.eps)
-                out[:] = 0.5 * (ap * (1.0 + r) + am * (r - 1.0))
+                out[:] = m * (0.5 * (ap * (1.0 + r) + am * (r - 1.0)))
             lam = lam + lsnap[l]
         gp0[:] = lam
         return gvx, gvy, gp0
@@ -342,9 +359,10 @@ class TransportKernel:
         e2 = self.eps * self.eps
         xp = 0.5 * (vx + np.sqrt(vx * vx + e2))
         yp = 0.5 * (vy + np.sqrt(vy * vy + e2))
+        mx, my = self.mask_x, self.mask_y
         # column-major vectors -> (ny, nx-1) and (ny-1, nx) arrays (row j = column j of the grid)
-        return ((xp).reshape(self.ny, self.nx - 1), (xp - vx).reshape(self.ny, self.nx - 1),
-                (yp).reshape(self.ny - 1, self.nx), (yp - vy).reshape(self.ny - 1, self.nx))
+        return ((mx * xp).reshape(self.ny, self.nx - 1), (mx * (xp - vx)).reshape(self.ny, self.nx - 1),
+                (my * yp).reshape(self.ny - 1, self.nx), (my * (yp - vy)).reshape(self.ny - 1, self.nx))
 
     def _step(self, p, xp, xm, yp, ym):
         P = p.reshape(self.ny, self.nx)
