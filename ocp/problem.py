@@ -90,8 +90,6 @@ class TransportProblem:
         s = self.settings
         choice = s.transport
         exact = s.ipopt.hessian_approximation == "exact"
-        if s.scheme != "upwind":          # the kernels implement the donor-cell step only
-            return "casadi"
         if choice == "auto":
             if exact:
                 return "casadi"
@@ -192,7 +190,8 @@ class TransportProblem:
             # one call for the whole horizon: face velocities (basis product here, in CasADi) and p0 in,
             # interval-boundary snapshots out; reverse mode runs the kernel's hand-written adjoint
             from .kernel import TransportKernel, transport_callback
-            self.kernel = TransportKernel(nx, ny, N, self.n_sub, rx, ry, eps, backend=self.transport, free=self.free)
+            self.kernel = TransportKernel(nx, ny, N, self.n_sub, rx, ry, eps, backend=self.transport, free=self.free,
+                                          scheme=s.scheme)
             self._transport_fn = transport_callback(self.kernel)
             VX = ca.horzcat(*[ca.vec(ca.mtimes([Sxf, ax_l, Syc_T])) for ax_l, _ in coefs])
             VY = ca.horzcat(*[ca.vec(ca.mtimes([Sxc, ay_l, Syf_T])) for _, ay_l in coefs])
