@@ -149,3 +149,18 @@ def test_muscl_kernel_refuses_numpy_backend_and_bad_scheme():
         K.TransportKernel(5, 5, 1, 1, 0.1, 0.1, 0.02, "compiled", scheme="weno")
     with pytest.raises(ValueError, match="muscl"):
         PlannerSettings(scheme="muscl", transport="numpy")
+
+
+def test_plan_reference_scheme_flag(tmp_path, capsys):
+    from swarmfield.cli.plan_reference import main
+    from swarmfield.ocp.plan import ReferencePlan
+    out = tmp_path / "plan.npz"
+    code = main(["--nx", "12", "--ny", "10", "--intervals", "3", "--modes", "3", "3", "--scheme", "muscl",
+                 "--out", str(out)])
+    assert code == 0, capsys.readouterr().err
+    plan = ReferencePlan.load(out)
+    assert plan.meta["settings"]["scheme"] == "muscl" and plan.meta["transport"] == "compiled"
+    assert main(["--scheme", "weno", "--out", str(tmp_path / "x.npz")]) == 2
+    assert main(["--scheme", "muscl", "--transport", "numpy", "--out", str(tmp_path / "y.npz")]) == 2
+    err = capsys.readouterr().err
+    assert "muscl" in err and not (tmp_path / "x.npz").exists() and not (tmp_path / "y.npz").exists()
