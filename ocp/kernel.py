@@ -122,7 +122,7 @@ static void step_adj(int nx, int ny, double rx, double ry, const double *xp, con
 }
 
 /* ---------------------------------------------------------------- MUSCL (minmod) with SSP-RK2
-   Branch-free loops over whole rows (vectorisable); a stage is: masked one-sided differences dx, dy
+   Branch-free loops over whole rows (vectorisable); a stage is: masked one-sided differences
    (a difference across a closed face counts as 0: no slope reaches across it), minmod slopes sx, sy
    (0 in the first and last cell of a line: walls), then the fluxes of the limited face values. */
 static inline double minmod(double a, double b) {
@@ -132,43 +132,10 @@ static inline double minmod(double a, double b) {
     return sg * m;
 }
 
-/* dx[i + (nx-1) j] = mx (p[i+1, j] - p[i, j]), dy[i + nx j] = my (p[i, j+1] - p[i, j]) */
-static void diffs(int nx, int ny, const double *restrict mx, const double *restrict my, const double *restrict p, double *restrict dx, double *restrict dy) {
-    int fx = nx - 1;
-    for (int j = 0; j < ny; j++) {
-        const double *pc = p + (long)nx * j, *m = mx + (long)fx * j;
-        double *d = dx + (long)fx * j;
-        for (int i = 0; i < fx; i++) d[i] = (pc[i + 1] - pc[i]) * m[i];
-    }
-    for (int j = 0; j < ny - 1; j++) {
-        const double *pc = p + (long)nx * j, *pu = pc + nx, *m = my + (long)nx * j;
-        double *d = dy + (long)nx * j;
-        for (int i = 0; i < nx; i++) d[i] = (pu[i] - pc[i]) * m[i];
-    }
-}
-
-static void slopes(int nx, int ny, const double *restrict dx, const double *restrict dy, double *restrict sx, double *restrict sy) {
-    int fx = nx - 1;
-    for (int j = 0; j < ny; j++) {
-        const double *d = dx + (long)fx * j;
-        double *s = sx + (long)nx * j;
-        s[0] = 0.0;
-        for (int i = 1; i < nx - 1; i++) s[i] = minmod(d[i - 1], d[i]);
-        s[nx - 1] = 0.0;
-    }
-    for (int i = 0; i < nx; i++) { sy[i] = 0.0; sy[(long)nx * (ny - 1) + i] = 0.0; }
-    for (int j = 1; j < ny - 1; j++) {
-        const double *dd = dy + (long)nx * (j - 1), *du = dd + nx;
-        double *s = sy + (long)nx * j;
-        for (int i = 0; i < nx; i++) s[i] = minmod(dd[i], du[i]);
-    }
-}
-
-/* slopes straight from p (differences on the fly, one pass per line; the same roundings as diffs + slopes);
-   with wxa != NULL also the selections (see selections()) */
+/* limited slopes sx, sy (nx*ny) of p: minmod of the one-sided differences (p[i+1] - p[i]) * mask, a difference
+   across a closed face counting as 0; 0 in the first and last cell of each line (walls) */
 static void slopes_p(int nx, int ny, const double *restrict mx, const double *restrict my, const double *restrict p,
-                     double *restrict sx, double *restrict sy, double *restrict wxa, double *restrict wxb,
-                     double *restrict wya, double *restrict wyb) {
+                     double *restrict sx, double *restrict sy) {
     int fx = nx - 1;
     for (int j = 0; j < ny; j++) {
         const double *pc = p + (long)nx * j, *m = mx + (long)fx * j;
@@ -176,36 +143,14 @@ static void slopes_p(int nx, int ny, const double *restrict mx, const double *re
         s[0] = 0.0;
         s[nx - 1] = 0.0;
         for (int i = 1; i < nx - 1; i++) s[i] = minmod((pc[i] - pc[i - 1]) * m[i - 1], (pc[i + 1] - pc[i]) * m[i]);
-        if (wxa) {
-            double *wa = wxa + (long)nx * j, *wb = wxb + (long)nx * j;
-            wa[0] = wb[0] = wa[nx - 1] = wb[nx - 1] = 0.0;
-            for (int i = 1; i < nx - 1; i++) {
-                double a = (pc[i] - pc[i - 1]) * m[i - 1], b = (pc[i + 1] - pc[i]) * m[i];
-                double same = (double)(a > 0.0) * (double)(b > 0.0) + (double)(a < 0.0) * (double)(b < 0.0);
-                double left = (double)(fabs(a) < fabs(b));
-                wa[i] = same * left;
-                wb[i] = same - same * left;
-            }
-        }
     }
     long top = (long)nx * (ny - 1);
     for (int i = 0; i < nx; i++) { sy[i] = 0.0; sy[top + i] = 0.0; }
-    if (wya) for (int i = 0; i < nx; i++) { wya[i] = wyb[i] = wya[top + i] = wyb[top + i] = 0.0; }
     for (int j = 1; j < ny - 1; j++) {
         const double *pd = p + (long)nx * (j - 1), *pc = pd + nx, *pu = pc + nx;
         const double *md = my + (long)nx * (j - 1), *mu = md + nx;
         double *s = sy + (long)nx * j;
         for (int i = 0; i < nx; i++) s[i] = minmod((pc[i] - pd[i]) * md[i], (pu[i] - pc[i]) * mu[i]);
-        if (wya) {
-            double *wa = wya + (long)nx * j, *wb = wyb + (long)nx * j;
-            for (int i = 0; i < nx; i++) {
-                double a = (pc[i] - pd[i]) * md[i], b = (pu[i] - pc[i]) * mu[i];
-                double same = (double)(a > 0.0) * (double)(b > 0.0) + (double)(a < 0.0) * (double)(b < 0.0);
-                double left = (double)(fabs(a) < fabs(b));
-                wa[i] = same * left;
-                wb[i] = same - same * left;
-            }
-        }
     }
 }
 
@@ -237,45 +182,26 @@ static void euler_muscl(int nx, int ny, double rx, double ry, const double *rest
     }
 }
 
-/* which one-sided difference a minmod slope took: wa = 1 for the left/lower one, wb = 1 for the right/upper
-   one (same signs), both 0 otherwise (and in the first and last cell of a line) */
-static void selections(int nx, int ny, const double *restrict dx, const double *restrict dy, double *restrict wxa, double *restrict wxb,
-                       double *restrict wya, double *restrict wyb) {
-    int fx = nx - 1;
-    long n = (long)nx * ny;
-    memset(wxa, 0, sizeof(double) * n); memset(wxb, 0, sizeof(double) * n);
-    memset(wya, 0, sizeof(double) * n); memset(wyb, 0, sizeof(double) * n);
-    for (int j = 0; j < ny; j++) {
-        const double *d = dx + (long)fx * j;
-        double *wa = wxa + (long)nx * j, *wb = wxb + (long)nx * j;
-        for (int i = 1; i < nx - 1; i++) {
-            double a = d[i - 1], b = d[i];
-            double same = (double)(a > 0.0) * (double)(b > 0.0) + (double)(a < 0.0) * (double)(b < 0.0);
-            double left = (double)(fabs(a) < fabs(b));
-            wa[i] = same * left;
-            wb[i] = same - same * left;
-        }
-    }
-    for (int j = 1; j < ny - 1; j++) {
-        const double *dd = dy + (long)nx * (j - 1), *du = dd + nx;
-        double *wa = wya + (long)nx * j, *wb = wyb + (long)nx * j;
-        for (int i = 0; i < nx; i++) {
-            double a = dd[i], b = du[i];
-            double same = (double)(a > 0.0) * (double)(b > 0.0) + (double)(a < 0.0) * (double)(b < 0.0);
-            double left = (double)(fabs(a) < fabs(b));
-            wa[i] = same * left;
-            wb[i] = same - same * left;
-        }
-    }
+static inline double pick_left(double a, double b) {   /* minmod(a, b) took a (same signs, |a| < |b|) */
+    double same = (double)(a > 0.0) * (double)(b > 0.0) + (double)(a < 0.0) * (double)(b < 0.0);
+    return same * (double)(fabs(a) < fabs(b));
 }
 
-/* adjoint of one Euler stage at state p (slopes sx, sy; selections w*): out = (dq/dp)^T lam, accumulating
-   the adjoints of v+ and v-.  Scratch: A, B, L (nx + 1 each), lsy (nx*ny). */
-static void euler_muscl_adj(int nx, int ny, double rx, double ry, const double *restrict xp, const double *restrict xm,
-                            const double *restrict yp, const double *restrict ym, const double *restrict p, const double *restrict sx,
-                            const double *restrict sy, const double *restrict wxa, const double *restrict wxb, const double *restrict wya,
-                            const double *restrict wyb, const double *restrict lam, double *restrict out, double *restrict axp, double *restrict axm,
-                            double *restrict ayp, double *restrict aym, double *restrict A, double *restrict B, double *restrict L, double *restrict lsy) {
+static inline double pick_right(double a, double b) {  /* minmod(a, b) took b */
+    double same = (double)(a > 0.0) * (double)(b > 0.0) + (double)(a < 0.0) * (double)(b < 0.0);
+    return same - same * (double)(fabs(a) < fabs(b));
+}
+
+/* adjoint of one Euler stage at state p (slopes sx, sy): out = (dq/dp)^T lam, accumulating the adjoints of v+
+   and v-; which difference each minmod slope took is recomputed from p and the face masks.
+   Scratch: A, B, L, D, WA, WB (nx + 1 each), lsy (nx*ny). */
+static void euler_muscl_adj(int nx, int ny, double rx, double ry, const double *restrict mxk,
+                            const double *restrict myk, const double *restrict xp, const double *restrict xm,
+                            const double *restrict yp, const double *restrict ym, const double *restrict p,
+                            const double *restrict sx, const double *restrict sy, const double *restrict lam,
+                            double *restrict out, double *restrict axp, double *restrict axm, double *restrict ayp,
+                            double *restrict aym, double *restrict A, double *restrict B, double *restrict L,
+                            double *restrict D, double *restrict WA, double *restrict WB, double *restrict lsy) {
     int fx = nx - 1;
     long n = (long)nx * ny;
     /* y faces first: out = lam + y terms, lsy = adjoint of the y slopes */
@@ -299,10 +225,10 @@ static void euler_muscl_adj(int nx, int ny, double rx, double ry, const double *
     }
     /* x faces and x slopes, row by row (gather form) */
     A[0] = 0.0; A[nx] = 0.0; B[0] = 0.0; B[nx] = 0.0; L[0] = 0.0; L[nx] = 0.0;
+    WA[0] = WB[0] = WA[fx] = WB[fx] = 0.0;
     for (int j = 0; j < ny; j++) {
         long c0 = (long)nx * j, f0 = (long)fx * j;
-        const double *lc = lam + c0, *pc = p + c0, *sc = sx + c0, *a = xp + f0, *b = xm + f0;
-        const double *wa = wxa + c0, *wb = wxb + c0;
+        const double *lc = lam + c0, *pc = p + c0, *sc = sx + c0, *a = xp + f0, *b = xm + f0, *m = mxk + f0;
         double *oc = out + c0, *ap = axp + f0, *am = axm + f0;
         for (int i = 0; i < fx; i++) {
             double g = rx * (lc[i + 1] - lc[i]);
@@ -310,20 +236,39 @@ static void euler_muscl_adj(int nx, int ny, double rx, double ry, const double *
             B[i + 1] = g * b[i];                  /* left face of cell i + 1, v- side */
             ap[i] += g * (pc[i] + 0.5 * sc[i]);
             am[i] -= g * (pc[i + 1] - 0.5 * sc[i + 1]);
+            D[i] = (pc[i + 1] - pc[i]) * m[i];
         }
         for (int i = 0; i < nx; i++) oc[i] += A[i + 1] - B[i];
+        for (int i = 1; i < fx; i++) {           /* cells 1 .. nx-2: which difference their slope took */
+            WA[i] = pick_left(D[i - 1], D[i]);
+            WB[i] = pick_right(D[i - 1], D[i]);
+        }
         /* slope adjoints lsx_i = (A_{i+1} + B_i) / 2 -> adjoint L of the differences d_{i+1/2} */
         for (int i = 0; i < fx; i++)
-            L[i + 1] = 0.5 * (A[i + 1] + B[i]) * wb[i] + 0.5 * (A[i + 2] + B[i + 1]) * wa[i + 1];
+            L[i + 1] = 0.5 * (A[i + 1] + B[i]) * WB[i] + 0.5 * (A[i + 2] + B[i + 1]) * WA[i + 1];
         for (int i = 0; i < nx; i++) oc[i] += L[i] - L[i + 1];
     }
-    /* y slopes: adjoint of the differences d_{j+1/2} = lsy_j wb_j + lsy_{j+1} wa_{j+1} */
+    /* y slopes: adjoint of the differences d_{j+1/2} = lsy_j wb_j + lsy_{j+1} wa_{j+1} (rows 1 .. ny-2) */
     for (int j = 0; j < ny - 1; j++) {
         long c0 = (long)nx * j;
-        const double *sc = lsy + c0, *sn = sc + nx, *wb = wyb + c0, *wa = wya + c0 + nx;
+        const double *sc = lsy + c0, *sn = sc + nx, *pc = p + c0, *pn = pc + nx, *m = myk + c0;
         double *oc = out + c0, *on = oc + nx;
+        if (j >= 1) {
+            const double *pd = pc - nx, *md = m - nx;
+            for (int i = 0; i < nx; i++)
+                WB[i] = pick_right((pc[i] - pd[i]) * md[i], (pn[i] - pc[i]) * m[i]);
+        } else {
+            for (int i = 0; i < nx; i++) WB[i] = 0.0;
+        }
+        if (j + 1 <= ny - 2) {
+            const double *pu = pn + nx, *mu = m + nx;
+            for (int i = 0; i < nx; i++)
+                WA[i] = pick_left((pn[i] - pc[i]) * m[i], (pu[i] - pn[i]) * mu[i]);
+        } else {
+            for (int i = 0; i < nx; i++) WA[i] = 0.0;
+        }
         for (int i = 0; i < nx; i++) {
-            double ld = sc[i] * wb[i] + sn[i] * wa[i];
+            double ld = sc[i] * WB[i] + sn[i] * WA[i];
             on[i] += ld;
             oc[i] -= ld;
         }
@@ -336,8 +281,8 @@ int sf_forward_muscl(int nx, int ny, int N, int nsub, double rx, double ry, doub
     long n = (long)nx * ny, nfx = (long)(nx - 1) * ny, nfy = (long)nx * (ny - 1);
     double *buf = (double *)malloc(sizeof(double) * (4 * nfx + 4 * nfy + 4 * n + 3 * nx + 2));
     if (!buf) return 1;
-    double *xp = buf, *xm = xp + nfx, *yp = xm + nfx, *ym = yp + nfy, *dx = ym + nfy, *dy = dx + nfx;
-    double *sx = dy + nfy, *sy = sx + n, *p1 = sy + n, *p2 = p1 + n, *fb = p2 + n, *gprev = fb + nx + 1;
+    double *xp = buf, *xm = xp + nfx, *yp = xm + nfx, *ym = yp + nfy;
+    double *sx = ym + nfy, *sy = sx + n, *p1 = sy + n, *p2 = p1 + n, *fb = p2 + n, *gprev = fb + nx + 1;
     memcpy(traj, p0, sizeof(double) * n);
     for (int l = 0; l < N; l++) {
         split(nfx, vx + nfx * l, eps * eps, mx, xp, xm);
@@ -346,9 +291,9 @@ int sf_forward_muscl(int nx, int ny, int N, int nsub, double rx, double ry, doub
             long k = (long)l * nsub + s;
             const double *p = traj + n * k;
             double *q = traj + n * (k + 1);
-            slopes_p(nx, ny, mx, my, p, sx, sy, NULL, NULL, NULL, NULL);
+            slopes_p(nx, ny, mx, my, p, sx, sy);
             euler_muscl(nx, ny, rx, ry, xp, xm, yp, ym, p, sx, sy, p1, fb, gprev);
-            slopes_p(nx, ny, mx, my, p1, sx, sy, NULL, NULL, NULL, NULL);
+            slopes_p(nx, ny, mx, my, p1, sx, sy);
             euler_muscl(nx, ny, rx, ry, xp, xm, yp, ym, p1, sx, sy, p2, fb, gprev);
             for (long c = 0; c < n; c++) q[c] = 0.5 * p[c] + 0.5 * p2[c];
         }
@@ -362,15 +307,14 @@ int sf_adjoint_muscl(int nx, int ny, int N, int nsub, double rx, double ry, doub
                      const double *my, const double *vx, const double *vy, const double *traj, const double *lsnap,
                      double *gvx, double *gvy, double *gp0) {
     long n = (long)nx * ny, nfx = (long)(nx - 1) * ny, nfy = (long)nx * (ny - 1);
-    double *buf = (double *)malloc(sizeof(double) * (6 * nfx + 6 * nfy + 19 * n + 5 * nx + 5));
+    double *buf = (double *)malloc(sizeof(double) * (6 * nfx + 6 * nfy + 11 * n + 7 * nx + 7));
     if (!buf) return 1;
     double *xp = buf, *xm = xp + nfx, *yp = xm + nfx, *ym = yp + nfy;
     double *axp = ym + nfy, *axm = axp + nfx, *ayp = axm + nfx, *aym = ayp + nfy;
-    double *dx = aym + nfy, *dy = dx + nfx;
-    double *lam = dy + nfy, *tmp = lam + n, *p1 = tmp + n, *l2 = p1 + n, *l1 = l2 + n, *lsy = l1 + n;
+    double *lam = aym + nfy, *tmp = lam + n, *p1 = tmp + n, *l2 = p1 + n, *l1 = l2 + n, *lsy = l1 + n;
     double *sx0 = lsy + n, *sy0 = sx0 + n, *sx1 = sy0 + n, *sy1 = sx1 + n;
-    double *w0 = sy1 + n, *w1 = w0 + 4 * n;                  /* selections: wxa, wxb, wya, wyb of p and p1 */
-    double *A = w1 + 4 * n, *B = A + nx + 1, *L = B + nx + 1, *gprev = L + nx + 1;
+    double *A = sy1 + n, *B = A + nx + 1, *L = B + nx + 1, *D = L + nx + 1, *WA = D + nx + 1, *WB = WA + nx + 1;
+    double *gprev = WB + nx + 1;
     memcpy(lam, lsnap + n * N, sizeof(double) * n);
     for (int l = N - 1; l >= 0; l--) {
         const double *v = vx + nfx * l, *w = vy + nfy * l;
@@ -380,14 +324,14 @@ int sf_adjoint_muscl(int nx, int ny, int N, int nsub, double rx, double ry, doub
         for (int s = nsub - 1; s >= 0; s--) {
             long k = (long)l * nsub + s;
             const double *p = traj + n * k;
-            slopes_p(nx, ny, mx, my, p, sx0, sy0, w0, w0 + n, w0 + 2 * n, w0 + 3 * n);
+            slopes_p(nx, ny, mx, my, p, sx0, sy0);
             euler_muscl(nx, ny, rx, ry, xp, xm, yp, ym, p, sx0, sy0, p1, A, gprev);
-            slopes_p(nx, ny, mx, my, p1, sx1, sy1, w1, w1 + n, w1 + 2 * n, w1 + 3 * n);
+            slopes_p(nx, ny, mx, my, p1, sx1, sy1);
             for (long c = 0; c < n; c++) l2[c] = 0.5 * lam[c];
-            euler_muscl_adj(nx, ny, rx, ry, xp, xm, yp, ym, p1, sx1, sy1, w1, w1 + n, w1 + 2 * n, w1 + 3 * n,
-                            l2, l1, axp, axm, ayp, aym, A, B, L, lsy);
-            euler_muscl_adj(nx, ny, rx, ry, xp, xm, yp, ym, p, sx0, sy0, w0, w0 + n, w0 + 2 * n, w0 + 3 * n,
-                            l1, tmp, axp, axm, ayp, aym, A, B, L, lsy);
+            euler_muscl_adj(nx, ny, rx, ry, mx, my, xp, xm, yp, ym, p1, sx1, sy1, l2, l1, axp, axm, ayp, aym,
+                            A, B, L, D, WA, WB, lsy);
+            euler_muscl_adj(nx, ny, rx, ry, mx, my, xp, xm, yp, ym, p, sx0, sy0, l1, tmp, axp, axm, ayp, aym,
+                            A, B, L, D, WA, WB, lsy);
             for (long c = 0; c < n; c++) tmp[c] += l2[c];
             double *t = lam; lam = tmp; tmp = t;
         }
