@@ -4,7 +4,7 @@
 
 The domains (``--layouts``): the paper's [0, 20]^2 with "rooms": a wall at 9 <= x <= 10 (a door at
 12 <= y <= 15) and two blocks, [13, 17] x [3, 8] and [2, 6.5] x [12, 16] (14 % of the cells blocked at
-40 x 40), or "pillars": 21 pillars of 1.5 m x 3 m on a 4 m lattice (16 %); a cell is blocked when its
+40 x 40), or "pillars": 21 pillars of 1 m x 3 m on a 4 m lattice (16 %); a cell is blocked when its
 centre is inside an obstacle.  Start: robots uniform on [0, 7]^2 (free), as in the paper; target: the GP
 variance of their first measurements (ocp.scenario.first_step_target), zeroed on blocked cells and
 renormalised.  Prints per grid and transport the cold solve's time (min over ``--repeat``; CPU time of
@@ -23,10 +23,11 @@ from swarmfield.ocp.scenario import box_density, first_step_target
 from swarmfield.ocp.settings import PlannerSettings
 
 #: obstacles (x0, x1, y0, y1) of the benchmark domains: "rooms" (a wall with a door, two blocks) and
-#: "pillars" (21 pillars of 1.5 m x 3 m on a 4 m lattice, none in the start box)
+#: "pillars" (21 pillars of 1 m x 3 m on a 4 m lattice, none in the start box); all edges on multiples of
+#: 0.5 m, so the 40 x 40 and 80 x 80 grids block the same area
 LAYOUTS = {
     "rooms": ((9.0, 10.0, 0.0, 12.0), (9.0, 10.0, 15.0, 20.0), (13.0, 17.0, 3.0, 8.0), (2.0, 6.5, 12.0, 16.0)),
-    "pillars": tuple((cx - 0.75, cx + 0.75, cy - 1.5, cy + 1.5) for cx in (2.0, 6.0, 10.0, 14.0, 18.0)
+    "pillars": tuple((cx - 0.5, cx + 0.5, cy - 1.5, cy + 1.5) for cx in (2.0, 6.0, 10.0, 14.0, 18.0)
                      for cy in (2.0, 6.0, 10.0, 14.0, 18.0) if not (cx < 7 and cy < 7)),
 }
 OBSTACLES = LAYOUTS["rooms"]
