@@ -1,6 +1,6 @@
 """Benchmark: the paper's first planning step with obstacles (issue 19, item 9) against the empty rectangle.
 
-    python benchmarks/plan_obstacles.py [--repeat 3] [--grids 40] [--transports auto] [--scheme upwind]
+    python benchmarks/plan_obstacles.py [--repeat 3] [--grids 40] [--transports auto] [--scheme upwind] [--kernel]
 
 The domains (``--layouts``): the paper's [0, 20]^2 with "rooms": a wall at 9 <= x <= 10 (a door at
 12 <= y <= 15) and two blocks, [13, 17] x [3, 8] and [2, 6.5] x [12, 16] (14 % of the cells blocked at
@@ -45,6 +45,39 @@ def masked(p, free):
     return np.where(free, p, 0.0)
 
 
+def kernel_rows(args):
+    """Forward and adjoint of the compiled kernel over the whole horizon, with and without each layout's mask."""
+    from swarmfield.ocp.kernel import TransportKernel
+    from swarmfield.ocp.problem import TransportProblem
+    for n in [int(v) for v in args.grids.split(",") if v]:
+        s = PlannerSettings(nx=n, ny=n, scheme=args.scheme, transport="casadi")
+        P = TransportProblem(s)
+        g = P.grid
+        rng = np.random.default_rng(0)
+        VX, VY = P.face_velocities(0.1 * rng.standard_normal((P.N, 2, P.I, P.J)))
+        lam = rng.standard_normal((P.N + 1, n * n))
+        base = None
+        for label in ("empty", *args.layouts.split(",")):
+            free = obstacle_mask(g, label) if label != "empty" else None
+            kern = TransportKernel(n, n, P.N, P.n_sub, P.dt / g.dx, P.dt / g.dy, s.upwind_smoothing, "compiled",
+                                   free=free, scheme=args.scheme)
+            p0 = box_density(g) if free is None else masked(box_density(g), free)
+            p0 = (p0 / p0.sum()).ravel(order="F")
+            traj = kern.forward(VX, VY, p0)
+            tf, ta = [], []
+            for _ in range(15):
+                c = time.process_time()
+                kern.forward(VX, VY, p0, out=traj)
+                tf.append(time.process_time() - c)
+                c = time.process_time()
+                kern.adjoint(VX, VY, traj, lam)
+                ta.append(time.process_time() - c)
+            tot = min(tf) + min(ta)
+            base = tot if base is None else base
+            print(f"kernel {n}x{n} {args.scheme:6s} {label:8s} forward {min(tf) * 1e3:7.2f} ms  adjoint {min(ta) * 1e3:7.2f} ms"
+                  f"  ratio to empty {tot / base:.2f}", flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=3)
@@ -52,7 +85,13 @@ def main():
     ap.add_argument("--transports", default="auto")
     ap.add_argument("--scheme", default="upwind")
     ap.add_argument("--layouts", default="rooms,pillars", help=f"comma-separated, of {', '.join(LAYOUTS)}")
+    ap.add_argument("--kernel", action="store_true",
+                    help="also time the compiled kernel alone (forward + adjoint, min of 15) with and without the mask")
     args = ap.parse_args()
+    if args.kernel:
+        kernel_rows(args)
+    if args.repeat < 1:          # --repeat 0: the kernel rows only
+        return
     for n in [int(v) for v in args.grids.split(",") if v]:
         for tr in args.transports.split(","):
             s = PlannerSettings(nx=n, ny=n, transport=tr, scheme=args.scheme)
