@@ -856,8 +856,28 @@ def check_extent(dom: Domain, sim_extent, tol: float = 1e-6) -> None:
                          f"simulation domain {list(se)}; set [sim] domain = {[round(v, 9) for v in dom.extent]}")
 
 
+_CACHE: dict = {}
+
+
 def make_domain(source, sim_extent=None) -> Domain | None:
-    """A :class:`Domain` from a built-in name, a file, a Domain, or None/"" (the empty rectangle: None)."""
+    """A :class:`Domain` from a built-in name, a file, a Domain, or None/"" (the empty rectangle: None).
+    Built-ins and files are built once per process (files again when they change)."""
+    key = None
+    if isinstance(source, (str, Path)) and str(source):
+        p = Path(str(source))
+        stamp = p.stat().st_mtime_ns if str(source) not in BUILTIN_DOMAINS and p.is_file() else None
+        key = (str(source), stamp, None if sim_extent is None else tuple(float(v) for v in sim_extent))
+        if key in _CACHE:
+            return _CACHE[key]
+    dom = _make_domain(source, sim_extent)
+    if key is not None:
+        if len(_CACHE) > 16:
+            _CACHE.clear()
+        _CACHE[key] = dom
+    return dom
+
+
+def _make_domain(source, sim_extent=None) -> Domain | None:
     if source is None or isinstance(source, Domain):
         if isinstance(source, Domain) and sim_extent is not None:
             check_extent(source, sim_extent)
