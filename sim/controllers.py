@@ -252,6 +252,7 @@ class GreedyController(Controller):
         idx = np.flatnonzero(ctx.alive)
         order = idx[ctx.rng.permutation(len(idx))] if ctx.rng is not None else idx
         cells = geo.cell_of(ctx.X)
+        geo.distances(np.unique(cells[order]))          # one Dijkstra call for all new source cells
         for i in order:
             d = geo.distances([cells[i]])[0]
             reach = d <= self.radius
