@@ -101,9 +101,12 @@ def plot_panels(result, path, periods=PANEL_PERIODS):
             xs = x0 + (np.arange(m) + 0.5) * (x1 - x0) / m
             ys = y0 + (np.arange(sn.velocity.shape[1]) + 0.5) * (y1 - y0) / sn.velocity.shape[1]
             XQ, YQ = np.meshgrid(xs, ys, indexing="ij")
-            sp = np.hypot(sn.velocity[..., 0], sn.velocity[..., 1])
-            q = ax.quiver(XQ, YQ, sn.velocity[..., 0], sn.velocity[..., 1], sp, cmap="plasma", clim=(0, vmax_speed),
-                          angles="xy")
+            vel = np.array(sn.velocity, float)
+            if getattr(result, "region", None) is not None:       # no arrows inside obstacles
+                vel[~result.region.contains(np.column_stack([XQ.ravel(), YQ.ravel()])).reshape(XQ.shape)] = 0.0
+            sp = np.hypot(vel[..., 0], vel[..., 1])
+            q = ax.quiver(XQ, YQ, vel[..., 0], vel[..., 1], sp, cmap="plasma", clim=(0, vmax_speed),
+                          angles="xy", zorder=3)
         else:
             ax.text(0.5, 0.5, "no plan", ha="center", va="center", transform=ax.transAxes)
         _obstacles(ax, result)
