@@ -356,3 +356,43 @@ def test_builtins_have_a_free_start_box():
         assert d.box_is_free(d.start_box) and d.box_is_free((0, 7, 0, 7)), name
         free = d.free_cells((40, 40))
         assert d.reachable_cells(free, d.start_box).sum() == free.sum(), name      # every free cell reachable
+
+
+# ------------------------------------------------------------------ with the planner (ocp: ReferencePlanner(free=))
+def _planner_has_free():
+    import inspect
+    from swarmfield.ocp import ReferencePlanner
+    return "free" in inspect.signature(ReferencePlanner).parameters
+
+
+needs_mask_planner = pytest.mark.skipif(not _planner_has_free(), reason="ocp.ReferencePlanner without obstacles (free=)")
+
+
+@needs_mask_planner
+def test_feedback_with_obstacles_end_to_end():
+    from swarmfield.sim.simulation import Simulation
+    sim = Simulation(_cfg("feedback", source="floor", robots=60, substeps=4))
+    res = sim.run()
+    assert res.stop_reason == "max_time" and res.replans and all(r["success"] for r in res.replans)
+    assert np.array_equal(np.asarray(sim.planner.free, bool), res.free)
+    assert np.array_equal(np.asarray(sim.plan.free, bool), res.free)
+    assert res.region.contains(np.concatenate(res.positions)).all()
+    for snap in res.snapshots:
+        assert np.all(snap.p_hat[~res.free] == 0)
+        if snap.target is not None:
+            assert np.all(snap.target[~res.free] == 0)
+
+
+@needs_mask_planner
+def test_plan_reference_with_a_domain(tmp_path, capsys):
+    from swarmfield.cli.plan_reference import main
+    from swarmfield.ocp import ReferencePlan
+    out = tmp_path / "plan.npz"
+    code = main(["--domain", "harbour", "--out", str(out), "--intervals", "4", "--modes", "4", "4", "--max-iter", "60"])
+    assert code in (0, 1), capsys.readouterr().err
+    if code == 0:
+        plan = ReferencePlan.load(out)
+        free = make_domain("harbour", EXT).free_cells((40, 40))
+        assert np.array_equal(np.asarray(plan.free, bool), free)
+        assert np.all(plan.p[:, ~free] == 0)
+    assert main(["--domain", "floor", "--min-free-fraction", "0", "--out", str(out)]) == 2
