@@ -355,7 +355,10 @@ class LawnmowerController(Controller):
             ia, ib = xb[c], xb[c + 1]
             yb = _equal_area_cuts(free[ia:ib].sum(axis=0), max(size, 1))
             for r, i in enumerate(members):
-                paths[i] = self._free_path(geo, X[i], ia, ib, yb[r], yb[r + 1])
+                paths[i] = self._sweep_cells(geo, ia, ib, yb[r], yb[r + 1])
+        # one Dijkstra call for every waypoint the connectors lead to, then the connected paths
+        geo.distances(np.unique([c for p in paths for c in p]))
+        paths = [self._connect(geo, X[i], pts) for i, pts in enumerate(paths)]
         K = max(len(p) for p in paths)
         self.paths = np.array([np.vstack([p, np.repeat(p[-1:], K - len(p), 0)]) for p in paths])
         self.lengths = np.array([len(p) for p in paths])
@@ -364,7 +367,8 @@ class LawnmowerController(Controller):
         self.leg = None
         self.rows, self.cols = None, cols
 
-    def _free_path(self, geo, x_start, ia, ib, ja, jb):
+    def _sweep_cells(self, geo, ia, ib, ja, jb) -> list:
+        """Waypoint cells of the boustrophedon in cells [ia, ib) x [ja, jb): the ends of each lane's free runs."""
         free = geo.free
         ny = free.shape[1]
         x0, _, y0, _ = geo.extent
@@ -378,18 +382,30 @@ class LawnmowerController(Controller):
                 runs = [(b, a) for a, b in runs[::-1]]
             for a, b in runs:
                 pts += [ci * ny + ja + a, ci * ny + ja + b]
+        return pts
+
+    def _connect(self, geo, x_start, pts):
+        """Waypoints: approach from x_start, then the sweep, runs joined by shortest paths."""
+        free = geo.free
+        ny = free.shape[1]
         c0 = int(geo.cell_of(x_start[None, :])[0])
         if not pts:                    # no free cell in the rectangle: stay near the start
             return np.array([geo.centers[c0]])
-        cells = _geodesic_cells(geo, c0, pts[0])
+        # approach and the connectors between runs: shortest paths, straightened (string pulling);
+        # along a free run: straight
+        cells = _string_pull(geo, _geodesic_cells(geo, c0, pts[0]))
         for a, b in zip(pts[:-1], pts[1:]):
-            if a != b:
-                cells += _geodesic_cells(geo, a, b)[1:] if not _same_run(a, b, ny, free) else [b]
+            if a == b:
+                continue
+            if _same_run(a, b, ny, free):
+                cells.append(b)
+            else:
+                cells += _string_pull(geo, _geodesic_cells(geo, a, b))[1:]
         out = [cells[0]]
         for c in cells[1:]:
             if c != out[-1]:
                 out.append(c)
-        return geo.centers[_corners(out, ny)]
+        return geo.centers[out]
 
     def _waypoint(self):
         L = self.lengths
@@ -459,29 +475,52 @@ def _same_run(a, b, ny, free) -> bool:
     return bool(free[ia, lo:hi + 1].all())
 
 
-def _geodesic_cells(geo, a, b, max_len: int = 100000) -> list:
-    """Cells of a shortest path a -> b (following GeodesicGrid.next_hop); [a] if b is unreachable."""
+def _geodesic_cells(geo, a, b) -> list:
+    """Cells of a shortest path a -> b (steepest descent of the distance to b); [a] if b is unreachable."""
+    D = geo.distances([b])[0]
     path = [int(a)]
     c = int(a)
-    for _ in range(max_len):
+    for _ in range(geo.free.size):
         if c == b:
             break
-        nxt = int(geo.next_hop([c], [b])[0])
-        if nxt == c:
+        nb = geo.nbr[c]
+        nb = nb[nb >= 0]
+        if not len(nb):
             break
-        path.append(nxt)
-        c = nxt
+        k = nb[np.argmin(D[nb])]
+        if not D[k] < D[c]:
+            break
+        path.append(int(k))
+        c = int(k)
     return path
 
 
-def _corners(cells, ny) -> list:
-    """Drop cells in the middle of straight stretches (same step before and after)."""
+def _line_of_sight(geo, a, b) -> bool:
+    """The straight segment between the centres of cells a and b crosses free cells only."""
+    pa, pb = geo.centers[a], geo.centers[b]
+    L = float(np.hypot(*(pb - pa)))
+    k = max(2, int(math.ceil(3 * L / min(geo.dx, geo.dy))) + 1)
+    s = np.linspace(0.0, 1.0, k)[:, None]
+    pts = pa + s * (pb - pa)
+    x0, _, y0, _ = geo.extent
+    nx, ny = geo.free.shape
+    i = np.clip(((pts[:, 0] - x0) / geo.dx).astype(int), 0, nx - 1)
+    j = np.clip(((pts[:, 1] - y0) / geo.dy).astype(int), 0, ny - 1)
+    return bool(geo.free[i, j].all())
+
+
+def _string_pull(geo, cells) -> list:
+    """Shorten a cell path: from each kept cell jump to the farthest later one in straight sight."""
     if len(cells) <= 2:
         return list(cells)
-    ij = np.array([divmod(c, ny) for c in cells])
-    step = np.diff(ij, axis=0)
-    keep = [0] + [k for k in range(1, len(cells) - 1) if not np.array_equal(step[k - 1], step[k])] + [len(cells) - 1]
-    return [cells[k] for k in keep]
+    out, i = [cells[0]], 0
+    while i < len(cells) - 1:
+        j = len(cells) - 1
+        while j > i + 1 and not _line_of_sight(geo, cells[i], cells[j]):
+            j -= 1
+        out.append(cells[j])
+        i = j
+    return out
 
 
 CONTROLLERS = {c.name: c for c in (FeedbackController, OpenLoopController, DiffusionController, CoverageController,
