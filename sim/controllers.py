@@ -271,11 +271,30 @@ class GreedyController(Controller):
 
 
 def _hop_targets(geo, X, goal_cells, goals):
-    """Where to head for now on a geodesic path: the next cell's centre, or the goal in its cell."""
+    """Where to head for now on a geodesic path: straight to the goal if the segment to it crosses
+    free cells only, else the next cell's centre on a shortest path (the goal in its own cell)."""
     cells = geo.cell_of(X)
     hop = geo.next_hop(cells, goal_cells)
     at = hop == cells
-    return np.where(at[:, None], goals, geo.centers[hop])
+    target = np.where(at[:, None], goals, geo.centers[hop])
+    see = _segments_free(geo, X, goals)
+    return np.where(see[:, None], goals, target)
+
+
+def _segments_free(geo, A, B, max_samples: int = 64) -> np.ndarray:
+    """(n,) bool: the segments A_i -> B_i cross free cells only (sampled at a third of a cell)."""
+    d = B - A
+    L = np.hypot(d[:, 0], d[:, 1])
+    k = int(min(max_samples, max(2, math.ceil(3 * float(L.max(initial=0.0)) / min(geo.dx, geo.dy)) + 1)))
+    x0, _, y0, _ = geo.extent
+    nx, ny = geo.free.shape
+    ok = np.ones(len(A), bool)
+    fr = geo.free.ravel()
+    for s in np.linspace(0.0, 1.0, k):
+        i = np.clip(((A[:, 0] + s * d[:, 0] - x0) / geo.dx).astype(np.intp), 0, nx - 1)
+        j = np.clip(((A[:, 1] + s * d[:, 1] - y0) / geo.dy).astype(np.intp), 0, ny - 1)
+        ok &= fr[i * ny + j]
+    return ok
 
 
 class LawnmowerController(Controller):
