@@ -377,7 +377,8 @@ class LawnmowerController(Controller):
                 paths[i] = self._sweep_cells(geo, ia, ib, yb[r], yb[r + 1])
         # one Dijkstra call for every waypoint the connectors lead to, then the connected paths
         geo.distances(np.unique([c for p in paths for c in p]))
-        paths = [self._connect(geo, X[i], pts) for i, pts in enumerate(paths)]
+        paths, firsts = zip(*[self._connect(geo, X[i], pts) for i, pts in enumerate(paths)])
+        self.first = np.array(firsts)
         K = max(len(p) for p in paths)
         self.paths = np.array([np.vstack([p, np.repeat(p[-1:], K - len(p), 0)]) for p in paths])
         self.lengths = np.array([len(p) for p in paths])
@@ -404,15 +405,17 @@ class LawnmowerController(Controller):
         return pts
 
     def _connect(self, geo, x_start, pts):
-        """Waypoints: approach from x_start, then the sweep, runs joined by shortest paths."""
+        """``(waypoints, first)``: the approach from x_start (waypoints ``[0, first)``), then the sweep
+        (from index ``first``, swept back and forth), runs joined by shortest paths."""
         free = geo.free
         ny = free.shape[1]
         c0 = int(geo.cell_of(x_start[None, :])[0])
         if not pts:                    # no free cell in the rectangle: stay near the start
-            return np.array([geo.centers[c0]])
+            return np.array([geo.centers[c0]]), 0
         # approach and the connectors between runs: shortest paths, straightened (string pulling);
         # along a free run: straight
-        cells = _string_pull(geo, _geodesic_cells(geo, c0, pts[0]))
+        approach = _string_pull(geo, _geodesic_cells(geo, c0, pts[0]))[:-1]
+        cells = [pts[0]]
         for a, b in zip(pts[:-1], pts[1:]):
             if a == b:
                 continue
@@ -424,10 +427,17 @@ class LawnmowerController(Controller):
         for c in cells[1:]:
             if c != out[-1]:
                 out.append(c)
-        return geo.centers[out]
+        return geo.centers[approach + out], len(approach)
 
     def _waypoint(self):
         L = self.lengths
+        if self.geo is not None:       # the approach once, then back and forth over the sweep
+            f = self.first
+            S = L - f
+            period = np.maximum(2 * S - 2, 1)
+            k = np.maximum(self.pos - f, 0) % period
+            idx = np.where(self.pos < f, self.pos, f + np.where(k < S, k, period - k))
+            return self.paths[np.arange(len(L)), idx]
         period = np.maximum(2 * L - 2, 1)
         k = self.pos % period
         idx = np.where(k < L, k, period - k)            # 0 1 .. L-1 L-2 .. 1 0 1 ..

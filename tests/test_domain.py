@@ -284,6 +284,18 @@ def test_lawnmower_sweeps_free_cells_only():
     geo = ctrl.geo
     cells = np.unique(geo.cell_of(pts))
     assert len(cells) > 0.15 * sim.free.sum()
+    # the approach is driven once; afterwards the robot goes back and forth over its sweep only
+    i = int(np.argmax(ctrl.first))
+    f, L = int(ctrl.first[i]), int(ctrl.lengths[i])
+    assert f > 0
+    seen = []
+    for p in range(f + 3 * (L - f)):
+        ctrl.pos[i] = p
+        seen.append(ctrl._waypoint()[i])
+    seen = np.array(seen)
+    sweep = ctrl.paths[i, f:L]
+    assert all((np.abs(sweep - w).sum(1) < 1e-12).any() for w in seen[f:])
+    assert np.allclose(seen[:f], ctrl.paths[i, :f])
 
 
 def test_unreachable_free_space_is_excluded_with_a_warning(tmp_path):
