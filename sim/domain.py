@@ -827,11 +827,15 @@ def _load_png(path: Path, sim_extent):
 
 
 def _load_tif(path: Path, sim_extent):
-    try:
-        import rasterio  # noqa: F401
-        have_rasterio = True
-    except ImportError:
+    try:                       # tifffile (the [domains] extra) first; rasterio if only it is installed
+        import tifffile  # noqa: F401
         have_rasterio = False
+    except ImportError:
+        try:
+            import rasterio  # noqa: F401
+            have_rasterio = True
+        except ImportError:
+            have_rasterio = False
     if have_rasterio:
         import rasterio
         try:
@@ -839,7 +843,7 @@ def _load_tif(path: Path, sim_extent):
                 a = ds.read()
                 nodata = ds.nodata
                 b = ds.bounds
-                ext = (b.left, b.right, b.bottom, b.top) if ds.transform != rasterio.Affine.identity() else None
+                ext = None if ds.transform.is_identity else (b.left, b.right, b.bottom, b.top)
         except Exception as exc:  # noqa: BLE001
             raise ValueError(f"domain file {path} is not a GeoTIFF: {exc}") from None
     else:

@@ -408,3 +408,11 @@ def test_plan_reference_with_a_domain(tmp_path, capsys):
         assert np.array_equal(np.asarray(plan.free, bool), free)
         assert np.all(plan.p[:, ~free] == 0)
     assert main(["--domain", "floor", "--min-free-fraction", "0", "--out", str(out)]) == 2
+
+
+def test_missing_extra_is_named(tmp_path, monkeypatch):
+    import sys
+    (tmp_path / "a.geojson").write_text(json.dumps({"type": "Polygon", "coordinates": [[[0, 0], [20, 0], [20, 20], [0, 0]]]}))
+    monkeypatch.setitem(sys.modules, "shapely", None)
+    with pytest.raises(ValueError, match=r"needs the Python package shapely: pip install 'swarmfield\[domains\]'"):
+        load_domain(tmp_path / "a.geojson", EXT)
