@@ -17,7 +17,8 @@ robots by eq. "Langevin equation" with diffusion ``ctrl.sigma`` and reflecting w
 Speed limit.  The feedback laws (``feedback``, ``open-loop``, ``coverage``) saturate at
 ``feedback.v_max`` (4 m/s, as in every paper run: the headroom of the feedback law over the 3 m/s
 reference); the motion baselines ``greedy`` and ``lawnmower`` drive at ``planner.v_max`` (3 m/s,
-the planner's own limit on the reference velocity).  ``diffusion`` has v = 0.
+the planner's own limit on the reference velocity), and so does ``ergodic`` (spectral multiscale
+coverage towards mu ∝ V, :mod:`sim.ergodic`).  ``diffusion`` has v = 0.
 
 Writing your own: subclass :class:`Controller`, set ``name`` and ``needs_plan``, implement
 ``velocity`` (and ``start`` / ``start_period`` / ``observe`` as needed), and pass an instance as
@@ -298,6 +299,11 @@ def register(cls) -> type:
         raise ValueError("register() needs a Controller subclass")
     CONTROLLERS[cls.name] = cls
     return cls
+
+
+from .ergodic import ErgodicController  # noqa: E402  (sim.ergodic subclasses Controller)
+
+register(ErgodicController)
 
 
 def make_controller(name: str, config) -> Controller:

@@ -176,7 +176,7 @@ def _quiver_points(domain, q=QUIVER_POINTS):
 def run_simulation(config: RunConfig | None = None, *, field: Field | None = None, planner=None,
                    progress: Callable[[dict], None] | None = None,
                    on_period: Callable[[SimulationResult], None] | None = None,
-                   controller=None) -> SimulationResult:
+                   controller=None, stop_rule=None) -> SimulationResult:
     """Run Algorithm 1 with ``config``; returns a :class:`SimulationResult`.
 
     ``field`` overrides ``config.sim.field``; ``planner`` may be a prebuilt ``ocp.ReferencePlanner``
@@ -184,7 +184,8 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
     ``controller`` is a :class:`sim.controllers.Controller` instance (default: the one named by
     ``config.sim.controller``).  ``progress(info)`` is called after every period start
     (``info["event"] == "plan"``) and at the end (``"done"``); ``on_period(result)`` after every
-    completed period (the CLI writes the outputs so far there).
+    completed period (the CLI writes the outputs so far there).  ``stop_rule`` is a
+    :class:`sim.stopping.StopRule` (default: the one named by ``config.sim.stop_rule``).
     """
     from ..ocp import Grid
     from .controllers import Context, make_controller
@@ -206,6 +207,8 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
     if tuple(grid.domain) != tuple(s.domain):
         raise ValueError(f"planner grid domain {grid.domain} differs from sim.domain {s.domain}")
     centers = grid.centers()
+    from .stopping import make_stop_rule
+    rule = (make_stop_rule(config) if stop_rule is None else stop_rule).bind(centers)
     qpts = _quiver_points(s.domain)
     f_true = field(centers).reshape(grid.shape)
     if not np.all(np.isfinite(f_true)):
@@ -257,7 +260,7 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
             "mean_speed": speed, "n_observations": gp.n_observations,
             "alive": int(alive.sum()), "path_length": float(path_length.mean()), "energy": float(energy.mean()),
             "signal_variance": gp.settings.signal_variance, "length_scale": gp.settings.length_scale,
-            "threshold": stop_threshold(config, gp.settings.signal_variance),
+            "threshold": rule.threshold(gp),
         })
         res.times.append(t)
         res.positions.append(X.copy())
@@ -315,13 +318,13 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
             sup_v = float(var.max())
             snap = Snapshot(t=t, period=k, X=X.copy(), mean=mean, var=var, p_hat=p_hat)
             res.snapshots.append(snap)
-            if sup_v <= stop_threshold(config, gp.settings.signal_variance):
+            if rule.stops and sup_v <= rule.threshold(gp):
                 res.stop_reason = "threshold"
                 break
             if k >= s.max_periods or t >= s.max_time - 1e-9 * s.period:
                 res.stop_reason = "max_time"
                 break
-            eta = target_tolerance(config, gp.settings.signal_variance)
+            eta = rule.tolerance(gp)
             if s.target == "reachable":
                 reach = 0.5 * config.planner.v_max * s.period if s.reach is None else s.reach   # 2 sd = v_max T
                 p_f = reachable_target_density(var, eta, grid.cell_area, p_hat, reach, grid.dx, grid.dy)
