@@ -34,9 +34,11 @@ import numpy as np
 
 from ..control import feedback_velocity, saturate, tracking_velocity
 from ..control.stirring import stirring_pattern
+from .ergodic import SpectralCoverage
 
 __all__ = ["Context", "Controller", "FeedbackController", "OpenLoopController", "DiffusionController",
-           "CoverageController", "GreedyController", "LawnmowerController", "CONTROLLERS", "register",
+           "CoverageController", "GreedyController", "LawnmowerController", "ErgodicController", "CONTROLLERS",
+           "register",
            "make_controller"]
 
 
@@ -289,8 +291,37 @@ class LawnmowerController(Controller):
         return _toward(X, goal, self.v_max, self.h)
 
 
+class ErgodicController(Controller):
+    """Spectral multiscale coverage (Mathew & Mezić 2011, :mod:`sim.ergodic`) towards the target
+    mu ∝ V, refreshed after every measurement: u_j = -v_max B_j / |B_j| with B_j = sum_k Lambda_k S_k
+    grad f_k(x_j), S_k the swarm's accumulated coefficient difference to the target; speed
+    ``planner.v_max``, ``sim.ergodic_modes`` cosine modes per axis, no planner."""
+
+    name = "ergodic"
+
+    def __init__(self, config):
+        super().__init__(config)
+        self.smc = SpectralCoverage(config.sim.domain, config.sim.ergodic_modes, self.v_max)
+        self.h = None
+
+    def start(self, ctx):
+        self.h = ctx.h
+        self.smc.set_target(ctx.var, ctx.centers)
+
+    def observe(self, ctx):
+        self.smc.set_target(ctx.var, ctx.centers)
+
+    def velocity(self, t, X, alive):
+        # called once per Euler sub-step of length h, with the positions at its start
+        if alive.all():
+            return self.smc.step(X, self.h)
+        v = np.zeros_like(X)
+        v[alive] = self.smc.step(X[alive], self.h)
+        return v
+
+
 CONTROLLERS = {c.name: c for c in (FeedbackController, OpenLoopController, DiffusionController, CoverageController,
-                                   GreedyController, LawnmowerController)}
+                                   GreedyController, LawnmowerController, ErgodicController)}
 
 
 def register(cls) -> type:
@@ -299,11 +330,6 @@ def register(cls) -> type:
         raise ValueError("register() needs a Controller subclass")
     CONTROLLERS[cls.name] = cls
     return cls
-
-
-from .ergodic import ErgodicController  # noqa: E402  (sim.ergodic subclasses Controller)
-
-register(ErgodicController)
 
 
 def make_controller(name: str, config) -> Controller:

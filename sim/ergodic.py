@@ -25,8 +25,10 @@ moment, so regions covered before stay counted as covered.  grad f_k has a vanis
 component on the walls, so the feedback never pushes a robot through a wall (the loop's reflecting
 walls handle the Brownian part).  Only the working robots are counted (N = robots alive).
 
-Speed ``planner.v_max`` like the other motion baselines; no planner (``needs_plan = False``);
-``sim.ergodic_modes`` = K modes per axis (default 20: wavelength 2 m on the paper's 20 m domain).
+:class:`SpectralCoverage` holds the state (S_k, mu_k) and computes u_j; the controller
+``ergodic`` (``sim.controllers.ErgodicController``) drives it: speed ``planner.v_max`` like the
+other motion baselines, no planner, ``sim.ergodic_modes`` = K modes per axis (default 20: wavelength
+2 m on the paper's 20 m domain).
 """
 from __future__ import annotations
 
@@ -34,9 +36,7 @@ import math
 
 import numpy as np
 
-from .controllers import Context, Controller
-
-__all__ = ["ErgodicController", "CosineBasis"]
+__all__ = ["CosineBasis", "SpectralCoverage"]
 
 
 class CosineBasis:
@@ -83,25 +83,21 @@ class CosineBasis:
         return np.column_stack([gx, gy])
 
 
-class ErgodicController(Controller):
-    """Spectral multiscale coverage (Mathew & Mezić 2011) towards mu ∝ V (module docstring)."""
+class SpectralCoverage:
+    """State and feedback of spectral multiscale coverage (module docstring) for a swarm at speed
+    ``v_max`` on ``domain`` with ``modes`` cosine modes per axis."""
 
-    name = "ergodic"
-    needs_plan = False
-
-    def __init__(self, config):
-        super().__init__(config)
-        self.basis = CosineBasis(config.sim.domain, config.sim.ergodic_modes)
-        K = config.sim.ergodic_modes
+    def __init__(self, domain, modes: int, v_max: float):
+        self.basis = CosineBasis(domain, modes)
+        self.v_max = float(v_max)
+        K = int(modes)
         self.S = np.zeros((K, K))         # accumulated sum_j int f_k(x_j) - N int mu_k
-        self.elapsed = 0.0                # integrated time N-weighted: int N(t) dt
+        self.elapsed = 0.0                # int N(t) dt
         self.mu_k = None
-        self.h = None
-        self._last_t = None
 
-    # ------------------------------------------------------------------ target
-    def set_target(self, density: np.ndarray, centers: np.ndarray) -> None:
-        """mu_k from a target density on cell centres (any non-negative weights, normalised here)."""
+    def set_target(self, density, centers) -> None:
+        """mu_k from a target density on cell centres (any non-negative weights, normalised here;
+        all zero: uniform)."""
         w = np.clip(np.asarray(density, float).ravel(), 0.0, None)
         tot = w.sum()
         if not tot > 0:
@@ -109,17 +105,6 @@ class ErgodicController(Controller):
         # mu = w / (tot dA) on cells of area dA: mu_k = sum mu(c) f_k(c) dA = sum (w / tot) f_k(c)
         self.mu_k = self.basis.sum_values(centers, w / tot)
 
-    def _target_from(self, ctx: Context) -> None:
-        self.set_target(ctx.var, ctx.centers)
-
-    def start(self, ctx):
-        self.h = ctx.h
-        self._target_from(ctx)
-
-    def observe(self, ctx):
-        self._target_from(ctx)
-
-    # ------------------------------------------------------------------ metric
     def coefficients(self) -> np.ndarray | None:
         """c_k - mu_k = S_k / int N dt (None before any motion)."""
         return None if self.elapsed <= 0 else self.S / self.elapsed
@@ -129,28 +114,24 @@ class ErgodicController(Controller):
         d = self.coefficients()
         return math.nan if d is None else float(np.sum(self.basis.weights * d * d))
 
-    # ------------------------------------------------------------------ feedback
     def accumulate(self, X, dt: float) -> None:
         """S_k += (sum_j f_k(X_j) - N mu_k) dt for the positions X (working robots) held over dt."""
         n = len(X)
         if n == 0 or dt <= 0:
             return
+        if self.mu_k is None:
+            raise ValueError("SpectralCoverage: set_target before accumulate")
         self.S += (self.basis.sum_values(X) - n * self.mu_k) * dt
         self.elapsed += n * dt
 
     def feedback(self, X) -> np.ndarray:
-        """u_j = -u_max B_j / |B_j|, B_j = sum_k Lambda_k S_k grad f_k(X_j) (0 where B_j = 0)."""
+        """u_j = -v_max B_j / |B_j|, B_j = sum_k Lambda_k S_k grad f_k(X_j) (0 where B_j = 0)."""
         B = self.basis.gradient_sum(X, self.basis.weights * self.S)
         nb = np.hypot(B[:, 0], B[:, 1])
         with np.errstate(invalid="ignore", divide="ignore"):
             return np.where(nb[:, None] > 0, -self.v_max * B / nb[:, None], 0.0)
 
-    def velocity(self, t, X, alive):
-        Xa = X if alive.all() else X[alive]
-        # the loop calls velocity once per Euler sub-step of length h, at the sub-step's start
-        self.accumulate(Xa, self.h)
-        if alive.all():
-            return self.feedback(X)
-        v = np.zeros_like(X)
-        v[alive] = self.feedback(Xa)
-        return v
+    def step(self, X, dt: float) -> np.ndarray:
+        """Accumulate the positions X over [t, t + dt) and return their velocities."""
+        self.accumulate(X, dt)
+        return self.feedback(X)
