@@ -54,6 +54,7 @@ from ..control import FeedbackSettings
 from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict
 from ..regression import GPSettings
 from .presets import DEFAULT_PRESET, PRESETS, merge_under_preset
+from .stopping import STOP_RULES
 
 __all__ = ["SimSettings", "KDESettings", "RunConfig", "load_config", "read_toml", "config_from_dict", "to_toml",
            "SECTIONS"]
@@ -216,9 +217,8 @@ class SimSettings:
         set_("seed", _integer("seed", self.seed, 0))
         set_("substeps", _integer("substeps", self.substeps, 1))
         set_("ergodic_modes", _integer("ergodic_modes", self.ergodic_modes, 1))
-        from .stopping import STOP_RULES
         if self.stop_rule not in STOP_RULES:
-            raise ValueError(f"sim.stop_rule must be one of {', '.join(STOP_RULES)}, got {self.stop_rule!r}")
+            raise ValueError(f"sim.stop_rule must be one of {', '.join(sorted(STOP_RULES))}, got {self.stop_rule!r}")
         if self.stop_length_scale is not None:
             set_("stop_length_scale", _number("stop_length_scale", self.stop_length_scale, positive=True))
         set_("gamma_relative", _number("gamma_relative", self.gamma_relative, nonneg=True))

@@ -1,8 +1,20 @@
-"""Stop rules of Algorithm 1 ("while sup V_k > gamma") and the tolerance eta of the target density.
+"""Stop rules of Algorithm 1: when is the field mapped?
 
-A stop rule reads the GP and says how low sup V must be (``threshold(gp)``) and which tolerance the
-target p_f = max(V - eta, 0) / int uses (``tolerance(gp)``).  Every controller is judged by the same
-rule: it reads only the regression, never the controller.  ``sim.stop_rule`` selects one:
+Algorithm 1 stops when sup_x V_k(x) <= gamma, the GP predictive variance (section "Generation of
+reference models") under a threshold; the same threshold's companion eta is the tolerance of the
+target density p_f = max(V - eta, 0) / int.  A stop rule is a small object with
+
+``threshold(gp)``  the gamma in force, given the current GP (its hyperparameters may be learned);
+``tolerance(gp)``  the eta of the target density;
+``reached(var, gp)``  whether the run may stop (default: ``var.max() <= threshold(gp)``).
+
+The simulator (:class:`sim.simulation.Simulation`) asks it at every period start, the metrics record
+``threshold(gp)`` after every measurement, and every controller is judged by the same rule.
+
+Rules are registered by name (``sim.stop_rule`` in a configuration) with :func:`register_stop_rule`;
+:func:`make_stop_rule` builds the one a configuration names.
+
+Rules (``sim.stop_rule``):
 
 ``absolute`` (the paper)  sup V <= ``sim.gamma``; eta = ``sim.eta``.
 ``relative``              sup V <= ``sim.gamma_relative`` * s_f^2 at the current (possibly learned,
@@ -40,21 +52,21 @@ import math
 
 import numpy as np
 
-__all__ = ["StopRule", "AbsoluteStop", "RelativeStop", "RobustStop", "STOP_RULES", "make_stop_rule",
-           "travel_time_limit", "farthest_distance"]
+__all__ = ["StopRule", "AbsoluteThreshold", "RelativeThreshold", "RobustThreshold", "STOP_RULES",
+           "register_stop_rule", "make_stop_rule", "travel_time_limit", "farthest_distance"]
 
 
 class StopRule:
-    """Base class: ``threshold(gp)`` (sup V must be <= it) and ``tolerance(gp)`` (eta of p_f).
+    """Base class; ``settings`` is the run's :class:`sim.config.SimSettings`.
 
-    ``stops = False`` makes the loop record the threshold without stopping at it (compare-controllers
-    scores every controller at the same times).  ``bind(points)`` gives the rule the points on which
-    sup V is taken (the planner grid's cell centres); the loop calls it before the first threshold."""
+    ``stops = False``: :meth:`reached` is never true, the threshold is only recorded
+    (compare-controllers scores every controller at the same times).  :meth:`bind` gives the rule
+    the points sup V is taken on (the planner grid's cell centres; the simulator calls it)."""
 
     name = "base"
 
-    def __init__(self, config, *, stops: bool = True):
-        self.config = config
+    def __init__(self, settings, *, stops: bool = True):
+        self.settings = settings
         self.stops = bool(stops)
         self.points = None
 
@@ -62,47 +74,52 @@ class StopRule:
         self.points = np.asarray(points, dtype=float)
         return self
 
-    def threshold(self, gp) -> float:  # pragma: no cover - abstract
+    def threshold(self, gp) -> float:
         raise NotImplementedError
 
-    def tolerance(self, gp) -> float:  # pragma: no cover - abstract
+    def tolerance(self, gp) -> float:
         raise NotImplementedError
 
+    def reached(self, var: np.ndarray, gp) -> bool:
+        """Algorithm 1's test sup V <= gamma, on the cells the run maps."""
+        return self.stops and float(np.max(var)) <= self.threshold(gp)
 
-class AbsoluteStop(StopRule):
-    """Algorithm 1's gamma as a number (``sim.gamma``, the paper's 0.1); eta = ``sim.eta``."""
+
+class AbsoluteThreshold(StopRule):
+    """The paper's rule: sup V <= ``sim.gamma``; target tolerance ``sim.eta``."""
 
     name = "absolute"
 
-    def threshold(self, gp):
-        return self.config.sim.gamma
+    def threshold(self, gp) -> float:
+        return self.settings.gamma
 
-    def tolerance(self, gp):
-        return self.config.sim.eta
+    def tolerance(self, gp) -> float:
+        return self.settings.eta
 
 
-class RelativeStop(StopRule):
-    """gamma = ``sim.gamma_relative`` * s_f^2, eta = ``sim.eta_relative`` * s_f^2 at the GP's current s_f^2."""
+class RelativeThreshold(StopRule):
+    """sup V <= ``sim.gamma_relative`` x s_f^2 at the current (possibly learned) signal variance;
+    target tolerance ``sim.eta_relative`` x s_f^2 (a threshold that follows the field's own scale)."""
 
     name = "relative"
 
-    def threshold(self, gp):
-        return self.config.sim.gamma_relative * gp.settings.signal_variance
+    def threshold(self, gp) -> float:
+        return self.settings.gamma_relative * gp.settings.signal_variance
 
-    def tolerance(self, gp):
-        return self.config.sim.eta_relative * gp.settings.signal_variance
+    def tolerance(self, gp) -> float:
+        return self.settings.eta_relative * gp.settings.signal_variance
 
 
-class RobustStop(RelativeStop):
+class RobustThreshold(RelativeThreshold):
     """``relative`` that must also hold at the length scale l_c = min(l, ``sim.stop_length_scale``)
     (module docstring).  ``last_check_variance`` is sup V_c of the last call (None if l <= l_c)."""
 
     name = "robust"
 
-    def __init__(self, config, *, stops: bool = True):
-        super().__init__(config, stops=stops)
-        ls = config.sim.stop_length_scale
-        self.check_length_scale = float(config.gp.length_scale if ls is None else ls)
+    def __init__(self, settings, *, stops: bool = True):
+        super().__init__(settings, stops=stops)
+        ls = settings.stop_length_scale
+        self.check_length_scale = None if ls is None else float(ls)
         self._gp = self._twin = None
         self.last_check_variance = None
 
@@ -110,12 +127,13 @@ class RobustStop(RelativeStop):
         """l_c = min(l, stop_length_scale), raised to the shortest length scale gp's inducing grid
         represents (1.5 x its spacing)."""
         lo = 1.5 * gp.settings.resolved_inducing_spacing
-        return max(min(gp.settings.length_scale, self.check_length_scale), lo)
+        lc = gp.initial_settings.length_scale if self.check_length_scale is None else self.check_length_scale
+        return max(min(gp.settings.length_scale, lc), lo)
 
     def check_variance(self, gp) -> np.ndarray | None:
         """V at (s_f^2, l_c) on the bound points, or None when l_c is gp's own length scale."""
         if self.points is None:
-            raise ValueError("RobustStop needs the points of sup V: call bind(points) first")
+            raise ValueError("RobustThreshold needs the points of sup V: call bind(points) first")
         s = gp.settings
         lc = self.check_scale(gp)
         if lc >= s.length_scale * (1 - 1e-12):
@@ -141,17 +159,30 @@ class RobustStop(RelativeStop):
         return base * sup_v / sup_c
 
 
-#: sim.stop_rule value -> class
-STOP_RULES = {c.name: c for c in (AbsoluteStop, RelativeStop, RobustStop)}
+#: name -> StopRule subclass (``sim.stop_rule``)
+STOP_RULES: dict[str, type] = {}
 
 
-def make_stop_rule(config, points=None, *, stops: bool = True) -> StopRule:
-    """The stop rule named by ``config.sim.stop_rule``, bound to ``points`` if given."""
+def register_stop_rule(cls: type) -> type:
+    """Add a :class:`StopRule` subclass under ``cls.name`` (usable as a decorator)."""
+    if not (isinstance(cls, type) and issubclass(cls, StopRule)) or cls.name == StopRule.name:
+        raise TypeError(f"register_stop_rule takes a named StopRule subclass, got {cls!r}")
+    STOP_RULES[cls.name] = cls
+    return cls
+
+
+for _cls in (AbsoluteThreshold, RelativeThreshold, RobustThreshold):
+    register_stop_rule(_cls)
+
+
+def make_stop_rule(settings, *, stops: bool = True) -> StopRule:
+    """The rule named by ``settings.stop_rule`` (``SimSettings``); ``stops=False``: record only."""
     try:
-        rule = STOP_RULES[config.sim.stop_rule](config, stops=stops)
+        cls = STOP_RULES[settings.stop_rule]
     except KeyError:
-        raise ValueError(f"unknown stop rule {config.sim.stop_rule!r}; known: {', '.join(STOP_RULES)}") from None
-    return rule if points is None else rule.bind(points)
+        raise ValueError(f"sim.stop_rule must be one of {', '.join(sorted(STOP_RULES))}, "
+                         f"got {settings.stop_rule!r}") from None
+    return cls(settings, stops=stops)
 
 
 def farthest_distance(points, box) -> float:

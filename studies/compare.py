@@ -57,7 +57,7 @@ def run_task(task: dict) -> list[dict]:
 
     cfg = config_from_dict(task["config"])
     # the configuration's own stop rule, recorded at every measurement; the run itself never stops at it
-    res = run_simulation(cfg, stop_rule=make_stop_rule(cfg, stops=False))
+    res = run_simulation(cfg, stop_rule=make_stop_rule(cfg.sim, stops=False))
     T = cfg.sim.period
     label = {k: task[k] for k in ("preset", "controller", "field", "seed", "robot_loss", "robots")}
     return [{**label, "step": r["step"], "t": r["t"], "t_T": r["t"] / T, "max_variance": r["max_variance"],

@@ -7,8 +7,8 @@ import pytest
 from swarmfield.regression import GaussianProcess, GPSettings
 from swarmfield.sim.config import RunConfig, SimSettings, to_toml, config_from_dict
 from swarmfield.sim.fields import FIELDS, make_field
-from swarmfield.sim.stopping import (AbsoluteStop, RelativeStop, RobustStop, farthest_distance, make_stop_rule,
-                                     travel_time_limit)
+from swarmfield.sim.stopping import (AbsoluteThreshold, RelativeThreshold, RobustThreshold, farthest_distance,
+                                     make_stop_rule, travel_time_limit)
 
 
 def _grid(n=40, L=20.0):
@@ -56,14 +56,14 @@ def test_robust_rule_is_the_relative_rule_when_the_length_scale_is_not_longer():
     gp = GaussianProcess(GPSettings(length_scale=1.0), domain=(0, 20, 0, 20))
     X = _lattice(0.25, 19.75, 0.25, 19.75, 1.0)
     gp.add(X, np.zeros(len(X)))
-    rob = make_stop_rule(_robust_config(), pts)
-    rel = make_stop_rule(RunConfig(sim=SimSettings(stop_rule="relative")), pts)
-    assert isinstance(rob, RobustStop) and isinstance(rel, RelativeStop)
+    rob = make_stop_rule(_robust_config().sim).bind(pts)
+    rel = make_stop_rule(SimSettings(stop_rule="relative")).bind(pts)
+    assert isinstance(rob, RobustThreshold) and isinstance(rel, RelativeThreshold)
     assert rob.threshold(gp) == rel.threshold(gp) == pytest.approx(0.1)
     assert rob.tolerance(gp) == rel.tolerance(gp) == pytest.approx(0.05)
     assert rob.last_check_variance is None
-    ab = make_stop_rule(RunConfig())
-    assert isinstance(ab, AbsoluteStop) and ab.threshold(gp) == 0.1 and ab.tolerance(gp) == 0.05 and ab.stops
+    ab = make_stop_rule(SimSettings())
+    assert isinstance(ab, AbsoluteThreshold) and ab.threshold(gp) == 0.1 and ab.tolerance(gp) == 0.05 and ab.stops
 
 
 def test_a_long_learned_length_scale_cannot_make_an_unvisited_corner_look_mapped():
@@ -77,8 +77,8 @@ def test_a_long_learned_length_scale_cannot_make_an_unvisited_corner_look_mapped
     gp.add(X, np.zeros(len(X)))
     gp.set_hyperparameters(0.25, 4.4)
     sup_v = gp.predict(pts)[1].max()
-    rel = make_stop_rule(RunConfig(sim=SimSettings(stop_rule="relative")), pts)
-    rob = make_stop_rule(_robust_config(), pts)
+    rel = make_stop_rule(SimSettings(stop_rule="relative")).bind(pts)
+    rob = make_stop_rule(_robust_config().sim).bind(pts)
     assert sup_v <= rel.threshold(gp)                       # the relative rule says "mapped"
     thr = rob.threshold(gp)
     assert sup_v > thr                                      # the robust one does not
@@ -107,7 +107,7 @@ def test_stop_length_scale_setting():
         SimSettings(stop_length_scale=0.0)
     # l_c is never below what the inducing grid represents (1.5 x spacing)
     gp = GaussianProcess(GPSettings(length_scale=3.0), domain=(0, 20, 0, 20))
-    rule = RobustStop(_robust_config(stop_length_scale=0.1))
+    rule = RobustThreshold(SimSettings(stop_rule="robust", stop_length_scale=0.1))
     assert rule.check_scale(gp) == pytest.approx(1.5 * 1.5)
 
 
@@ -138,7 +138,7 @@ def test_no_data_gathered_before_the_travel_limit_can_fire_the_robust_rule(ell):
     for _ in range(3):
         gp.add(X, np.zeros(len(X)))
     gp.set_hyperparameters(1.0, ell)                       # s_f^2 / s_n^2 = 25
-    rule = make_stop_rule(cfg, pts)
+    rule = make_stop_rule(cfg.sim).bind(pts)
     assert gp.predict(pts)[1].max() > rule.threshold(gp)
 
 
