@@ -140,12 +140,32 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
                         s = cfg.sim
                         rule = [s.stop_rule, s.gamma_relative if s.stop_rule != "absolute" else s.gamma]
                         speed = make_controller(ctrl, cfg).v_max
+                        free = _reachable_cells(cfg)
                         tasks.append({"preset": preset, "controller": ctrl, "stop_rule": rule,
                                       "field": _field_label(field), "field_source": fsig,
                                       "seed": int(seed), "robot_loss": float(loss), "robots": int(n),
-                                      "travel_limit": travel_time_limit(cfg, speed=speed),
+                                      "travel_limit": travel_time_limit(cfg, speed=speed, free=free),
                                       "config": cfg.as_dict()})
     return tasks
+
+
+_FREE_CACHE: dict = {}
+
+
+def _reachable_cells(cfg):
+    """The planner cells a run of ``cfg`` maps (None on the empty rectangle), cached per domain and grid."""
+    if not cfg.domain.source:
+        return None
+    key = (cfg.domain.source, cfg.domain.min_free_fraction, tuple(cfg.sim.domain), tuple(cfg.sim.start_box),
+           cfg.planner.nx, cfg.planner.ny)
+    if key not in _FREE_CACHE:
+        import warnings
+        from ..ocp import Grid
+        from ..sim.simulation import resolve_domain
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)      # the run itself warns about unreachable space
+            _FREE_CACHE[key] = resolve_domain(cfg, Grid(cfg.planner.domain, cfg.planner.nx, cfg.planner.ny))[1]
+    return _FREE_CACHE[key]
 
 
 # ------------------------------------------------------------------------------ tables and plots
