@@ -4,7 +4,7 @@
   (DESIGN.md: "CLIs exit non-zero with one readable line").
 * :class:`OneLineParser` — ``argparse`` raises :class:`UsageError` instead of printing the usage
   block and calling ``sys.exit(2)`` itself.
-* :func:`cli_main` — the common ``main``: runs a command, turns :class:`UsageError` into one line
+* :func:`cli_main` — the common ``main``: limits the BLAS/OpenMP threads (:mod:`runtime.threads`), runs a command, turns :class:`UsageError` into one line
   and exit 2 and Ctrl-C into one line and exit 130, and exits the process when called as a script.
 * :class:`DefaultsFormatter` — ``--help`` shows "(default: X)" only where there is a default to
   show: options whose default is resolved later from a TOML file (``None``) and plain switches
@@ -45,6 +45,8 @@ def cli_main(prog: str, run, argv=None, *, value_errors: bool = False) -> int:
     :class:`UsageError` (any ``ValueError`` if ``value_errors``: validation inside the library),
     130 with one line for Ctrl-C; ``sys.exit`` with the code when ``argv`` is None (console script)."""
     errors = ValueError if value_errors else UsageError
+    from .threads import limit_threads
+    limit_threads()          # BLAS/OpenMP threads: the measured best unless the environment sets them
     try:
         code = run(argv)
     except errors as exc:

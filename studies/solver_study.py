@@ -22,6 +22,8 @@ PROG = "solver-study"
 
 
 def main(argv=None) -> int:
+    from ..runtime.threads import limit_threads
+    limit_threads()          # BLAS/OpenMP threads of this process; each sweep worker's own: studies.runner
     ap = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0])
     ap.add_argument("--study", choices=["all", "formulation", "ipopt", "discretisation", "hessian"], default="all",
                     help="which of the paper's fixed studies to run (the same as --preset; ignored with sweep axes)")
