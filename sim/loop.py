@@ -247,17 +247,19 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
             lost = np.random.default_rng([s.seed, 0x105]).choice(n, size=min(m, n - 1), replace=False)
             alive[lost] = False
 
+    def posterior_columns(mean, var):
+        """The row's entries that depend on the GP posterior and its hyperparameters."""
+        return {"max_variance": float(var.max()), "mean_variance": float(var.mean()),
+                "rmse": rmse(f_true, mean), "l2_error": l2_norm(mean - f_true, grid.cell_area),
+                "signal_variance": gp.settings.signal_variance, "length_scale": gp.settings.length_scale,
+                "threshold": stop_threshold(config, gp.settings.signal_variance)}
+
     def record(step, t, period, X, mean, var, p_hat, p_r, speed):
-        err = mean - f_true
         res.rows.append({
-            "step": step, "t": t, "period": period,
-            "max_variance": float(var.max()), "mean_variance": float(var.mean()),
-            "rmse": rmse(f_true, mean), "l2_error": l2_norm(err, grid.cell_area),
+            "step": step, "t": t, "period": period, **posterior_columns(mean, var),
             "tracking_error": math.nan if p_r is None else l2_norm(p_hat - p_r, grid.cell_area),
             "mean_speed": speed, "n_observations": gp.n_observations,
             "alive": int(alive.sum()), "path_length": float(path_length.mean()), "energy": float(energy.mean()),
-            "signal_variance": gp.settings.signal_variance, "length_scale": gp.settings.length_scale,
-            "threshold": stop_threshold(config, gp.settings.signal_variance),
         })
         res.times.append(t)
         res.positions.append(X.copy())
@@ -311,6 +313,10 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
                 refit_online(gp)          # MAP, warm start (issue 10); posterior recomputed below
                 m_, v_ = gp.predict(centers)
                 mean, var = m_.reshape(grid.shape), v_.reshape(grid.shape)
+                # the row at t = kT records the posterior in force from now on (same data, new (s_f^2, l)):
+                # the stopping test below, the summary and metrics.csv then agree
+                res.rows[-1].update(posterior_columns(mean, var))
+                res.variances[-1] = var.astype(np.float32)
                 tm["regression"] += time.perf_counter() - t0
             sup_v = float(var.max())
             snap = Snapshot(t=t, period=k, X=X.copy(), mean=mean, var=var, p_hat=p_hat)
@@ -364,7 +370,9 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
                 info = res.replans[-1] if ctrl.needs_plan else \
                     {"status": "no planner", "iterations": 0, "solve_time_s": 0.0}
                 progress({"event": "plan", "period": k, "t": t, "max_variance": sup_v,
-                          "rmse": res.rows[-1]["rmse"], **info})
+                          "rmse": res.rows[-1]["rmse"], "threshold": res.rows[-1]["threshold"],
+                          "signal_variance": gp.settings.signal_variance, "length_scale": gp.settings.length_scale,
+                          "learned": bool(config.gp.learn_hyperparameters), **info})
 
             # --- inner loop: T / Δt measurement steps under the controller
             t0 = k * s.period
