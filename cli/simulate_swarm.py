@@ -34,11 +34,11 @@ def _preset_names():
 
 def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0])
-    p.add_argument("--config", type=Path, help="TOML file with [sim], [gp], [kde], [feedback], [planner] tables")
+    p.add_argument("--config", type=Path, metavar="FILE", help="TOML file with [sim], [gp], [kde], [feedback], [planner] tables")
     p.add_argument("--preset", choices=_preset_names(),
                    help="paper: the paper's configuration (default); tuned: the measured best configuration "
-                        "beyond the paper (README, 'Beyond the paper'). Laid under --config and the flags")
-    p.add_argument("--out", type=Path, default=Path("run"), help="output folder")
+                        "beyond the paper (documentation: 'Beyond the paper'). Laid under --config and the flags")
+    p.add_argument("--out", type=Path, default=Path("run"), metavar="DIR", help="output folder")
     p.add_argument("--seed", type=int, help="random seed (default 0)")
     p.add_argument("--robots", type=int, help="number of robots (default 100)")
     p.add_argument("--field", help="sinc | plumes | ridge | path to a .npz/.npy/.csv field file (default sinc)")

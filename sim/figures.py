@@ -26,33 +26,15 @@ from pathlib import Path
 import numpy as np
 
 from ..runtime.atomic import atomic_path
+from ..runtime.plotting import new_figure, save_figure
 
 __all__ = ["write_figures", "make_panels", "make_convergence", "make_field_error", "plot_panels",
            "plot_convergence", "plot_field_error", "write_animation", "panel_snapshots", "FIGURE_FILES"]
 
 PANEL_PERIODS = (0, 1, 3, 4)
 FIGURE_FILES = ("panels.png", "convergence.png", "field_error.png")
-DPI = 90
-#: PNG compression (zlib level; 1: the fastest, files ~10 % larger than the default 6)
-PNG_COMPRESSION = 1
-
-
-def _figure(width, height, dpi=DPI):
-    """A Figure on its own Agg canvas (no pyplot: no global state, no backend switch, nothing to close)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(width, height), dpi=dpi)
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _save(fig, path: Path, fmt: str = "png", dpi: int = DPI):
-    path = Path(path)
-    with atomic_path(path, f".{fmt}") as tmp:
-        fig.savefig(tmp, format=fmt, dpi=dpi, **({"pil_kwargs": {"compress_level": PNG_COMPRESSION}}
-                                                 if fmt == "png" else {}))
-    return path
+_figure = new_figure
+_save = save_figure
 
 
 def _ticks(ax, domain, x=True, y=True, n=3):
