@@ -168,6 +168,7 @@ def run(argv=None) -> int:
 
 def _run_locked(args, argv, config, field, planner, folder) -> int:
     from ..runtime.publish import InterruptedAfterPublish
+    from ..runtime.threads import thread_info
     from ..sim.loop import run_simulation
     from ..sim.outputs import write_metrics, write_outputs
 
@@ -197,6 +198,7 @@ def _run_locked(args, argv, config, field, planner, folder) -> int:
         files = write_outputs(result, stage, figures=not args.no_figures, gif=args.gif,
                               progress=None if args.quiet else writing,
                               extra={"command": [PROG] + [str(a) for a in (sys.argv[1:] if argv is None else argv)],
+                                     "threads": thread_info(),
                                      "planner_build_time_s": None if planner is None else planner.build_time})
         if failed and folder.holds_complete_run():
             where = folder.set_aside(stage)      # partial results never replace a complete run

@@ -8,7 +8,8 @@
 ``DIR/summary.json``    resolved configuration (every setting), seed, field description,
                         ``time_to_threshold`` (null if never reached), ``periods_to_threshold``,
                         final figures, planner statistics, timings (the simulation's phases and
-                        ``output_timings_s``: the writing of each figure), wall time, package versions
+                        ``output_timings_s``: the writing of each figure), wall time, package versions,
+                        the BLAS/OpenMP thread pools (``threads``, :mod:`runtime.threads`)
 ``DIR/config.toml``     the resolved configuration as TOML: ``simulate-swarm --config DIR/config.toml``
                         repeats the run
 ``DIR/trajectory.npz``  measurement times ``t`` (K,), positions ``X`` (K, n, 2), the planner grid's

@@ -259,10 +259,13 @@ def make_cases(rows):
         return v if math.isfinite(v) else 0.0
 
     studies = list(dict.fromkeys(r.get("study", "") for r in rows))
-    fig = new_figure(4.6 * len(studies), 4.2)
-    axes = fig.subplots(1, len(studies), squeeze=False)
-    fig.subplots_adjust(left=0.12 / max(1, len(studies)) + 0.08, right=0.97, bottom=0.13, top=0.88, wspace=0.6)
-    for ax, st in zip(axes[0], studies):
+    # room on the left of each panel for its case names (about 0.06 in per character at 7 pt)
+    label = 0.45 + 0.06 * max([len(str(r.get("case"))) for r in rows] + [1])
+    panel, W, H = 3.6, len(studies) * (label + 3.6 + 0.25), 4.2
+    fig = new_figure(W, H)
+    axes = [fig.add_axes([(k * (label + panel + 0.25) + label) / W, 0.55 / H, panel / W, (H - 1.05) / H])
+            for k in range(len(studies))]
+    for ax, st in zip(axes, studies):
         rs = [r for r in rows if r.get("study", "") == st]
         y = range(len(rs))
         ax.barh(y, [num(r.get("solve_s")) for r in rs], color="tab:blue")
