@@ -3,11 +3,14 @@
 NumPy's and SciPy's OpenBLAS start one thread per core.  The closed loop and the planner make many
 small factorisations (the GP's Cholesky, IPOPT's MUMPS on a few thousand unknowns), where the
 threads' start-up and synchronisation cost more than they save, and on a loaded machine a spinning
-BLAS thread waits for a core for milliseconds.  Measured on the 2-core development machine (shared,
-loaded; ``benchmarks/threads.py``): the main job ``simulate-swarm`` with 1 BLAS thread was faster
-than with 2, so every command uses :data:`COMMAND_THREADS` = 1 and every sweep worker process
-:data:`WORKER_THREADS` = 1 (the workers are the parallelism; a pool of ``cpu_count`` workers each
-with ``cpu_count`` BLAS threads oversubscribes the machine).
+BLAS thread waits for a core for milliseconds.  Measured with ``benchmarks/main_job.py --threads N``
+(the main job, ``simulate-swarm`` with the paper's defaults) on the 2-core development machine,
+shared with other jobs (load average ~11), three runs each: the simulation took 3.9 / 4.7 / 3.9 s
+of CPU with 1 BLAS thread and 5.8 / 5.2 / 5.4 s with 2 (the same work, +35 % CPU spent spinning);
+its wall time (12 / 34 / 24 s against 26 / 29 / 19 s) was set by the other jobs.  So every command
+uses :data:`COMMAND_THREADS` = 1 and every sweep worker process :data:`WORKER_THREADS` = 1 (the
+workers are the parallelism; a pool of ``cpu_count`` workers each with ``cpu_count`` BLAS threads
+oversubscribes the machine).
 
 The environment wins: if any of :data:`ENV_VARS` is set (``OPENBLAS_NUM_THREADS=4 simulate-swarm``),
 nothing is changed here and the libraries read it themselves.
