@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..runtime.atomic import probe_writable
+from ..runtime.threads import limit_threads
 from ..runtime.cliargs import OneLineParser, UsageError as InputError, check_path
 from ..ocp.plan import ReferencePlan
 from ..runtime.publish import InterruptedAfterPublish, staged_files
@@ -275,6 +276,7 @@ def run(argv=None) -> int:
 
 
 def main(argv=None) -> int:
+    limit_threads()          # BLAS/OpenMP threads: the measured best unless the environment sets them
     try:
         code = run(argv)
     except InputError as exc:

@@ -286,44 +286,63 @@ def plot_name(field: str, robots: int, robot_loss: float, domain: str | None = N
     return (f"{domain}_" if domain else "") + f"{field}_n{robots}_loss{int(round(100 * robot_loss))}.png"
 
 
-def write_plots(runs, out: Path, gamma: float) -> list[str]:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    out.mkdir(parents=True, exist_ok=True)
-    written = []
+def scenario_curves(runs) -> dict:
+    """``{(domain, field, robots, robot_loss): {label: [rows of each seed]}}`` (domain "" without obstacles); the label is the controller,
+    with the preset when the sweep has several."""
     by_scenario = {}
     several = len({task["preset"] for task, _ in runs}) > 1
     for task, rows in runs:
         label = f"{task['controller']} ({task['preset']})" if several else task["controller"]
         by_scenario.setdefault((task.get("domain") or "", task["field"], task["robots"], task["robot_loss"]), {}) \
             .setdefault(label, []).append(rows)
-    for (domain, field, n, loss), ctrls in sorted(by_scenario.items()):
-        fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-        for ci, (ctrl, runs_c) in enumerate(ctrls.items()):
-            m = min(len(r) for r in runs_c)
-            t = np.array([r["t_T"] for r in runs_c[0][:m]])
-            for ax, col in zip(axes, ("rmse", "max_variance")):
-                Y = np.array([[r[col] / (r.get("threshold") or gamma if col == "max_variance" else 1.0)
-                               for r in rows[:m]] for rows in runs_c])
-                color = f"C{ci}"
+    return by_scenario
+
+
+def make_plot(scenario, curves: dict, gamma: float):
+    """One scenario's Figure: RMSE and sup V / threshold against t/T, the median over seeds as a line
+    and the min-max range as a band, one colour per controller (``curves`` from :func:`scenario_curves`)."""
+    from ..runtime.plotting import new_figure
+
+    domain, field, n, loss = scenario
+    fig = new_figure(11, 4.3)
+    axes = fig.subplots(1, 2)
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.13, top=0.83, wspace=0.25)
+    for ci, (ctrl, runs_c) in enumerate(curves.items()):
+        m = min(len(r) for r in runs_c)
+        t = np.array([r["t_T"] for r in runs_c[0][:m]])
+        for ax, col in zip(axes, ("rmse", "max_variance")):
+            Y = np.array([[r[col] / (r.get("threshold") or gamma if col == "max_variance" else 1.0)
+                           for r in rows[:m]] for rows in runs_c])
+            color = f"C{ci}"
+            if len(runs_c) > 1:
                 ax.fill_between(t, Y.min(0), Y.max(0), color=color, alpha=0.2, lw=0)
-                ax.plot(t, np.median(Y, 0), color=color, label=ctrl)
-        axes[0].set_ylabel("RMSE of f̄ on the grid")
-        axes[1].set_ylabel("sup V / γ (each configuration's own stopping threshold)")
-        axes[1].axhline(1.0, color="k", ls=":", lw=1)
-        axes[1].set_yscale("log")
-        for ax in axes:
-            ax.set_xlabel("t / T")
-            ax.grid(alpha=0.3)
-        axes[0].legend(fontsize=8)
-        fig.suptitle((f"{domain}: " if domain else "") + f"{field}, {n} robots, {100 * loss:.0f} % lost "
-                     "(median and range over seeds)")
-        fig.tight_layout()
+            ax.plot(t, np.median(Y, 0), color=color, label=ctrl)
+    axes[0].set_ylabel("RMSE of f\u0304 on the grid [field units]")
+    axes[0].set_title("prediction error", y=1.0)
+    axes[1].set_ylabel("sup V / threshold")
+    axes[1].set_title("sup V relative to each configuration's stopping threshold", y=1.0, fontsize=10)
+    axes[1].axhline(1.0, color="k", ls=":", lw=1)
+    axes[1].set_yscale("log")
+    for ax in axes:
+        ax.set_xlabel("t / T (periods)")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8)
+    seeds = max(len(r) for r in curves.values())
+    fig.suptitle((f"{domain}: " if domain else "") + f"{field}, {n} robots, {100 * loss:.0f} % lost: median over {seeds} seed(s)"
+                 + (" with the min-max range" if seeds > 1 else ""))
+    return fig
+
+
+def write_plots(runs, out: Path, gamma: float) -> list[str]:
+    """One PNG per scenario (:func:`make_plot`) in ``out``; returns the file names."""
+    from ..runtime.plotting import save_figure
+
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    for scenario, curves in sorted(scenario_curves(runs).items()):
+        domain, field, n, loss = scenario
         name = plot_name(field, n, loss, domain or None)
-        fig.savefig(out / name, dpi=90)
-        plt.close(fig)
+        save_figure(make_plot(scenario, curves, gamma), out / name)
         written.append(name)
     return written
 
@@ -341,26 +360,28 @@ def build_parser():
     p.add_argument("--controllers", nargs="+", default=list(CONTROLLERS), metavar="NAME",
                    help=f"controllers to compare (default all: {' '.join(CONTROLLERS)})")
     p.add_argument("--fields", nargs="+", default=["sinc"], metavar="FIELD", help="sinc | plumes | ridge | bumps | front | gp-sample | FILE ...")
-    p.add_argument("--seeds", nargs="+", type=int, default=[0], metavar="S")
-    p.add_argument("--robot-loss", nargs="+", type=float, default=[0.0], metavar="FRACTION")
+    p.add_argument("--seeds", nargs="+", type=int, default=[0], metavar="S", help="random seeds, one run each")
+    p.add_argument("--robot-loss", nargs="+", type=float, default=[0.0], metavar="FRACTION",
+                   help="fractions of the robots that stop at --loss-time, one sweep axis")
     p.add_argument("--loss-time", type=float, metavar="SECONDS", help="time of the loss (default T)")
     p.add_argument("--robots", nargs="+", type=int, default=None, metavar="N",
                    help="robot counts (default: the configuration's, 100)")
     p.add_argument("--domains", "--domain", nargs="+", default=None, metavar="NAME|FILE",
                    help="obstacles: built-in domains (harbour, floor, lake) or map files (.npz, .png, .tif, .geojson) "
                         "as an axis of the sweep (default: the configuration's [domain], the empty rectangle)")
-    p.add_argument("--start-box", type=float, nargs=4, metavar=("X0", "X1", "Y0", "Y1"))
-    p.add_argument("--max-periods", type=int, default=4, help="length of every run in periods T (default 4)")
+    p.add_argument("--start-box", type=float, nargs=4, metavar=("X0", "X1", "Y0", "Y1"),
+                   help="the swarm is released uniformly on this box (default: the configuration's, 0 7 0 7)")
+    p.add_argument("--max-periods", type=int, default=4, metavar="N", help="length of every run in periods T")
     p.add_argument("--times", nargs="+", type=float, default=None, metavar="K",
                    help="RMSE columns at these multiples of T (default 1 2 and --max-periods)")
-    p.add_argument("--config", type=Path, help="TOML base configuration ([sim], [gp], ...)")
+    p.add_argument("--config", type=Path, metavar="FILE", help="TOML base configuration ([sim], [gp], ...)")
     p.add_argument("--presets", nargs="+", choices=_preset_names(), default=None, metavar="PRESET",
                    help="presets laid under --config, one sweep axis: paper (default) and/or tuned; every "
                         "controller runs with each preset's GP and stopping settings")
-    p.add_argument("--out", type=Path, default=Path("compare"), help="output folder (reused: finished runs are skipped)")
-    p.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
-    p.add_argument("--scheduler", help="Dask scheduler address (tcp://host:8786): run the sweep on that cluster")
-    p.add_argument("--no-plots", action="store_true")
+    p.add_argument("--out", type=Path, default=Path("compare"), metavar="DIR", help="output folder (reused: finished runs are skipped)")
+    p.add_argument("--workers", type=int, default=None, metavar="N", help="local worker processes (default: all cores)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address (tcp://host:8786): run the sweep on that cluster")
+    p.add_argument("--no-plots", action="store_true", help="write runs.csv and summary.md only")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return p
 

@@ -17,6 +17,8 @@ nothing imports CasADi, so any study (the planner's solver study too) can run th
   ``scheduler``: ``distributed.Client(scheduler)`` -- an address (``tcp://...``) or an existing
   ``Client``/``LocalCluster``; results come back to this process, which writes the files, so the
   workers need no shared file system (optional extra ``pip install 'swarmfield[dask]'``).
+* Threads: every worker process (local or Dask) runs its tasks with one BLAS/OpenMP thread
+  (:data:`runtime.threads.WORKER_THREADS`) unless ``OPENBLAS_NUM_THREADS``/``OMP_NUM_THREADS``/... are set.
 * Progress on stderr: tasks done / total, failures, elapsed time and ETA.  A task that raises is
   reported (one line) and not stored, so a restart retries it; :class:`SweepError` at the end lists them.
 """
@@ -120,8 +122,10 @@ def run_tasks(tasks: list[dict], fn: Callable[[dict], list], runs_dir, *, worker
                       file=stream, flush=True)
         prog.tick(exc is None)
 
+    from ..runtime.threads import WORKER_THREADS, limited, worker_initializer
     if todo and scheduler is not None:
-        _run_dask(todo, fn, scheduler, finished)
+        # one BLAS thread per task on the cluster too (a Dask nanny sets 1 by default; a plain worker may not)
+        _run_dask(todo, limited(fn, WORKER_THREADS), scheduler, finished)
     elif todo and (workers or os.cpu_count() or 1) == 1 and not isolate:
         for task in todo:
             try:
@@ -131,10 +135,12 @@ def run_tasks(tasks: list[dict], fn: Callable[[dict], list], runs_dir, *, worker
             else:
                 finished(task, rows)
     elif todo:
-        extra = {}
+        # one BLAS/OpenMP thread per worker process (runtime.threads; the environment may say otherwise):
+        # the workers are the parallelism, and cpu_count workers x cpu_count BLAS threads oversubscribe
+        extra = {"initializer": worker_initializer, "initargs": (WORKER_THREADS,)}
         if isolate:
             import multiprocessing
-            extra = {"mp_context": multiprocessing.get_context("forkserver"), "max_tasks_per_child": 1}
+            extra |= {"mp_context": multiprocessing.get_context("forkserver"), "max_tasks_per_child": 1}
         with cf.ProcessPoolExecutor(max_workers=min(workers or os.cpu_count() or 1, len(todo)), **extra) as pool:
             futs = {pool.submit(fn, t): t for t in todo}
             try:
