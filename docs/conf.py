@@ -40,6 +40,7 @@ extensions = [
     "sphinx.ext.autosummary",
     "sphinx.ext.napoleon",
     "sphinx.ext.mathjax",
+    "sphinx-mathjax-offline",        # MathJax shipped with the pages: math renders without network
     "sphinx.ext.viewcode",
     "sphinx_gallery.gen_gallery",
     "plaintext_docstrings",          # docs/_ext: the code base's plain-text docstrings as valid reST

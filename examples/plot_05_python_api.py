@@ -6,12 +6,12 @@ The Python API end to end: Algorithm 1 by hand
 object you can call yourself -- to swap one part, to run it on real robots, or to see what happens
 inside.  One period, written out:
 
-1. the robots measure the field; a Gaussian process (:class:`~swarmfield.GaussianProcess`) gives
+1. the robots measure the field; a Gaussian process (:class:`~swarmfield.regression.gp.GaussianProcess`) gives
    the estimate :math:`\\bar f` and its variance :math:`V`;
-2. the target density :math:`p_f = \\max(V - \\eta, 0) / \\int` (:func:`~swarmfield.target_density`);
-3. the kernel density estimate :math:`\\hat p` of the robots (:class:`~swarmfield.KernelDensity`)
-   and the planner (:class:`~swarmfield.ReferencePlanner`) give the reference :math:`(p_r, v_r)`;
-4. every sub-step, the feedback law (:func:`~swarmfield.tracking_velocity`) gives each robot its
+2. the target density :math:`p_f = \\max(V - \\eta, 0) / \\int` (:func:`~swarmfield.regression.target.target_density`);
+3. the kernel density estimate :math:`\\hat p` of the robots (:class:`~swarmfield.control.kde.KernelDensity`)
+   and the planner (:class:`~swarmfield.ocp.planner.ReferencePlanner`) give the reference :math:`(p_r, v_r)`;
+4. every sub-step, the feedback law (:func:`~swarmfield.control.feedback.tracking_velocity`) gives each robot its
    velocity and the robots move (Euler--Maruyama with reflecting walls); every :math:`\\Delta t`
    they measure again.
 
