@@ -82,7 +82,6 @@ nitpicky = False
 # --- HTML --------------------------------------------------------------------------------------------
 html_theme = "furo"
 html_title = f"swarmfield {release}"
-html_static_path = ["_static"]
 html_theme_options = {"navigation_with_keys": True}
 
 # --- sphinx-gallery ----------------------------------------------------------------------------------
