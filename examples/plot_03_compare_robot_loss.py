@@ -39,6 +39,7 @@ start_box = [0.0, 4.0, 0.0, 4.0]
 robots = 30
 substeps = 4
 gamma = 0.12
+metrics_every = 2        # the GP posterior every second measurement (and at every period end)
 
 [planner]
 nx = 20
