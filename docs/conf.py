@@ -137,6 +137,22 @@ def _write_help_texts(app):
             os.environ["COLUMNS"] = old
 
 
+def _draw_import_graph(app):
+    """``docs/figures/architecture/imports.png``: the package's import graph, drawn from the source at
+    every build (scripts/import_graph.py), so that the architecture page shows the code as it is."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("import_graph", ROOT / "scripts" / "import_graph.py")
+    graph = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(graph)
+    g = graph.module_graph(ROOT)
+    problems = graph.problems(g)
+    if problems:
+        raise RuntimeError("import layout problems: " + "; ".join(problems))
+    graph.draw(g, DOCS / "figures" / "architecture" / "imports.png")
+
+
 def setup(app):
     app.connect("builder-inited", _write_help_texts)
+    app.connect("builder-inited", _draw_import_graph)
     return {"parallel_read_safe": True}
