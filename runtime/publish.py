@@ -97,8 +97,10 @@ def _commit(action):
     try:
         with deferred_signals():
             result = action()
-    except KeyboardInterrupt:
-        raise InterruptedAfterPublish() from None
+    except KeyboardInterrupt as exc:
+        after = InterruptedAfterPublish()
+        after.signum = getattr(exc, "signum", signal.SIGINT)       # SIGTERM (runtime.signals.Terminated): 143
+        raise after from None
     return result
 
 
