@@ -16,12 +16,17 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ..runtime.cliargs import OneLineParser, UsageError
+from ..runtime.cliargs import OneLineParser
 
 PROG = "solver-study"
 
 
 def main(argv=None) -> int:
+    from ..runtime.cliargs import cli_main
+    return cli_main(PROG, _run, argv)
+
+
+def _run(argv) -> int:
     ap = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0])
     ap.add_argument("--study", choices=["all", "formulation", "ipopt", "discretisation", "hessian"], default="all",
                     help="which of the paper's fixed studies to run (the same as --preset; ignored with sweep axes)")
@@ -29,11 +34,7 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="small grid (12x12, N=4, I=J=3) for a fast check")
     from .sweepcli import AXES, add_sweep_arguments, run_sweep_cli
     add_sweep_arguments(ap)
-    try:
-        args = ap.parse_args(argv)
-    except UsageError as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
+    args = ap.parse_args(argv)
     if args.preset is None and args.spec is None and all(getattr(args, f"sw_{a}") is None for a in AXES):
         args.preset = args.study            # the fixed studies are presets of the one sweep runner
     return run_sweep_cli(args, PROG)
