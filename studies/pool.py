@@ -85,9 +85,18 @@ def _worker(conn, alive, fn, once: bool) -> None:
             return
 
 
-def _context():
+def _context(fn):
     ctx = multiprocessing.get_context("forkserver")
     from multiprocessing import forkserver
+    module = getattr(fn, "__module__", None)
+    top = __name__.split(".")[0]
+    # the fork server imports the task's module and the package modules this process has loaded
+    # (the validation before the sweep loaded what a run needs) once; each worker forked from it
+    # starts at once.  Takes effect only when the server starts: the first pool of this process.
+    preload = [m for m in list(sys.modules) if m == top or m.startswith(top + ".")]
+    if module and module != "__main__":
+        preload.append(module)
+    ctx.set_forkserver_preload(preload)
     # start the fork server with SIGINT ignored: its children then ignore Ctrl-C from their first instruction
     if threading.current_thread() is threading.main_thread():
         old = signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -112,7 +121,7 @@ def run_pool(tasks, fn, workers: int, on_result, *, once: bool = False) -> None:
     """Run ``fn`` on every task in ``workers`` processes; ``on_result(index, rows, error)`` in
     this process as each finishes (``error``: None or a one-line message).  ``once``: a fresh
     process per task.  Any exception (from ``on_result`` or an interrupt) kills the workers first."""
-    ctx = _context()
+    ctx = _context(fn)
     alive_r, alive_w = ctx.Pipe(duplex=False)
     todo = deque(range(len(tasks)))
     slots = []

@@ -53,9 +53,11 @@ class SchedulerError(ValueError):
     """``--scheduler`` is malformed, unreachable or not a Dask scheduler (one line; nothing was run)."""
 
 
-def unique_values(values, flag: str, stream=sys.stderr, key=None) -> list:
+def unique_values(values, flag: str, stream="stderr", key=None) -> list:
     """``values`` without repeats (first occurrence kept, ``key(value)`` compared); a one-line note on
     ``stream`` names the dropped ones.  The same rule in every sweep command."""
+    if stream == "stderr":
+        stream = sys.stderr
     out, seen, dropped = [], set(), []
     for v in values:
         k = v if key is None else key(v)

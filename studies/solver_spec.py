@@ -116,9 +116,11 @@ AXES = {
 }
 
 
-def parse_spec(spec: dict, note=sys.stderr) -> dict:
+def parse_spec(spec: dict, note="stderr") -> dict:
     """Validate ``{axis: [values]}``; returns the axes with converted, de-duplicated values (a
     repeated value is dropped with a one-line note on ``note``, as ``compare-controllers`` does)."""
+    if note == "stderr":
+        note = sys.stderr
     if not isinstance(spec, dict):
         raise SpecError("the sweep must be a table of axis = [values]")
     out = {}
