@@ -129,12 +129,22 @@ def assert_all_gone_and_unlocked(proc, out, limit=20.0):
 
 
 def finish(proc, limit=60):
+    """Wait for the main process, then for every process of its session (orphaned workers hold the
+    stderr pipe: reading it to the end first would wait for them), then read stderr."""
     try:
-        return proc.communicate(timeout=limit)[1]
+        proc.wait(timeout=limit)
     except subprocess.TimeoutExpired:
         os.killpg(proc.pid, signal.SIGKILL)
         proc.communicate()
         pytest.fail("the sweep did not end after the signal")
+    t0 = time.monotonic()
+    while session_members(proc.pid) and time.monotonic() - t0 < 20:
+        time.sleep(0.1)
+    left = session_members(proc.pid)
+    if left:
+        os.killpg(proc.pid, signal.SIGKILL)
+        pytest.fail(f"processes of the sweep outlived it: {left}")
+    return proc.communicate(timeout=10)[1]
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
@@ -310,16 +320,20 @@ def test_f8_full_disk_while_storing_a_run_is_one_line_and_resumes(tmp_path, cfg,
     out = tmp_path / "o"
     argv = TINY + ["--seeds", "0", "1", "--config", cfg, "--out", out, "--workers", "1"]
     stores = []
+    import builtins
+    import io
+    real_open = builtins.open
 
     def full(path, *a, **k):
-        if str(path).endswith(".tmp"):
+        """The file system refuses the second run's file (ENOSPC, or EROFS as if remounted read-only)."""
+        if str(path).endswith(".tmp") and str(out / "runs") in str(path):
             stores.append(path)
-            if len(stores) == 2:                      # the first run is stored, the second hits the full disk
-                fh = open(path, *a, **k)
-                fh.close()
+            if len(stores) == 2:
+                real_open(path, "w").close()           # a partial file, which must not stay behind
                 raise OSError(err_no, os.strerror(err_no), str(path))
-        return open(path, *a, **k)
-    monkeypatch.setattr(runner, "open", full, raising=False)
+        return real_open(path, *a, **k)
+    monkeypatch.setattr(builtins, "open", full)
+    monkeypatch.setattr(io, "open", full)
     code, err = cmp(argv + ["--quiet"], capsys)
     line = one_line(err)
     assert code == 1 and os.strerror(err_no) in line and str(out / "runs") in line and "resumes" in line
