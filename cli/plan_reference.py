@@ -19,7 +19,7 @@ from ..runtime.atomic import probe_writable
 from ..runtime.cliargs import OneLineParser, UsageError as InputError, check_path
 from ..ocp.plan import ReferencePlan
 from ..runtime.publish import InterruptedAfterPublish, staged_files
-from ..runtime.signals import exit_code, ignore_interrupts, terminate_as_interrupt
+from ..runtime.signals import exit_code, ignore_interrupts, stopped, terminate_as_interrupt
 from ..ocp.settings import PlannerSettings, dataclass_from_dict
 
 PROG = "plan-reference"
@@ -200,11 +200,11 @@ def run(argv=None) -> int:
                 plot_plan(plan, tmp[args.plot])
             writing = None
     except InterruptedAfterPublish as exc:
-        print(f"{PROG}: interrupted after writing {both}", file=sys.stderr)
+        print(f"{PROG}: {stopped(exc)} after writing {both}", file=sys.stderr)
         return exit_code(exc)
     except KeyboardInterrupt as exc:
         if staged is not None and getattr(staged, "published", False):     # e.g. while the temporaries went
-            print(f"{PROG}: interrupted after writing {both}", file=sys.stderr)
+            print(f"{PROG}: {stopped(exc)} after writing {both}", file=sys.stderr)
             return exit_code(exc)
         raise                               # before publication: main says "nothing written"
     except OSError as exc:
@@ -223,7 +223,7 @@ def run(argv=None) -> int:
               f"{m['symmetric_kl_final']:.4f}")
         print(f"wrote {both}")
     except KeyboardInterrupt as exc:
-        print(f"{PROG}: interrupted after writing {both}", file=sys.stderr)
+        print(f"{PROG}: {stopped(exc)} after writing {both}", file=sys.stderr)
         return exit_code(exc)
     return 0
 
@@ -242,7 +242,7 @@ def main(argv=None) -> int:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         code = 2
     except KeyboardInterrupt as exc:
-        print(f"{PROG}: interrupted; nothing written", file=sys.stderr)
+        print(f"{PROG}: {stopped(exc)}; nothing written", file=sys.stderr)
         code = exit_code(exc)
     if __name__ == "__main__" or argv is None:
         ignore_interrupts()         # decided: a Ctrl-C during the interpreter's exit changes nothing

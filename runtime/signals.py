@@ -15,7 +15,7 @@ import signal
 import threading
 from contextlib import contextmanager
 
-__all__ = ["Terminated", "terminate_as_interrupt", "shielded", "exit_code", "ignore_interrupts"]
+__all__ = ["Terminated", "terminate_as_interrupt", "shielded", "exit_code", "stopped", "ignore_interrupts"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -38,6 +38,11 @@ def terminate_as_interrupt() -> None:
 def exit_code(exc: BaseException) -> int:
     """Exit code of an interrupt: 143 for SIGTERM (:class:`Terminated`), 130 for Ctrl-C."""
     return 128 + int(getattr(exc, "signum", signal.SIGINT))
+
+
+def stopped(exc: BaseException) -> str:
+    """How the process was stopped, for its last line: "interrupted" (Ctrl-C) or "terminated (SIGTERM)"."""
+    return "terminated (SIGTERM)" if exit_code(exc) == 128 + signal.SIGTERM else "interrupted"
 
 
 def ignore_interrupts() -> None:

@@ -385,7 +385,7 @@ def _close_client(client) -> None:
 
 def _sweep_and_publish(args, argv, tasks, gamma, times, folder, client=None) -> int:
     from . import runner as sweep
-    from ..runtime.signals import exit_code
+    from ..runtime.signals import exit_code, stopped
 
     out = args.out
     try:
@@ -400,7 +400,7 @@ def _sweep_and_publish(args, argv, tasks, gamma, times, folder, client=None) -> 
               "resumes)", file=sys.stderr)
         return 1
     except KeyboardInterrupt as exc:
-        print(f"{PROG}: interrupted; nothing written to {out} but the finished runs, kept in {out / 'runs'} "
+        print(f"{PROG}: {stopped(exc)}; nothing written to {out} but the finished runs, kept in {out / 'runs'} "
               "(the same command resumes)", file=sys.stderr)
         return exit_code(exc)
     runs = list(zip(tasks, results))
@@ -420,10 +420,10 @@ def _sweep_and_publish(args, argv, tasks, gamma, times, folder, client=None) -> 
     try:
         folder.write_and_publish(write)
     except InterruptedAfterPublish as exc:
-        print(f"{PROG}: interrupted after writing runs.csv, summary.md and the plots to {out}", file=sys.stderr)
+        print(f"{PROG}: {stopped(exc)} after writing runs.csv, summary.md and the plots to {out}", file=sys.stderr)
         return exit_code(exc)
     except KeyboardInterrupt as exc:
-        print(f"{PROG}: interrupted while writing the outputs; nothing written: {out} keeps its previous outputs "
+        print(f"{PROG}: {stopped(exc)} while writing the outputs; nothing written: {out} keeps its previous outputs "
               f"(the runs are stored in {out / 'runs'}: the same command writes them again)", file=sys.stderr)
         return exit_code(exc)
     except (OSError, ValueError) as exc:
@@ -436,7 +436,7 @@ def _sweep_and_publish(args, argv, tasks, gamma, times, folder, client=None) -> 
             print(f"{PROG}: wrote runs.csv, summary.md{', ' + str(len(plots)) + ' plots' if plots else ''} to {out}",
                   file=sys.stderr)
     except KeyboardInterrupt as exc:
-        print(f"{PROG}: interrupted after writing runs.csv, summary.md and the plots to {out}", file=sys.stderr)
+        print(f"{PROG}: {stopped(exc)} after writing runs.csv, summary.md and the plots to {out}", file=sys.stderr)
         return exit_code(exc)
     return 0
 

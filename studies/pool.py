@@ -31,6 +31,7 @@ import signal
 import sys
 import threading
 from collections import deque
+from contextlib import contextmanager
 from multiprocessing.connection import wait
 
 from ..runtime.signals import shielded
@@ -85,26 +86,35 @@ def _worker(conn, alive, fn, once: bool) -> None:
             return
 
 
-def _context(fn):
+def _context():
+    # the fork server preloads nothing of ours: a worker imports what its task needs, so that its
+    # peak memory (solver-study's peak_rss_mb; --isolate: a fresh worker per task) is the task's own
     ctx = multiprocessing.get_context("forkserver")
     from multiprocessing import forkserver
-    module = getattr(fn, "__module__", None)
-    top = __name__.split(".")[0]
-    # the fork server imports the task's module and the package modules this process has loaded
-    # (the validation before the sweep loaded what a run needs) once; each worker forked from it
-    # starts at once.  Takes effect only when the server starts: the first pool of this process.
-    preload = [m for m in list(sys.modules) if m == top or m.startswith(top + ".")]
-    if module and module != "__main__":
-        preload.append(module)
-    ctx.set_forkserver_preload(preload)
     # start the fork server with SIGINT ignored: its children then ignore Ctrl-C from their first instruction
-    if threading.current_thread() is threading.main_thread():
-        old = signal.signal(signal.SIGINT, signal.SIG_IGN)
-        try:
-            forkserver.ensure_running()
-        finally:
-            signal.signal(signal.SIGINT, old)
+    with _sigint_ignored_for_children():
+        forkserver.ensure_running()
     return ctx
+
+
+@contextmanager
+def _sigint_ignored_for_children():
+    """SIGINT ignored (so that a process exec'd meanwhile starts with it ignored) and blocked (so that
+    a Ctrl-C in that moment stays pending -- Linux never discards a blocked signal -- and reaches
+    this process's own handler when unblocked)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    # the resource tracker first: starting it unblocks SIGINT, which would drop a pending Ctrl-C
+    from multiprocessing import resource_tracker
+    resource_tracker.ensure_running()
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
 
 class _Slot:
@@ -117,18 +127,25 @@ class _Slot:
         self.task = None
 
 
+def _start(slots, ctx, fn, alive_r, once) -> None:
+    # a Ctrl-C in the middle of handing a new process its data would make it print a traceback
+    # (EOFError) as it dies: the hand-over is shielded, the Ctrl-C delivered right after
+    with shielded():
+        slots.append(_Slot(ctx, fn, alive_r, once))
+
+
 def run_pool(tasks, fn, workers: int, on_result, *, once: bool = False) -> None:
     """Run ``fn`` on every task in ``workers`` processes; ``on_result(index, rows, error)`` in
     this process as each finishes (``error``: None or a one-line message).  ``once``: a fresh
     process per task.  Any exception (from ``on_result`` or an interrupt) kills the workers first."""
-    ctx = _context(fn)
+    ctx = _context()
     alive_r, alive_w = ctx.Pipe(duplex=False)
     todo = deque(range(len(tasks)))
     slots = []
     stillborn = 0                     # workers that died before returning anything, in a row
     try:
         for _ in range(min(workers, len(tasks))):
-            slots.append(_Slot(ctx, fn, alive_r, once))
+            _start(slots, ctx, fn, alive_r, once)
         while todo or any(s.task is not None for s in slots):
             for s in slots:
                 if s.task is None and todo and s.proc.is_alive():
@@ -176,7 +193,7 @@ def run_pool(tasks, fn, workers: int, on_result, *, once: bool = False) -> None:
                 s.conn.close()
                 slots.remove(s)
                 if todo:
-                    slots.append(_Slot(ctx, fn, alive_r, once))
+                    _start(slots, ctx, fn, alive_r, once)
         for s in slots:
             try:
                 s.conn.send(None)

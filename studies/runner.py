@@ -13,10 +13,17 @@ nothing imports CasADi, so any study (the planner's solver study too) can run th
   to a temporary file and renamed), ``key`` = :func:`task_key`, a SHA-256 of the task's canonical
   JSON.  A sweep interrupted and restarted on the same folder skips the tasks already stored, and
   a changed task (any setting) gets a new key, so it never reuses a stale result.
-* Local: ``concurrent.futures.ProcessPoolExecutor(workers)`` (``workers=1``: in this process).
-  ``scheduler``: ``distributed.Client(scheduler)`` -- an address (``tcp://...``) or an existing
-  ``Client``/``LocalCluster``; results come back to this process, which writes the files, so the
-  workers need no shared file system (optional extra ``pip install 'swarmfield[dask]'``).
+* Local: worker processes tied to this one (:mod:`studies.pool`: started from the fork server, so
+  they hold none of this process's descriptors -- not the output folder's lock; they ignore
+  Ctrl-C and die with this process however it ends; ``workers=1``: in this process).
+  ``scheduler``: an existing ``distributed.Client``/``LocalCluster`` or an address (``tcp://...``,
+  connected by :func:`connect_scheduler` with a timeout: :class:`SchedulerError` in one line for a
+  malformed, unreachable or non-Dask address); results come back to this process, which writes
+  the files, so the workers need no shared file system (``pip install 'swarmfield[dask]'``).
+* A finished run that cannot be stored (disk full, read-only, permission denied) stops the sweep
+  with :class:`SweepAborted` naming the path; the runs stored before stay, so a restart resumes.
+* Repeated axis values: the commands drop them with a one-line note (:func:`unique_values`);
+  a task list with duplicates is refused here before anything is created.
 * Progress on stderr: tasks done / total, failures, elapsed time and ETA.  A task that raises is
   reported (one line) and not stored, so a restart retries it; :class:`SweepError` at the end lists them.
 """

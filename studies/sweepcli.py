@@ -218,12 +218,12 @@ def run_sweep_cli(args, prog: str) -> int:
 
 
 def _sweep_and_publish(args, prog, tasks, folder, InterruptedAfterPublish, client=None) -> int:
-    from ..runtime.signals import exit_code
+    from ..runtime.signals import exit_code, stopped
     try:
         rows = run_sweep(tasks, args.out, workers=args.workers, scheduler=client if client is not None else
                          args.scheduler, isolate=getattr(args, "isolate", False))
     except KeyboardInterrupt as exc:
-        print(f"{prog}: interrupted; nothing written to {args.out} but the finished runs, kept in "
+        print(f"{prog}: {stopped(exc)}; nothing written to {args.out} but the finished runs, kept in "
               f"{args.out / 'runs'} (rerun to resume)", file=sys.stderr)
         return exit_code(exc)
     except RuntimeError as exc:
@@ -233,10 +233,10 @@ def _sweep_and_publish(args, prog, tasks, folder, InterruptedAfterPublish, clien
     try:
         names = folder.write_and_publish(lambda stage: [p.name for p in write_sweep_outputs(rows, stage)])
     except InterruptedAfterPublish as exc:
-        print(f"{prog}: interrupted after writing the study to {args.out}", file=sys.stderr)
+        print(f"{prog}: {stopped(exc)} after writing the study to {args.out}", file=sys.stderr)
         return exit_code(exc)
     except KeyboardInterrupt as exc:
-        print(f"{prog}: interrupted while writing; nothing written: {args.out} keeps its previous study (the runs "
+        print(f"{prog}: {stopped(exc)} while writing; nothing written: {args.out} keeps its previous study (the runs "
               f"are stored in {args.out / 'runs'}: the same command writes it again)", file=sys.stderr)
         return exit_code(exc)
     except (OSError, ValueError) as exc:
@@ -247,7 +247,7 @@ def _sweep_and_publish(args, prog, tasks, folder, InterruptedAfterPublish, clien
     try:
         print(f"wrote {', '.join(str(args.out / n) for n in names)} ({len(rows)} runs, {failed} failed)")
     except KeyboardInterrupt as exc:
-        print(f"{prog}: interrupted after writing the study to {args.out}", file=sys.stderr)
+        print(f"{prog}: {stopped(exc)} after writing the study to {args.out}", file=sys.stderr)
         return exit_code(exc)
     return 0
 
