@@ -216,7 +216,8 @@ def connect_scheduler(address: str, timeout: float = 10.0):
             if not host or not 0 < int(port) < 65536:
                 raise ValueError("expected host:port")
     except (ValueError, TypeError) as exc:
-        raise SchedulerError(f"--scheduler {address!r} is not a scheduler address like tcp://host:8786 ({exc})") from None
+        raise SchedulerError(f"--scheduler {address!r} is not a scheduler address like tcp://host:8786 "
+                             f"({exc})") from None
     loggers = [logging.getLogger(n) for n in ("distributed", "tornado", "asyncio")]
     levels = [lg.level for lg in loggers]
     for lg in loggers:

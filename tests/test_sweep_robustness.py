@@ -71,7 +71,7 @@ def start_sweep(cfg, out):
     """A real sweep of 8 lawnmower runs of 16 periods on 2 workers, in its own session (a terminal's
     process group); returns once the first run is stored (the workers are busy then)."""
     cmd = [sys.executable, "-c", "from swarmfield.studies.compare import main; main()",
-           "--controllers", "lawnmower", "--seeds", *map(str, range(SIGNAL_SEEDS)), "--max-periods", "16",
+           "--controllers", "lawnmower", "--seeds", *map(str, range(SIGNAL_SEEDS)), "--max-periods", "10",
            "--config", str(cfg), "--out", str(out), "--workers", "2", "--no-plots"]
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MPLBACKEND="Agg")
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True, start_new_session=True, env=env)
@@ -296,7 +296,8 @@ def test_f7_a_loss_leaving_fewer_than_two_robots_is_refused(tmp_path, cfg, capsy
                          "--max-periods", "2", "--loss-time", "1.75", "--no-figures", "--quiet", "--out", str(out)])
     err = capsys.readouterr().err
     assert code == 2 and "leaves 1 robot" in one_line(err) and not out.exists()
-    code, err = cmp(TINY + ["--robots", "2", "--robot-loss", "0", "0.5", "--config", cfg, "--out", tmp_path / "c"], capsys)
+    code, err = cmp(TINY + ["--robots", "2", "--robot-loss", "0", "0.5", "--config", cfg, "--out", tmp_path / "c"],
+                    capsys)
     assert code == 2 and "leaves 1 robot" in one_line(err) and not (tmp_path / "c").exists()
 
 
