@@ -19,7 +19,7 @@ from ..runtime.atomic import probe_writable
 from ..runtime.cliargs import OneLineParser, UsageError as InputError, check_path
 from ..ocp.plan import ReferencePlan
 from ..runtime.publish import InterruptedAfterPublish, staged_files
-from ..runtime.signals import exit_code, ignore_interrupts, stopped, terminate_as_interrupt
+from ..runtime.signals import exit_code, ignore_interrupts, stopped
 from ..ocp.settings import PlannerSettings, dataclass_from_dict
 
 PROG = "plan-reference"
@@ -231,8 +231,6 @@ def run(argv=None) -> int:
 def main(argv=None) -> int:
     """Exit codes: 0 plan written, 1 solver or write failure (no file replaced), 2 bad input (nothing
     written), 130 Ctrl-C / 143 SIGTERM (the message says whether the files were written)."""
-    if argv is None:
-        terminate_as_interrupt()
     try:
         code = run(argv)
     except InputError as exc:

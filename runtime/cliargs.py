@@ -45,11 +45,9 @@ def cli_main(prog: str, run, argv=None, *, value_errors: bool = False) -> int:
     """Run ``run(argv)`` as the command ``prog``: exit code 2 with one line for a
     :class:`UsageError` (any ``ValueError`` if ``value_errors``: validation inside the library),
     130 with one line for Ctrl-C; ``sys.exit`` with the code when ``argv`` is None (console script)."""
-    from .signals import exit_code, ignore_interrupts, terminate_as_interrupt
+    from .signals import exit_code, ignore_interrupts
 
     errors = ValueError if value_errors else UsageError
-    if argv is None:
-        terminate_as_interrupt()        # SIGTERM cleans up like Ctrl-C (exit 143)
     try:
         code = run(argv)
     except errors as exc:

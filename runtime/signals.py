@@ -1,9 +1,11 @@
 """Signals of the command-line tools (issue 18): SIGTERM handled like Ctrl-C, a shielded shutdown.
 
-* :class:`Terminated` — raised by the SIGTERM handler the CLIs install (:func:`terminate_as_interrupt`);
-  a subclass of ``KeyboardInterrupt``, so every clean-up path written for Ctrl-C (set the staged
-  outputs aside, stop the workers, keep the finished runs) also runs for ``timeout``, batch
-  schedulers and ``systemctl stop``.  The CLIs exit 143 (128 + SIGTERM) for it, 130 for Ctrl-C.
+* :class:`Terminated` — raised by the SIGTERM handler a sweep installs while its workers run
+  (:func:`terminate_as_interrupt`); a subclass of ``KeyboardInterrupt``, so every clean-up path
+  written for Ctrl-C (stop the workers, keep the finished runs, one line) also runs for
+  ``timeout``, batch schedulers and ``systemctl stop``.  The CLIs exit 143 (128 + SIGTERM) for it,
+  130 for Ctrl-C.  Elsewhere SIGTERM keeps its default action (the process ends at once; the shell
+  sees 143 as well, and the outputs are safe: publication defers it, :mod:`runtime.publish`).
 * :func:`shielded` — a block (stopping worker processes) during which SIGINT and SIGTERM are
   recorded instead of raising, so a second Ctrl-C cannot abandon the clean-up half-way; the block
   is short and bounded, so the process still ends promptly.
@@ -28,11 +30,21 @@ def _raise_terminated(signum, frame):
     raise Terminated()
 
 
-def terminate_as_interrupt() -> None:
-    """Make SIGTERM raise :class:`Terminated` in the main thread (unless SIGTERM is ignored)."""
-    if threading.current_thread() is threading.main_thread() and \
-            signal.getsignal(signal.SIGTERM) not in (signal.SIG_IGN, None):
-        signal.signal(signal.SIGTERM, _raise_terminated)
+@contextmanager
+def terminate_as_interrupt():
+    """Inside the block, SIGTERM raises :class:`Terminated` in the main thread (if its action is the
+    default).  Used where the main process only waits (a sweep's pool or cluster), so the clean-up
+    runs at once; elsewhere SIGTERM keeps its default action: a main thread inside a long C call
+    (an IPOPT solve) would only see the exception when the call returns."""
+    if threading.current_thread() is not threading.main_thread() or \
+            signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
+        yield
+        return
+    signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def exit_code(exc: BaseException) -> int:

@@ -171,8 +171,12 @@ def run_tasks(tasks: list[dict], fn: Callable[[dict], list], runs_dir, *, worker
                       file=stream, flush=True)
         prog.tick(exc is None)
 
+    # while workers or a cluster run the tasks this process only waits: SIGTERM then stops the sweep
+    # like Ctrl-C (runtime.signals.Terminated: workers stopped, one line, exit 143)
+    from ..runtime.signals import terminate_as_interrupt
     if todo and scheduler is not None:
-        _run_dask(todo, fn, scheduler, finished)
+        with terminate_as_interrupt():
+            _run_dask(todo, fn, scheduler, finished)
     elif todo and (workers or os.cpu_count() or 1) == 1 and not isolate:
         for task in todo:
             try:
@@ -185,8 +189,9 @@ def run_tasks(tasks: list[dict], fn: Callable[[dict], list], runs_dir, *, worker
         # worker processes tied to this one (studies.pool): they never outlive it, never hold the
         # output folder's lock, ignore Ctrl-C; an interrupt here kills them before it propagates
         from .pool import run_pool
-        run_pool(todo, fn, min(workers or os.cpu_count() or 1, len(todo)),
-                 lambda i, rows, error: finished(todo[i], rows, error), once=isolate)
+        with terminate_as_interrupt():
+            run_pool(todo, fn, min(workers or os.cpu_count() or 1, len(todo)),
+                     lambda i, rows, error: finished(todo[i], rows, error), once=isolate)
     if failures:
         raise SweepError(failures)
     return [results[k] for k in keys]
