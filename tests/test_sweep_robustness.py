@@ -182,6 +182,15 @@ def test_f2_sigterm_of_the_main_process_stops_its_workers(tmp_path, cfg):
 def test_f2_sigkill_of_the_main_process_takes_its_workers_along(tmp_path, cfg):
     out = tmp_path / "o"
     proc, _ = start_sweep(cfg, out)
+    helpers = [pid for pid in session_members(proc.pid) if pid != proc.pid]
+    assert len(helpers) >= 2                    # the workers (and the fork server)
+    for pid in helpers:                         # none holds a descriptor of the output folder (its lock)
+        for fd in os.listdir(f"/proc/{pid}/fd"):
+            try:
+                target = os.readlink(f"/proc/{pid}/fd/{fd}")
+            except OSError:
+                continue
+            assert not target.startswith(str(out)), (pid, target)
     proc.kill()
     finish(proc)
     assert_all_gone_and_unlocked(proc, out)     # no orphan holds the lock: "another run is writing" is gone
