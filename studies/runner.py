@@ -29,7 +29,6 @@ nothing imports CasADi, so any study (the planner's solver study too) can run th
 """
 from __future__ import annotations
 
-import concurrent.futures as cf
 import hashlib
 import json
 import os

@@ -27,7 +27,7 @@ import pytest
 
 from swarmfield.cli import plan_reference as plan_cli
 from swarmfield.cli import simulate_swarm as sim_cli
-from swarmfield.studies import compare, runner, solver_spec, solver_study
+from swarmfield.studies import compare, solver_spec, solver_study
 
 TINY_TOML = """
 [sim]
