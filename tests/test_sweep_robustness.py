@@ -380,3 +380,19 @@ def test_f9_ctrl_c_after_publication_says_the_files_were_written(tmp_path, capsy
     err = capsys.readouterr().err
     assert code == 2 and "complex.npz" in one_line(err) and "coef must hold real numbers" in err
     assert not (tmp_path / "q.npz").exists()
+
+
+# ------------------------------------------------------------------------------ a worker that dies
+def die_or_square(task):
+    if task.get("die"):
+        os._exit(3)                                # as a worker killed by the OOM killer would end
+    return [{"x": task["x"], "y": task["x"] ** 2}]
+
+
+def test_a_worker_that_dies_fails_its_task_only_and_is_replaced(tmp_path):
+    from swarmfield.studies import runner
+    tasks = [{"x": 0}, {"x": 1, "die": True}, {"x": 2}, {"x": 3}]
+    with pytest.raises(runner.SweepError) as info:
+        runner.run_tasks(tasks, die_or_square, tmp_path, workers=2, stream=None)
+    assert [t for t, _ in info.value.failures] == [tasks[1]] and "exit code 3" in info.value.failures[0][1]
+    assert len(list(tmp_path.glob("*.json"))) == 3             # the others ran, in a replacement worker too
