@@ -296,7 +296,7 @@ def run(argv=None) -> int:
     args = build_parser().parse_args(argv)
     from ..sim.config import load_config, read_toml
     from ..sim.controllers import CONTROLLERS
-    from .runner import SchedulerError, connect_scheduler, unique_values
+    from .runner import SchedulerError, connect_scheduler, quiet_dask_logs, unique_values
 
     for name in args.controllers:
         if name not in CONTROLLERS:
@@ -358,6 +358,7 @@ def run(argv=None) -> int:
     if args.scheduler is not None:       # connected before OUT is touched: a bad address leaves nothing behind
         try:
             client = connect_scheduler(args.scheduler, args.scheduler_timeout)
+            quiet_dask_logs()
         except SchedulerError as exc:
             raise InputError(str(exc)) from None
     try:

@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Callable
 
 __all__ = ["task_key", "run_tasks", "load_results", "SweepError", "SweepAborted", "SchedulerError",
-           "connect_scheduler", "unique_values"]
+           "connect_scheduler", "quiet_dask_logs", "unique_values"]
 
 
 class SweepError(RuntimeError):
@@ -261,6 +261,20 @@ def _probe(address: str, timeout: float):
     return asyncio.run(ask())
 
 
+def quiet_dask_logs() -> None:
+    """Silence distributed's own log lines in this process (a CLI reports in its own one line)."""
+    import logging
+    names = ["distributed"] + [n for n in list(logging.root.manager.loggerDict) if n.startswith("distributed.")]
+    for name in names:                  # distributed gives some of its loggers their own levels
+        logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+
+
+def _cluster_lost(exc, client) -> bool:
+    text = str(exc)
+    return ("connection-lost" in text or "lost the connection" in text or type(exc).__name__ == "CommClosedError"
+            or getattr(client, "status", "running") not in ("running", "connecting"))
+
+
 def _run_dask(todo, fn, scheduler, finished):
     from distributed import as_completed
     own = not hasattr(scheduler, "submit")
@@ -273,6 +287,9 @@ def _run_dask(todo, fn, scheduler, finished):
             try:
                 rows = fut.result()
             except Exception as exc:            # noqa: BLE001
+                if _cluster_lost(exc, client):  # the cluster went away: stop, the stored runs stay
+                    where = getattr(getattr(client, "scheduler", None), "address", None) or "the Dask scheduler"
+                    raise SweepAborted(f"lost the connection to {where} ({str(exc).splitlines()[0][:120]})") from None
                 finished(task, exc=exc)
             else:
                 finished(task, rows)

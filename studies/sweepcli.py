@@ -184,7 +184,7 @@ def run_sweep_cli(args, prog: str) -> int:
         return 2
     from ..runtime.cliargs import UsageError, check_path
     from ..runtime.publish import InterruptedAfterPublish, OutputFolder
-    from .runner import SchedulerError, connect_scheduler
+    from .runner import SchedulerError, connect_scheduler, quiet_dask_logs
 
     # OUT is locked for the sweep; the study files are staged and published together (runtime.publish)
     folder = OutputFolder(args.out, prog, SWEEP_OUTPUTS, foreign_ok=True)
@@ -198,6 +198,7 @@ def run_sweep_cli(args, prog: str) -> int:
     if args.scheduler is not None:      # connected before OUT is touched: a bad address leaves nothing behind
         try:
             client = connect_scheduler(args.scheduler, timeout)
+            quiet_dask_logs()
         except SchedulerError as exc:
             print(f"{prog}: error: {exc}", file=sys.stderr)
             return 2
