@@ -6,7 +6,8 @@ the ``[sim]`` settings of ``--config``.  Exit codes: 0 run finished (whether or 
 below γ; see summary.json), 1 planner failure (the outputs up to that point are published, or set
 aside in DIR/.simulate-swarm-incomplete if DIR holds a complete run) or a simulation or write
 failure (one line; DIR keeps its previous contents), 2 bad input or DIR in use by another run (one
-line on stderr, nothing written), 130 interrupted (DIR keeps its previous contents).  Publication:
+line on stderr, nothing written), 130 interrupted by Ctrl-C, 143 by SIGTERM (DIR keeps its previous
+contents unless the message says the new run was written).  Publication:
 :mod:`runtime.publish`.
 """
 from __future__ import annotations
@@ -202,6 +203,7 @@ def _run(argv=None) -> int:
 def _run_locked(args, argv, config, field, planner, folder) -> int:
     from ..runtime.publish import InterruptedAfterPublish
     from ..runtime.threads import thread_info
+    from ..runtime.signals import exit_code, stopped
     from ..sim.loop import run_simulation
     from ..sim.outputs import write_metrics, write_outputs
 
@@ -217,9 +219,9 @@ def _run_locked(args, argv, config, field, planner, folder) -> int:
     try:
         result = run_simulation(config, field=field, planner=planner, progress=progress,
                                 on_period=lambda res: write_metrics(res, stage))
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted; {kept()}", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        print(f"{PROG}: {stopped(exc)}; nothing written: {kept()}", file=sys.stderr)
+        return exit_code(exc)
     except (ValueError, RuntimeError, ArithmeticError, MemoryError, OSError, np.linalg.LinAlgError) as exc:
         # not a planner failure (those end the run normally): one line, the previous run left in place
         print(f"{PROG}: error: simulation failed: {type(exc).__name__}: {exc}; {kept()}", file=sys.stderr)
@@ -239,12 +241,12 @@ def _run_locked(args, argv, config, field, planner, folder) -> int:
                   f"t = {result.rows[-1]['t']:g} s are in {where}", file=sys.stderr)
             return 1
         folder.publish(stage, files, complete=not failed)
-    except InterruptedAfterPublish:
-        print(f"{PROG}: interrupted after the new run was published in {args.out}", file=sys.stderr)
-        return 130
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted while writing the outputs; {kept()}", file=sys.stderr)
-        return 130
+    except InterruptedAfterPublish as exc:
+        print(f"{PROG}: {stopped(exc)} after writing the new run to {args.out}", file=sys.stderr)
+        return exit_code(exc)
+    except KeyboardInterrupt as exc:
+        print(f"{PROG}: {stopped(exc)} while writing the outputs; nothing written: {kept()}", file=sys.stderr)
+        return exit_code(exc)
     except OSError as exc:
         print(f"{PROG}: error: cannot write the outputs ({exc.strerror or exc}); {args.out} keeps its previous "
               f"contents, whatever was written is in {folder.set_aside(stage)}", file=sys.stderr)

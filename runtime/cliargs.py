@@ -4,8 +4,9 @@
   (DESIGN.md: "CLIs exit non-zero with one readable line").
 * :class:`OneLineParser` — ``argparse`` raises :class:`UsageError` instead of printing the usage
   block and calling ``sys.exit(2)`` itself.
-* :func:`cli_main` — the common ``main``: limits the BLAS/OpenMP threads (:mod:`runtime.threads`), runs a command, turns :class:`UsageError` into one line
-  and exit 2 and Ctrl-C into one line and exit 130, and exits the process when called as a script.
+* :func:`cli_main` — the common ``main``: limits the BLAS/OpenMP threads (:mod:`runtime.threads`), runs a
+  command, turns :class:`UsageError` into one line and exit 2 and Ctrl-C into one line and exit 130
+  (SIGTERM: 143; runtime.signals), and exits the process when called as a script.
 * :class:`DefaultsFormatter` — ``--help`` in plain text (no reST markup) showing "(default: X)"
   once, only where there is a default to show and the help does not state it: options whose
   default is resolved later from a TOML file (``None``) and plain switches (``False``) state their
@@ -72,6 +73,8 @@ def cli_main(prog: str, run, argv=None, *, value_errors: bool = False) -> int:
     """Run ``run(argv)`` as the command ``prog``: exit code 2 with one line for a
     :class:`UsageError` (any ``ValueError`` if ``value_errors``: validation inside the library),
     130 with one line for Ctrl-C; ``sys.exit`` with the code when ``argv`` is None (console script)."""
+    from .signals import exit_code, ignore_interrupts
+
     errors = ValueError if value_errors else UsageError
     from .threads import limit_threads
     limit_threads()          # BLAS/OpenMP threads: the measured best unless the environment sets them
@@ -80,10 +83,13 @@ def cli_main(prog: str, run, argv=None, *, value_errors: bool = False) -> int:
     except errors as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         code = 2
-    except KeyboardInterrupt:
-        print(f"{prog}: interrupted", file=sys.stderr)
-        code = 130
+    except KeyboardInterrupt as exc:
+        code = exit_code(exc)
+        if argv is None:
+            ignore_interrupts()
+        print(f"{prog}: {'terminated' if code == 143 else 'interrupted'}", file=sys.stderr)
     if argv is None:
+        ignore_interrupts()             # the outcome is decided: a late Ctrl-C must not turn it into a traceback
         sys.exit(code)
     return code
 

@@ -24,8 +24,11 @@ PROG = "solver-study"
 
 
 def main(argv=None) -> int:
-    from ..runtime.threads import limit_threads
-    limit_threads()          # BLAS/OpenMP threads of this process; each sweep worker's own: studies.runner
+    from ..runtime.cliargs import cli_main
+    return cli_main(PROG, _run, argv)       # BLAS/OpenMP threads limited there; each sweep worker's own: studies.runner
+
+
+def _run(argv) -> int:
     ap = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0])
     # --study: the old spelling of --preset, kept working but not shown
     ap.add_argument("--study", choices=list(PRESETS), default=None, help=argparse.SUPPRESS)
@@ -34,15 +37,11 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="small grid (12x12, N=4, I=J=3) for a fast check")
     from .sweepcli import AXES, add_sweep_arguments, run_sweep_cli
     add_sweep_arguments(ap)
-    try:
-        args = ap.parse_args(argv)
-        if args.study is not None:
-            if args.preset is not None and args.preset != args.study:
-                raise UsageError(f"--study is the old name of --preset; got both ({args.study}, {args.preset})")
-            args.preset = args.study
-    except UsageError as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
+    args = ap.parse_args(argv)
+    if args.study is not None:
+        if args.preset is not None and args.preset != args.study:
+            raise UsageError(f"--study is the old name of --preset; got both ({args.study}, {args.preset})")
+        args.preset = args.study
     if args.preset is None and args.spec is None and all(getattr(args, f"sw_{a}") is None for a in AXES):
         args.preset = "all"                 # the fixed studies are presets of the one sweep runner
     return run_sweep_cli(args, PROG)

@@ -36,6 +36,8 @@ def add_sweep_arguments(ap) -> None:
                    help="one of the paper's fixed studies, or all of them; without sweep axes or --spec: all")
     g.add_argument("--workers", type=int, default=None, metavar="N", help="parallel worker processes (default: CPU count)")
     g.add_argument("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler address (tcp://host:8786)")
+    g.add_argument("--scheduler-timeout", type=float, default=10.0, metavar="SECONDS",
+                   help="give up connecting to --scheduler after this long (exit 2)")
     g.add_argument("--isolate", action="store_true",
                    help="every run in a fresh worker process, so that peak_rss_mb is that run's own peak "
                         "(otherwise a reused worker's lifetime maximum: an upper bound); local workers only")
@@ -203,49 +205,79 @@ def run_sweep_cli(args, prog: str) -> int:
     if getattr(args, "isolate", False) and args.scheduler is not None:
         print(f"{prog}: error: --isolate runs local workers; it cannot be combined with --scheduler", file=sys.stderr)
         return 2
+    timeout = getattr(args, "scheduler_timeout", 10.0)
+    if not (math.isfinite(timeout) and timeout > 0):
+        print(f"{prog}: error: --scheduler-timeout must be a positive number of seconds, got {timeout:g}",
+              file=sys.stderr)
+        return 2
     from ..runtime.cliargs import UsageError, check_path
     from ..runtime.publish import InterruptedAfterPublish, OutputFolder
+    from .runner import SchedulerError, connect_scheduler, quiet_dask_logs
 
     # OUT is locked for the sweep; the study files are staged and published together (runtime.publish)
     folder = OutputFolder(args.out, prog, SWEEP_OUTPUTS, foreign_ok=True)
     try:
         check_path(args.out, "output folder")
         folder.check()
-        folder.lock()
     except (UsageError, ValueError) as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return 2
+    client = None
+    if args.scheduler is not None:      # connected before OUT is touched: a bad address leaves nothing behind
+        try:
+            client = connect_scheduler(args.scheduler, timeout)
+            quiet_dask_logs()
+        except SchedulerError as exc:
+            print(f"{prog}: error: {exc}", file=sys.stderr)
+            return 2
     try:
-        return _sweep_and_publish(args, prog, tasks, folder, InterruptedAfterPublish)
+        try:
+            folder.lock()
+        except ValueError as exc:
+            print(f"{prog}: error: {exc}", file=sys.stderr)
+            return 2
+        try:
+            return _sweep_and_publish(args, prog, tasks, folder, InterruptedAfterPublish, client)
+        finally:
+            folder.unlock()
     finally:
-        folder.unlock()
+        if client is not None:
+            from .compare import _close_client
+            _close_client(client)
 
 
-def _sweep_and_publish(args, prog, tasks, folder, InterruptedAfterPublish) -> int:
+def _sweep_and_publish(args, prog, tasks, folder, InterruptedAfterPublish, client=None) -> int:
+    from ..runtime.signals import exit_code, stopped
     try:
-        rows = run_sweep(tasks, args.out, workers=args.workers, scheduler=args.scheduler,
-                         isolate=getattr(args, "isolate", False))
-    except KeyboardInterrupt:
-        print(f"{prog}: interrupted; finished runs are kept in {args.out / 'runs'} (rerun to resume)", file=sys.stderr)
-        return 130
+        rows = run_sweep(tasks, args.out, workers=args.workers, scheduler=client if client is not None else
+                         args.scheduler, isolate=getattr(args, "isolate", False))
+    except KeyboardInterrupt as exc:
+        print(f"{prog}: {stopped(exc)}; nothing written to {args.out} but the finished runs, kept in "
+              f"{args.out / 'runs'} (rerun to resume)", file=sys.stderr)
+        return exit_code(exc)
     except RuntimeError as exc:
-        print(f"{prog}: error: {exc}", file=sys.stderr)
+        print(f"{prog}: error: {exc}; the runs finished before are kept in {args.out / 'runs'} (the same command "
+              "resumes)", file=sys.stderr)
         return 1
     try:
         names = folder.write_and_publish(lambda stage: [p.name for p in write_sweep_outputs(rows, stage)])
-    except InterruptedAfterPublish:
-        print(f"{prog}: interrupted after the study was published in {args.out}", file=sys.stderr)
-        return 130
-    except KeyboardInterrupt:
-        print(f"{prog}: interrupted while writing; {args.out} keeps its previous study (the runs are stored in "
-              f"{args.out / 'runs'}: the same command writes it again)", file=sys.stderr)
-        return 130
+    except InterruptedAfterPublish as exc:
+        print(f"{prog}: {stopped(exc)} after writing the study to {args.out}", file=sys.stderr)
+        return exit_code(exc)
+    except KeyboardInterrupt as exc:
+        print(f"{prog}: {stopped(exc)} while writing; nothing written: {args.out} keeps its previous study (the runs "
+              f"are stored in {args.out / 'runs'}: the same command writes it again)", file=sys.stderr)
+        return exit_code(exc)
     except (OSError, ValueError) as exc:
         print(f"{prog}: error: cannot write the study to {args.out}: {getattr(exc, 'strerror', None) or exc}",
               file=sys.stderr)
         return 1
     failed = sum(1 for r in rows if r.get("error"))
-    print(f"wrote {', '.join(str(args.out / n) for n in names)} ({len(rows)} runs, {failed} failed)")
+    try:
+        print(f"wrote {', '.join(str(args.out / n) for n in names)} ({len(rows)} runs, {failed} failed)")
+    except KeyboardInterrupt as exc:
+        print(f"{prog}: {stopped(exc)} after writing the study to {args.out}", file=sys.stderr)
+        return exit_code(exc)
     return 0
 
 

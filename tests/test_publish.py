@@ -127,7 +127,7 @@ def test_signal_between_the_renames_of_simulate_swarm_never_mixes_two_runs(tmp_p
     # the set in DIR is one run's: all of the new one (the signal waited for the publication)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["seed"] == 9 and "seed = 9" in (out / "config.toml").read_text()
-    assert "published" in err
+    assert "interrupted after writing" in err          # issue 18: the message says what was written
     assert sorted(summary["files"]) == sorted(n for n in os.listdir(out) if n in OUTPUT_FILES)
 
 
