@@ -1,7 +1,7 @@
 """``plan-reference``: solve the reference-density problem (eq. "optimization problem") and write a plan.
 
 With no arguments it plans the paper's first step (robots uniform on [0, 7]^2, target from the GP
-variance of their first measurements; :mod:`ocp.scenario`) on the default grid and writes
+variance of their first measurements; :mod:`sim.scenario`) on the default grid and writes
 ``plan.npz``.  Exit codes: 0 success, 1 solver failure, 2 bad input (nothing written).
 """
 from __future__ import annotations
@@ -52,6 +52,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "radius v_max; face: pointwise face bounds (slow)")
     g.add_argument("--transport", choices=["auto", "compiled", "numpy", "casadi"],
                    help="transport kernel inside the NLP (default auto)")
+    g.add_argument("--scheme", choices=["upwind", "muscl"],
+                   help="finite-volume scheme: upwind (first-order donor cell, the paper's, default) or muscl "
+                        "(second order: minmod MUSCL with SSP-RK2, 1.5x the sub-steps)")
     g.add_argument("--method", "--solver", dest="method", choices=["ipopt", "grg"], default=None,
                    help="solver: IPOPT on the NLP (default), or the paper's GRG baseline")
     g.add_argument("--domain", metavar="FILE|NAME",
@@ -89,7 +92,7 @@ def resolve_settings(args) -> PlannerSettings:
              "w_f": args.w_f, "w_p": args.w_p, "w_v": args.w_v, "v_max": args.v_max,
              "target_floor": args.target_floor, "transport": args.transport,
              "basis": getattr(args, "basis", None), "speed_limit": getattr(args, "speed_limit", None),
-             "method": getattr(args, "method", None)}
+             "method": getattr(args, "method", None), "scheme": getattr(args, "scheme", None)}
     if args.modes is not None:
         flags["n_modes_x"], flags["n_modes_y"] = args.modes
     cfg.update({k: v for k, v in flags.items() if v is not None})
@@ -195,7 +198,7 @@ def run(argv=None) -> int:
     if args.plot is not None:
         check_output(args.plot, ".png", "plot")
     from ..ocp.grid import Grid
-    from ..ocp.scenario import box_density, first_step_target
+    from ..sim.scenario import box_density, first_step_target
 
     grid = Grid(settings.domain, settings.nx, settings.ny)
     warm = None
