@@ -12,7 +12,7 @@
 ``animation.gif``    on request: robots over sqrt(V) at every measurement (pillow writer).
 
 With obstacles (:mod:`sim.domain`) every map shows them as a grey overlay at the geometry's own
-resolution, and the free planner cells the swarm cannot reach hatched in light grey.
+resolution, and free space outside the planner cells the swarm can reach in light grey.
 """
 from __future__ import annotations
 

@@ -416,3 +416,18 @@ def test_missing_extra_is_named(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "shapely", None)
     with pytest.raises(ValueError, match=r"needs the Python package shapely: pip install 'swarmfield\[domains\]'"):
         load_domain(tmp_path / "a.geojson", EXT)
+
+
+def test_compare_controllers_domain_axis(tmp_path, capsys):
+    import csv
+    from swarmfield.studies.compare import main
+    out = tmp_path / "cmp"
+    code = main(["--controllers", "diffusion", "--domains", "floor", "harbour", "--max-periods", "1", "--robots", "20",
+                 "--workers", "1", "--out", str(out), "--quiet"])
+    assert code == 0, capsys.readouterr().err
+    rows = list(csv.DictReader(open(out / "runs.csv")))
+    assert {r["domain"] for r in rows} == {"floor", "harbour"}
+    table = (out / "summary.md").read_text()
+    assert "| domain | field |" in table and "| floor | sinc |" in table and "| harbour | sinc |" in table
+    assert (out / "plots" / "floor_sinc_n20_loss0.png").is_file()
+    assert main(["--controllers", "diffusion", "--domains", "nowhere", "--out", str(tmp_path / "x")]) == 2
