@@ -20,7 +20,7 @@ say so in the colour bar's label ("clipped to [a, b]") and show the clipped end(
 The field's values carry the field's own unit ("field units"); lengths are in metres.
 
 With obstacles (:mod:`sim.domain`) every map shows them as a grey overlay at the geometry's own
-resolution, and the free planner cells the swarm cannot reach hatched in light grey.
+resolution, and free space outside the planner cells the swarm can reach in light grey.
 """
 from __future__ import annotations
 
