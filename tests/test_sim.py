@@ -113,8 +113,10 @@ def test_sinc_is_the_papers_field_and_continuous_at_zero():
     assert f([[0.0, 1.0]])[0] == pytest.approx(2 + math.sin(2.0), rel=1e-14)
 
 
-@pytest.mark.parametrize("name", sorted(FIELDS))
+@pytest.mark.parametrize("name", sorted(set(FIELDS) - {"front", "gp-sample"}))
 def test_named_fields_are_finite_and_smooth(name):
+    # front (a 0.25 m step) and gp-sample (values down to ~0.4) are fine-structure fields by design:
+    # tests/test_stopping.py checks them
     f = make_field(name, DOMAIN)
     xs = np.linspace(0, 20, 201)
     g = f.on_grid(xs, xs)

@@ -181,4 +181,6 @@ def test_closed_loop_records_the_robust_threshold_and_stops_at_it():
     assert res2.stop_reason in ("threshold", "max_time")
     n = len(res2.rows)
     assert [r["rmse"] for r in res2.rows] == [r["rmse"] for r in res.rows[:n]]
-    assert [r["threshold"] for r in res2.rows] == [r["threshold"] for r in res.rows[:n]]
+    # (the twin GP is updated at other moments when the rule is also asked at period starts: round-off)
+    np.testing.assert_allclose([r["threshold"] for r in res2.rows], [r["threshold"] for r in res.rows[:n]],
+                               rtol=1e-9)
