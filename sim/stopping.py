@@ -8,6 +8,9 @@ target density p_f = max(V - eta, 0) / int.  A stop rule is a small object with
 ``tolerance(gp)``  the eta of the target density;
 ``reached(var, gp)``  whether the run may stop (default: ``var.max() <= threshold(gp)``).
 
+With obstacles (:mod:`sim.domain`) ``var`` is 0 on the cells outside the free space the swarm can
+reach, so a rule that looks at maxima or means of the positive part sees the free cells only.
+
 The simulator (:class:`sim.simulation.Simulation`) asks it at every period start, the metrics record
 ``threshold(gp)`` after every measurement, and every controller is judged by the same rule.
 
@@ -197,20 +200,38 @@ def farthest_distance(points, box) -> float:
     return float(np.hypot(dx, dy).max())
 
 
-def travel_time_limit(config, points=None, speed: float | None = None) -> float:
+def travel_time_limit(config, points=None, speed: float | None = None, free=None) -> float:
     """Earliest measurement time at which a robot can have measured at every cell centre: the
     distance from ``sim.start_box`` to the farthest cell centre (``points``; default the planner
     grid's) over ``speed`` (default the fastest speed limit of the controllers, max(planner.v_max,
     feedback.v_max)), rounded up to a multiple of ``sim.dt``.  The robots' Brownian motion
-    (feedback.sigma) is ignored: with sigma = 0.05 m^2/s it adds ~0.3 m over a period."""
+    (feedback.sigma) is ignored: with sigma = 0.05 m^2/s it adds ~0.3 m over a period.
+
+    ``free`` (bool (nx, ny), the planner cells a run with obstacles maps): the distance is then
+    geodesic, around the obstacles (:class:`sim.domain.GeodesicGrid`, from the free cells whose
+    centres lie in the start box to the farthest free cell; paths through cell centres, so it is
+    exact to about a cell)."""
     s = config.sim
-    if points is None:
-        p = config.planner
-        x0, x1, y0, y1 = s.domain
-        xs = x0 + (np.arange(p.nx) + 0.5) * (x1 - x0) / p.nx
-        ys = y0 + (np.arange(p.ny) + 0.5) * (y1 - y0) / p.ny
-        X, Y = np.meshgrid(xs, ys, indexing="ij")
-        points = np.column_stack([X.ravel(), Y.ravel()])
     v = float(max(config.planner.v_max, config.feedback.v_max) if speed is None else speed)
-    t = farthest_distance(points, s.start_box) / v
+    if free is not None:
+        from .domain import GeodesicGrid
+        geo = GeodesicGrid(free, s.domain)
+        bx0, bx1, by0, by1 = s.start_box
+        c = geo.centers
+        inside = (c[:, 0] >= bx0) & (c[:, 0] <= bx1) & (c[:, 1] >= by0) & (c[:, 1] <= by1) & geo.free.ravel()
+        sources = np.flatnonzero(inside)
+        if not len(sources):
+            sources = geo.cell_of([[0.5 * (bx0 + bx1), 0.5 * (by0 + by1)]])
+        d = geo.distances(sources).min(axis=0)[geo.free.ravel()]
+        dist = float(d[np.isfinite(d)].max())
+    else:
+        if points is None:
+            p = config.planner
+            x0, x1, y0, y1 = s.domain
+            xs = x0 + (np.arange(p.nx) + 0.5) * (x1 - x0) / p.nx
+            ys = y0 + (np.arange(p.ny) + 0.5) * (y1 - y0) / p.ny
+            X, Y = np.meshgrid(xs, ys, indexing="ij")
+            points = np.column_stack([X.ravel(), Y.ravel()])
+        dist = farthest_distance(points, s.start_box)
+    t = dist / v
     return math.ceil(t / s.dt - 1e-9) * s.dt

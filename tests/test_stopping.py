@@ -162,6 +162,19 @@ def test_bumps_leave_the_start_box_flat_and_are_small():
     assert not np.array_equal(FIELDS["bumps"](seed=1).plumes, f.plumes)
 
 
+def test_travel_time_limit_goes_around_obstacles():
+    """With a wall between the start box and the far side, the limit is the geodesic distance."""
+    from swarmfield.sim.config import config_from_dict
+    cfg = config_from_dict({"sim": {"dt": 0.5}, "planner": {"nx": 20, "ny": 20}})
+    free = np.ones((20, 20), bool)
+    open_limit = travel_time_limit(cfg, speed=1.0, free=free)
+    assert open_limit == pytest.approx(travel_time_limit(cfg, speed=1.0), abs=cfg.sim.dt)
+    free[10, :18] = False                 # a wall at x = 10.5 m, open only at the top (y > 18 m)
+    walled = travel_time_limit(cfg, speed=1.0, free=free)
+    # from the box [0, 7]^2 up past the wall's end and down to the far corner (19.5, 0.5): > 12 + 17 m
+    assert walled > open_limit + 8.0 and walled >= 29.0
+
+
 def test_closed_loop_records_the_robust_threshold_and_stops_at_it():
     from swarmfield.sim.loop import run_simulation
     doc = {"sim": {"robots": 30, "domain": [0.0, 10.0, 0.0, 10.0], "start_box": [0.0, 4.0, 0.0, 4.0],
