@@ -63,8 +63,20 @@ def limit_threads(n: int = COMMAND_THREADS):
     (``threadpoolctl.threadpool_limits``); as a plain call the limit holds for the process."""
     if n is None or environment_sets_threads():
         return _NoLimit()
+    _load_blas()
     from threadpoolctl import threadpool_limits
     return threadpool_limits(limits=int(n))
+
+
+def _load_blas() -> None:
+    """Load the BLAS libraries the commands use, so that the limit reaches them: threadpoolctl sets
+    only libraries already loaded, and NumPy and SciPy wheels each bundle their own OpenBLAS
+    (SciPy's is loaded with ``scipy.linalg``, which would otherwise start later with a thread per core)."""
+    for name in ("numpy", "scipy.linalg"):
+        try:
+            __import__(name)
+        except ImportError:
+            pass
 
 
 def worker_initializer(n: int = WORKER_THREADS) -> None:

@@ -112,6 +112,22 @@ def test_limit_threads_sets_one_and_the_environment_wins(monkeypatch):
     assert wrapped.fn is _pool_threads and wrapped.n == 1
 
 
+def test_limit_reaches_scipys_own_blas_loaded_later():
+    """NumPy and SciPy wheels each bundle an OpenBLAS; SciPy's loads with scipy.linalg, possibly after
+    the command limited the threads: the limit must reach it too (fresh interpreter, nothing pinned)."""
+    pytest.importorskip("threadpoolctl")
+    if (os.cpu_count() or 1) < 2:
+        pytest.skip("one core: every BLAS starts with one thread anyway")
+    from swarmfield.runtime.threads import ENV_VARS
+    env = {k: v for k, v in os.environ.items() if k not in ENV_VARS}
+    code = ("from swarmfield.runtime.threads import limit_threads\nlimit_threads(1)\nimport scipy.linalg\n"
+            "from threadpoolctl import threadpool_info\n"
+            "print(sorted(p['num_threads'] for p in threadpool_info() if p['user_api'] == 'blas'))")
+    proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    pools = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert pools and set(pools) == {1}, proc.stdout + proc.stderr
+
+
 def test_sweep_workers_run_one_blas_thread(tmp_path, monkeypatch):
     pytest.importorskip("threadpoolctl")
     from swarmfield.runtime import threads
