@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..runtime.atomic import atomic_path
-from ..runtime.plotting import new_figure, save_figure
+from ..runtime.plotting import new_figure, plain_log_axis, save_figure
 
 __all__ = ["write_figures", "make_panels", "make_convergence", "make_field_error", "plot_panels",
            "plot_convergence", "plot_field_error", "write_animation", "panel_snapshots", "FIGURE_FILES"]
@@ -192,10 +192,7 @@ def make_convergence(result):
             ax.axhline(thr[0], color="k", ls="--", lw=1, label=f"threshold γ = {thr[0]:.3g}")
         else:
             ax.step(t, thr, "k--", where="post", lw=1, label="threshold (relative to s_f²)")
-    from matplotlib.ticker import FuncFormatter, LogLocator, NullLocator
-    ax.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))    # 0.01 0.02 0.05 0.1 ...
-    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))    # plain text: no mathtext "10^-1"
-    ax.yaxis.set_minor_locator(NullLocator())      # every tick is an object with lines and a label: few
+    plain_log_axis(ax.yaxis)
     ax.set_ylabel("GP variance [field units²]"), ax.set_title("uncertainty (Algorithm 1 stops at sup V ≤ γ)", y=1.0)
     ax.legend(fontsize=8)
     ax = axes[0, 1]
