@@ -92,7 +92,8 @@ def test_solver_study_has_one_documented_way_to_run_the_fixed_studies(capsys):
 # ----------------------------------------------------------------------------------- threads
 def _pool_threads(_task=None):
     from threadpoolctl import threadpool_info
-    return [{"threads": [p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"]}]
+    return [{"threads": [p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"],
+             "env": os.environ.get("OPENBLAS_NUM_THREADS")}]
 
 
 def test_limit_threads_sets_one_and_the_environment_wins(monkeypatch):
@@ -136,6 +137,9 @@ def test_sweep_workers_run_one_blas_thread(tmp_path, monkeypatch):
         monkeypatch.delenv(var, raising=False)
     rows = run_tasks([{"i": 0}, {"i": 1}], _pool_threads, tmp_path / "runs", workers=2, stream=None)
     assert [r[0]["threads"] and set(r[0]["threads"]) for r in rows] == [{threads.WORKER_THREADS}] * 2
+    # and a BLAS a task loads later reads the worker's environment
+    assert [r[0]["env"] for r in rows] == [str(threads.WORKER_THREADS)] * 2
+    assert threads.environment_sets_threads() is None          # this process's environment is untouched
 
 
 # ----------------------------------------------------------------------------------- figures
