@@ -55,21 +55,44 @@ class _NoLimit:
     unregister = restore_original_limits
 
 
-def limit_threads(n: int = COMMAND_THREADS):
+def limit_threads(n: int = COMMAND_THREADS, load: bool = True):
     """Limit the BLAS and OpenMP thread pools of this process to ``n`` threads, now.
 
     Does nothing if the environment chooses (:func:`environment_sets_threads`) or ``n`` is None.
-    Returns an object usable as a context manager that restores the previous limits on exit
-    (``threadpoolctl.threadpool_limits``); as a plain call the limit holds for the process."""
+    ``load``: first load NumPy's and SciPy's BLAS (:func:`_load_blas`), so that the limit reaches
+    both; otherwise only the libraries already loaded are limited.  Returns an object usable as a
+    context manager that restores the previous limits on exit (``threadpoolctl.threadpool_limits``);
+    as a plain call the limit holds for the process."""
     if n is None or environment_sets_threads():
         return _NoLimit()
+    if load:
+        _load_blas()
     from threadpoolctl import threadpool_limits
     return threadpool_limits(limits=int(n))
 
 
+def _load_blas() -> None:
+    """Load the BLAS libraries the commands use, so that the limit reaches them: threadpoolctl sets
+    only libraries already loaded, and NumPy and SciPy wheels each bundle their own OpenBLAS
+    (SciPy's is loaded with ``scipy.linalg``, which would otherwise start later with a thread per core)."""
+    for name in ("numpy", "scipy.linalg"):
+        try:
+            __import__(name)
+        except ImportError:
+            pass
+
+
 def worker_initializer(n: int = WORKER_THREADS) -> None:
-    """``initializer`` of a worker process pool: :func:`limit_threads` for the worker's lifetime."""
-    limit_threads(n)
+    """``initializer`` of a worker process pool: the libraries already loaded (a forked worker's,
+    inherited) are limited to ``n`` threads, and -- unless the user's environment chooses -- the
+    worker's environment says ``n`` to the ones its tasks load later (OpenBLAS, OpenMP and MKL read
+    it when they load).  Nothing is imported here: a fresh worker's memory stays the task's own
+    (``solver-study --isolate`` measures it)."""
+    if environment_sets_threads():
+        return
+    limit_threads(n, load=False)
+    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[var] = str(int(n))
 
 
 class limited:
@@ -81,7 +104,9 @@ class limited:
         functools.update_wrapper(self, fn)
 
     def __call__(self, *args, **kwargs):
-        with limit_threads(self.n):
+        # the libraries loaded so far; a library a task loads later reads the worker's environment
+        # (a Dask nanny sets OPENBLAS/OMP/MKL_NUM_THREADS=1 for its worker by default)
+        with limit_threads(self.n, load=False):
             return self.fn(*args, **kwargs)
 
     def __reduce__(self):

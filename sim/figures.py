@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..runtime.atomic import atomic_path
-from ..runtime.plotting import new_figure, save_figure
+from ..runtime.plotting import new_figure, plain_log_axis, save_figure
 
 __all__ = ["write_figures", "make_panels", "make_convergence", "make_field_error", "plot_panels",
            "plot_convergence", "plot_field_error", "write_animation", "panel_snapshots", "FIGURE_FILES"]
@@ -86,12 +86,19 @@ def clip_note(values, vmin, vmax):
     return extend, f"\nclipped to [{vmin:.3g}, {vmax:.3g}] (data {v.min():.3g} to {v.max():.3g})"
 
 
+def _few_ticks(n=4):
+    from matplotlib.ticker import MaxNLocator
+    return MaxNLocator(n)
+
+
 def _colorbar(fig, mappable, cax, label, values=None):
     """Colour bar in ``cax``; the label states the clipping of ``values`` by the mappable's range."""
     extend, note = "neither", ""
     if values is not None:
         extend, note = clip_note(values, *mappable.get_clim())
     cb = fig.colorbar(mappable, cax=cax, extend=extend)
+    cb.locator = _few_ticks()
+    cb.update_ticks()
     cb.set_label(label + note, fontsize=9 if note else None)
     return cb
 
@@ -213,9 +220,7 @@ def make_convergence(result):
             ax.axhline(thr[0], color="k", ls="--", lw=1, label=f"threshold γ = {thr[0]:.3g}")
         else:
             ax.step(t, thr, "k--", where="post", lw=1, label="threshold (relative to s_f²)")
-    from matplotlib.ticker import FuncFormatter, NullFormatter
-    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))    # plain text: no mathtext "10^-1"
-    ax.yaxis.set_minor_formatter(NullFormatter())
+    plain_log_axis(ax.yaxis)
     ax.set_ylabel("GP variance [field units²]"), ax.set_title("uncertainty (Algorithm 1 stops at sup V ≤ γ)", y=1.0)
     ax.legend(fontsize=8)
     ax = axes[0, 1]
@@ -233,6 +238,9 @@ def make_convergence(result):
         for r in result.replans:
             a.axvline(r["t0"], color="0.8", ls=":", lw=0.8, zorder=0)
         a.grid(alpha=0.25)
+        a.locator_params(axis="x", nbins=5)
+        if a.get_yscale() == "linear":
+            a.locator_params(axis="y", nbins=5)
     ttt = result.time_to_threshold
     fig.suptitle("Convergence: sup V ≤ γ " + (f"first at t = {ttt:.3g} s = {ttt / T:.3g} T" if ttt is not None
                                               else "not reached") + "; dotted: re-plans")

@@ -321,7 +321,7 @@ def scenario_curves(runs) -> dict:
 def make_plot(scenario, curves: dict, gamma: float):
     """One scenario's Figure: RMSE and sup V / threshold against t/T, the median over seeds as a line
     and the min-max range as a band, one colour per controller (``curves`` from :func:`scenario_curves`)."""
-    from ..runtime.plotting import new_figure
+    from ..runtime.plotting import new_figure, plain_log_axis
 
     domain, field, n, loss = scenario
     fig = new_figure(11, 4.3)
@@ -343,6 +343,7 @@ def make_plot(scenario, curves: dict, gamma: float):
     axes[1].set_title("sup V relative to each configuration's stopping threshold", y=1.0, fontsize=10)
     axes[1].axhline(1.0, color="k", ls=":", lw=1)
     axes[1].set_yscale("log")
+    plain_log_axis(axes[1].yaxis)
     for ax in axes:
         ax.set_xlabel("t / T (periods)")
         ax.grid(alpha=0.3)

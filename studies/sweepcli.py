@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 
 from ..runtime.atomic import write_atomic
-from ..runtime.plotting import new_figure, save_figure
+from ..runtime.plotting import new_figure, plain_log_axis, save_figure
 from .solver_spec import AXES, COLUMNS, PRESETS, SpecError, expand, load_toml, parse_spec, preset_tasks
 
 #: axis -> command-line flag
@@ -158,6 +158,8 @@ def make_scaling(rows):
     for key, pts in groups.items():
         pts = sorted(pts)
         ax.loglog([p[0] for p in pts], [p[1] for p in pts], "o-", label=f"{key}: exponent {exponent_text(pts)}")
+    if groups:
+        plain_log_axis(ax.xaxis), plain_log_axis(ax.yaxis)
     ax.set_xlabel("cells nx·ny")
     ax.set_ylabel("solve time [s]")
     ax.set_title("Solve time against grid size", y=1.0)
@@ -175,6 +177,7 @@ def make_time_objective(rows):
     for key, pts in groups.items():
         ax.plot([p[1] for p in pts], [p[2] for p in pts], "o", label=key)
     ax.set_xscale("log")
+    plain_log_axis(ax.xaxis)
     ax.set_xlabel("solve time [s]")
     ax.set_ylabel("objective J (dimensionless)")
     ax.set_title("Optimum against solve time (compare within one grid)", y=1.0)

@@ -92,7 +92,8 @@ def test_solver_study_has_one_documented_way_to_run_the_fixed_studies(capsys):
 # ----------------------------------------------------------------------------------- threads
 def _pool_threads(_task=None):
     from threadpoolctl import threadpool_info
-    return [{"threads": [p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"]}]
+    return [{"threads": [p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"],
+             "env": os.environ.get("OPENBLAS_NUM_THREADS")}]
 
 
 def test_limit_threads_sets_one_and_the_environment_wins(monkeypatch):
@@ -112,6 +113,22 @@ def test_limit_threads_sets_one_and_the_environment_wins(monkeypatch):
     assert wrapped.fn is _pool_threads and wrapped.n == 1
 
 
+def test_limit_reaches_scipys_own_blas_loaded_later():
+    """NumPy and SciPy wheels each bundle an OpenBLAS; SciPy's loads with scipy.linalg, possibly after
+    the command limited the threads: the limit must reach it too (fresh interpreter, nothing pinned)."""
+    pytest.importorskip("threadpoolctl")
+    if (os.cpu_count() or 1) < 2:
+        pytest.skip("one core: every BLAS starts with one thread anyway")
+    from swarmfield.runtime.threads import ENV_VARS
+    env = {k: v for k, v in os.environ.items() if k not in ENV_VARS}
+    code = ("from swarmfield.runtime.threads import limit_threads\nlimit_threads(1)\nimport scipy.linalg\n"
+            "from threadpoolctl import threadpool_info\n"
+            "print(sorted(p['num_threads'] for p in threadpool_info() if p['user_api'] == 'blas'))")
+    proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    pools = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert pools and set(pools) == {1}, proc.stdout + proc.stderr
+
+
 def test_sweep_workers_run_one_blas_thread(tmp_path, monkeypatch):
     pytest.importorskip("threadpoolctl")
     from swarmfield.runtime import threads
@@ -120,6 +137,9 @@ def test_sweep_workers_run_one_blas_thread(tmp_path, monkeypatch):
         monkeypatch.delenv(var, raising=False)
     rows = run_tasks([{"i": 0}, {"i": 1}], _pool_threads, tmp_path / "runs", workers=2, stream=None)
     assert [r[0]["threads"] and set(r[0]["threads"]) for r in rows] == [{threads.WORKER_THREADS}] * 2
+    # and a BLAS a task loads later reads the worker's environment
+    assert [r[0]["env"] for r in rows] == [str(threads.WORKER_THREADS)] * 2
+    assert threads.environment_sets_threads() is None          # this process's environment is untouched
 
 
 # ----------------------------------------------------------------------------------- figures
