@@ -109,6 +109,11 @@ class limited:
         with limit_threads(self.n, load=False):
             return self.fn(*args, **kwargs)
 
+    def initialize_worker(self) -> None:
+        """Run once in a dedicated worker process before its first task (:mod:`studies.pool`):
+        :func:`worker_initializer`, so that libraries the tasks load later see ``n`` threads too."""
+        worker_initializer(self.n)
+
     def __reduce__(self):
         return (limited, (self.fn, self.n))
 

@@ -64,6 +64,9 @@ def _worker(conn, alive, fn, once: bool) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)        # Ctrl-C belongs to the main process
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     _die_with(alive)
+    init = getattr(fn, "initialize_worker", None)       # e.g. runtime.threads.limited: BLAS threads
+    if init is not None:
+        init()
     while True:
         try:
             msg = conn.recv()
