@@ -35,7 +35,8 @@ Two configurations for large swarms can be added to the table (``--configs``):
   instead of 43 x 43 inducing points on the paper domain, ~4.6x cheaper factorisations; kernel
   error ~5.5e-3 s_f^2 instead of ~1.4e-3);
 * ``coarse-gp+hold``: also ``kde.hold_substeps = 8`` (p̂ refitted once per measurement step instead
-  of every Euler sub-step).
+  of every Euler sub-step);
+* ``hold``: ``kde.hold_substeps = 8`` alone (default GP).
 
 ``--domains`` times the same step with obstacles (issue 19: built-in domains, :mod:`sim.domain`;
 target: within 1.3x of the empty rectangle at 10,000 robots); ``rectangle`` is the empty domain.
@@ -60,6 +61,7 @@ CONFIGS = {
     "default": {},
     "coarse-gp": {"gp": {"inducing_spacing": 1.0 / 1.5}},
     "coarse-gp+hold": {"gp": {"inducing_spacing": 1.0 / 1.5}, "kde": {"hold_substeps": 8}},
+    "hold": {"kde": {"hold_substeps": 8}},
 }
 
 
