@@ -14,7 +14,8 @@ planning and feedback.
             integrate eq. "Langevin equation" over Δt in ``substeps`` Euler--Maruyama steps,
             v = the controller's velocity (eq. "density feedback law using estimation" for the
             paper's feedback, with p_hat refitted every sub-step)
-            t += Δt; measure D_k; GP on all data -> f̄_k, V_k; record metrics
+            t += Δt; measure D_k; add D_k to the GP; when a row is due (``sim.metrics_every``;
+            always at t = (k+1)T): the posterior f̄_k, V_k on all data and a metrics row
 
 :class:`Simulation` holds the state of one run; :meth:`Simulation.step` is one period of the loop
 above and reads like it.  Its parts are pluggable: the controller (:mod:`sim.controllers`), the
