@@ -179,6 +179,22 @@ def tracking_velocity(X, plan, t: float, est, settings: FeedbackSettings, stir_p
     plan_dom = np.asarray(plan.domain, dtype=float).reshape(-1)
     if plan_dom.shape != (4,) or not np.allclose(plan_dom, est.domain, rtol=1e-12, atol=1e-12):
         raise ValueError(f"plan domain {tuple(plan_dom)} differs from the density estimate's domain {tuple(est.domain)}")
+    n = X.shape[0]
+    if n <= _BLOCK:
+        return _tracking_block(X, plan, t, est, settings, stir_pattern, plan_dom)
+    # robots in blocks: every operation is per robot, so the bits are those of one pass, but the
+    # temporaries (~30 arrays of n numbers) stay in cache for large swarms
+    v = np.empty((n, 2))
+    for s in range(0, n, _BLOCK):
+        v[s:s + _BLOCK] = _tracking_block(X[s:s + _BLOCK], plan, t, est, settings, stir_pattern, plan_dom)
+    return v
+
+
+#: robots per block in :func:`tracking_velocity`
+_BLOCK = 16384
+
+
+def _tracking_block(X, plan, t, est, settings, stir_pattern, plan_dom):
     p_hat, grad_p_hat = est.evaluate(X)          # also rejects robots outside the domain
     p_r, grad_p_r = plan.density_and_gradient(t, X)
     v_r = plan.velocity(t, X)

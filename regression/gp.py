@@ -242,6 +242,16 @@ class GaussianProcess:
         """Largest number of new points applied to the posterior by a Woodbury update."""
         return int(self.update_rank_fraction * self._n_nodes)
 
+    def update_fits(self, n_new: int = 0) -> bool:
+        """True if the points added since the last posterior plus ``n_new`` more fit a Woodbury
+        update (at most :attr:`max_update_rank` of them), i.e. the next :meth:`predict` would cost
+        O(k M^2) rather than an O(M^3) factorisation (unless the hyperparameters changed or
+        ``refactor_every`` updates were made).  ``sim.metrics_every = "auto"`` asks this."""
+        n_new = int(n_new)
+        if n_new < 0:
+            raise ValueError(f"n_new must be >= 0, got {n_new}")
+        return self._pending is not None and self._pending_n + n_new <= self.max_update_rank
+
     @property
     def prior_mean(self) -> float:
         """The constant mean m in use: the setting, or the running data mean (0 without data)."""

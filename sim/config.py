@@ -167,10 +167,15 @@ class SimSettings:
     loss_time       time [s] of the loss (default: the period T, i.e. 7 s in the paper scenario)
     metrics_every   the GP posterior (f̄, V on the grid) and a metrics row are computed every this many
                     measurement steps and always at the end of a period (Algorithm 1 needs V only at
-                    t = kT); the measurements are added to the GP at every step.  1 (default) records
-                    every step, as the paper's figures do; with thousands of robots each posterior
-                    costs an O(M^3) refactorisation, so 8 (= once per period) makes a step ~8x cheaper
-                    in regression (benchmarks/measurement_step.py)
+                    t = kT); the measurements are added to the GP at every step.  1 records every
+                    step, as the paper's figures do; with thousands of robots each posterior costs an
+                    O(M^3) refactorisation, so 8 (= once per period) makes a step ~8x cheaper in
+                    regression (benchmarks/measurement_step.py).  ``"auto"`` (default): every step
+                    while the step's new points fit a Woodbury update of the posterior (at most
+                    ``GaussianProcess.max_update_rank`` = M/4 = 462 points at the paper's settings,
+                    so the paper's 100-robot runs record every step, exactly as with 1), otherwise
+                    only at the end of each period: metrics.csv then has one row at t = 0 and one per
+                    period instead of one per measurement step (docs/results/closed-loop-step.md)
     target          ``variance`` (paper): p_f = max(V - eta, 0) / int; ``reachable``: the same weighted by
                     R = p̂ convolved with a Gaussian of standard deviation planner.v_max * T / 2 (2 sd =
                     where the reference can get in one period), floored at 1e-3 max R (regression.reachable_target_density; issue 10)
@@ -203,7 +208,7 @@ class SimSettings:
     ergodic_modes: int = 20
     robot_loss: float = 0.0
     loss_time: float | None = None
-    metrics_every: int = 1
+    metrics_every: int | str = "auto"
     target: str = "variance"
     reach: float | None = None
 
@@ -241,7 +246,10 @@ class SimSettings:
         for k in ("greedy_separation", "loss_time"):
             set_(k, _number(k, getattr(self, k), nonneg=True))
         set_("robot_loss", _number("robot_loss", self.robot_loss, nonneg=True))
-        set_("metrics_every", _integer("metrics_every", self.metrics_every, 1))
+        if self.metrics_every != "auto":
+            if isinstance(self.metrics_every, str):
+                raise ValueError(f"sim.metrics_every must be a positive integer or \"auto\", got {self.metrics_every!r}")
+            set_("metrics_every", _integer("metrics_every", self.metrics_every, 1))
         if self.target not in ("variance", "reachable"):
             raise ValueError(f"sim.target must be 'variance' or 'reachable', got {self.target!r}")
         if self.reach is not None:

@@ -5,7 +5,8 @@ trackers) and reads the simulation's state; it never changes it::
 
     start(sim)      after D_0 and the first regression (t = 0)
     measured(sim)   after a measurement step whose posterior was computed (every ``sim.metrics_every``
-                    steps and at the end of each period)
+                    steps and at the end of each period; with ``"auto"``, the default, every step while
+                    the step's new points fit a Woodbury update, else at the period ends only)
     refitted(sim)   after the hyperparameters were refitted at a period start (same data, new (s_f^2, l))
     planned(sim)    after the period's reference was planned (or the period started, without a planner)
     period(sim)     after each completed period

@@ -14,7 +14,8 @@ planning and feedback.
             integrate eq. "Langevin equation" over Δt in ``substeps`` Euler--Maruyama steps,
             v = the controller's velocity (eq. "density feedback law using estimation" for the
             paper's feedback, with p_hat refitted every sub-step)
-            t += Δt; measure D_k; GP on all data -> f̄_k, V_k; record metrics
+            t += Δt; measure D_k; add D_k to the GP; when a row is due (``sim.metrics_every``;
+            always at t = (k+1)T): the posterior f̄_k, V_k on all data and a metrics row
 
 :class:`Simulation` holds the state of one run; :meth:`Simulation.step` is one period of the loop
 above and reads like it.  Its parts are pluggable: the controller (:mod:`sim.controllers`), the
@@ -236,7 +237,7 @@ class Simulation:
         Xa, y = self.measure()
         self.estimate_density(fresh=True, on_grid=False)
         self.step_index += 1
-        if j % s.metrics_every and j != s.steps_per_period:    # posterior not needed now: data only
+        if not self.posterior_due(j, y.shape[0]):             # posterior not needed now: data only
             tm["dynamics"] += time.perf_counter() - t_dyn
             t_reg = time.perf_counter()
             self.gp.add(Xa, y)
@@ -247,6 +248,18 @@ class Simulation:
         self.regress(Xa, y)
         self._notify("measured")
         self.controller.observe(self.context())
+
+    def posterior_due(self, j: int, n_new: int) -> bool:
+        """Whether measurement step ``j`` of the period (1 .. T/Δt) computes the posterior and a
+        metrics row (``sim.metrics_every``): always at the period's end (Algorithm 1 needs V at
+        t = kT); every ``metrics_every`` steps; ``"auto"``: while the ``n_new`` new points fit a
+        Woodbury update of the GP (:meth:`GaussianProcess.update_fits`), otherwise at the end only."""
+        s = self.settings
+        if j == s.steps_per_period:
+            return True
+        if s.metrics_every == "auto":
+            return self.gp.update_fits(n_new)
+        return j % s.metrics_every == 0
 
     def finish(self) -> None:
         """Close the run: final fields in the result, wall time, the last snapshot's velocity."""

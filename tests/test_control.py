@@ -458,3 +458,20 @@ def test_density_estimate_is_exported_type():
     est = KernelDensity(DOMAIN, bandwidth=1.0).fit(np.array([[3.0, 4.0]]))
     assert isinstance(est, DensityEstimate)
     assert est.n_points == 1 and est.bandwidth == 1.0
+
+
+def test_tracking_velocity_in_blocks_gives_the_bits_of_one_pass(monkeypatch):
+    import swarmfield.control.feedback as fb
+    rng = np.random.default_rng(22)
+    plan = _plan(rng)
+    X = rng.uniform(0, 20, (2500, 2))
+    est = KernelDensity(DOMAIN).fit(X)
+    s = FeedbackSettings(alpha=1.0, sigma=0.05, p_floor=2.5e-4, v_max=0.8, stir_speed=0.1)
+    one = tracking_velocity(X, plan, 4.2, est, s)
+    monkeypatch.setattr(fb, "_BLOCK", 1000)                 # 3 blocks, the last one short
+    blocks = tracking_velocity(X, plan, 4.2, est, s)
+    assert np.array_equal(one, blocks) and np.any(np.hypot(*one.T) >= 0.8 * (1 - 1e-12))
+    bad = X.copy()
+    bad[2200] = (25.0, 1.0)                                 # outside, in the last block
+    with pytest.raises(ValueError, match="outside the domain"):
+        tracking_velocity(bad, plan, 4.2, est, s)
