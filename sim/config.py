@@ -168,9 +168,10 @@ class SimSettings:
     metrics_every   the GP posterior (f̄, V on the grid) and a metrics row are computed every this many
                     measurement steps and always at the end of a period (Algorithm 1 needs V only at
                     t = kT); the measurements are added to the GP at every step.  1 records every
-                    step, as the paper's figures do; with thousands of robots each posterior costs an
-                    O(M^3) refactorisation, so 8 (= once per period) makes a step ~8x cheaper in
-                    regression (benchmarks/measurement_step.py).  ``"auto"`` (default): every step
+                    step, as the paper's figures do (the default: one row per measurement step, and the
+                    controllers' ``observe`` after every step); with thousands of robots each posterior
+                    costs an O(M^3) refactorisation, so 8 (= once per period) makes a step ~8x cheaper
+                    in regression (benchmarks/measurement_step.py).  ``"auto"`` (for large swarms): every step
                     while the step's new points fit a Woodbury update of the posterior (at most
                     ``GaussianProcess.max_update_rank`` = M/4 = 462 points at the paper's settings,
                     so the paper's 100-robot runs record every step, exactly as with 1), otherwise
@@ -208,7 +209,7 @@ class SimSettings:
     ergodic_modes: int = 20
     robot_loss: float = 0.0
     loss_time: float | None = None
-    metrics_every: int | str = "auto"
+    metrics_every: int | str = 1
     target: str = "variance"
     reach: float | None = None
 

@@ -19,9 +19,9 @@ def cfg(**sim):
     return config_from_dict(doc)
 
 
-def test_auto_is_the_default_and_is_validated():
-    assert SimSettings().metrics_every == "auto"
-    assert cfg(robots=10).sim.metrics_every == "auto"
+def test_one_row_per_step_is_the_default_and_auto_is_validated():
+    assert SimSettings().metrics_every == 1                   # one row per measurement step (design card)
+    assert cfg(metrics_every="auto").sim.metrics_every == "auto"
     assert cfg(robots=10, metrics_every=3).sim.metrics_every == 3
     for bad in ("sometimes", "Auto", 0, -1, 2.5, True):
         with pytest.raises(ValueError, match="metrics_every"):
@@ -47,7 +47,7 @@ def test_gp_update_fits_counts_the_pending_points():
 
 def test_auto_records_every_step_for_a_small_swarm_exactly_as_one():
     a = run_simulation(cfg(robots=30, metrics_every=1))
-    b = run_simulation(cfg(robots=30))
+    b = run_simulation(cfg(robots=30, metrics_every="auto"))
     assert len(a.rows) == len(b.rows) == 9              # t = 0 and 4 steps x 2 periods
     for ra, rb in zip(a.rows, b.rows):
         assert ra.keys() == rb.keys()
@@ -56,7 +56,7 @@ def test_auto_records_every_step_for_a_small_swarm_exactly_as_one():
 
 
 def test_auto_skips_posteriors_of_a_large_swarm_but_ends_at_the_same_posterior():
-    c = cfg(robots=200)
+    c = cfg(robots=200, metrics_every="auto")
     rank = GaussianProcess(c.gp, domain=c.sim.domain).max_update_rank
     assert 200 > rank                                   # the case under test: no Woodbury update fits
     a = run_simulation(cfg(robots=200, metrics_every=1))
