@@ -160,8 +160,23 @@ class PlannerSettings:
     #: (minmod-limited MUSCL with SSP-RK2, second order, positivity kept with 1.5x the sub-steps;
     #: CasADi graph only: transport "auto"/"casadi", method "ipopt"; ocp.transport.muscl_step)
     scheme: str = "upwind"
+    #: cost of the OCP (ocp.objectives, issue 20): "symmetric-kl" (the paper's: w_f KLs(p(t_f), q) + w_p int KLs
+    #: + w_v energy) or "information" (the mean-field expected GP variance after the planned measurements, same
+    #: w_f / w_p structure times ``information_weight``; needs ``solve(..., information=...)``)
+    objective: str = "symmetric-kl"
+    #: q of the information cost's power mean M_q(V) = (mean V^q)^(1/q): 1 = mean variance, large = smooth sup
+    information_power: float = 1.0
+    #: scale of the (dimensionless, <= 1) information terms against the energy w_v int int |v|^2
+    information_weight: float = 100.0
 
     def __post_init__(self):
+        from .objectives import OBJECTIVES
+        if self.objective not in OBJECTIVES:
+            raise ValueError(f"planner.objective must be one of {', '.join(repr(o) for o in OBJECTIVES)}, "
+                             f"got {self.objective!r}")
+        _positive(self, "information_power", "information_weight")
+        if self.objective == "information" and self.method != "ipopt":
+            raise ValueError("planner.objective = 'information' is solved with method 'ipopt' only")
         if self.scheme not in ("upwind", "muscl"):
             raise ValueError(f"planner.scheme must be 'upwind' or 'muscl', got {self.scheme!r}")
         if self.scheme == "muscl" and (self.transport not in ("auto", "casadi") or self.method != "ipopt"):

@@ -122,6 +122,16 @@ def target_tolerance(config: RunConfig, signal_variance: float) -> float:
     return s.eta
 
 
+def information_inputs(config: RunConfig, gp, var, robots: int) -> dict:
+    """``{"information": InformationInputs}`` for ``planner.objective = "information"`` (the current GP
+    variance on the grid, the working robots, Δt, the GP's σ_n^2 and ℓ; ocp.objectives), else {}."""
+    if getattr(config.planner, "objective", "symmetric-kl") != "information":
+        return {}
+    from ..ocp.objectives import InformationInputs
+    return {"information": InformationInputs(var, robots, config.sim.dt, gp.settings.noise_variance,
+                                             gp.settings.length_scale)}
+
+
 def check_config(config: RunConfig) -> None:
     """Fail early (``ValueError``) on settings that the components would reject only mid-run:
     a GP inducing grid above ``max_inducing_points``, a fixed KDE bandwidth needing too many bins."""
@@ -335,7 +345,8 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
                 # --- reference model for [t, t + T] (eqs. "optimization problem", "reference model")
                 t_plan = time.perf_counter()
                 try:
-                    new_plan = planner.solve(p_hat, p_f, t0=t, warm_start=plan)
+                    new_plan = planner.solve(p_hat, p_f, t0=t, warm_start=plan,
+                                             **information_inputs(config, gp, var, int(alive.sum())))
                 except PlannerError as exc:
                     info = dict(getattr(exc, "stats", {}) or {})
                     res.replans.append({"period": k, "t0": t, "max_variance": sup_v, "rmse": res.rows[-1]["rmse"],
