@@ -22,7 +22,7 @@ import time
 import numpy as np
 
 from swarmfield.ocp.planner import ReferencePlanner
-from swarmfield.ocp.scenario import box_density, first_step_target
+from swarmfield.sim.scenario import box_density, first_step_target
 from swarmfield.ocp.settings import PlannerSettings
 
 

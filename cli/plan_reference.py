@@ -1,7 +1,7 @@
 """``plan-reference``: solve the reference-density problem (eq. "optimization problem") and write a plan.
 
 With no arguments it plans the paper's first step (robots uniform on [0, 7]^2, target from the GP
-variance of their first measurements; :mod:`ocp.scenario`) on the default grid and writes
+variance of their first measurements; :mod:`sim.scenario`) on the default grid and writes
 ``plan.npz``.  Exit codes: 0 success, 1 solver failure, 2 bad input (nothing written).
 """
 from __future__ import annotations
@@ -150,7 +150,7 @@ def run(argv=None) -> int:
     if args.plot is not None:
         check_output(args.plot, ".png", "plot")
     from ..ocp.grid import Grid
-    from ..ocp.scenario import box_density, first_step_target
+    from ..sim.scenario import box_density, first_step_target
 
     grid = Grid(settings.domain, settings.nx, settings.ny)
     warm = None

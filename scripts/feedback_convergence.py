@@ -84,7 +84,7 @@ def main():
         notes.append(f"{label}: error at 30 s {r.error[-1]:.4f}")
 
     from swarmfield.ocp import PlannerSettings, ReferencePlanner
-    from swarmfield.ocp.scenario import box_density, first_step_target
+    from swarmfield.sim.scenario import box_density, first_step_target
     planner = ReferencePlanner(PlannerSettings())
     g = planner.grid
     moving = planner.solve(box_density(g), first_step_target(g, seed=0)[0])

@@ -3,7 +3,9 @@
 * :mod:`sim.fields`   -- unknown fields f(x): the paper's sinc, plumes, ridge, fields from files
 * :mod:`sim.dynamics` -- eq. "Langevin equation" by Euler--Maruyama with reflecting walls; measurements
 * :mod:`sim.config`   -- ``SimSettings``, ``KDESettings``, ``RunConfig`` and their TOML form
-* :mod:`sim.loop`     -- Algorithm 1: GP regression, target density, planner, feedback, metrics
+* :mod:`sim.simulation` -- Algorithm 1 as an object (:class:`Simulation`): GP regression, target density,
+  planner, controller, metrics; :mod:`sim.loop` has the facade :func:`run_simulation`
+* :mod:`sim.stopping` -- stop rules (when is the field mapped?); :mod:`sim.recorders` -- what a run keeps
 * :mod:`sim.controllers` -- the controller interface: the paper's feedback, open loop and baselines
   (diffusion, coverage, greedy, lawnmower); a user's own strategy is one ``Controller`` subclass
 * :mod:`sim.tracking` -- the feedback law alone towards a given plan (Theorems "Exponential
@@ -19,8 +21,13 @@ from .presets import PRESETS
 from .dynamics import advance, euler_maruyama_step, measure, reflect
 from .fields import FIELDS, make_field
 from .controllers import CONTROLLERS, Context, Controller, register
-from .loop import SimulationResult, run_simulation
+from .loop import run_simulation
+from .result import SimulationResult
+from .simulation import Simulation
+from .stopping import STOP_RULES, StopRule, register_stop_rule
+from .recorders import Recorder
 
 __all__ = ["SimSettings", "KDESettings", "RunConfig", "PRESETS", "config_from_dict", "load_config", "to_toml",
            "reflect", "euler_maruyama_step", "advance", "measure", "FIELDS", "make_field",
-           "SimulationResult", "run_simulation", "Controller", "Context", "CONTROLLERS", "register"]
+           "SimulationResult", "Simulation", "run_simulation", "StopRule", "STOP_RULES", "register_stop_rule",
+           "Recorder", "Controller", "Context", "CONTROLLERS", "register"]

@@ -54,6 +54,7 @@ from ..control import FeedbackSettings
 from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict
 from ..regression import GPSettings
 from .presets import DEFAULT_PRESET, PRESETS, merge_under_preset
+from .stopping import STOP_RULES
 
 __all__ = ["SimSettings", "KDESettings", "RunConfig", "load_config", "read_toml", "config_from_dict", "to_toml",
            "SECTIONS"]
@@ -207,8 +208,8 @@ class SimSettings:
         set_("max_periods", _integer("max_periods", self.max_periods, 1))
         set_("seed", _integer("seed", self.seed, 0))
         set_("substeps", _integer("substeps", self.substeps, 1))
-        if self.stop_rule not in ("absolute", "relative"):
-            raise ValueError(f"sim.stop_rule must be 'absolute' or 'relative', got {self.stop_rule!r}")
+        if self.stop_rule not in STOP_RULES:
+            raise ValueError(f"sim.stop_rule must be one of {', '.join(sorted(STOP_RULES))}, got {self.stop_rule!r}")
         set_("gamma_relative", _number("gamma_relative", self.gamma_relative, nonneg=True))
         set_("eta_relative", _number("eta_relative", self.eta_relative, nonneg=True))
         if not self.gamma_relative < 1.0:

@@ -274,7 +274,7 @@ def run_planner_task(task: dict) -> list[dict]:
 
     from ..ocp.grid import Grid
     from ..ocp.planner import ReferencePlanner
-    from ..ocp.scenario import box_density, first_step_target
+    from ..sim.scenario import box_density, first_step_target
 
     s = dataclass_from_dict(PlannerSettings, task["settings"])
     row = {"study": task["study"], "case": task["case"], "method": task["method"], "transport": s.transport,

@@ -1,7 +1,7 @@
 """``solver-study``: how formulation, discretisation and IPOPT options change solve time, iterations and optimum.
 
 Every case solves the paper's first planning step (robots uniform on [0,7]^2, target from the GP
-variance; :mod:`ocp.scenario`) with one setting changed from the defaults (:func:`cases`).  The
+variance; :mod:`sim.scenario`) with one setting changed from the defaults (:func:`cases`).  The
 fixed studies are presets of the one sweep runner (:mod:`studies.sweepcli`, :mod:`studies.runner`):
 parallel worker processes or a Dask cluster, resumable from ``DIR/runs/``.  Results go to
 ``DIR/study.csv``, ``DIR/study.md``, ``DIR/study.png`` (solve time per case, one panel per study)

@@ -269,7 +269,7 @@ def test_deferred_signals_deliver_after_the_block_and_keep_ignored_ones_ignored(
 def test_planner_keeps_an_ignored_sigint_ignored_during_the_solve():
     from swarmfield.ocp import PlannerSettings, ReferencePlanner
     from swarmfield.ocp.grid import Grid
-    from swarmfield.ocp.scenario import box_density, first_step_target
+    from swarmfield.sim.scenario import box_density, first_step_target
 
     s = PlannerSettings(nx=12, ny=10, n_intervals=3, n_modes_x=3, n_modes_y=3)
     planner = ReferencePlanner(s)

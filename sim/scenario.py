@@ -6,16 +6,17 @@ bandwidth of that sample, reflected at the walls.
 
 Target: the GP predictive variance V_0 of the robots' first measurements and
 p_f = max(V_0 - eta, 0) / int (section "Generation of reference models").  The variance depends
-only on where the robots measured, not on the values, so no field is needed.  This uses the
-``regression`` package (imported here, by the CLI's default only; the planner itself does not
-depend on it).  A Gaussian bump at (14, 14) is the fallback if ``regression`` is unavailable.
+only on where the robots measured, not on the values, so no field is needed.  It composes
+``regression`` (the GP) with the planner's grid, so it lives in ``sim`` and not in ``ocp``, which
+depends on no other science package.
 """
 from __future__ import annotations
 
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
-from .grid import Grid
+from ..ocp.grid import Grid
+from ..regression import GaussianProcess, GPSettings, target_density
 
 START_BOX = (0.0, 7.0, 0.0, 7.0)
 N_ROBOTS = 100
@@ -43,12 +44,6 @@ def box_density(grid: Grid, box=START_BOX, bandwidth: float | None = None, n_rob
 
 def first_step_target(grid: Grid, seed: int = 0, eta: float = 0.05, box=START_BOX, n_robots: int = N_ROBOTS):
     """Target p_f of the paper's first planning step; returns (p_f, description)."""
-    try:
-        from ..regression import GaussianProcess, GPSettings, target_density
-    except ImportError:  # pragma: no cover - regression ships with the project
-        X, Y = np.meshgrid(grid.xc, grid.yc, indexing="ij")
-        bump = np.exp(-((X - 14.0) ** 2 + (Y - 14.0) ** 2) / (2 * 2.0 ** 2))
-        return grid.normalize(bump), "Gaussian bump at (14, 14), sd 2"
     rng = np.random.default_rng(seed)
     bx0, bx1, by0, by1 = box
     pts = np.column_stack([rng.uniform(bx0, bx1, n_robots), rng.uniform(by0, by1, n_robots)])

@@ -1,0 +1,399 @@
+"""Algorithm 1 ("Deployment algorithm") of the paper as an object: the closed loop of regression,
+planning and feedback.
+
+::
+
+    X ~ U(start_box)                                     (section "Simulation studies")
+    D_0 = {(X_i, f(X_i) + eps_i)};  GP on D_0 -> f̄_0, V_0
+    while not stop_rule.reached(V_k) and t < max_time:                        (Algorithm 1)
+        p_f = max(V_k - eta, 0) / int              (section "Generation of reference models")
+        p0  = p_hat(t) on the planner grid                                     (eq. "KDE")
+        (p_r, v_r) = planner.solve(p0, p_f, t0=t, warm start = previous plan)
+                                                   (eqs. "optimization problem", "reference model")
+        repeat T / Δt times:
+            integrate eq. "Langevin equation" over Δt in ``substeps`` Euler--Maruyama steps,
+            v = the controller's velocity (eq. "density feedback law using estimation" for the
+            paper's feedback, with p_hat refitted every sub-step)
+            t += Δt; measure D_k; GP on all data -> f̄_k, V_k; record metrics
+
+:class:`Simulation` holds the state of one run; :meth:`Simulation.step` is one period of the loop
+above and reads like it.  Its parts are pluggable: the controller (:mod:`sim.controllers`), the
+unknown field (:mod:`sim.fields`), the stop rule (:mod:`sim.stopping`), the planner (an
+``ocp.ReferencePlanner``, built only if the controller needs a plan) and the recorders
+(:mod:`sim.recorders`).  :func:`sim.loop.run_simulation` is the thin facade most users call.
+
+The variance is checked against the stop rule only at period boundaries, as in Algorithm 1; the
+metrics nevertheless record sup V after every recorded measurement, and ``time_to_threshold`` is the
+first measurement time at which sup V <= the threshold.  sup V, f̄ and all fields are evaluated on
+the cell centres of the planner grid (:mod:`sim.metrics`).  A planner failure
+(``ocp.PlannerError``) ends the run with ``stop_reason = "planner_failed"``; everything recorded until
+then is kept in the result.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from ..control import KernelDensity, tracking_velocity
+from ..regression import GaussianProcess, reachable_target_density, target_density
+from ..regression.hyper import refit_online
+
+from .config import RunConfig
+from .dynamics import euler_maruyama_step, measure, uniform_in_box
+from .fields import make_field
+from .metrics import l2_norm
+from .recorders import MetricsRecorder
+from .result import QUIVER_POINTS, SimulationResult, Snapshot
+from .stopping import make_stop_rule
+
+__all__ = ["Simulation", "LatestEstimate", "check_config"]
+
+
+def check_config(config: RunConfig) -> None:
+    """Fail early (``ValueError``) on settings that the components would reject only mid-run:
+    a GP inducing grid above ``max_inducing_points``, a fixed KDE bandwidth needing too many bins,
+    an unknown stop rule."""
+    s = config.sim
+    GaussianProcess(config.gp, domain=s.domain)
+    make_stop_rule(s)
+    kde = KernelDensity(domain=s.domain, bandwidth=config.kde.bandwidth, bins=config.kde.bins)
+    if config.kde.bandwidth is not None:
+        try:
+            kde.resolve_bins(config.kde.bandwidth)
+        except ValueError as exc:
+            raise ValueError(f"kde.bandwidth: {exc}") from None
+
+
+class LatestEstimate:
+    """KDE of the most recent position array, refitted only when a new array arrives: the estimate
+    made for the metrics after a step is also the one the next step's first feedback evaluation needs.
+
+    ``hold`` (``kde.hold_substeps``): the controllers' sub-step calls refit only every ``hold`` new
+    arrays and otherwise reuse the last estimate (a zero-order hold of p̂, as a swarm whose density
+    estimate arrives at a fixed rate would see it); ``fresh=True`` (the measurement steps) always refits."""
+
+    def __init__(self, kde: KernelDensity, hold: int = 1):
+        self.kde = kde
+        self.hold = int(hold)
+        self._X, self._est, self._age = None, None, 0
+
+    def __call__(self, X, fresh: bool = False):
+        if X is not self._X:
+            self._age += 1
+            if fresh or self._est is None or self._age >= self.hold:
+                self._est, self._age = self.kde.fit(X), 0
+            self._X = X
+        return self._est
+
+
+def _quiver_points(domain, q=QUIVER_POINTS):
+    x0, x1, y0, y1 = domain
+    xs = x0 + (np.arange(q) + 0.5) * (x1 - x0) / q
+    ys = y0 + (np.arange(q) + 0.5) * (y1 - y0) / q
+    XQ, YQ = np.meshgrid(xs, ys, indexing="ij")
+    return np.column_stack([XQ.ravel(), YQ.ravel()])
+
+
+class Simulation:
+    """One closed-loop run of Algorithm 1.
+
+    ``config`` the resolved :class:`sim.config.RunConfig`; ``field`` overrides ``config.sim.field``;
+    ``planner`` a prebuilt ``ocp.ReferencePlanner`` for ``config.planner`` (built here otherwise, and only
+    if the controller needs a plan); ``controller`` a :class:`sim.controllers.Controller` instance
+    (default: the one ``config.sim.controller`` names); ``stop_rule`` a :class:`sim.stopping.StopRule`
+    (default: ``config.sim.stop_rule``); ``recorders`` extra :class:`sim.recorders.Recorder` objects
+    (the metrics recorder is always first).
+
+    Use :meth:`run`, or drive it yourself: :meth:`start`, then :meth:`step` until it returns False,
+    then :meth:`finish`; ``result`` holds everything recorded.
+    """
+
+    def __init__(self, config: RunConfig | None = None, *, field=None, planner=None, controller=None,
+                 stop_rule=None, recorders=()):
+        from ..ocp import Grid
+        from .controllers import make_controller
+
+        self.wall0 = time.perf_counter()
+        self.config = config = config or RunConfig.default()
+        s = self.settings = config.sim
+        self.field = make_field(s.field if field is None else field, s.domain)
+        self.controller = make_controller(s.controller, config) if controller is None else controller
+        self.stop_rule = make_stop_rule(s) if stop_rule is None else stop_rule
+        self.planner_error = ()               # nothing to catch without a planner
+        if self.controller.needs_plan:
+            from ..ocp import PlannerError, ReferencePlanner
+            self.planner_error = PlannerError
+            if planner is None:
+                planner = ReferencePlanner(config.planner)
+            grid = planner.grid
+        else:
+            grid = planner.grid if planner is not None else Grid(config.planner.domain, config.planner.nx,
+                                                                  config.planner.ny)
+        if tuple(grid.domain) != tuple(s.domain):
+            raise ValueError(f"planner grid domain {grid.domain} differs from sim.domain {s.domain}")
+        self.planner, self.grid = planner, grid
+        self.centers = grid.centers()
+        self.quiver_points = _quiver_points(s.domain)
+        f_true = self.field(self.centers).reshape(grid.shape)
+        if not np.all(np.isfinite(f_true)):
+            raise ValueError("the field has non-finite values on the grid")
+
+        self.rng = np.random.default_rng(s.seed)
+        self.gp = GaussianProcess(config.gp, domain=s.domain)
+        self.estimate = LatestEstimate(KernelDensity(domain=s.domain, bandwidth=config.kde.bandwidth,
+                                                     bins=config.kde.bins), config.kde.hold_substeps)
+        self.result = SimulationResult(config=config, field=self.field, grid=grid, f_true=f_true)
+        self.recorders = [MetricsRecorder(), *recorders]
+        n = s.robots
+        self.alive = np.ones(n, bool)
+        self.path_length = np.zeros(n)
+        self.energy = np.zeros(n)
+        self.result.path_length, self.result.energy, self.result.alive = self.path_length, self.energy, self.alive
+        self.h = s.dt / s.substeps           # Euler--Maruyama sub-step
+        self.t, self.step_index, self.period_index = 0.0, 0, 0
+        self.X = self.mean = self.var = self.p_hat = self.est = None
+        self.plan, self.sup_v, self.speed = None, math.nan, 0.0
+        self.interrupted = False
+        self.finished = False
+
+    # ----------------------------------------------------------------------------- the loop
+    def run(self) -> SimulationResult:
+        """Run to the end (stop rule, time limit or planner failure); returns the result."""
+        self.start()
+        try:
+            while self.step():
+                pass
+        except BaseException:
+            self.interrupted = True
+            raise
+        finally:
+            self.finish()
+        return self.result
+
+    def start(self) -> None:
+        """Initial positions, D_0 and the regression on D_0 (Algorithm 1, first two lines)."""
+        s = self.settings
+        self.X = uniform_in_box(s.robots, s.start_box, self.rng)
+        self.lose_robots()
+        self.measure()
+        self.regress()
+        self.estimate_density(fresh=True)
+        self._notify("start")
+        self.controller.start(self.context())
+
+    def step(self) -> bool:
+        """One period [kT, (k+1)T] of Algorithm 1; False once the run is over."""
+        self.refit_hyperparameters()
+        snap = self.snapshot()
+        if self.stop_rule.reached(self.var, self.gp):
+            return self.stop("threshold")
+        if self.out_of_time():
+            return self.stop("max_time")
+        p_f = self.target()
+        if p_f is None and self.controller.needs_plan:     # nothing left to plan for (the baselines go on)
+            return self.stop("variance_below_eta")
+        snap.target = p_f
+        if self.controller.needs_plan and not self.replan(p_f, snap):
+            return self.stop("planner_failed")
+        self.controller.start_period(self.context())
+        self._notify("planned")
+        for j in range(1, self.settings.steps_per_period + 1):
+            self.measurement_step(j)
+        self.period_index += 1
+        self._notify("period")
+        return True
+
+    def measurement_step(self, j: int) -> None:
+        """Δt under the controller, then measure, regress (when recorded) and observe."""
+        s, tm = self.settings, self.result.timings
+        t_dyn = time.perf_counter()
+        self.lose_robots()
+        self.move()
+        self.t = self.period_index * s.period + j * s.dt      # k T + j Δt: no accumulated rounding
+        Xa, y = self.measure()
+        self.estimate_density(fresh=True, on_grid=False)
+        self.step_index += 1
+        if j % s.metrics_every and j != s.steps_per_period:    # posterior not needed now: data only
+            tm["dynamics"] += time.perf_counter() - t_dyn
+            t_reg = time.perf_counter()
+            self.gp.add(Xa, y)
+            tm["regression"] += time.perf_counter() - t_reg
+            return
+        self.p_hat = self._p_hat_grid()
+        tm["dynamics"] += time.perf_counter() - t_dyn
+        self.regress(Xa, y)
+        self._notify("measured")
+        self.controller.observe(self.context())
+
+    def finish(self) -> None:
+        """Close the run: final fields in the result, wall time, the last snapshot's velocity."""
+        if self.finished:
+            return
+        self.finished = True
+        res = self.result
+        res.mean, res.var = self.mean, self.var
+        res.wall_time = time.perf_counter() - self.wall0
+        if not self.interrupted and self.plan is not None and res.snapshots and res.snapshots[-1].velocity is None:
+            res.snapshots[-1].velocity = self.commanded_velocity()
+        if res.stop_reason == "running" and self.interrupted:
+            res.stop_reason = "interrupted"
+        self._notify("finish")
+
+    # ----------------------------------------------------------------------------- the parts
+    def lose_robots(self) -> None:
+        """At sim.loss_time, a random fraction of the robots stops (own generator: the run's stream
+        is unchanged)."""
+        s, alive = self.settings, self.alive
+        if s.robot_loss > 0 and alive.all() and self.t >= s.loss_time - 1e-9 * s.period:
+            n = s.robots
+            m = int(round(s.robot_loss * n))
+            lost = np.random.default_rng([s.seed, 0x105]).choice(n, size=min(m, n - 1), replace=False)
+            alive[lost] = False
+
+    def working(self) -> np.ndarray:
+        """Positions of the robots that still work (the array itself while all do)."""
+        return self.X if self.alive.all() else self.X[self.alive]
+
+    def measure(self):
+        """Noisy measurements y = f(X) + eps of the working robots; the pending data (X_a, y)."""
+        Xa = self.working()
+        self._pending = (Xa, measure(self.field, Xa, self.settings.noise_variance, self.rng))
+        return self._pending
+
+    def regress(self, Xa=None, y=None) -> None:
+        """Add data to the GP and predict f̄, V on the grid (section "Generation of reference models")."""
+        if Xa is None:
+            Xa, y = self._pending
+        t0 = time.perf_counter()
+        self.gp.add(Xa, y)
+        mean, var = self.gp.predict(self.centers)
+        self.mean, self.var = mean.reshape(self.grid.shape), var.reshape(self.grid.shape)
+        self.result.timings["regression"] += time.perf_counter() - t0
+
+    def estimate_density(self, fresh: bool = False, on_grid: bool = True) -> None:
+        """KDE p̂ of the working robots (eq. "KDE"), on the planner grid if ``on_grid``."""
+        self.est = self.estimate(self.working(), fresh=fresh)
+        if on_grid:
+            self.p_hat = self._p_hat_grid()
+
+    def _p_hat_grid(self):
+        return self.grid.normalize(self.est.on_grid(self.grid.nx, self.grid.ny), "KDE of the robots")
+
+    def refit_hyperparameters(self) -> None:
+        """Online MAP refit of (s_f^2, l) at the period start (``gp.learn_hyperparameters``)."""
+        if self.config.gp.learn_hyperparameters and self.gp.n_observations >= 2:
+            t0 = time.perf_counter()
+            refit_online(self.gp)            # warm start; posterior recomputed below
+            m_, v_ = self.gp.predict(self.centers)
+            self.mean, self.var = m_.reshape(self.grid.shape), v_.reshape(self.grid.shape)
+            self.result.timings["regression"] += time.perf_counter() - t0
+
+    def snapshot(self) -> Snapshot:
+        """State at the period start, kept for the figures."""
+        self.sup_v = float(self.var.max())
+        snap = Snapshot(t=self.t, period=self.period_index, X=self.X.copy(), mean=self.mean, var=self.var,
+                        p_hat=self.p_hat)
+        self.result.snapshots.append(snap)
+        return snap
+
+    def out_of_time(self) -> bool:
+        s = self.settings
+        return self.period_index >= s.max_periods or self.t >= s.max_time - 1e-9 * s.period
+
+    def stop(self, reason: str) -> bool:
+        self.result.stop_reason = reason
+        return False
+
+    def target(self):
+        """p_f = max(V - eta, 0) / int (or the reachable variant); None if V <= eta everywhere."""
+        s, grid = self.settings, self.grid
+        eta = self.stop_rule.tolerance(self.gp)
+        if s.target == "reachable":
+            reach = 0.5 * self.config.planner.v_max * s.period if s.reach is None else s.reach   # 2 sd = v_max T
+            return reachable_target_density(self.var, eta, grid.cell_area, self.p_hat, reach, grid.dx, grid.dy)
+        return target_density(self.var, eta, grid.cell_area)
+
+    def information_inputs(self) -> dict:
+        """``{"information": InformationInputs}`` for ``planner.objective = "information"`` (the current GP
+        variance on the grid, the working robots, Δt, the GP's σ_n^2 and ℓ; :mod:`ocp.objectives`), else {}."""
+        if getattr(self.config.planner, "objective", "symmetric-kl") != "information":
+            return {}
+        from ..ocp.objectives import InformationInputs
+        gs = self.gp.settings
+        return {"information": InformationInputs(self.var, int(self.alive.sum()), self.settings.dt,
+                                                 gs.noise_variance, gs.length_scale)}
+
+    def replan(self, p_f, snap: Snapshot) -> bool:
+        """The reference for [t, t + T] (eqs. "optimization problem", "reference model"); False if the
+        planner failed (the failure is recorded in ``result.replans`` and ``result.error``)."""
+        res, k, t = self.result, self.period_index, self.t
+        t_plan = time.perf_counter()
+        try:
+            plan = self.planner.solve(self.p_hat, p_f, t0=t, warm_start=self.plan, **self.information_inputs())
+        except self.planner_error as exc:
+            info = dict(getattr(exc, "stats", {}) or {})
+            res.replans.append({"period": k, "t0": t, "max_variance": self.sup_v, "rmse": res.rows[-1]["rmse"],
+                                "status": info.get("status", "failed"), "success": False,
+                                "iterations": info.get("iterations", -1),
+                                "solve_time_s": time.perf_counter() - t_plan})
+            res.error = f"planner failed at t = {t:g} s (period {k}): {exc}"
+            return False
+        res.timings["planner"] += time.perf_counter() - t_plan
+        self.plan = plan
+        sv = plan.meta.get("solver", {})
+        res.replans.append({
+            "period": k, "t0": t, "max_variance": self.sup_v, "rmse": res.rows[-1]["rmse"],
+            "status": sv.get("status", "?"), "success": True, "iterations": sv.get("iterations", -1),
+            "solve_time_s": sv.get("wall_time_s", time.perf_counter() - t_plan),
+            "objective": plan.meta.get("objective"),
+            "symmetric_kl_initial": plan.meta.get("symmetric_kl_initial"),
+            "symmetric_kl_final": plan.meta.get("symmetric_kl_final"),
+        })
+        if k == 0 and math.isnan(res.rows[0]["tracking_error"]):
+            res.rows[0]["tracking_error"] = l2_norm(self.p_hat - plan.density_grid(t), self.grid.cell_area)
+        snap.velocity = self.commanded_velocity()
+        return True
+
+    def commanded_velocity(self) -> np.ndarray:
+        """The feedback velocity on QUIVER_POINTS^2 points at t, for the figures."""
+        v = tracking_velocity(self.quiver_points, self.plan, self.t, self.est, self.config.feedback)
+        return v.reshape(QUIVER_POINTS, QUIVER_POINTS, 2)
+
+    def move(self) -> None:
+        """Δt of eq. "Langevin equation" in ``substeps`` Euler--Maruyama steps (as dynamics.advance),
+        lost robots frozen, the controller's velocity saturated at its speed limit."""
+        s, ctrl, alive, h = self.settings, self.controller, self.alive, self.h
+        X, t, speed = self.X, self.t, 0.0
+        vmax = ctrl.v_max
+        for i in range(s.substeps):
+            v = np.asarray(ctrl.velocity(t + i * h, X, alive), dtype=float)
+            if not alive.all():
+                v = np.where(alive[:, None], v, 0.0)
+            sp = np.hypot(v[:, 0], v[:, 1])
+            over = sp > vmax * (1 + 1e-9)        # the feedback laws saturate already: leave their bits alone
+            if np.any(over):
+                v = v.copy()
+                v[over] *= (vmax / sp[over])[:, None]
+                sp = np.hypot(v[:, 0], v[:, 1])
+            speed += float(np.mean(sp)) if alive.all() else float(np.mean(sp[alive]))
+            self.path_length[:] += sp * h
+            self.energy[:] += sp * sp * h
+            Xn = euler_maruyama_step(X, v, h, ctrl.sigma, self.rng, s.domain)
+            if not alive.all():
+                Xn[~alive] = X[~alive]
+            X = Xn
+        self.X, self.speed = X, speed / s.substeps
+
+    def context(self):
+        """What the controller is given (:class:`sim.controllers.Context`)."""
+        from .controllers import Context
+        return Context(t=self.t, period=self.period_index, X=self.X, alive=self.alive, mean=self.mean,
+                       var=self.var, centers=self.centers, domain=self.settings.domain, h=self.h,
+                       plan=self.plan if self.controller.needs_plan else None, estimate=self.estimate,
+                       rng=self.rng)
+
+    def _notify(self, event: str) -> None:
+        for r in self.recorders:
+            getattr(r, event)(self)
