@@ -133,6 +133,7 @@ class ReferencePlanner:
             if information is None:
                 raise ValueError("planner.objective = 'information' needs solve(..., information=InformationInputs(...))")
             info = information.parameters(g)
+            info[-1] *= s.information_efficiency
         self._info, self._info_meta = info, (information.meta() if info is not None else None)
 
         coef0 = self.initial_coefficients(warm_start, t0)
@@ -228,6 +229,7 @@ class ReferencePlanner:
             "objective_terms": {"terminal": terms[0], "running": terms[1], "energy": terms[2]},
             "objective_kind": s.objective,
             **({"information": {**self._info_meta, "power": s.information_power, "weight": s.information_weight,
+                                "efficiency": s.information_efficiency,
                                 "phi": [float(v) for v in np.array(P.information_curve(a, p0, info)).ravel()]}}
                if info is not None else {}),
             "symmetric_kl_initial": kl0,

@@ -168,13 +168,16 @@ class PlannerSettings:
     information_power: float = 1.0
     #: scale of the (dimensionless, <= 1) information terms against the energy w_v int int |v|^2
     information_weight: float = 100.0
+    #: κ multiplying the mean-field measurement rate c = κ N / (Δt σ_n^2): the independent-information
+    #: assumption over-counts (docs/results/information-objective.md measures by how much); κ < 1 discounts it
+    information_efficiency: float = 1.0
 
     def __post_init__(self):
         from .objectives import OBJECTIVES
         if self.objective not in OBJECTIVES:
             raise ValueError(f"planner.objective must be one of {', '.join(repr(o) for o in OBJECTIVES)}, "
                              f"got {self.objective!r}")
-        _positive(self, "information_power", "information_weight")
+        _positive(self, "information_power", "information_weight", "information_efficiency")
         if self.objective == "information" and self.method != "ipopt":
             raise ValueError("planner.objective = 'information' is solved with method 'ipopt' only")
         if self.scheme not in ("upwind", "muscl"):
