@@ -41,7 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=Path("run"), help="output folder")
     p.add_argument("--seed", type=int, help="random seed (default 0)")
     p.add_argument("--robots", type=int, help="number of robots (default 100)")
-    p.add_argument("--field", help="sinc | plumes | ridge | path to a .npz/.npy/.csv field file (default sinc)")
+    p.add_argument("--field", help="sinc | plumes | ridge | waves | path to a .npz/.npy/.csv field file (default sinc)")
     p.add_argument("--controller", choices=_controller_names(),
                    help="feedback: the paper's mean-field law (default); open-loop: follow v_r alone; baselines "
                         "without a planner: diffusion (Brownian motion only), coverage (feedback towards the "

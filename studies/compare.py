@@ -242,7 +242,7 @@ def build_parser():
     p = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0])
     p.add_argument("--controllers", nargs="+", default=list(CONTROLLERS), metavar="NAME",
                    help=f"controllers to compare (default all: {' '.join(CONTROLLERS)})")
-    p.add_argument("--fields", nargs="+", default=["sinc"], metavar="FIELD", help="sinc | plumes | ridge | FILE ...")
+    p.add_argument("--fields", nargs="+", default=["sinc"], metavar="FIELD", help="sinc | plumes | ridge | waves | FILE ...")
     p.add_argument("--seeds", nargs="+", type=int, default=[0], metavar="S")
     p.add_argument("--robot-loss", nargs="+", type=float, default=[0.0], metavar="FRACTION")
     p.add_argument("--loss-time", type=float, metavar="SECONDS", help="time of the loss (default T)")
