@@ -13,6 +13,8 @@ the GP (``regression.GPSettings``), the KDE (:class:`KDESettings`), the feedback
     [feedback]   alpha, sigma, p_floor, v_max
     [planner]    nx, ny, horizon, n_intervals, n_modes_x, n_modes_y, w_f, w_p, w_v, v_max, ...
     [planner.ipopt]  tol, max_iter, ...
+    [domain]     source ("harbour", "floor", "lake" or a .npz/.png/.tif/.geojson file; "" = the empty
+                 rectangle), min_free_fraction (0.5), unreachable ("exclude" or "refuse"); see sim.domain
 
 Unknown tables or keys and bad values raise ``ValueError`` naming them.  Shared quantities have one
 source: ``planner.domain`` is ``sim.domain``, ``planner.horizon`` defaults to ``sim.period`` and
@@ -53,13 +55,14 @@ from ..runtime.validation import MAX_MAGNITUDE
 from ..control import FeedbackSettings
 from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict
 from ..regression import GPSettings
+from .domain import DomainSettings
 from .presets import DEFAULT_PRESET, PRESETS, merge_under_preset
 from .stopping import STOP_RULES
 
 __all__ = ["SimSettings", "KDESettings", "RunConfig", "load_config", "read_toml", "config_from_dict", "to_toml",
            "SECTIONS"]
 
-SECTIONS = ("sim", "gp", "kde", "feedback", "planner")
+SECTIONS = ("sim", "gp", "kde", "feedback", "planner", "domain")
 
 
 def _number(name, v, *, positive=False, nonneg=False):
@@ -304,6 +307,7 @@ class RunConfig:
     kde: KDESettings = field(default_factory=KDESettings)
     feedback: FeedbackSettings = field(default_factory=FeedbackSettings)
     planner: PlannerSettings = field(default_factory=PlannerSettings)
+    domain: DomainSettings = field(default_factory=DomainSettings)
     #: name of the preset (:mod:`sim.presets`) the settings were laid over; recorded, not applied here
     preset: str = DEFAULT_PRESET
 
@@ -401,7 +405,8 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
         except (TypeError, ValueError):
             raise ValueError(f"planner.domain must be [x0, x1, y0, y1], got {pl_map['domain']!r}") from None
     planner = dataclass_from_dict(PlannerSettings, pl_map, "planner")
-    return RunConfig(sim=sim, gp=gp, kde=kde, feedback=fb, planner=planner, preset=name)
+    dom = dataclass_from_dict(DomainSettings, dict(doc.get("domain", {})), "domain")
+    return RunConfig(sim=sim, gp=gp, kde=kde, feedback=fb, planner=planner, domain=dom, preset=name)
 
 
 def read_toml(path) -> dict:

@@ -8,6 +8,9 @@ target density p_f = max(V - eta, 0) / int.  A stop rule is a small object with
 ``tolerance(gp)``  the eta of the target density;
 ``reached(var, gp)``  whether the run may stop (default: ``var.max() <= threshold(gp)``).
 
+With obstacles (:mod:`sim.domain`) ``var`` is 0 on the cells outside the free space the swarm can
+reach, so a rule that looks at maxima or means of the positive part sees the free cells only.
+
 The simulator (:class:`sim.simulation.Simulation`) asks it at every period start, the metrics record
 ``threshold(gp)`` after every measurement, and every controller is judged by the same rule.
 

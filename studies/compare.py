@@ -1,4 +1,4 @@
-"""``compare-controllers``: controllers x fields x seeds x robot losses x robot counts, in parallel.
+"""``compare-controllers``: controllers x fields x seeds x robot losses x robot counts (x domains), in parallel.
 
 Every run is one closed-loop simulation (:func:`sim.loop.run_simulation`) of ``--max-periods``
 periods; the runs go through the generic runner :mod:`studies.runner` (local worker processes, or a
@@ -12,6 +12,10 @@ Dask cluster with ``--scheduler``; resumable: a restarted sweep skips the runs s
                   [min-max] over seeds of the time to sup V <= gamma (in periods T), the RMSE of f̄ at
                   fixed times, the mean path length and energy per robot at the end
 ``plots/*.png``   RMSE and sup V against t/T, a band (min-max over seeds) and the median per controller
+
+``--domains harbour floor FILE ...`` adds the domain (obstacles, :mod:`sim.domain`) as an axis: a
+``domain`` column in runs.csv and summary.md, one plot per domain; without it every run uses the
+configuration's own ``[domain]`` (the empty rectangle by default) and the outputs are unchanged.
 
 Comparison runs do not stop at sup V <= gamma (sim.gamma and sim.gamma_relative are set to 0 for
 the run; each configuration's own threshold -- gamma, or gamma_relative times the GP's current
@@ -40,6 +44,8 @@ ROW_COLUMNS = ("preset", "controller", "field", "seed", "robot_loss", "robots", 
                "threshold", "rmse", "alive", "path_length", "energy", "n_observations", "signal_variance",
                "length_scale", "stop_reason")
 KEYS = ("field", "robots", "robot_loss", "preset", "controller")
+#: with a domain axis (--domains): the extra column of runs.csv and the first key of summary.md
+DOMAIN_KEYS = ("domain",) + KEYS
 
 
 # ------------------------------------------------------------------------------ one run
@@ -53,6 +59,8 @@ def run_task(task: dict) -> list[dict]:
     T = cfg.sim.period
     rule, level = task["stop_rule"]          # the configuration's own rule (the run itself never stops at it)
     label = {k: task[k] for k in ("preset", "controller", "field", "seed", "robot_loss", "robots")}
+    if "domain" in task:
+        label["domain"] = task["domain"]
     return [{**label, "step": r["step"], "t": r["t"], "t_T": r["t"] / T, "max_variance": r["max_variance"],
              "threshold": level * r["signal_variance"] if rule == "relative" else level,
              "rmse": r["rmse"], "alive": r["alive"], "path_length": r["path_length"], "energy": r["energy"],
@@ -66,12 +74,14 @@ def _field_label(field: str) -> str:
 
 
 def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, loss_time=None, start_box=None,
-               max_periods=4, presets=None) -> list[dict]:
+               max_periods=4, presets=None, domains=None) -> list[dict]:
     """The sweep's task dicts: every combination, each with its fully resolved configuration.
 
     ``base_doc`` is a configuration document as written in a TOML file (only the values the user
     gives); each of ``presets`` (:mod:`sim.presets`; default: the document's own ``preset`` key, else
-    ``paper``) is laid under it, so the baselines of a preset share its GP and stopping settings."""
+    ``paper``) is laid under it, so the baselines of a preset share its GP and stopping settings.
+    ``domains`` (built-in names or files, :mod:`sim.domain`) adds the domain axis; each task then has
+    a ``domain`` label."""
     from ..sim.config import config_from_dict
     from ..sim.fields import FIELDS
     from ..sim.presets import DEFAULT_PRESET
@@ -80,6 +90,23 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
         presets = [base_doc.get("preset", DEFAULT_PRESET)]
     base_doc = {k: v for k, v in base_doc.items() if k != "preset"}
     tasks = []
+    if domains:
+        from ..sim.domain import BUILTIN_DOMAINS
+        for dom in domains:
+            if dom not in BUILTIN_DOMAINS and not Path(dom).is_file():
+                raise ValueError(f"domain {dom!r} is neither a built-in domain ({', '.join(BUILTIN_DOMAINS)}) "
+                                 "nor an existing file")
+        for dom in domains:
+            src = dom if dom in BUILTIN_DOMAINS else str(Path(dom).resolve())
+            doc = {**base_doc, "domain": {**base_doc.get("domain", {}), "source": src}}
+            sub = make_tasks(doc, controllers, fields, seeds, losses, robots, loss_time=loss_time,
+                             start_box=start_box, max_periods=max_periods, presets=presets)
+            for t in sub:
+                t["domain"] = dom if dom in BUILTIN_DOMAINS else Path(dom).stem
+                if dom not in BUILTIN_DOMAINS:
+                    t["domain_source"] = f"{src}#sha256={hashlib.sha256(Path(src).read_bytes()).hexdigest()[:16]}"
+            tasks += sub
+        return tasks
     for field in fields:
         fsig = field
         if field not in FIELDS:
@@ -118,9 +145,10 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
 def write_csv(rows, path: Path) -> None:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(ROW_COLUMNS)
+    cols = ("domain",) + ROW_COLUMNS if any("domain" in r for r in rows) else ROW_COLUMNS
+    w.writerow(cols)
     for r in rows:
-        w.writerow([_fmt(r.get(c)) for c in ROW_COLUMNS])
+        w.writerow([_fmt(r.get(c)) for c in cols])
     write_atomic(path, buf.getvalue())
 
 
@@ -139,10 +167,15 @@ def _value_at(run_rows, t_T):
     return best
 
 
+def _keys(runs):
+    return DOMAIN_KEYS if any("domain" in task for task, _ in runs) else KEYS
+
+
 def _group(runs):
     groups = {}
+    keys = _keys(runs)
     for task, rows in runs:
-        groups.setdefault(tuple(task[k] for k in KEYS), []).append((task, rows))
+        groups.setdefault(tuple(task.get(k) for k in keys), []).append((task, rows))
     return groups
 
 
@@ -159,14 +192,16 @@ def _stat(vals, fmt="{:.3f}"):
 
 def summary_table(runs, gamma: float, times) -> str:
     """Markdown table (deterministic: sorted keys, formatted numbers) of ``runs = [(task, rows), ...]``."""
-    head = ["field", "robots", "loss", "preset", "controller", "sup V ≤ γ at [T]"] + \
+    dom = _keys(runs) is DOMAIN_KEYS
+    head = (["domain"] if dom else []) + ["field", "robots", "loss", "preset", "controller", "sup V ≤ γ at [T]"] + \
         [f"RMSE at {t:g}T" for t in times] + ["path length [m]", "energy [m²/s]"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     order = {}
     for task, _ in runs:
         order.setdefault((task["preset"], task["controller"]), len(order))
-    for key in sorted(_group(runs), key=lambda k: (k[0], k[1], k[2], order[k[3], k[4]])):
-        grp = _group(runs)[key]
+    groups = _group(runs)
+    for key in sorted(groups, key=lambda k: (*k[:-2], order[k[-2], k[-1]])):
+        grp = groups[key]
         ttt, reached = [], 0
         for _, rows in grp:
             hit = next((r["t_T"] for r in rows if r["max_variance"] <= r.get("threshold", gamma)), None)
@@ -175,7 +210,7 @@ def summary_table(runs, gamma: float, times) -> str:
         tcell = _stat([x for x in ttt if x is not None], "{:.2f}")
         if reached < len(grp):
             tcell += f" ({len(grp) - reached}/{len(grp)} never)"
-        cells = [key[0], str(key[1]), f"{100 * key[2]:.0f} %", key[3], key[4], tcell]
+        cells = ([key[0]] if dom else []) + [key[-5], str(key[-4]), f"{100 * key[-3]:.0f} %", key[-2], key[-1], tcell]
         for t in times:
             cells.append(_stat([(_value_at(rows, t) or {}).get("rmse") for _, rows in grp]))
         cells.append(_stat([rows[-1]["path_length"] for _, rows in grp], "{:.1f}"))
@@ -184,9 +219,9 @@ def summary_table(runs, gamma: float, times) -> str:
     return "\n".join(lines) + "\n"
 
 
-def plot_name(field: str, robots: int, robot_loss: float) -> str:
-    """File name of the plot of one scenario (field, robot count, loss)."""
-    return f"{field}_n{robots}_loss{int(round(100 * robot_loss))}.png"
+def plot_name(field: str, robots: int, robot_loss: float, domain: str | None = None) -> str:
+    """File name of the plot of one scenario (field, robot count, loss[, domain])."""
+    return (f"{domain}_" if domain else "") + f"{field}_n{robots}_loss{int(round(100 * robot_loss))}.png"
 
 
 def write_plots(runs, out: Path, gamma: float) -> list[str]:
@@ -200,9 +235,9 @@ def write_plots(runs, out: Path, gamma: float) -> list[str]:
     several = len({task["preset"] for task, _ in runs}) > 1
     for task, rows in runs:
         label = f"{task['controller']} ({task['preset']})" if several else task["controller"]
-        by_scenario.setdefault((task["field"], task["robots"], task["robot_loss"]), {}) \
+        by_scenario.setdefault((task.get("domain") or "", task["field"], task["robots"], task["robot_loss"]), {}) \
             .setdefault(label, []).append(rows)
-    for (field, n, loss), ctrls in sorted(by_scenario.items()):
+    for (domain, field, n, loss), ctrls in sorted(by_scenario.items()):
         fig, axes = plt.subplots(1, 2, figsize=(11, 4))
         for ci, (ctrl, runs_c) in enumerate(ctrls.items()):
             m = min(len(r) for r in runs_c)
@@ -221,9 +256,10 @@ def write_plots(runs, out: Path, gamma: float) -> list[str]:
             ax.set_xlabel("t / T")
             ax.grid(alpha=0.3)
         axes[0].legend(fontsize=8)
-        fig.suptitle(f"{field}, {n} robots, {100 * loss:.0f} % lost (median and range over seeds)")
+        fig.suptitle((f"{domain}: " if domain else "") + f"{field}, {n} robots, {100 * loss:.0f} % lost "
+                     "(median and range over seeds)")
         fig.tight_layout()
-        name = plot_name(field, n, loss)
+        name = plot_name(field, n, loss, domain or None)
         fig.savefig(out / name, dpi=90)
         plt.close(fig)
         written.append(name)
@@ -248,6 +284,9 @@ def build_parser():
     p.add_argument("--loss-time", type=float, metavar="SECONDS", help="time of the loss (default T)")
     p.add_argument("--robots", nargs="+", type=int, default=None, metavar="N",
                    help="robot counts (default: the configuration's, 100)")
+    p.add_argument("--domains", "--domain", nargs="+", default=None, metavar="NAME|FILE",
+                   help="obstacles: built-in domains (harbour, floor, lake) or map files (.npz, .png, .tif, .geojson) "
+                        "as an axis of the sweep (default: the configuration's [domain], the empty rectangle)")
     p.add_argument("--start-box", type=float, nargs=4, metavar=("X0", "X1", "Y0", "Y1"))
     p.add_argument("--max-periods", type=int, default=4, help="length of every run in periods T (default 4)")
     p.add_argument("--times", nargs="+", type=float, default=None, metavar="K",
@@ -284,7 +323,15 @@ def run(argv=None) -> int:
         robots = args.robots or [base.sim.robots if base else 100]
         tasks = make_tasks(base_doc, args.controllers, args.fields, args.seeds, args.robot_loss, robots,
                            loss_time=args.loss_time, start_box=args.start_box, max_periods=args.max_periods,
-                           presets=args.presets)
+                           presets=args.presets, domains=args.domains)
+        if args.domains:               # bad domains fail here, in one line, before any run
+            from ..sim.config import config_from_dict
+            from ..sim.simulation import check_config
+            seen = set()
+            for t in tasks:
+                if t["domain"] not in seen:
+                    seen.add(t["domain"])
+                    check_config(config_from_dict(t["config"]))
     except ValueError as exc:
         raise InputError(str(exc)) from None
     if gamma <= 0:
@@ -293,7 +340,8 @@ def run(argv=None) -> int:
     out = args.out
     outputs = ["runs.csv", "summary.md"]
     if not args.no_plots:
-        outputs += sorted({f"plots/{plot_name(t['field'], t['robots'], t['robot_loss'])}" for t in tasks})
+        outputs += sorted({f"plots/{plot_name(t['field'], t['robots'], t['robot_loss'], t.get('domain'))}"
+                           for t in tasks})
     # OUT may hold other files (only these names are ever replaced); it is locked for the whole sweep,
     # and runs.csv, summary.md and the plots are published together (runtime.publish)
     folder = OutputFolder(out, PROG, outputs, foreign_ok=True)
