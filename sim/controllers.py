@@ -17,7 +17,8 @@ robots by eq. "Langevin equation" with diffusion ``ctrl.sigma`` and reflecting w
 Speed limit.  The feedback laws (``feedback``, ``open-loop``, ``coverage``) saturate at
 ``feedback.v_max`` (4 m/s, as in every paper run: the headroom of the feedback law over the 3 m/s
 reference); the motion baselines ``greedy`` and ``lawnmower`` drive at ``planner.v_max`` (3 m/s,
-the planner's own limit on the reference velocity).  ``diffusion`` has v = 0.
+the planner's own limit on the reference velocity), and so does ``ergodic`` (spectral multiscale
+coverage towards mu ∝ V, :mod:`sim.ergodic`).  ``diffusion`` has v = 0.
 
 Obstacles (issue 19).  With a domain (``[domain] source``), ``ctx.free`` is the (nx, ny) bool mask of
 the planner cells the swarm can use (free and reachable from the start box) and ``ctx.region`` the
@@ -43,9 +44,11 @@ import numpy as np
 
 from ..control import feedback_velocity, saturate, tracking_velocity
 from ..control.stirring import stirring_pattern
+from .ergodic import SpectralCoverage
 
 __all__ = ["Context", "Controller", "FeedbackController", "OpenLoopController", "DiffusionController",
-           "CoverageController", "GreedyController", "LawnmowerController", "CONTROLLERS", "register",
+           "CoverageController", "GreedyController", "LawnmowerController", "ErgodicController", "CONTROLLERS",
+           "register",
            "make_controller"]
 
 
@@ -552,8 +555,37 @@ def _string_pull(geo, cells) -> list:
     return out
 
 
+class ErgodicController(Controller):
+    """Spectral multiscale coverage (Mathew & Mezić 2011, :mod:`sim.ergodic`) towards the target
+    mu ∝ V, refreshed after every measurement: u_j = -v_max B_j / |B_j| with B_j = sum_k Lambda_k S_k
+    grad f_k(x_j), S_k the swarm's accumulated coefficient difference to the target; speed
+    ``planner.v_max``, ``sim.ergodic_modes`` cosine modes per axis, no planner."""
+
+    name = "ergodic"
+
+    def __init__(self, config):
+        super().__init__(config)
+        self.smc = SpectralCoverage(config.sim.domain, config.sim.ergodic_modes, self.v_max)
+        self.h = None
+
+    def start(self, ctx):
+        self.h = ctx.h
+        self.smc.set_target(ctx.var, ctx.centers)
+
+    def observe(self, ctx):
+        self.smc.set_target(ctx.var, ctx.centers)
+
+    def velocity(self, t, X, alive):
+        # called once per Euler sub-step of length h, with the positions at its start
+        if alive.all():
+            return self.smc.step(X, self.h)
+        v = np.zeros_like(X)
+        v[alive] = self.smc.step(X[alive], self.h)
+        return v
+
+
 CONTROLLERS = {c.name: c for c in (FeedbackController, OpenLoopController, DiffusionController, CoverageController,
-                                   GreedyController, LawnmowerController)}
+                                   GreedyController, LawnmowerController, ErgodicController)}
 
 
 def register(cls) -> type:

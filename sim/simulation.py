@@ -151,6 +151,8 @@ class Simulation:
         self.planner, self.grid = planner, grid
         self.centers = grid.centers()
         self._free_centers = None if self.free is None else self.centers[self.free.ravel()]
+        # sup V is taken on the cell centres (the free, reachable ones with obstacles)
+        self.stop_rule.bind(self.centers if self.free is None else self._free_centers)
         self.quiver_points = _quiver_points(s.domain)
         f_true = self.field(self.centers).reshape(grid.shape)
         if not np.all(np.isfinite(f_true)):
