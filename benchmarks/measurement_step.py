@@ -2,6 +2,7 @@
 
     python benchmarks/measurement_step.py [--robots 1000 10000 100000] [--periods 3] [--controller feedback]
                                           [--configs default coarse-gp coarse-gp+hold]
+                                          [--domains rectangle harbour floor lake]
 
 A step is what ``sim.loop.run_simulation`` does between two measurements: Δt of Langevin dynamics in
 ``substeps`` sub-steps (controller velocity + KDE refit each), the measurement, the KDE of the new
@@ -25,6 +26,9 @@ Two configurations for large swarms can be added to the table (``--configs``):
 * ``coarse-gp+hold``: also ``kde.hold_substeps = 8`` (p̂ refitted once per measurement step instead
   of every Euler sub-step).
 
+``--domains`` times the same step with obstacles (issue 19: built-in domains, :mod:`sim.domain`;
+target: within 1.3x of the empty rectangle at 10,000 robots); ``rectangle`` is the empty domain.
+
 The final RMSE of f̄ is printed so that the price in accuracy is visible next to the time.
 
 Targets (issue 9): a full step with regression <= 50 ms at 10,000 robots, <= 0.5 s at 100,000.
@@ -46,8 +50,10 @@ CONFIGS = {
 }
 
 
-def step_time(n: int, every: int, periods: int, controller: str, config: str = "default"):
+def step_time(n: int, every: int, periods: int, controller: str, config: str = "default", domain: str = "rectangle"):
     doc = {k: dict(v) for k, v in CONFIGS[config].items()}
+    if domain != "rectangle":
+        doc["domain"] = {"source": domain}
     doc["sim"] = {"robots": n, "metrics_every": every, "max_periods": periods, "gamma": 0.0, "controller": controller,
                   "allow_long_run": True}
     cfg = config_from_dict(doc)
@@ -65,15 +71,17 @@ def main():
     ap.add_argument("--periods", type=int, default=3, help="periods per run (the t = 0 posterior is amortised)")
     ap.add_argument("--controller", default="feedback")
     ap.add_argument("--configs", nargs="+", default=["default"], choices=list(CONFIGS))
+    ap.add_argument("--domains", nargs="+", default=["rectangle"], help="rectangle | harbour | floor | lake | FILE")
     args = ap.parse_args()
-    print("| robots | configuration | metrics_every | step [ms] | regression [ms] | dynamics + KDE [ms] | final RMSE |")
-    print("|---|---|---|---|---|---|---|")
+    print("| robots | domain | configuration | metrics_every | step [ms] | regression [ms] | dynamics + KDE [ms] | final RMSE |")
+    print("|---|---|---|---|---|---|---|---|")
     for n in args.robots:
         for config in args.configs:
             for every in args.every:
-                tot, reg, dyn, err = step_time(n, every, args.periods, args.controller, config)
-                print(f"| {n:,} | {config} | {every} | {1e3 * tot:.0f} | {1e3 * reg:.0f} | {1e3 * dyn:.0f} | {err:.4f} |",
-                      flush=True)
+                for dom in args.domains:
+                    tot, reg, dyn, err = step_time(n, every, args.periods, args.controller, config, dom)
+                    print(f"| {n:,} | {dom} | {config} | {every} | {1e3 * tot:.0f} | {1e3 * reg:.0f} | {1e3 * dyn:.0f} "
+                          f"| {err:.4f} |", flush=True)
     print(f"peak RSS {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB")
 
 

@@ -52,8 +52,16 @@ def build_parser() -> argparse.ArgumentParser:
                         "radius v_max; face: pointwise face bounds (slow)")
     g.add_argument("--transport", choices=["auto", "compiled", "numpy", "casadi"],
                    help="transport kernel inside the NLP (default auto)")
+    g.add_argument("--scheme", choices=["upwind", "muscl"],
+                   help="finite-volume scheme: upwind (first-order donor cell, the paper's, default) or muscl "
+                        "(second order: minmod MUSCL with SSP-RK2, 1.5x the sub-steps)")
     g.add_argument("--method", "--solver", dest="method", choices=["ipopt", "grg"], default=None,
                    help="solver: IPOPT on the NLP (default), or the paper's GRG baseline")
+    g.add_argument("--domain", metavar="FILE|NAME",
+                   help="obstacles: a built-in domain (harbour, floor, lake) or a map file (.npz, .png, .tif, "
+                        ".geojson); cells are free iff their free-area fraction >= --min-free-fraction")
+    g.add_argument("--min-free-fraction", type=float, default=0.5, metavar="F",
+                   help="with --domain: a cell is free iff at least this fraction of it is free (default 0.5)")
     s = p.add_argument_group("IPOPT")
     s.add_argument("--tol", type=float, help="IPOPT tol (default 1e-6)")
     s.add_argument("--max-iter", type=int, help="IPOPT max_iter (default 500)")
@@ -84,7 +92,7 @@ def resolve_settings(args) -> PlannerSettings:
              "w_f": args.w_f, "w_p": args.w_p, "w_v": args.w_v, "v_max": args.v_max,
              "target_floor": args.target_floor, "transport": args.transport,
              "basis": getattr(args, "basis", None), "speed_limit": getattr(args, "speed_limit", None),
-             "method": getattr(args, "method", None)}
+             "method": getattr(args, "method", None), "scheme": getattr(args, "scheme", None)}
     if args.modes is not None:
         flags["n_modes_x"], flags["n_modes_y"] = args.modes
     cfg.update({k: v for k, v in flags.items() if v is not None})
@@ -121,6 +129,46 @@ def load_density(path: Path, shape, name: str) -> np.ndarray:
     if not arr.max() > 0:
         raise InputError(f"{name} in {path} has zero mass")
     return arr
+
+
+def domain_problem(args, grid, p0, target):
+    """``(free, p0, target)`` with obstacles: the cells free by the free-area rule and connected (through
+    faces) to the initial density's support (the default scenario: the start box [0, 7]^2, which must
+    be free); both densities zeroed on the other cells and renormalised.  Unreachable free cells are
+    excluded with a one-line warning naming their area (as simulate-swarm does)."""
+    from ..sim.domain import make_domain
+    f = args.min_free_fraction
+    if not (0 < f <= 1):
+        raise InputError(f"--min-free-fraction must be in (0, 1], got {f}")
+    try:
+        dom = make_domain(args.domain, grid.domain)
+        classified = dom.free_cells(grid, f)
+        if not classified.any():
+            raise ValueError(f"domain {dom.name}: no free cell at {grid.nx} x {grid.ny} cells")
+        if args.initial is None:
+            dom.check_start_box((0.0, 7.0, 0.0, 7.0))
+            free = dom.reachable_cells(classified, (0.0, 7.0, 0.0, 7.0))
+        else:
+            from scipy import ndimage
+            lab, _ = ndimage.label(classified)
+            ids = np.unique(lab[classified & (p0 > 1e-3 * p0.max())])
+            free = np.isin(lab, ids[ids > 0])
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    if not free.any():
+        raise InputError(f"domain {dom.name}: the initial density has no mass on a free cell")
+    lost = classified & ~free
+    if lost.any():
+        print(f"{PROG}: warning: domain {dom.name}: {lost.sum() * grid.cell_area:g} m^2 of free space "
+              f"({int(lost.sum())} cells) cannot be reached from the initial density; it is excluded",
+              file=sys.stderr)
+    out = []
+    for arr, name in ((p0, "initial density"), (target, "target density")):
+        a = np.where(free, arr, 0.0)
+        if not a.sum() > 0:
+            raise InputError(f"{name} has no mass on the free cells of domain {dom.name}")
+        out.append(a / (a.sum() * grid.cell_area))
+    return free, out[0], out[1]
 
 
 def check_output(path: Path, suffix: str, what: str):
@@ -175,7 +223,15 @@ def run(argv=None) -> int:
         target, target_desc = first_step_target(grid, seed=args.seed)
     from ..ocp.planner import PlannerError, ReferencePlanner
 
-    planner = ReferencePlanner(settings)
+    free = None
+    if getattr(args, "domain", None) is not None:
+        free, p0, target = domain_problem(args, grid, p0, target)
+        try:
+            planner = ReferencePlanner(settings, free=free)
+        except TypeError:
+            raise InputError("this planner (ocp.ReferencePlanner) does not support obstacles yet") from None
+    else:
+        planner = ReferencePlanner(settings)
     try:
         plan = planner.solve(p0, target, t0=args.t0, warm_start=warm)
     except PlannerError as exc:
@@ -183,6 +239,9 @@ def run(argv=None) -> int:
         return 1
     plan.meta["initial_density"] = p0_desc
     plan.meta["target_density"] = target_desc
+    if free is not None:
+        plan.meta["domain"] = {"source": args.domain, "min_free_fraction": args.min_free_fraction,
+                               "free_cells": int(free.sum())}
     # plan and plot are written to temporary files first and renamed together (runtime.publish): an
     # interrupt or a write error leaves both previous files as they were
     writing = args.out

@@ -42,6 +42,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, help="random seed (default 0)")
     p.add_argument("--robots", type=int, help="number of robots (default 100)")
     p.add_argument("--field", help="sinc | plumes | ridge | waves | path to a .npz/.npy/.csv field file (default sinc)")
+    p.add_argument("--domain", metavar="FILE|NAME",
+                   help="obstacles: a built-in domain (harbour, floor, lake) or a map file: .npz mask, .png image, "
+                        ".tif GeoTIFF or .geojson polygons (docs/guide/domains.md); default: the empty rectangle")
     p.add_argument("--controller", choices=_controller_names(),
                    help="feedback: the paper's mean-field law (default); open-loop: follow v_r alone; baselines "
                         "without a planner: diffusion (Brownian motion only), coverage (feedback towards the "
@@ -85,12 +88,30 @@ def resolve(args):
         preset = getattr(args, "preset", None)
         config = load_config(args.config, overrides, preset) if args.config is not None else \
             config_from_dict({}, overrides, preset)
+        config = with_domain(config, getattr(args, "domain", None))
         field = make_field(config.sim.field, config.sim.domain)
         check_config(config)
     except ValueError as exc:
         raise InputError(str(exc)) from None
     assert isinstance(config, RunConfig)
     return config, field
+
+
+def with_domain(config, source):
+    """``config`` with ``[domain] source`` replaced by ``source`` (a built-in name, or a file made
+    absolute so that DIR/config.toml repeats the run from anywhere); unchanged for None."""
+    import dataclasses
+    from ..sim.domain import BUILTIN_DOMAINS
+    if source is None:
+        return config
+    if source not in BUILTIN_DOMAINS and source != "":
+        check_path(source, "domain file")
+        p = Path(source)
+        if not p.exists():
+            raise ValueError(f"domain {source!r} is neither a built-in domain ({', '.join(BUILTIN_DOMAINS)}) "
+                             "nor an existing file")
+        source = str(p.resolve())
+    return dataclasses.replace(config, domain=dataclasses.replace(config.domain, source=source))
 
 
 def _progress_printer(config):
@@ -112,6 +133,14 @@ def _progress_printer(config):
 
 
 def run(argv=None) -> int:
+    import warnings
+    with warnings.catch_warnings():       # library warnings (e.g. unreachable free space) as one line each
+        warnings.simplefilter("default")
+        warnings.showwarning = lambda message, *a, **k: print(f"{PROG}: warning: {message}", file=sys.stderr)
+        return _run(argv)
+
+
+def _run(argv=None) -> int:
     args = build_parser().parse_args(argv)
     config, field = resolve(args)
     from ..sim.outputs import output_folder
@@ -126,9 +155,14 @@ def run(argv=None) -> int:
 
     planner = None
     if CONTROLLERS[config.sim.controller].needs_plan:     # the baselines never build the planner
-        from ..ocp import ReferencePlanner
+        from ..ocp import Grid
+        from ..sim.simulation import make_planner, resolve_domain
         try:
-            planner = ReferencePlanner(config.planner)
+            import warnings
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                _, free = resolve_domain(config, Grid(config.planner.domain, config.planner.nx, config.planner.ny))
+            planner = make_planner(config.planner, free)
         except ValueError as exc:
             raise InputError(f"planner: {exc}") from None
     try:

@@ -84,7 +84,9 @@ class GRGSolver:
         else:
             backend = "compiled" if K.compiled_available() else "numpy"
             self.kernel = K.TransportKernel(g.nx, g.ny, P.N, P.n_sub, P.dt / g.dx, P.dt / g.dy,
-                                            s.upwind_smoothing, backend)
+                                            s.upwind_smoothing, backend, free=P.free)
+        #: free-cell weights of the KL sums (ocp.mask): blocked cells contribute nothing
+        self._w_cell = None if P.free is None else P.free.ravel(order="F").astype(float)
         self._traj = None
         self.w_energy = s.w_v * s.interval * g.lx * g.ly / 4.0
         trap = np.ones(P.N + 1)
@@ -110,21 +112,24 @@ class GRGSolver:
     def objective(self, coef, p0, q) -> float:
         """J(a) of eq. "optimization problem" (the same discretised cost as the CasADi NLP)."""
         _, _, snaps = self._forward(coef, p0.ravel(order="F"))
-        return self._cost(snaps, q.ravel(order="F"), np.log(q).ravel(order="F"), coef)
+        return self._cost(snaps, q.ravel(order="F"), self.problem.log_target(q).ravel(order="F"), coef)
 
     def _cost(self, snaps, qf, lqf, coef):
         s, g = self.problem.settings, self.problem.grid
-        kl = ((snaps - qf) * (np.log(snaps + s.log_eps) - lqf)).sum(axis=1) * g.cell_area
+        terms = (snaps - qf) * (np.log(snaps + s.log_eps) - lqf)
+        kl = (terms.sum(axis=1) if self._w_cell is None else terms @ self._w_cell) * g.cell_area
         return float(self.w_snap @ kl + self.w_energy * np.sum(coef * coef))
 
     def objective_and_gradient(self, coef, p0, q):
         """(J, dJ/da (N, 2, I, J)): state forward, co-state backward, gradient from the optimality condition."""
         P, s, g = self.problem, self.problem.settings, self.problem.grid
-        qf, lqf = q.ravel(order="F"), np.log(q).ravel(order="F")
+        qf, lqf = q.ravel(order="F"), P.log_target(q).ravel(order="F")
         VX, VY, snaps = self._forward(coef, p0.ravel(order="F"))
         J = self._cost(snaps, qf, lqf, coef)
         # dJ/dp on the interval boundaries: the co-state's jump conditions
         dkl = (np.log(snaps + s.log_eps) - lqf + (snaps - qf) / (snaps + s.log_eps)) * g.cell_area
+        if self._w_cell is not None:
+            dkl = dkl * self._w_cell
         gvx, gvy, _ = self.kernel.adjoint(VX, VY, self._traj, self.w_snap[:, None] * dkl)
         grad = np.empty_like(coef)
         for l in range(P.N):

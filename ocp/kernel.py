@@ -8,6 +8,11 @@ and p0, and returns the density at every sub-step; :meth:`TransportKernel.adjoin
 seeds on the interval-boundary snapshots back to face velocities and p0 (reverse sweep over the
 stored trajectory: the co-state equation of the discrete problem).
 
+Free-cell masks (issue 19, :mod:`ocp.mask`): the face masks (1 open, 0 closed) are data of the kernel;
+the split velocities v+ and v- of every face are multiplied by them (zero flux through a face next to
+a blocked cell, as at the walls), and the face-velocity adjoint by the same masks.  Without a mask
+they are ones, which leaves every result unchanged bit for bit.
+
 Memory layout (column-major, as CasADi's ``vec``): p[i + nx j] (nx*ny), vx[i + (nx-1) j] on the
 interior x-faces ((nx-1)*ny), vy[i + nx j] on the interior y-faces (nx*(ny-1)).
 
@@ -42,12 +47,12 @@ C_SOURCE = r"""
 #include <stdlib.h>
 #include <string.h>
 
-/* smoothed upwind split of n face velocities */
-static void split(long n, const double *v, double eps2, double *vp, double *vm) {
+/* smoothed upwind split of n face velocities, times the face mask m (1 open, 0 closed) */
+static void split(long n, const double *v, double eps2, const double *m, double *vp, double *vm) {
     for (long k = 0; k < n; k++) {
         double p = 0.5 * (v[k] + sqrt(v[k] * v[k] + eps2));
-        vp[k] = p;
-        vm[k] = p - v[k];
+        vp[k] = m[k] * p;
+        vm[k] = m[k] * (p - v[k]);
     }
 }
 
@@ -116,17 +121,247 @@ static void step_adj(int nx, int ny, double rx, double ry, const double *xp, con
     }
 }
 
+/* ---------------------------------------------------------------- MUSCL (minmod) with SSP-RK2
+   Branch-free loops over whole rows (vectorisable); a stage is: masked one-sided differences
+   (a difference across a closed face counts as 0: no slope reaches across it), minmod slopes sx, sy
+   (0 in the first and last cell of a line: walls), then the fluxes of the limited face values. */
+static inline double minmod(double a, double b) {
+    double aa = fabs(a), ab = fabs(b);
+    double m = aa < ab ? aa : ab;
+    double sg = (double)(a > 0.0) * (double)(b > 0.0) - (double)(a < 0.0) * (double)(b < 0.0);
+    return sg * m;
+}
+
+/* limited slopes sx, sy (nx*ny) of p: minmod of the one-sided differences (p[i+1] - p[i]) * mask, a difference
+   across a closed face counting as 0; 0 in the first and last cell of each line (walls) */
+static void slopes_p(int nx, int ny, const double *restrict mx, const double *restrict my, const double *restrict p,
+                     double *restrict sx, double *restrict sy) {
+    int fx = nx - 1;
+    for (int j = 0; j < ny; j++) {
+        const double *pc = p + (long)nx * j, *m = mx + (long)fx * j;
+        double *s = sx + (long)nx * j;
+        s[0] = 0.0;
+        s[nx - 1] = 0.0;
+        for (int i = 1; i < nx - 1; i++) s[i] = minmod((pc[i] - pc[i - 1]) * m[i - 1], (pc[i + 1] - pc[i]) * m[i]);
+    }
+    long top = (long)nx * (ny - 1);
+    for (int i = 0; i < nx; i++) { sy[i] = 0.0; sy[top + i] = 0.0; }
+    for (int j = 1; j < ny - 1; j++) {
+        const double *pd = p + (long)nx * (j - 1), *pc = pd + nx, *pu = pc + nx;
+        const double *md = my + (long)nx * (j - 1), *mu = md + nx;
+        double *s = sy + (long)nx * j;
+        for (int i = 0; i < nx; i++) s[i] = minmod((pc[i] - pd[i]) * md[i], (pu[i] - pc[i]) * mu[i]);
+    }
+}
+
+/* forward-Euler stage with the limited face values: q = p - rx (F_i - F_{i-1}) - ry (G_j - G_{j-1}),
+   F = v+ (p_L + s_L / 2) - v- (p_R - s_R / 2); fb: nx + 1 scratch, gprev: nx scratch */
+static void euler_muscl(int nx, int ny, double rx, double ry, const double *restrict xp, const double *restrict xm,
+                        const double *restrict yp, const double *restrict ym, const double *restrict p, const double *restrict sx, const double *restrict sy,
+                        double *restrict q, double *restrict fb, double *restrict gprev) {
+    int mx = nx - 1;
+    for (int i = 0; i < nx; i++) gprev[i] = 0.0;
+    fb[0] = 0.0;
+    fb[nx] = 0.0;
+    for (int j = 0; j < ny; j++) {
+        const double *pc = p + (long)nx * j, *sc = sx + (long)nx * j, *tc = sy + (long)nx * j;
+        double *qc = q + (long)nx * j;
+        const double *a = xp + (long)mx * j, *b = xm + (long)mx * j;
+        for (int i = 0; i < mx; i++) fb[i + 1] = a[i] * (pc[i] + 0.5 * sc[i]) - b[i] * (pc[i + 1] - 0.5 * sc[i + 1]);
+        for (int i = 0; i < nx; i++) qc[i] = pc[i] - rx * (fb[i + 1] - fb[i]);
+        if (j < ny - 1) {
+            const double *pn = pc + nx, *tn = tc + nx, *c = yp + (long)nx * j, *d = ym + (long)nx * j;
+            for (int i = 0; i < nx; i++) {
+                double gu = c[i] * (pc[i] + 0.5 * tc[i]) - d[i] * (pn[i] - 0.5 * tn[i]);
+                qc[i] = qc[i] - ry * (gu - gprev[i]);
+                gprev[i] = gu;
+            }
+        } else {
+            for (int i = 0; i < nx; i++) qc[i] = qc[i] - ry * (0.0 - gprev[i]);
+        }
+    }
+}
+
+static inline double pick_left(double a, double b) {   /* minmod(a, b) took a (same signs, |a| < |b|) */
+    double same = (double)(a > 0.0) * (double)(b > 0.0) + (double)(a < 0.0) * (double)(b < 0.0);
+    return same * (double)(fabs(a) < fabs(b));
+}
+
+static inline double pick_right(double a, double b) {  /* minmod(a, b) took b */
+    double same = (double)(a > 0.0) * (double)(b > 0.0) + (double)(a < 0.0) * (double)(b < 0.0);
+    return same - same * (double)(fabs(a) < fabs(b));
+}
+
+/* adjoint of one Euler stage at state p (slopes sx, sy): out = (dq/dp)^T lam, accumulating the adjoints of v+
+   and v-; which difference each minmod slope took is recomputed from p and the face masks.
+   Scratch: A, B, L, D, WA, WB (nx + 1 each), lsy (nx*ny). */
+static void euler_muscl_adj(int nx, int ny, double rx, double ry, const double *restrict mxk,
+                            const double *restrict myk, const double *restrict xp, const double *restrict xm,
+                            const double *restrict yp, const double *restrict ym, const double *restrict p,
+                            const double *restrict sx, const double *restrict sy, const double *restrict lam,
+                            double *restrict out, double *restrict axp, double *restrict axm, double *restrict ayp,
+                            double *restrict aym, double *restrict A, double *restrict B, double *restrict L,
+                            double *restrict D, double *restrict WA, double *restrict WB, double *restrict lsy) {
+    int fx = nx - 1;
+    long n = (long)nx * ny;
+    /* y faces first: out = lam + y terms, lsy = adjoint of the y slopes */
+    memcpy(out, lam, sizeof(double) * n);
+    memset(lsy, 0, sizeof(double) * n);
+    for (int j = 0; j < ny - 1; j++) {
+        long c0 = (long)nx * j;
+        const double *lc = lam + c0, *ln = lc + nx, *pc = p + c0, *pn = pc + nx, *tc = sy + c0, *tn = tc + nx;
+        const double *c = yp + c0, *d = ym + c0;
+        double *oc = out + c0, *on = oc + nx, *sc = lsy + c0, *sn = sc + nx, *ac = ayp + c0, *bc = aym + c0;
+        for (int i = 0; i < nx; i++) {
+            double g = ry * (ln[i] - lc[i]);
+            double gp = g * c[i], gm = g * d[i];
+            oc[i] += gp;
+            on[i] -= gm;
+            ac[i] += g * (pc[i] + 0.5 * tc[i]);
+            bc[i] -= g * (pn[i] - 0.5 * tn[i]);
+            sc[i] += 0.5 * gp;
+            sn[i] += 0.5 * gm;
+        }
+    }
+    /* x faces and x slopes, row by row (gather form) */
+    A[0] = 0.0; A[nx] = 0.0; B[0] = 0.0; B[nx] = 0.0; L[0] = 0.0; L[nx] = 0.0;
+    WA[0] = WB[0] = WA[fx] = WB[fx] = 0.0;
+    for (int j = 0; j < ny; j++) {
+        long c0 = (long)nx * j, f0 = (long)fx * j;
+        const double *lc = lam + c0, *pc = p + c0, *sc = sx + c0, *a = xp + f0, *b = xm + f0, *m = mxk + f0;
+        double *oc = out + c0, *ap = axp + f0, *am = axm + f0;
+        for (int i = 0; i < fx; i++) {
+            double g = rx * (lc[i + 1] - lc[i]);
+            A[i + 1] = g * a[i];                  /* right face of cell i, v+ side */
+            B[i + 1] = g * b[i];                  /* left face of cell i + 1, v- side */
+            ap[i] += g * (pc[i] + 0.5 * sc[i]);
+            am[i] -= g * (pc[i + 1] - 0.5 * sc[i + 1]);
+            D[i] = (pc[i + 1] - pc[i]) * m[i];
+        }
+        for (int i = 0; i < nx; i++) oc[i] += A[i + 1] - B[i];
+        for (int i = 1; i < fx; i++) {           /* cells 1 .. nx-2: which difference their slope took */
+            WA[i] = pick_left(D[i - 1], D[i]);
+            WB[i] = pick_right(D[i - 1], D[i]);
+        }
+        /* slope adjoints lsx_i = (A_{i+1} + B_i) / 2 -> adjoint L of the differences d_{i+1/2} */
+        for (int i = 0; i < fx; i++)
+            L[i + 1] = 0.5 * (A[i + 1] + B[i]) * WB[i] + 0.5 * (A[i + 2] + B[i + 1]) * WA[i + 1];
+        for (int i = 0; i < nx; i++) oc[i] += L[i] - L[i + 1];
+    }
+    /* y slopes: adjoint of the differences d_{j+1/2} = lsy_j wb_j + lsy_{j+1} wa_{j+1} (rows 1 .. ny-2) */
+    for (int j = 0; j < ny - 1; j++) {
+        long c0 = (long)nx * j;
+        const double *sc = lsy + c0, *sn = sc + nx, *pc = p + c0, *pn = pc + nx, *m = myk + c0;
+        double *oc = out + c0, *on = oc + nx;
+        if (j >= 1) {
+            const double *pd = pc - nx, *md = m - nx;
+            for (int i = 0; i < nx; i++)
+                WB[i] = pick_right((pc[i] - pd[i]) * md[i], (pn[i] - pc[i]) * m[i]);
+        } else {
+            for (int i = 0; i < nx; i++) WB[i] = 0.0;
+        }
+        if (j + 1 <= ny - 2) {
+            const double *pu = pn + nx, *mu = m + nx;
+            for (int i = 0; i < nx; i++)
+                WA[i] = pick_left((pn[i] - pc[i]) * m[i], (pu[i] - pn[i]) * mu[i]);
+        } else {
+            for (int i = 0; i < nx; i++) WA[i] = 0.0;
+        }
+        for (int i = 0; i < nx; i++) {
+            double ld = sc[i] * WB[i] + sn[i] * WA[i];
+            on[i] += ld;
+            oc[i] -= ld;
+        }
+    }
+}
+
+/* MUSCL + SSP-RK2 (Heun): q = p / 2 + E(E(p)) / 2; traj as sf_forward */
+int sf_forward_muscl(int nx, int ny, int N, int nsub, double rx, double ry, double eps, const double *mx,
+                     const double *my, const double *vx, const double *vy, const double *p0, double *traj) {
+    long n = (long)nx * ny, nfx = (long)(nx - 1) * ny, nfy = (long)nx * (ny - 1);
+    double *buf = (double *)malloc(sizeof(double) * (4 * nfx + 4 * nfy + 4 * n + 3 * nx + 2));
+    if (!buf) return 1;
+    double *xp = buf, *xm = xp + nfx, *yp = xm + nfx, *ym = yp + nfy;
+    double *sx = ym + nfy, *sy = sx + n, *p1 = sy + n, *p2 = p1 + n, *fb = p2 + n, *gprev = fb + nx + 1;
+    memcpy(traj, p0, sizeof(double) * n);
+    for (int l = 0; l < N; l++) {
+        split(nfx, vx + nfx * l, eps * eps, mx, xp, xm);
+        split(nfy, vy + nfy * l, eps * eps, my, yp, ym);
+        for (int s = 0; s < nsub; s++) {
+            long k = (long)l * nsub + s;
+            const double *p = traj + n * k;
+            double *q = traj + n * (k + 1);
+            slopes_p(nx, ny, mx, my, p, sx, sy);
+            euler_muscl(nx, ny, rx, ry, xp, xm, yp, ym, p, sx, sy, p1, fb, gprev);
+            slopes_p(nx, ny, mx, my, p1, sx, sy);
+            euler_muscl(nx, ny, rx, ry, xp, xm, yp, ym, p1, sx, sy, p2, fb, gprev);
+            for (long c = 0; c < n; c++) q[c] = 0.5 * p[c] + 0.5 * p2[c];
+        }
+    }
+    free(buf);
+    return 0;
+}
+
+/* adjoint of sf_forward_muscl (arguments as sf_adjoint); the first stage p1 = E(p) is recomputed per sub-step */
+int sf_adjoint_muscl(int nx, int ny, int N, int nsub, double rx, double ry, double eps, const double *mx,
+                     const double *my, const double *vx, const double *vy, const double *traj, const double *lsnap,
+                     double *gvx, double *gvy, double *gp0) {
+    long n = (long)nx * ny, nfx = (long)(nx - 1) * ny, nfy = (long)nx * (ny - 1);
+    double *buf = (double *)malloc(sizeof(double) * (6 * nfx + 6 * nfy + 11 * n + 7 * nx + 7));
+    if (!buf) return 1;
+    double *xp = buf, *xm = xp + nfx, *yp = xm + nfx, *ym = yp + nfy;
+    double *axp = ym + nfy, *axm = axp + nfx, *ayp = axm + nfx, *aym = ayp + nfy;
+    double *lam = aym + nfy, *tmp = lam + n, *p1 = tmp + n, *l2 = p1 + n, *l1 = l2 + n, *lsy = l1 + n;
+    double *sx0 = lsy + n, *sy0 = sx0 + n, *sx1 = sy0 + n, *sy1 = sx1 + n;
+    double *A = sy1 + n, *B = A + nx + 1, *L = B + nx + 1, *D = L + nx + 1, *WA = D + nx + 1, *WB = WA + nx + 1;
+    double *gprev = WB + nx + 1;
+    memcpy(lam, lsnap + n * N, sizeof(double) * n);
+    for (int l = N - 1; l >= 0; l--) {
+        const double *v = vx + nfx * l, *w = vy + nfy * l;
+        split(nfx, v, eps * eps, mx, xp, xm);
+        split(nfy, w, eps * eps, my, yp, ym);
+        memset(axp, 0, sizeof(double) * (2 * nfx + 2 * nfy));
+        for (int s = nsub - 1; s >= 0; s--) {
+            long k = (long)l * nsub + s;
+            const double *p = traj + n * k;
+            slopes_p(nx, ny, mx, my, p, sx0, sy0);
+            euler_muscl(nx, ny, rx, ry, xp, xm, yp, ym, p, sx0, sy0, p1, A, gprev);
+            slopes_p(nx, ny, mx, my, p1, sx1, sy1);
+            for (long c = 0; c < n; c++) l2[c] = 0.5 * lam[c];
+            euler_muscl_adj(nx, ny, rx, ry, mx, my, xp, xm, yp, ym, p1, sx1, sy1, l2, l1, axp, axm, ayp, aym,
+                            A, B, L, D, WA, WB, lsy);
+            euler_muscl_adj(nx, ny, rx, ry, mx, my, xp, xm, yp, ym, p, sx0, sy0, l1, tmp, axp, axm, ayp, aym,
+                            A, B, L, D, WA, WB, lsy);
+            for (long c = 0; c < n; c++) tmp[c] += l2[c];
+            double *t = lam; lam = tmp; tmp = t;
+        }
+        for (long k = 0; k < nfx; k++) {
+            double r = v[k] / sqrt(v[k] * v[k] + eps * eps);
+            gvx[nfx * l + k] = mx[k] * (0.5 * (axp[k] * (1.0 + r) + axm[k] * (r - 1.0)));
+        }
+        for (long k = 0; k < nfy; k++) {
+            double r = w[k] / sqrt(w[k] * w[k] + eps * eps);
+            gvy[nfy * l + k] = my[k] * (0.5 * (ayp[k] * (1.0 + r) + aym[k] * (r - 1.0)));
+        }
+        const double *ls = lsnap + n * l;
+        for (long k = 0; k < n; k++) lam[k] += ls[k];
+    }
+    memcpy(gp0, lam, sizeof(double) * n);
+    free(buf);
+    return 0;
+}
+
 /* traj: (N*nsub + 1) * nx*ny, traj[0] = p0 */
-int sf_forward(int nx, int ny, int N, int nsub, double rx, double ry, double eps,
-               const double *vx, const double *vy, const double *p0, double *traj) {
+int sf_forward(int nx, int ny, int N, int nsub, double rx, double ry, double eps, const double *mx,
+               const double *my, const double *vx, const double *vy, const double *p0, double *traj) {
     long n = (long)nx * ny, nfx = (long)(nx - 1) * ny, nfy = (long)nx * (ny - 1);
     double *buf = (double *)malloc(sizeof(double) * (2 * nfx + 2 * nfy + nx));
     if (!buf) return 1;
     double *xp = buf, *xm = xp + nfx, *yp = xm + nfx, *ym = yp + nfy, *scratch = ym + nfy;
     memcpy(traj, p0, sizeof(double) * n);
     for (int l = 0; l < N; l++) {
-        split(nfx, vx + nfx * l, eps * eps, xp, xm);
-        split(nfy, vy + nfy * l, eps * eps, yp, ym);
+        split(nfx, vx + nfx * l, eps * eps, mx, xp, xm);
+        split(nfy, vy + nfy * l, eps * eps, my, yp, ym);
         for (int s = 0; s < nsub; s++) {
             long k = (long)l * nsub + s;
             step(nx, ny, rx, ry, xp, xm, yp, ym, traj + n * k, traj + n * (k + 1), scratch);
@@ -138,8 +373,8 @@ int sf_forward(int nx, int ny, int N, int nsub, double rx, double ry, double eps
 
 /* lsnap: (N+1) * nx*ny adjoint seeds on the interval-boundary snapshots;
    out: gvx (N*nfx), gvy (N*nfy), gp0 (nx*ny) */
-int sf_adjoint(int nx, int ny, int N, int nsub, double rx, double ry, double eps,
-               const double *vx, const double *vy, const double *traj, const double *lsnap,
+int sf_adjoint(int nx, int ny, int N, int nsub, double rx, double ry, double eps, const double *mx,
+               const double *my, const double *vx, const double *vy, const double *traj, const double *lsnap,
                double *gvx, double *gvy, double *gp0) {
     long n = (long)nx * ny, nfx = (long)(nx - 1) * ny, nfy = (long)nx * (ny - 1);
     double *buf = (double *)malloc(sizeof(double) * (4 * nfx + 4 * nfy + 2 * n + nx));
@@ -150,22 +385,22 @@ int sf_adjoint(int nx, int ny, int N, int nsub, double rx, double ry, double eps
     memcpy(lam, lsnap + n * N, sizeof(double) * n);
     for (int l = N - 1; l >= 0; l--) {
         const double *v = vx + nfx * l, *w = vy + nfy * l;
-        split(nfx, v, eps * eps, xp, xm);
-        split(nfy, w, eps * eps, yp, ym);
+        split(nfx, v, eps * eps, mx, xp, xm);
+        split(nfy, w, eps * eps, my, yp, ym);
         memset(axp, 0, sizeof(double) * (2 * nfx + 2 * nfy));
         for (int s = nsub - 1; s >= 0; s--) {
             long k = (long)l * nsub + s;
             step_adj(nx, ny, rx, ry, xp, xm, yp, ym, traj + n * k, lam, tmp, axp, axm, ayp, aym, scratch);
             double *t = lam; lam = tmp; tmp = t;
         }
-        /* dv+/dv = (1 + v/s)/2, dv-/dv = (v/s - 1)/2, s = sqrt(v^2 + eps^2) */
+        /* dv+/dv = m (1 + v/s)/2, dv-/dv = m (v/s - 1)/2, s = sqrt(v^2 + eps^2), m the face mask */
         for (long k = 0; k < nfx; k++) {
             double r = v[k] / sqrt(v[k] * v[k] + eps * eps);
-            gvx[nfx * l + k] = 0.5 * (axp[k] * (1.0 + r) + axm[k] * (r - 1.0));
+            gvx[nfx * l + k] = mx[k] * (0.5 * (axp[k] * (1.0 + r) + axm[k] * (r - 1.0)));
         }
         for (long k = 0; k < nfy; k++) {
             double r = w[k] / sqrt(w[k] * w[k] + eps * eps);
-            gvy[nfy * l + k] = 0.5 * (ayp[k] * (1.0 + r) + aym[k] * (r - 1.0));
+            gvy[nfy * l + k] = my[k] * (0.5 * (ayp[k] * (1.0 + r) + aym[k] * (r - 1.0)));
         }
         const double *ls = lsnap + n * l;
         for (long k = 0; k < n; k++) lam[k] += ls[k];
@@ -176,7 +411,25 @@ int sf_adjoint(int nx, int ny, int N, int nsub, double rx, double ry, double eps
 }
 """
 
-CFLAGS = ("-O3", "-fPIC", "-shared", "-fno-fast-math")
+#: -fno-trapping-math / -fno-math-errno let gcc vectorise the branch-free minmod and selection loops; neither
+#: changes a result (no reassociation, no contraction: every operation is rounded as written)
+CFLAGS = ("-O3", "-fPIC", "-shared", "-fno-fast-math", "-fno-trapping-math", "-fno-math-errno", "-ffp-contract=off")
+#: tried first, where the CPU can be identified (the library is then cached per CPU model and flags): wider
+#: vectors, measured 25-30 % faster MUSCL solves; results are bit for bit those of the generic build (no
+#: contraction, no reassociation).  Set SWARMFIELD_KERNEL_NATIVE=0 to build the generic library only.
+NATIVE_FLAGS = ("-march=native",)
+
+
+def _cpu_id() -> str | None:
+    """Model and feature flags of this CPU (Linux /proc/cpuinfo), None elsewhere (no -march=native then)."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as fh:
+            lines = fh.read().splitlines()
+    except OSError:
+        return None
+    keep = [ln.split(":", 1)[1].strip() for ln in lines
+            if ln.split(":", 1)[0].strip() in ("model name", "flags", "Features", "CPU part", "CPU implementer")]
+    return "|".join(dict.fromkeys(keep)) or None
 
 _LIB = None
 _LIB_ERROR: str | None = None
@@ -200,6 +453,28 @@ def _compiler() -> str | None:
     return shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
 
 
+_SMOKE = r"""
+import ctypes, sys
+lib = ctypes.CDLL(sys.argv[1])
+n, D = 4, ctypes.c_double
+arr = lambda k, v=0.5: (ctypes.c_double * k)(*([v] * k))
+for name in ("sf_forward", "sf_forward_muscl"):
+    traj = arr(3 * n * n)
+    rc = getattr(lib, name)(n, n, 1, 2, D(0.1), D(0.1), D(0.02), arr(12, 1.0), arr(12, 1.0), arr(12, 0.3),
+                            arr(12, -0.2), arr(n * n, 1.0), traj)
+    assert rc == 0 and abs(sum(traj[2 * n * n:]) - n * n) < 1e-9
+"""
+
+
+def _smoke_test(lib_path) -> bool:
+    """Run the freshly built library in a child process (an instruction the CPU lacks kills the child, not us)."""
+    try:
+        res = subprocess.run([sys.executable, "-c", _SMOKE, str(lib_path)], capture_output=True, timeout=60)
+    except (OSError, subprocess.SubprocessError):
+        return False
+    return res.returncode == 0
+
+
 def _load():
     """Compile (once per source hash) and load the C kernel; returns the ctypes library or None."""
     global _LIB, _LIB_ERROR
@@ -209,7 +484,10 @@ def _load():
         cc = _compiler()
         if cc is None:
             raise RuntimeError("no C compiler found (cc, gcc, clang or $CC)")
-        key = hashlib.sha256((C_SOURCE + " ".join(CFLAGS) + platform.machine() + sys.platform).encode()).hexdigest()[:16]
+        cpu = _cpu_id() if os.environ.get("SWARMFIELD_KERNEL_NATIVE", "1") != "0" else None
+        attempts = ([CFLAGS + NATIVE_FLAGS] if cpu else []) + [CFLAGS]
+        key = hashlib.sha256((C_SOURCE + " ".join(CFLAGS) + platform.machine() + sys.platform
+                              + (" native " + cpu if cpu else "")).encode()).hexdigest()[:16]
         folder = cache_dir()
         try:
             folder.mkdir(parents=True, exist_ok=True)
@@ -224,18 +502,25 @@ def _load():
                 src = Path(tmp) / "transport.c"
                 src.write_text(C_SOURCE)
                 out = Path(tmp) / "transport.so"
-                res = subprocess.run([cc, *CFLAGS, str(src), "-o", str(out), "-lm"], capture_output=True, text=True,
-                                     timeout=120)
+                for flags in attempts:              # native first (if any), the generic build if that fails
+                    res = subprocess.run([cc, *flags, str(src), "-o", str(out), "-lm"], capture_output=True,
+                                         text=True, timeout=120)
+                    if res.returncode == 0 and (flags is attempts[-1] or _smoke_test(out)):
+                        break
                 if res.returncode != 0:
                     raise RuntimeError(f"{cc} failed: {(res.stderr or res.stdout).strip().splitlines()[-1:]}")
                 os.replace(out, lib_path)             # atomic: concurrent processes never see half a file
         lib = ctypes.CDLL(str(lib_path))
         dp = np.ctypeslib.ndpointer(dtype=np.float64, flags="C_CONTIGUOUS")
         i, d = ctypes.c_int, ctypes.c_double
-        lib.sf_forward.argtypes = [i, i, i, i, d, d, d, dp, dp, dp, dp]
+        lib.sf_forward.argtypes = [i, i, i, i, d, d, d, dp, dp, dp, dp, dp, dp]
         lib.sf_forward.restype = i
-        lib.sf_adjoint.argtypes = [i, i, i, i, d, d, d, dp, dp, dp, dp, dp, dp, dp]
+        lib.sf_adjoint.argtypes = [i, i, i, i, d, d, d, dp, dp, dp, dp, dp, dp, dp, dp, dp]
         lib.sf_adjoint.restype = i
+        lib.sf_forward_muscl.argtypes = lib.sf_forward.argtypes
+        lib.sf_forward_muscl.restype = i
+        lib.sf_adjoint_muscl.argtypes = lib.sf_adjoint.argtypes
+        lib.sf_adjoint_muscl.restype = i
         _LIB = lib
     except Exception as exc:                           # noqa: BLE001 - any failure means: use the fallback
         _LIB_ERROR = str(exc) or type(exc).__name__
@@ -262,12 +547,23 @@ def warn_fallback():
 
 
 class TransportKernel:
-    """Forward trajectory and adjoint of N intervals x n_sub donor-cell sub-steps on an nx x ny grid."""
+    """Forward trajectory and adjoint of N intervals x n_sub donor-cell sub-steps on an nx x ny grid.
+
+    ``free``: optional free-cell mask (nx, ny) (:mod:`ocp.mask`); the kernel multiplies the split face
+    velocities v+, v- by the face masks (1 open, 0 closed: zero flux as at the walls), and the
+    face-velocity adjoint by the same masks.  Without a mask the masks are ones (multiplying by 1.0 is
+    exact: the rectangle's results are unchanged bit for bit)."""
 
     def __init__(self, nx: int, ny: int, n_intervals: int, substeps: int, rx: float, ry: float, eps: float,
-                 backend: str = "compiled"):
+                 backend: str = "compiled", free=None, scheme: str = "upwind"):
         if backend not in ("compiled", "numpy"):
             raise ValueError(f"kernel backend must be 'compiled' or 'numpy', got {backend!r}")
+        if scheme not in ("upwind", "muscl"):
+            raise ValueError(f"kernel scheme must be 'upwind' or 'muscl', got {scheme!r}")
+        if scheme == "muscl" and backend != "compiled":
+            raise ValueError("the MUSCL kernel exists in the compiled backend only (use transport 'compiled' or the "
+                             "CasADi graph, 'casadi')")
+        self.scheme = scheme
         if backend == "compiled" and _load() is None:
             raise RuntimeError(f"compiled transport kernel unavailable: {compile_error()}")
         self.nx, self.ny, self.N, self.n_sub = int(nx), int(ny), int(n_intervals), int(substeps)
@@ -276,6 +572,12 @@ class TransportKernel:
         self.n_cell = self.nx * self.ny
         self.n_fx = (self.nx - 1) * self.ny
         self.n_fy = self.nx * (self.ny - 1)
+        from .mask import check_free, face_masks
+        self.free = check_free(free, (self.nx, self.ny), "kernel free-cell mask")
+        open_x, open_y = face_masks(self.free)
+        # column-major face vectors, as vx and vy
+        self.mask_x = np.ones(self.n_fx) if open_x is None else np.ascontiguousarray(open_x.ravel(order="F"))
+        self.mask_y = np.ones(self.n_fy) if open_y is None else np.ascontiguousarray(open_y.ravel(order="F"))
 
     # shapes: vx (N, n_fx), vy (N, n_fy), p0 (n_cell,), traj (N*n_sub+1, n_cell), all C-contiguous rows
     def forward(self, vx, vy, p0, out: np.ndarray | None = None) -> np.ndarray:
@@ -289,7 +591,9 @@ class TransportKernel:
             raise ValueError(f"out must be a C-contiguous float64 array of shape {shape}")
         traj = out
         if self.backend == "compiled":
-            if _LIB.sf_forward(self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, vx, vy, p0, traj):
+            fwd = _LIB.sf_forward_muscl if self.scheme == "muscl" else _LIB.sf_forward
+            if fwd(self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, self.mask_x, self.mask_y,
+                   vx, vy, p0, traj):
                 raise MemoryError("transport kernel: out of memory")
             return traj
         traj[0] = p0
@@ -310,8 +614,9 @@ class TransportKernel:
         gp0 = np.empty(self.n_cell)
         if self.backend == "compiled":
             traj = np.ascontiguousarray(traj, dtype=float)
-            if _LIB.sf_adjoint(self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, vx, vy, traj,
-                               lsnap, gvx, gvy, gp0):
+            adj = _LIB.sf_adjoint_muscl if self.scheme == "muscl" else _LIB.sf_adjoint
+            if adj(self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, self.mask_x, self.mask_y,
+                   vx, vy, traj, lsnap, gvx, gvy, gp0):
                 raise MemoryError("transport kernel: out of memory")
             return gvx, gvy, gp0
         lam = lsnap[self.N].copy()
@@ -320,9 +625,9 @@ class TransportKernel:
             acc = [np.zeros(self.n_fx), np.zeros(self.n_fx), np.zeros(self.n_fy), np.zeros(self.n_fy)]
             for s in range(self.n_sub - 1, -1, -1):
                 lam = self._step_adj(traj[l * self.n_sub + s], lam, xp, xm, yp, ym, acc)
-            for v, (ap, am), out in ((vx[l], acc[:2], gvx[l]), (vy[l], acc[2:], gvy[l])):
+            for v, (ap, am), m, out in ((vx[l], acc[:2], self.mask_x, gvx[l]), (vy[l], acc[2:], self.mask_y, gvy[l])):
                 r = v / np.sqrt(v * v + self.eps * self.eps)
-                out[:] = 0.5 * (ap * (1.0 + r) + am * (r - 1.0))
+                out[:] = m * (0.5 * (ap * (1.0 + r) + am * (r - 1.0)))
             lam = lam + lsnap[l]
         gp0[:] = lam
         return gvx, gvy, gp0
@@ -342,9 +647,10 @@ class TransportKernel:
         e2 = self.eps * self.eps
         xp = 0.5 * (vx + np.sqrt(vx * vx + e2))
         yp = 0.5 * (vy + np.sqrt(vy * vy + e2))
+        mx, my = self.mask_x, self.mask_y
         # column-major vectors -> (ny, nx-1) and (ny-1, nx) arrays (row j = column j of the grid)
-        return ((xp).reshape(self.ny, self.nx - 1), (xp - vx).reshape(self.ny, self.nx - 1),
-                (yp).reshape(self.ny - 1, self.nx), (yp - vy).reshape(self.ny - 1, self.nx))
+        return ((mx * xp).reshape(self.ny, self.nx - 1), (mx * (xp - vx)).reshape(self.ny, self.nx - 1),
+                (my * yp).reshape(self.ny - 1, self.nx), (my * (yp - vy)).reshape(self.ny - 1, self.nx))
 
     def _step(self, p, xp, xm, yp, ym):
         P = p.reshape(self.ny, self.nx)

@@ -12,6 +12,8 @@ key              shape            meaning
 ``coef``         (N, 2, I, J)     coefficients of v_r on each interval in the basis ``meta["basis"]``
                                   ("sine", the paper's, when absent; or "sine-cosine"; :mod:`ocp.basis`)
 ``target``       (nx, ny)         the target density p_f used
+``free``         (nx, ny) bool    free cells of an irregular domain (obstacles False); absent for the
+                                  empty rectangle (issue 19, :mod:`ocp.mask`); ``p`` is 0 on blocked cells
 ``meta``         () str           JSON: settings, solver status, iterations, timings, costs, versions
 ===============  ===============  ==============================================================
 
@@ -19,6 +21,10 @@ Evaluation: ``p_r`` is piecewise linear in time between snapshots and bilinear i
 cell centres (constant beyond the outermost centres, i.e. zero normal derivative at the walls);
 ``v_r`` is the series (basis ``meta["basis"]``) of the interval containing ``t`` (piecewise constant in time).
 Outside ``[t[0], t[-1]]`` the plan is held: first/last density, zero velocity after the end.
+With a free-cell mask, ``p_r`` is 0 at points in blocked cells and, in free cells, the bilinear
+interpolant over the free cells of the stencil only (weights renormalised: an obstacle acts like the
+outer walls, no ramp down towards it); ``v_r`` is the smooth series everywhere (the swarm side handles
+obstacles).
 """
 from __future__ import annotations
 
@@ -34,6 +40,8 @@ from .basis import check_basis, velocity_at
 from .grid import Grid
 
 KEYS = ("domain", "t", "p", "t_intervals", "coef", "target", "meta")
+#: keys a plan file may carry in addition (older plans lack them and still load)
+OPTIONAL_KEYS = ("free",)
 
 
 @dataclass
@@ -47,6 +55,8 @@ class ReferencePlan:
     coef: np.ndarray
     target: np.ndarray
     meta: dict = field(default_factory=dict)
+    #: free-cell mask (nx, ny) bool of an irregular domain, None for the empty rectangle
+    free: np.ndarray | None = None
 
     def __post_init__(self):
         self.domain = np.asarray(self.domain, dtype=np.float64).reshape(-1)
@@ -89,6 +99,14 @@ class ReferencePlan:
         if np.any(self.p < 0):
             raise ValueError("plan: reference density has negative values")
         self.grid  # validates the domain
+        if self.free is not None:
+            from .mask import check_free
+            try:
+                self.free = check_free(self.free, self.p.shape[1:], "plan: free")
+            except ValueError as exc:
+                raise ValueError(str(exc) if str(exc).startswith("plan") else f"plan: {exc}") from None
+            if np.any(self.p[:, ~self.free] != 0) or np.any(self.target[~self.free] != 0):
+                raise ValueError("plan: density or target is non-zero in blocked cells (free == False)")
 
     # ------------------------------------------------------------------ properties
     @property
@@ -141,15 +159,44 @@ class ReferencePlan:
         f10 = field2d[i0 + 1, j0]
         f01 = field2d[i0, j0 + 1]
         f11 = field2d[i0 + 1, j0 + 1]
-        val = (1 - sx) * (1 - sy) * f00 + sx * (1 - sy) * f10 + (1 - sx) * sy * f01 + sx * sy * f11
-        if not gradient:
-            return val
         # beyond the outermost centres the interpolant is constant: zero normal derivative
         inx = ((pts[:, 0] - g.domain[0]) / g.dx - 0.5 > 0) & ((pts[:, 0] - g.domain[0]) / g.dx - 0.5 < g.nx - 1)
         iny = ((pts[:, 1] - g.domain[2]) / g.dy - 0.5 > 0) & ((pts[:, 1] - g.domain[2]) / g.dy - 0.5 < g.ny - 1)
+        if self.free is not None:
+            return self._bilinear_free(g, pts, i0, j0, sx, sy, (f00, f10, f01, f11), inx, iny, gradient)
+        val = (1 - sx) * (1 - sy) * f00 + sx * (1 - sy) * f10 + (1 - sx) * sy * f01 + sx * sy * f11
+        if not gradient:
+            return val
         gx = ((1 - sy) * (f10 - f00) + sy * (f11 - f01)) / g.dx * inx
         gy = ((1 - sx) * (f01 - f00) + sx * (f11 - f10)) / g.dy * iny
         return val, np.column_stack([gx, gy])
+
+    def _bilinear_free(self, g, pts, i0, j0, sx, sy, f, inx, iny, gradient):
+        """Bilinear interpolation over the free corners of the stencil (weights renormalised), 0 in blocked
+        cells: val = sum_k w_k m_k f_k / sum_k w_k m_k, its gradient by the quotient rule."""
+        fr = self.free
+        m = [fr[i0, j0], fr[i0 + 1, j0], fr[i0, j0 + 1], fr[i0 + 1, j0 + 1]]
+        m = [a.astype(float) for a in m]
+        w = [(1 - sx) * (1 - sy), sx * (1 - sy), (1 - sx) * sy, sx * sy]
+        dwx = [-(1 - sy), (1 - sy), -sy, sy]           # d w_k / d sx
+        dwy = [-(1 - sx), -sx, (1 - sx), sx]           # d w_k / d sy
+        num = sum(wk * mk * fk for wk, mk, fk in zip(w, m, f))
+        den = sum(wk * mk for wk, mk in zip(w, m))
+        # the cell holding the point: blocked -> 0; free -> it is a corner of the stencil with weight > 0
+        # (or the point sits on a face, where the renormalised value is that of the free side)
+        ci = np.clip(np.floor((pts[:, 0] - g.domain[0]) / g.dx).astype(int), 0, g.nx - 1)
+        cj = np.clip(np.floor((pts[:, 1] - g.domain[2]) / g.dy).astype(int), 0, g.ny - 1)
+        inside = fr[ci, cj] & (den > 0)
+        safe = np.where(inside, den, 1.0)
+        val = np.where(inside, num / safe, 0.0)
+        if not gradient:
+            return val
+        out = []
+        for dw, step, ok in ((dwx, g.dx, inx), (dwy, g.dy, iny)):
+            dnum = sum(d * mk * fk for d, mk, fk in zip(dw, m, f))
+            dden = sum(d * mk for d, mk in zip(dw, m))
+            out.append(np.where(inside, (dnum * safe - num * dden) / (safe * safe), 0.0) / step * ok)
+        return val, np.column_stack(out)
 
     def density(self, t: float, points: np.ndarray) -> np.ndarray:
         """p_r(t, x) at points (n, 2) -> (n,)."""
@@ -183,6 +230,8 @@ class ReferencePlan:
         if not directory.is_dir():
             raise FileNotFoundError(f"folder {directory} does not exist")
         arrays = {k: getattr(self, k) for k in KEYS if k != "meta"}
+        if self.free is not None:
+            arrays["free"] = np.asarray(self.free, dtype=bool)
         arrays["meta"] = np.array(json.dumps(self.meta, default=_json_default))
         with atomic_path(path, ".npz") as tmp:
             np.savez(tmp, **arrays)
@@ -205,6 +254,7 @@ class ReferencePlan:
                 raise ValueError(f"plan file {path} lacks keys {missing}")
             try:
                 data = {k: z[k] for k in KEYS}
+                data.update({k: z[k] for k in OPTIONAL_KEYS if k in z.files})
             except Exception as exc:
                 raise ValueError(f"cannot read plan file {path}: {exc}") from None
         try:

@@ -3,6 +3,10 @@
 ``ReferencePlanner(settings)`` builds the CasADi NLP and the IPOPT solver once (a few tens of
 milliseconds); :meth:`ReferencePlanner.solve` is then called at every re-plan of Algorithm 1 with
 new (p0, p_f) as NLP *parameters*, optionally warm-started from the previous plan.
+
+``ReferencePlanner(settings, free=mask)`` plans on an irregular domain (issue 19, :mod:`ocp.mask`):
+zero flux through every face next to a blocked cell, KL costs over free cells, densities exactly
+zero on blocked cells; the plan carries the mask (``ReferencePlan.free``).
 """
 from __future__ import annotations
 
@@ -18,6 +22,7 @@ import numpy as np
 from .. import DISTRIBUTION, __version__, distribution
 from ..runtime.validation import real_scalar
 from .grid import Grid
+from .mask import floor_free, normalize_free
 from .plan import ReferencePlan
 from .problem import TransportProblem
 from .settings import PlannerSettings, to_dict
@@ -41,9 +46,13 @@ class PlannerError(RuntimeError):
 
 
 class ReferencePlanner:
-    """Builds the NLP once; :meth:`solve` returns the reference (p_r, v_r) for given p0 and p_f."""
+    """Builds the NLP once; :meth:`solve` returns the reference (p_r, v_r) for given p0 and p_f.
 
-    def __init__(self, settings: PlannerSettings | None = None):
+    ``free``: optional free-cell mask, array (nx, ny) of bool or 0/1 (x first, True = free cell), at
+    least one free cell; None (default) = the empty rectangle, today's problem unchanged.
+    """
+
+    def __init__(self, settings: PlannerSettings | None = None, free=None):
         self.settings = settings or PlannerSettings()
         s = self.settings
         n_coef = s.n_intervals * 2 * s.n_modes_x * s.n_modes_y
@@ -53,7 +62,7 @@ class ReferencePlanner:
                 f"to hours beyond {MAX_EXACT_HESSIAN_COEFFICIENTS}; use hessian_approximation='limited-memory' or "
                 "fewer intervals/modes (README, 'Solver study')")
         t0 = time.perf_counter()
-        self.problem = TransportProblem(self.settings)
+        self.problem = TransportProblem(self.settings, free)
         opts = {"ipopt": self.settings.ipopt.options(), "print_time": False, "record_time": True,
                 "error_on_fail": False}
         ipopt = opts["ipopt"]
@@ -73,6 +82,11 @@ class ReferencePlanner:
     def grid(self) -> Grid:
         return self.problem.grid
 
+    @property
+    def free(self) -> np.ndarray | None:
+        """The free-cell mask (nx, ny) bool, read-only, or None for the empty rectangle."""
+        return self.problem.free
+
     # ------------------------------------------------------------------ initial guesses
     def initial_coefficients(self, warm_start: ReferencePlan | None, t0: float) -> np.ndarray:
         """Cold start: zero velocity.  Warm start: the previous plan's coefficients shifted by the
@@ -91,6 +105,9 @@ class ReferencePlanner:
         if not np.allclose(warm_start.domain, self.grid.domain, rtol=0.0, atol=1e-12):
             raise ValueError(f"warm-start plan is for the domain {tuple(float(v) for v in warm_start.domain)}, "
                              f"this planner's is {self.grid.domain}")
+        mine, theirs = self.free, getattr(warm_start, "free", None)
+        if (mine is None) != (theirs is None) or (mine is not None and not np.array_equal(mine, theirs)):
+            raise ValueError("warm-start plan was planned with a different free-cell mask (obstacles) than this planner's")
         shift = int(round((t0 - warm_start.t_start) / self.settings.interval))
         if shift <= 0 or shift >= P.N:
             return prev.copy()
@@ -105,11 +122,13 @@ class ReferencePlanner:
         """Solve eq. "optimization problem" from density p0 towards target p_f; both (nx, ny) cell densities.
 
         Both are validated and normalised; p0 is mixed with ``initial_floor`` of the uniform density
-        (the plan's p[0]).  ``method`` (default ``settings.method``): "ipopt" (the NLP in CasADi) or "grg" (the paper's
+        (the plan's p[0]).  With a free-cell mask both must be zero on blocked cells (mass there above
+        round-off, :data:`ocp.mask.BLOCKED_MASS_TOL`, is refused), are zeroed there and normalised over the
+        free cells, and the floors are uniform over the free cells.  ``method`` (default ``settings.method``): "ipopt" (the NLP in CasADi) or "grg" (the paper's
         generalized reduced gradient, :mod:`ocp.grg`, a baseline).  ``information``
         (:class:`ocp.objectives.InformationInputs`: current GP variance on the grid, robots, measurement
         interval, noise variance, length scale) is required by ``objective = "information"`` and
-        ignored otherwise.  Raises ``ValueError`` on bad
+        ignored otherwise (blocked cells of a mask get no weight in it).  Raises ``ValueError`` on bad
         densities and :class:`PlannerError` when the solver returns no usable solution.
         """
         if method is None:
@@ -123,9 +142,9 @@ class ReferencePlanner:
             raise ValueError(f"method 'grg' projects onto the l1 speed limit only; planner.speed_limit is "
                              f"{self.settings.speed_limit!r}: use method 'ipopt'")
         g, P, s = self.grid, self.problem, self.settings
-        p0 = g.normalize(p0, "initial density")
-        p0 = (1.0 - s.initial_floor) * p0 + s.initial_floor / g.area
-        target = g.normalize(target, "target density")
+        p0 = normalize_free(g, p0, self.free, "initial density")
+        p0 = floor_free(g, p0, s.initial_floor, self.free)
+        target = normalize_free(g, target, self.free, "target density")
         t0 = real_scalar(t0, "plan start time t0")
         q = P.floored_target(target)
         info = None
@@ -134,6 +153,10 @@ class ReferencePlanner:
                 raise ValueError("planner.objective = 'information' needs solve(..., information=InformationInputs(...))")
             info = information.parameters(g)
             info[-1] *= s.information_efficiency
+            if self.free is not None:        # blocked cells: (almost) no variance to remove, no weight
+                n = g.nx * g.ny
+                v0 = info[:n].reshape(g.shape, order="F")
+                info[:n] = np.where(self.free, v0, 1e-12 * float(v0.max())).ravel(order="F")
         self._info, self._info_meta = info, (information.meta() if info is not None else None)
 
         coef0 = self.initial_coefficients(warm_start, t0)
@@ -195,7 +218,7 @@ class ReferencePlanner:
         else:
             ratio = sums.sum(axis=1) / s.v_max
         coef = coef / np.maximum(ratio, 1.0)[:, None, None, None]
-        logq = np.log(q)
+        logq = P.log_target(q)
         extra = [] if self._info is None else [self._info]
         f = float(P.objective(P.coef_to_vector(coef), p0, q, logq, *extra))
         f0 = float(P.objective(P.coefficients_from_solution(x0), p0, q, logq, *extra))
@@ -212,10 +235,11 @@ class ReferencePlanner:
         g, P, s = self.grid, self.problem, self.settings
         a = P.coef_to_vector(coef)
         snapshots = P.trajectory(p0, coef)
+        logq = P.log_target(q)
         info = getattr(self, "_info", None) if s.objective == "information" else None
-        terms = [float(v) for v in P.objective_terms(a, p0, q, np.log(q), *([] if info is None else [info]))]
-        kl0 = float(P.sym_kl(p0, q, np.log(q)))
-        kl_end = float(P.sym_kl(snapshots[-1], q, np.log(q)))
+        terms = [float(v) for v in P.objective_terms(a, p0, q, logq, *([] if info is None else [info]))]
+        kl0 = float(P.sym_kl(p0, q, logq))
+        kl_end = float(P.sym_kl(snapshots[-1], q, logq))
         meta = {
             "settings": to_dict(s),
             "basis": s.basis,
@@ -237,19 +261,20 @@ class ReferencePlanner:
             "speed_bound": [float(v) for v in np.abs(coef).reshape(P.N, -1).sum(axis=1)],
             **({"speed_limit": s.speed_limit, "face_speed_max": [float(v) for v in _face_max(P, coef)]}
                if s.speed_limit != "l1" else {}),
+            **({"free_cells": int(np.count_nonzero(self.free))} if self.free is not None else {}),
             "distribution": distribution(),
             "versions": _versions(),
         }
         t_snap = t0 + np.arange(snapshots.shape[0]) * P.dt
         t_int = t0 + np.arange(P.N + 1) * s.interval
         return ReferencePlan(domain=np.array(g.domain), t=t_snap, p=snapshots, t_intervals=t_int,
-                             coef=coef, target=target, meta=meta)
+                             coef=coef, target=target, meta=meta, free=self.free)
 
 
 def plan_reference(p0, target, settings: PlannerSettings | None = None, t0: float = 0.0,
-                   warm_start: ReferencePlan | None = None) -> ReferencePlan:
-    """One-shot convenience: build a planner for ``settings`` and solve once."""
-    return ReferencePlanner(settings).solve(p0, target, t0=t0, warm_start=warm_start)
+                   warm_start: ReferencePlan | None = None, free=None) -> ReferencePlan:
+    """One-shot convenience: build a planner for ``settings`` (and free-cell mask ``free``) and solve once."""
+    return ReferencePlanner(settings, free=free).solve(p0, target, t0=t0, warm_start=warm_start)
 
 
 @contextmanager

@@ -32,6 +32,7 @@ import numpy as np
 
 from .grid import Grid
 from .settings import PlannerSettings
+from .mask import check_free, face_masks, floor_free, log_target
 from .transport import FaceBasis, simulate
 
 
@@ -59,13 +60,19 @@ def norm_polygon(v_max: float, chords: int = NORM_CHORDS):
 
 
 class TransportProblem:
-    """Symbolic pieces of the OCP for one setting: the shooting map, the costs and the NLP dict."""
+    """Symbolic pieces of the OCP for one setting: the shooting map, the costs and the NLP dict.
 
-    def __init__(self, settings: PlannerSettings):
+    ``free``: optional free-cell mask (nx, ny), True = free (:mod:`ocp.mask`, issue 19): zero flux
+    through every face next to a blocked cell (the split face velocities times the face masks, in the
+    graph and in the kernels) and the KL terms summed over free cells only.  None = the empty
+    rectangle, the graph of the unmasked problem unchanged."""
+
+    def __init__(self, settings: PlannerSettings, free=None):
         s = settings
         self.settings = s
         self.grid = Grid(s.domain, s.nx, s.ny)
         g = self.grid
+        self.free = check_free(free, g.shape)
         self.basis = FaceBasis(g, s.n_modes_x, s.n_modes_y, s.basis)
         self.N, self.I, self.J = s.n_intervals, s.n_modes_x, s.n_modes_y
         self.n_coef = self.N * 2 * self.I * self.J
@@ -83,8 +90,6 @@ class TransportProblem:
         s = self.settings
         choice = s.transport
         exact = s.ipopt.hessian_approximation == "exact"
-        if s.scheme != "upwind":          # the kernels implement the donor-cell step only
-            return "casadi"
         if choice == "auto":
             if exact:
                 return "casadi"
@@ -123,6 +128,11 @@ class TransportProblem:
         vxm = vxp - vx
         vyp = 0.5 * (vy + ca.sqrt(vy * vy + eps * eps))
         vym = vyp - vy
+        open_x, open_y = face_masks(self.free)
+        if open_x is not None:           # closed faces: no flux (ocp.mask); the rectangle's graph is unchanged
+            Mx, My = ca.DM(open_x), ca.DM(open_y)
+            vxp, vxm, vyp, vym = vxp * Mx, vxm * Mx, vyp * My, vym * My
+
         def upwind(q):
             fx = vxp * q[: nx - 1, :] - vxm * q[1:, :]
             fy = vyp * q[:, : ny - 1] - vym * q[:, 1:]
@@ -134,6 +144,8 @@ class TransportProblem:
         def muscl_euler(q):       # ocp.transport._muscl_euler: limited face values, same upwind split
             dxq = q[1:, :] - q[: nx - 1, :]
             dyq = q[:, 1:] - q[:, : ny - 1]
+            if open_x is not None:       # no slope across a closed face (ocp.transport.minmod_slopes)
+                dxq, dyq = dxq * Mx, dyq * My
             sx = ca.vertcat(ca.MX.zeros(1, ny), minmod(dxq[: nx - 2, :], dxq[1:, :]), ca.MX.zeros(1, ny))
             sy = ca.horzcat(ca.MX.zeros(nx, 1), minmod(dyq[:, : ny - 2], dyq[:, 1:]), ca.MX.zeros(nx, 1))
             fx = vxp * (q[: nx - 1, :] + 0.5 * sx[: nx - 1, :]) - vxm * (q[1:, :] - 0.5 * sx[1:, :])
@@ -152,7 +164,10 @@ class TransportProblem:
         pk = ca.MX.sym("p", nx, ny)
         qk = ca.MX.sym("q", nx, ny)
         logq = ca.MX.sym("logq", nx, ny)
-        kl = ca.sum1(ca.sum2((pk - qk) * (ca.log(pk + s.log_eps) - logq))) * g.cell_area
+        terms = (pk - qk) * (ca.log(pk + s.log_eps) - logq)
+        if self.free is not None:        # free cells only: blocked cells contribute nothing
+            terms = terms * ca.DM(self.free.astype(float))
+        kl = ca.sum1(ca.sum2(terms)) * g.cell_area
         self.sym_kl = ca.Function("sym_kl", [pk, qk, logq], [kl])
 
         # the whole horizon, single shooting
@@ -175,7 +190,8 @@ class TransportProblem:
             # one call for the whole horizon: face velocities (basis product here, in CasADi) and p0 in,
             # interval-boundary snapshots out; reverse mode runs the kernel's hand-written adjoint
             from .kernel import TransportKernel, transport_callback
-            self.kernel = TransportKernel(nx, ny, N, self.n_sub, rx, ry, eps, backend=self.transport)
+            self.kernel = TransportKernel(nx, ny, N, self.n_sub, rx, ry, eps, backend=self.transport, free=self.free,
+                                          scheme=s.scheme)
             self._transport_fn = transport_callback(self.kernel)
             VX = ca.horzcat(*[ca.vec(ca.mtimes([Sxf, ax_l, Syc_T])) for ax_l, _ in coefs])
             VY = ca.horzcat(*[ca.vec(ca.mtimes([Sxc, ay_l, Syf_T])) for _, ay_l in coefs])
@@ -201,7 +217,12 @@ class TransportProblem:
             # the same sums on the (cells x snapshots) matrix at once: a handful of MX nodes, not 13 x 6
             qv, lqv = ca.vec(qt), ca.vec(lq)
             ones = ca.DM.ones(1, N + 1)
-            klv = ca.sum1((Pk - ca.mtimes(qv, ones)) * (ca.log(Pk + s.log_eps) - ca.mtimes(lqv, ones))) * g.cell_area
+            terms = (Pk - ca.mtimes(qv, ones)) * (ca.log(Pk + s.log_eps) - ca.mtimes(lqv, ones))
+            if self.free is not None:    # free cells only
+                terms = ca.mtimes(ca.DM(self.free.ravel(order="F").astype(float)).T, terms)
+                klv = terms * g.cell_area
+            else:
+                klv = ca.sum1(terms) * g.cell_area
             trap = np.ones(N + 1)
             trap[[0, -1]] = 0.5
             running = ca.mtimes(klv, ca.DM(trap))
@@ -319,21 +340,25 @@ class TransportProblem:
         """Density at every sub-step (N n_sub + 1, nx, ny) under ``coef``, with this problem's kernel."""
         if self.kernel is None:
             return simulate(p0, coef, self.grid, self.settings.interval, self.n_sub, self.settings.upwind_smoothing,
-                            self.settings.basis, self.settings.scheme)
+                            self.settings.basis, self.settings.scheme, self.free)
         VX, VY = self.face_velocities(coef)
         traj = self.kernel.forward(VX, VY, np.asarray(p0, dtype=float).ravel(order="F"))
         return traj.reshape(-1, self.grid.ny, self.grid.nx).transpose(0, 2, 1).copy()
 
     def floored_target(self, target: np.ndarray) -> np.ndarray:
-        """q = (1 - beta) p_f + beta / |Omega| (unit mass, strictly positive)."""
-        beta = self.settings.target_floor
-        return (1.0 - beta) * target + beta / self.grid.area
+        """q = (1 - beta) p_f + beta / |Omega| (unit mass, strictly positive); with a mask the floor is
+        beta / |free area| on free cells and q = 0 on blocked cells (:func:`ocp.mask.floor_free`)."""
+        return floor_free(self.grid, target, self.settings.target_floor, self.free)
+
+    def log_target(self, q: np.ndarray) -> np.ndarray:
+        """log q, 0 on blocked cells (their KL terms are weighted by 0)."""
+        return log_target(q, self.free)
 
     def parameters(self, p0: np.ndarray, q: np.ndarray, info: np.ndarray | None = None) -> np.ndarray:
         """NLP parameters [vec p0, vec q, vec log q (, info block of objective "information")]."""
         # CasADi vec() is column-major: pass the arrays in Fortran order
         extra = [] if info is None else [np.asarray(info, dtype=float).ravel()]
-        return np.concatenate([p0.ravel(order="F"), q.ravel(order="F"), np.log(q).ravel(order="F"), *extra])
+        return np.concatenate([p0.ravel(order="F"), q.ravel(order="F"), self.log_target(q).ravel(order="F"), *extra])
 
     def coef_to_vector(self, coef: np.ndarray) -> np.ndarray:
         """(N, 2, I, J) -> decision vector a (column (2l+d) of reshape(a, IJ, 2N) is a[l,d] in C order)."""

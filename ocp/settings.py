@@ -158,7 +158,8 @@ class PlannerSettings:
     method: str = "ipopt"
     #: finite-volume scheme of the transport: "upwind" (first-order donor cell, default) or "muscl"
     #: (minmod-limited MUSCL with SSP-RK2, second order, positivity kept with 1.5x the sub-steps;
-    #: CasADi graph only: transport "auto"/"casadi", method "ipopt"; ocp.transport.muscl_step)
+    #: ocp.transport.muscl_step): the compiled kernel (with its hand-written adjoint) or the CasADi graph,
+    #: i.e. transport "auto", "compiled" or "casadi", method "ipopt")
     scheme: str = "upwind"
     #: cost of the OCP (ocp.objectives, issue 20): "symmetric-kl" (the paper's: w_f KLs(p(t_f), q) + w_p int KLs
     #: + w_v energy) or "information" (the mean-field expected GP variance after the planned measurements, same
@@ -182,9 +183,10 @@ class PlannerSettings:
             raise ValueError("planner.objective = 'information' is solved with method 'ipopt' only")
         if self.scheme not in ("upwind", "muscl"):
             raise ValueError(f"planner.scheme must be 'upwind' or 'muscl', got {self.scheme!r}")
-        if self.scheme == "muscl" and (self.transport not in ("auto", "casadi") or self.method != "ipopt"):
-            raise ValueError("planner.scheme = 'muscl' runs on the CasADi graph only: transport 'auto' or 'casadi' "
-                             f"and method 'ipopt' (got transport {self.transport!r}, method {self.method!r})")
+        if self.scheme == "muscl" and (self.transport == "numpy" or self.method != "ipopt"):
+            raise ValueError("planner.scheme = 'muscl' runs in the compiled kernel or the CasADi graph: transport "
+                             "'auto', 'compiled' or 'casadi' and method 'ipopt' "
+                             f"(got transport {self.transport!r}, method {self.method!r})")
         if self.method not in ("ipopt", "grg"):
             raise ValueError(f"planner.method must be 'ipopt' or 'grg', got {self.method!r}")
         if self.method == "grg" and self.speed_limit != "l1":

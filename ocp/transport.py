@@ -20,6 +20,7 @@ import numpy as np
 
 from .basis import check_basis, factor_matrix, sine_matrix
 from .grid import Grid
+from .mask import check_free, face_masks
 
 
 class FaceBasis:
@@ -53,10 +54,22 @@ def upwind_split(v, eps: float):
     return vp, vp - v
 
 
-def upwind_step(p: np.ndarray, vx, vy, dt: float, dx: float, dy: float, eps: float) -> np.ndarray:
-    """One explicit donor-cell step of d_t p = -div(v p) with zero wall flux."""
+def masked_split(vx, vy, eps: float, open_x=None, open_y=None):
+    """(vx+, vx-, vy+, vy-) of :func:`upwind_split`, multiplied by the face masks ``open_x`` (nx-1, ny) and
+    ``open_y`` (nx, ny-1) of :func:`ocp.mask.face_masks` when given: a closed face carries no flux, as
+    the outer walls (masking v itself would not do: the smoothed split of v = 0 is eps / 2 each way)."""
     vxp, vxm = upwind_split(vx, eps)
     vyp, vym = upwind_split(vy, eps)
+    if open_x is not None:
+        vxp, vxm, vyp, vym = vxp * open_x, vxm * open_x, vyp * open_y, vym * open_y
+    return vxp, vxm, vyp, vym
+
+
+def upwind_step(p: np.ndarray, vx, vy, dt: float, dx: float, dy: float, eps: float,
+                open_x=None, open_y=None) -> np.ndarray:
+    """One explicit donor-cell step of d_t p = -div(v p) with zero wall flux (and zero flux through the
+    closed faces of a free-cell mask, :func:`masked_split`)."""
+    vxp, vxm, vyp, vym = masked_split(vx, vy, eps, open_x, open_y)
     fx = vxp * p[:-1, :] - vxm * p[1:, :]            # flux through interior x-faces
     fy = vyp * p[:, :-1] - vym * p[:, 1:]
     zx = np.zeros((1, p.shape[1]))
@@ -66,10 +79,14 @@ def upwind_step(p: np.ndarray, vx, vy, dt: float, dx: float, dy: float, eps: flo
     return p - dt / dx * np.diff(fx, axis=0) - dt / dy * np.diff(fy, axis=1)
 
 
-def minmod_slopes(p: np.ndarray, axis: int) -> np.ndarray:
+def minmod_slopes(p: np.ndarray, axis: int, open_faces=None) -> np.ndarray:
     """Limited slope per cell along ``axis``: minmod of the two one-sided differences, 0 in the
-    first and last cell (the wall has no neighbour: zero-flux walls, first order there)."""
+    first and last cell (the wall has no neighbour: zero-flux walls, first order there).  With the
+    face mask ``open_faces`` of that axis the difference across a closed face counts as 0, so a cell
+    next to an obstacle is first order too: the slopes never reach across a closed face."""
     d = np.diff(p, axis=axis)
+    if open_faces is not None:
+        d = d * open_faces
     a = np.take(d, range(0, d.shape[axis] - 1), axis=axis)
     b = np.take(d, range(1, d.shape[axis]), axis=axis)
     inner = 0.5 * (np.sign(a) + np.sign(b)) * np.minimum(np.abs(a), np.abs(b))
@@ -78,9 +95,10 @@ def minmod_slopes(p: np.ndarray, axis: int) -> np.ndarray:
     return np.pad(inner, pad)
 
 
-def _muscl_euler(p: np.ndarray, vxp, vxm, vyp, vym, dt: float, dx: float, dy: float) -> np.ndarray:
+def _muscl_euler(p: np.ndarray, vxp, vxm, vyp, vym, dt: float, dx: float, dy: float,
+                 open_x=None, open_y=None) -> np.ndarray:
     """Forward-Euler step with MUSCL (minmod) face values and the smoothed upwind split."""
-    sx, sy = minmod_slopes(p, 0), minmod_slopes(p, 1)
+    sx, sy = minmod_slopes(p, 0, open_x), minmod_slopes(p, 1, open_y)
     fx = vxp * (p[:-1, :] + 0.5 * sx[:-1, :]) - vxm * (p[1:, :] - 0.5 * sx[1:, :])
     fy = vyp * (p[:, :-1] + 0.5 * sy[:, :-1]) - vym * (p[:, 1:] - 0.5 * sy[:, 1:])
     zx = np.zeros((1, p.shape[1]))
@@ -90,7 +108,8 @@ def _muscl_euler(p: np.ndarray, vxp, vxm, vyp, vym, dt: float, dx: float, dy: fl
     return p - dt / dx * np.diff(fx, axis=0) - dt / dy * np.diff(fy, axis=1)
 
 
-def muscl_step(p: np.ndarray, vx, vy, dt: float, dx: float, dy: float, eps: float) -> np.ndarray:
+def muscl_step(p: np.ndarray, vx, vy, dt: float, dx: float, dy: float, eps: float,
+               open_x=None, open_y=None) -> np.ndarray:
     """One step of d_t p = -div(v p), second order: limited (minmod) MUSCL reconstruction of the face
     values, the smoothed upwind split and zero wall flux of :func:`upwind_step`, and Heun's SSP-RK2
     in time (forward Euler with MUSCL is only first order in time: 0.7-0.85 on the translation test).
@@ -98,11 +117,11 @@ def muscl_step(p: np.ndarray, vx, vy, dt: float, dx: float, dy: float, eps: floa
     Positivity: face values p_i +- s_i / 2 lie between neighbouring cell values (>= 0 when p is), and
     a cell's own outflow through a face is at most 1.5 p_i times its rate, so each Euler stage keeps
     p >= 0 when the upwind CFL rule holds with cfl / 1.5; SSP-RK2 is a convex combination of such
-    stages (``PlannerSettings.substeps`` for ``scheme = "muscl"``)."""
-    vxp, vxm = upwind_split(vx, eps)
-    vyp, vym = upwind_split(vy, eps)
-    p1 = _muscl_euler(p, vxp, vxm, vyp, vym, dt, dx, dy)
-    return 0.5 * p + 0.5 * _muscl_euler(p1, vxp, vxm, vyp, vym, dt, dx, dy)
+    stages (``PlannerSettings.substeps`` for ``scheme = "muscl"``).  Face masks: closed faces carry no
+    flux and no slope reaches across them (:func:`masked_split`, :func:`minmod_slopes`)."""
+    vxp, vxm, vyp, vym = masked_split(vx, vy, eps, open_x, open_y)
+    p1 = _muscl_euler(p, vxp, vxm, vyp, vym, dt, dx, dy, open_x, open_y)
+    return 0.5 * p + 0.5 * _muscl_euler(p1, vxp, vxm, vyp, vym, dt, dx, dy, open_x, open_y)
 
 
 #: the finite-volume schemes: first-order donor cell (the paper's discretisation) and limited MUSCL
@@ -112,9 +131,10 @@ CFL_FACTOR = {"upwind": 1.0, "muscl": 1.5}
 
 
 def simulate(p0: np.ndarray, coef: np.ndarray, grid: Grid, interval: float, substeps: int, eps: float,
-             basis: str = "sine", scheme: str = "upwind") -> np.ndarray:
+             basis: str = "sine", scheme: str = "upwind", free=None) -> np.ndarray:
     """Density snapshots (N * substeps + 1, nx, ny) under the piecewise-constant velocity ``coef``
-    of ``basis`` (:mod:`ocp.basis`)."""
+    of ``basis`` (:mod:`ocp.basis`); ``free`` an optional free-cell mask (nx, ny) (:mod:`ocp.mask`)."""
+    open_x, open_y = face_masks(check_free(free, grid.shape))
     coef = np.asarray(coef, dtype=float)
     basis = FaceBasis(grid, coef.shape[2], coef.shape[3], basis)
     step = STEPS[scheme]
@@ -125,19 +145,21 @@ def simulate(p0: np.ndarray, coef: np.ndarray, grid: Grid, interval: float, subs
     for k in range(coef.shape[0]):
         vx, vy = basis.face_velocities(coef[k])
         for _ in range(substeps):
-            p = step(p, vx, vy, dt, grid.dx, grid.dy, eps)
+            p = step(p, vx, vy, dt, grid.dx, grid.dy, eps, open_x, open_y)
             out[n] = p
             n += 1
     return out
 
 
 def advect_field(p0: np.ndarray, grid: Grid, velocity, t_end: float, cfl: float = 0.9, eps: float = 0.0,
-                 scheme: str = "upwind") -> np.ndarray:
+                 scheme: str = "upwind", free=None) -> np.ndarray:
     """Transport p0 for time t_end under a steady velocity field ``velocity(x, y) -> (vx, vy)``.
 
     Used by the convergence tests (translation, solid-body rotation); the velocity is sampled on
-    the interior faces and the step obeys the same CFL rule as the planner.
+    the interior faces and the step obeys the same CFL rule as the planner; ``free`` an optional
+    free-cell mask (:mod:`ocp.mask`).
     """
+    open_x, open_y = face_masks(check_free(free, grid.shape))
     Xf, Ycx = np.meshgrid(grid.xf[1:-1], grid.yc, indexing="ij")
     Xcy, Yf = np.meshgrid(grid.xc, grid.yf[1:-1], indexing="ij")
     vx = velocity(Xf, Ycx)[0]
@@ -148,5 +170,5 @@ def advect_field(p0: np.ndarray, grid: Grid, velocity, t_end: float, cfl: float 
     p = np.asarray(p0, dtype=float)
     step = STEPS[scheme]
     for _ in range(n):
-        p = step(p, vx, vy, dt, grid.dx, grid.dy, eps)
+        p = step(p, vx, vy, dt, grid.dx, grid.dy, eps, open_x, open_y)
     return p

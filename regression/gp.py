@@ -214,6 +214,7 @@ class GaussianProcess:
         #: number of posterior covariances computed from scratch / by a Woodbury update
         self.n_factorizations = 0
         self.n_woodbury_updates = 0
+        self._followers: list[GaussianProcess] = []
         self._build_scatter_indices()
 
     # ------------------------------------------------------------------ properties
@@ -284,6 +285,8 @@ class GaussianProcess:
         self._sum_y += float(y.sum())
         self._sum_y2 += float(y @ y)
         self._version += 1
+        for f in self._followers:             # same data at other hyperparameters (:meth:`follower`)
+            f.add(X, y)
         if self._pending is not None:
             if self._pending_n + n <= self.max_update_rank:
                 self._pending.append(X)          # X is a fresh array from _points
@@ -557,6 +560,29 @@ class GaussianProcess:
         self._settings = dataclasses.replace(self._settings, signal_variance=float(signal_variance),
                                              length_scale=float(length_scale), inducing_spacing=self._spacing)
         return self._settings
+
+    def follower(self, signal_variance: float | None = None, length_scale: float | None = None) -> "GaussianProcess":
+        """A GP on this GP's inducing grid holding the same data, at other hyperparameters
+        (default: the current ones), that is given every later :meth:`add` of this GP as well.
+
+        Its posterior is computed from the copied power sums once (O(M^3)) and then follows by
+        Woodbury updates like this GP's (O(k M^2) for k new points), so the predictive variance at
+        a second length scale costs about as much as this GP's own at every step
+        (:mod:`sim.stopping` uses it to check the variance at a shorter length scale).  Change its
+        hyperparameters with :meth:`set_hyperparameters`; the length scale must be >= 1.5 x the
+        inducing spacing.  A follower does not learn its hyperparameters."""
+        s = self._settings
+        new = dataclasses.replace(s, signal_variance=s.signal_variance if signal_variance is None else signal_variance,
+                                  length_scale=s.length_scale if length_scale is None else length_scale,
+                                  inducing_spacing=self._spacing, learn_hyperparameters=False)
+        f = GaussianProcess(new, self._domain)
+        f._mom[...] = self._mom
+        f._momy[...] = self._momy
+        f._n, f._sum_y, f._sum_y2 = self._n, self._sum_y, self._sum_y2
+        f._version = 1
+        f._pending, f._pending_n = None, 0        # first posterior from the power sums
+        self._followers.append(f)
+        return f
 
     def _lml(self, s2: float, ell: float, a: np.ndarray, b: np.ndarray) -> float:
         sn2 = self._settings.noise_variance

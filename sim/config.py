@@ -13,6 +13,8 @@ the GP (``regression.GPSettings``), the KDE (:class:`KDESettings`), the feedback
     [feedback]   alpha, sigma, p_floor, v_max
     [planner]    nx, ny, horizon, n_intervals, n_modes_x, n_modes_y, w_f, w_p, w_v, v_max, ...
     [planner.ipopt]  tol, max_iter, ...
+    [domain]     source ("harbour", "floor", "lake" or a .npz/.png/.tif/.geojson file; "" = the empty
+                 rectangle), min_free_fraction (0.5), unreachable ("exclude" or "refuse"); see sim.domain
 
 Unknown tables or keys and bad values raise ``ValueError`` naming them.  Shared quantities have one
 source: ``planner.domain`` is ``sim.domain``, ``planner.horizon`` defaults to ``sim.period`` and
@@ -53,13 +55,14 @@ from ..runtime.validation import MAX_MAGNITUDE
 from ..control import FeedbackSettings
 from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict
 from ..regression import GPSettings
+from .domain import DomainSettings
 from .presets import DEFAULT_PRESET, PRESETS, merge_under_preset
 from .stopping import STOP_RULES
 
 __all__ = ["SimSettings", "KDESettings", "RunConfig", "load_config", "read_toml", "config_from_dict", "to_toml",
            "SECTIONS"]
 
-SECTIONS = ("sim", "gp", "kde", "feedback", "planner")
+SECTIONS = ("sim", "gp", "kde", "feedback", "planner", "domain")
 
 
 def _number(name, v, *, positive=False, nonneg=False):
@@ -135,7 +138,12 @@ class SimSettings:
     noise_variance  variance of the measurement noise (paper: 0.04)
     stop_rule       "absolute" (paper): stop when sup V <= gamma; "relative": stop when
                     sup V <= gamma_relative * s_f^2 (s_f^2 possibly learned, gp.learn_hyperparameters)
+                    "robust": "relative", and it must also hold for the variance computed with the
+                    length scale min(l, stop_length_scale): a learned long length scale cannot make
+                    unvisited cells look mapped (sim.stopping)
     gamma_relative  relative threshold (default 0.4 = the paper's 0.1 / 0.25)
+    stop_length_scale  "robust": the shortest length scale the map must be resolved at [m]; None
+                    (default): gp.length_scale, the prior median of a learned one
     eta_relative    with stop_rule "relative", the target's tolerance is eta_relative * s_f^2 (default
                     0.2 = the paper's 0.05 / 0.25); below gamma_relative
     max_periods     stop after this many re-planning periods even if sup V > gamma
@@ -147,12 +155,13 @@ class SimSettings:
     controller      ``feedback``: eq. "density feedback law using estimation" (the paper);
                     ``open-loop``: the robots follow the planned v_r alone (saturated at
                     feedback.v_max), a baseline that shows what the mean-field feedback adds;
-                    ``diffusion``, ``coverage``, ``greedy``, ``lawnmower``: baselines without a
+                    ``diffusion``, ``coverage``, ``greedy``, ``lawnmower``, ``ergodic``: baselines without a
                     planner (:mod:`sim.controllers`, which also lets you add your own)
     diffusion_sigma diffusion coefficient [m^2/s] of the robots under the ``diffusion`` controller
     greedy_radius   ``greedy``: a robot looks for the highest GP variance within this distance [m]
     greedy_separation  ``greedy``: a goal excludes the cells within this distance from other robots' goals [m]
     lawnmower_lane  ``lawnmower``: spacing of the sweep lanes inside a robot's rectangle [m]
+    ergodic_modes   ``ergodic``: cosine modes per axis of the spectral multiscale coverage (sim.ergodic)
     robot_loss      fraction of the robots (chosen at random) that stop working at ``loss_time``:
                     they no longer move or measure, and the KDE no longer sees them
     loss_time       time [s] of the loss (default: the period T, i.e. 7 s in the paper scenario)
@@ -185,11 +194,13 @@ class SimSettings:
     stop_rule: str = "absolute"
     gamma_relative: float = 0.4
     eta_relative: float = 0.2
+    stop_length_scale: float | None = None
     allow_long_run: bool = False
     diffusion_sigma: float = 3.0
     greedy_radius: float = 5.0
     greedy_separation: float = 2.0
     lawnmower_lane: float = 1.0
+    ergodic_modes: int = 20
     robot_loss: float = 0.0
     loss_time: float | None = None
     metrics_every: int = 1
@@ -208,8 +219,11 @@ class SimSettings:
         set_("max_periods", _integer("max_periods", self.max_periods, 1))
         set_("seed", _integer("seed", self.seed, 0))
         set_("substeps", _integer("substeps", self.substeps, 1))
+        set_("ergodic_modes", _integer("ergodic_modes", self.ergodic_modes, 1))
         if self.stop_rule not in STOP_RULES:
             raise ValueError(f"sim.stop_rule must be one of {', '.join(sorted(STOP_RULES))}, got {self.stop_rule!r}")
+        if self.stop_length_scale is not None:
+            set_("stop_length_scale", _number("stop_length_scale", self.stop_length_scale, positive=True))
         set_("gamma_relative", _number("gamma_relative", self.gamma_relative, nonneg=True))
         set_("eta_relative", _number("eta_relative", self.eta_relative, nonneg=True))
         if not self.gamma_relative < 1.0:
@@ -304,6 +318,7 @@ class RunConfig:
     kde: KDESettings = field(default_factory=KDESettings)
     feedback: FeedbackSettings = field(default_factory=FeedbackSettings)
     planner: PlannerSettings = field(default_factory=PlannerSettings)
+    domain: DomainSettings = field(default_factory=DomainSettings)
     #: name of the preset (:mod:`sim.presets`) the settings were laid over; recorded, not applied here
     preset: str = DEFAULT_PRESET
 
@@ -401,7 +416,8 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
         except (TypeError, ValueError):
             raise ValueError(f"planner.domain must be [x0, x1, y0, y1], got {pl_map['domain']!r}") from None
     planner = dataclass_from_dict(PlannerSettings, pl_map, "planner")
-    return RunConfig(sim=sim, gp=gp, kde=kde, feedback=fb, planner=planner, preset=name)
+    dom = dataclass_from_dict(DomainSettings, dict(doc.get("domain", {})), "domain")
+    return RunConfig(sim=sim, gp=gp, kde=kde, feedback=fb, planner=planner, domain=dom, preset=name)
 
 
 def read_toml(path) -> dict:

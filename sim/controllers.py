@@ -17,7 +17,18 @@ robots by eq. "Langevin equation" with diffusion ``ctrl.sigma`` and reflecting w
 Speed limit.  The feedback laws (``feedback``, ``open-loop``, ``coverage``) saturate at
 ``feedback.v_max`` (4 m/s, as in every paper run: the headroom of the feedback law over the 3 m/s
 reference); the motion baselines ``greedy`` and ``lawnmower`` drive at ``planner.v_max`` (3 m/s,
-the planner's own limit on the reference velocity).  ``diffusion`` has v = 0.
+the planner's own limit on the reference velocity), and so does ``ergodic`` (spectral multiscale
+coverage towards mu ∝ V, :mod:`sim.ergodic`).  ``diffusion`` has v = 0.
+
+Obstacles (issue 19).  With a domain (``[domain] source``), ``ctx.free`` is the (nx, ny) bool mask of
+the planner cells the swarm can use (free and reachable from the start box) and ``ctx.region`` the
+:class:`sim.domain.Domain` (fine free space, ``contains``, ``sample``); both are None on the empty
+rectangle, where every controller behaves exactly as before.  The loop reflects every robot at the
+obstacle boundaries, whatever a controller commands.  With obstacles ``coverage`` tracks the
+uniform density of the free space, ``greedy`` measures its radius and separation by geodesic
+distance (Dijkstra on the free cells, :class:`sim.domain.GeodesicGrid`) and drives along the
+shortest path, ``lawnmower`` splits the free area into rectangles of equal free area and sweeps the
+free runs of each lane (a boustrophedon with geodesic detours between runs).
 
 Writing your own: subclass :class:`Controller`, set ``name`` and ``needs_plan``, implement
 ``velocity`` (and ``start`` / ``start_period`` / ``observe`` as needed), and pass an instance as
@@ -33,9 +44,11 @@ import numpy as np
 
 from ..control import feedback_velocity, saturate, tracking_velocity
 from ..control.stirring import stirring_pattern
+from .ergodic import SpectralCoverage
 
 __all__ = ["Context", "Controller", "FeedbackController", "OpenLoopController", "DiffusionController",
-           "CoverageController", "GreedyController", "LawnmowerController", "CONTROLLERS", "register",
+           "CoverageController", "GreedyController", "LawnmowerController", "ErgodicController", "CONTROLLERS",
+           "register",
            "make_controller"]
 
 
@@ -52,6 +65,8 @@ class Context:
     plan       the reference (p_r, v_r) for this period if ``needs_plan`` (``ocp.ReferencePlan``), else None
     estimate   callable X -> KDE estimate (``control.DensityEstimate``), cached on the array identity
     rng        the run's random generator (draws change the run's random stream)
+    free       (nx, ny) bool: planner cells free and reachable (None: the empty rectangle)
+    region     the ``sim.domain.Domain`` of the run (None: the empty rectangle)
     """
 
     t: float
@@ -66,6 +81,8 @@ class Context:
     plan: object = None
     estimate: object = None
     rng: object = None
+    free: np.ndarray | None = None
+    region: object = None
 
 
 class Controller:
@@ -154,6 +171,9 @@ class CoverageController(Controller):
 
     def start(self, ctx):
         self.estimate = ctx.estimate
+        if ctx.free is not None:        # the uniform density of the free space
+            x0, x1, y0, y1 = ctx.domain
+            self.p_uniform = 1.0 / (float(ctx.free.sum()) * (x1 - x0) * (y1 - y0) / ctx.free.size)
 
     def velocity(self, t, X, alive):
         v = np.zeros_like(X)
@@ -198,9 +218,16 @@ class GreedyController(Controller):
     def start(self, ctx):
         self.h = ctx.h
         self.goals = ctx.X.copy()
+        self.geo = None
+        if ctx.free is not None:
+            from .domain import GeodesicGrid
+            self.geo = GeodesicGrid(ctx.free, ctx.domain)
+            self.goal_cells = self.geo.cell_of(ctx.X)
         self.observe(ctx)
 
     def observe(self, ctx):
+        if self.geo is not None:
+            return self._observe_geodesic(ctx)
         C = ctx.centers
         score = ctx.var.ravel().astype(float).copy()
         free = np.ones(len(C), bool)
@@ -218,8 +245,59 @@ class GreedyController(Controller):
             self.goals[i] = C[j]
             free &= (C[:, 0] - C[j, 0]) ** 2 + (C[:, 1] - C[j, 1]) ** 2 > s2
 
+    def _observe_geodesic(self, ctx):
+        """As ``observe`` with geodesic distances on the free cells (radius, separation)."""
+        geo = self.geo
+        C = geo.centers
+        okc = geo.free.ravel()
+        score = np.where(okc, ctx.var.ravel().astype(float), -np.inf)
+        avail = okc.copy()
+        idx = np.flatnonzero(ctx.alive)
+        order = idx[ctx.rng.permutation(len(idx))] if ctx.rng is not None else idx
+        cells = geo.cell_of(ctx.X)
+        geo.distances(np.unique(cells[order]))          # one Dijkstra call for all new source cells
+        for i in order:
+            d = geo.distances([cells[i]])[0]
+            reach = d <= self.radius
+            cand = reach & avail
+            if not cand.any():
+                cand = reach if reach.any() else okc
+            j = np.flatnonzero(cand)[np.argmax(score[cand])]
+            self.goals[i] = C[j]
+            self.goal_cells[i] = j
+            avail &= geo.distances([j])[0] > self.separation
+
     def velocity(self, t, X, alive):
-        return _toward(X, self.goals, self.v_max, self.h)
+        if self.geo is None:
+            return _toward(X, self.goals, self.v_max, self.h)
+        return _toward(X, _hop_targets(self.geo, X, self.goal_cells, self.goals), self.v_max, self.h)
+
+
+def _hop_targets(geo, X, goal_cells, goals):
+    """Where to head for now on a geodesic path: straight to the goal if the segment to it crosses
+    free cells only, else the next cell's centre on a shortest path (the goal in its own cell)."""
+    cells = geo.cell_of(X)
+    hop = geo.next_hop(cells, goal_cells)
+    at = hop == cells
+    target = np.where(at[:, None], goals, geo.centers[hop])
+    see = _segments_free(geo, X, goals)
+    return np.where(see[:, None], goals, target)
+
+
+def _segments_free(geo, A, B, max_samples: int = 64) -> np.ndarray:
+    """(n,) bool: the segments A_i -> B_i cross free cells only (sampled at a third of a cell)."""
+    d = B - A
+    L = np.hypot(d[:, 0], d[:, 1])
+    k = int(min(max_samples, max(2, math.ceil(3 * float(L.max(initial=0.0)) / min(geo.dx, geo.dy)) + 1)))
+    x0, _, y0, _ = geo.extent
+    nx, ny = geo.free.shape
+    ok = np.ones(len(A), bool)
+    fr = geo.free.ravel()
+    for s in np.linspace(0.0, 1.0, k):
+        i = np.clip(((A[:, 0] + s * d[:, 0] - x0) / geo.dx).astype(np.intp), 0, nx - 1)
+        j = np.clip(((A[:, 1] + s * d[:, 1] - y0) / geo.dy).astype(np.intp), 0, ny - 1)
+        ok &= fr[i * ny + j]
+    return ok
 
 
 class LawnmowerController(Controller):
@@ -236,6 +314,9 @@ class LawnmowerController(Controller):
 
     def start(self, ctx):
         self.h = ctx.h
+        self.geo = None
+        if ctx.free is not None:
+            return self._start_free(ctx)
         X = ctx.X
         n = len(X)
         x0, x1, y0, y1 = ctx.domain
@@ -271,14 +352,103 @@ class LawnmowerController(Controller):
             pts += [(x, ends[0]), (x, ends[1])]
         return np.array(pts, float)
 
+    def _start_free(self, ctx):
+        """Boustrophedon over the free cells: columns of equal free area (robots sorted by x), rows of
+        equal free area within each (robots sorted by y); in each robot's rectangle the lanes are
+        cut into their free runs, swept back and forth, and consecutive runs (and the approach from
+        the start) are joined by geodesic paths through the free cells."""
+        from .domain import GeodesicGrid
+        geo = self.geo = GeodesicGrid(ctx.free, ctx.domain)
+        free = geo.free
+        nx, ny = free.shape
+        X = ctx.X
+        n = len(X)
+        x0, x1, y0, y1 = ctx.domain
+        cols = max(1, min(nx, int(round(math.sqrt(n * (x1 - x0) / (y1 - y0))))))
+        order = np.argsort(X[:, 0], kind="stable")
+        col_sizes = [n // cols + (1 if c < n % cols else 0) for c in range(cols)]
+        xb = _equal_area_cuts(free.sum(axis=1), cols)
+        start = 0
+        paths = [None] * n
+        for c, size in enumerate(col_sizes):
+            members = order[start:start + size]
+            start += size
+            members = members[np.argsort(X[members, 1], kind="stable")]
+            ia, ib = xb[c], xb[c + 1]
+            yb = _equal_area_cuts(free[ia:ib].sum(axis=0), max(size, 1))
+            for r, i in enumerate(members):
+                paths[i] = self._sweep_cells(geo, ia, ib, yb[r], yb[r + 1])
+        # one Dijkstra call for every waypoint the connectors lead to, then the connected paths
+        geo.distances(np.unique([c for p in paths for c in p]))
+        paths, firsts = zip(*[self._connect(geo, X[i], pts) for i, pts in enumerate(paths)])
+        self.first = np.array(firsts)
+        K = max(len(p) for p in paths)
+        self.paths = np.array([np.vstack([p, np.repeat(p[-1:], K - len(p), 0)]) for p in paths])
+        self.lengths = np.array([len(p) for p in paths])
+        self.pos = np.zeros(n, int)
+        self.stall = np.zeros(n, int)
+        self.leg = None
+        self.rows, self.cols = None, cols
+
+    def _sweep_cells(self, geo, ia, ib, ja, jb) -> list:
+        """Waypoint cells of the boustrophedon in cells [ia, ib) x [ja, jb): the ends of each lane's free runs."""
+        free = geo.free
+        ny = free.shape[1]
+        x0, _, y0, _ = geo.extent
+        w = (ib - ia) * geo.dx
+        m = max(1, int(round(w / self.lane)))
+        lanes = np.unique(np.clip(ia + ((np.arange(m) + 0.5) * (ib - ia) / m).astype(int), ia, max(ia, ib - 1)))
+        pts = []          # (cell index) waypoints in sweep order
+        for k, ci in enumerate(lanes):
+            runs = _free_runs(free[ci, ja:jb])
+            if k % 2:
+                runs = [(b, a) for a, b in runs[::-1]]
+            for a, b in runs:
+                pts += [ci * ny + ja + a, ci * ny + ja + b]
+        return pts
+
+    def _connect(self, geo, x_start, pts):
+        """``(waypoints, first)``: the approach from x_start (waypoints ``[0, first)``), then the sweep
+        (from index ``first``, swept back and forth), runs joined by shortest paths."""
+        free = geo.free
+        ny = free.shape[1]
+        c0 = int(geo.cell_of(x_start[None, :])[0])
+        if not pts:                    # no free cell in the rectangle: stay near the start
+            return np.array([geo.centers[c0]]), 0
+        # approach and the connectors between runs: shortest paths, straightened (string pulling);
+        # along a free run: straight
+        approach = _string_pull(geo, _geodesic_cells(geo, c0, pts[0]))[:-1]
+        cells = [pts[0]]
+        for a, b in zip(pts[:-1], pts[1:]):
+            if a == b:
+                continue
+            if _same_run(a, b, ny, free):
+                cells.append(b)
+            else:
+                cells += _string_pull(geo, _geodesic_cells(geo, a, b))[1:]
+        out = [cells[0]]
+        for c in cells[1:]:
+            if c != out[-1]:
+                out.append(c)
+        return geo.centers[approach + out], len(approach)
+
     def _waypoint(self):
         L = self.lengths
+        if self.geo is not None:       # the approach once, then back and forth over the sweep
+            f = self.first
+            S = L - f
+            period = np.maximum(2 * S - 2, 1)
+            k = np.maximum(self.pos - f, 0) % period
+            idx = np.where(self.pos < f, self.pos, f + np.where(k < S, k, period - k))
+            return self.paths[np.arange(len(L)), idx]
         period = np.maximum(2 * L - 2, 1)
         k = self.pos % period
         idx = np.where(k < L, k, period - k)            # 0 1 .. L-1 L-2 .. 1 0 1 ..
         return self.paths[np.arange(len(L)), idx]
 
     def velocity(self, t, X, alive):
+        if self.geo is not None:
+            return self._velocity_free(X)
         goal = self._waypoint()
         d = np.hypot(*(goal - X).T)
         reached = d <= 0.5 * self.v_max * self.h     # within half a sub-step's travel (Brownian jitter)
@@ -288,8 +458,134 @@ class LawnmowerController(Controller):
         return _toward(X, goal, self.v_max, self.h)
 
 
+    def _velocity_free(self, X):
+        """As ``velocity``; a waypoint not reached within 3x its travel time (+ 20 sub-steps; e.g. in a
+        partly blocked cell) is skipped."""
+        goal = self._waypoint()
+        d = np.hypot(*(goal - X).T)
+        if self.leg is None:
+            self.leg = d.copy()
+        self.stall += 1
+        reached = (d <= 0.5 * self.v_max * self.h) | (self.stall > 20 + 3.0 * self.leg / (self.v_max * self.h))
+        if reached.any():
+            self.pos[reached] += 1
+            self.stall[reached] = 0
+            goal = self._waypoint()
+            self.leg[reached] = np.hypot(*(goal[reached] - X[reached]).T)
+        return _toward(X, goal, self.v_max, self.h)
+
+
+def _equal_area_cuts(weights, parts: int) -> list:
+    """Cut indices 0 = c_0 <= ... <= c_parts = len(weights) splitting ``weights`` into ``parts``
+    consecutive groups of about equal sum, each with at least one index while there are enough."""
+    w = np.asarray(weights, float)
+    L = len(w)
+    cum = np.concatenate([[0.0], np.cumsum(w)])
+    total = cum[-1]
+    cuts = [0]
+    for p in range(1, parts):
+        c = int(np.searchsorted(cum, total * p / parts, side="left")) if total > 0 else round(L * p / parts)
+        lo = cuts[-1] + (1 if L - cuts[-1] > parts - p else 0)
+        cuts.append(min(max(c, lo), L - (parts - p) if L >= parts else L))
+    cuts.append(L)
+    return [int(min(max(c, 0), L)) for c in cuts]
+
+
+def _free_runs(col) -> list:
+    """(first, last) indices of the runs of True in a 1-D bool array."""
+    d = np.diff(np.concatenate([[0], col.astype(np.int8), [0]]))
+    return [(int(a), int(b) - 1) for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1))]
+
+
+def _same_run(a, b, ny, free) -> bool:
+    """Cells a and b in the same column with only free cells between them."""
+    ia, ja = divmod(a, ny)
+    ib, jb = divmod(b, ny)
+    if ia != ib:
+        return False
+    lo, hi = min(ja, jb), max(ja, jb)
+    return bool(free[ia, lo:hi + 1].all())
+
+
+def _geodesic_cells(geo, a, b) -> list:
+    """Cells of a shortest path a -> b (steepest descent of the distance to b); [a] if b is unreachable."""
+    D = geo.distances([b])[0]
+    path = [int(a)]
+    c = int(a)
+    for _ in range(geo.free.size):
+        if c == b:
+            break
+        nb = geo.nbr[c]
+        nb = nb[nb >= 0]
+        if not len(nb):
+            break
+        k = nb[np.argmin(D[nb])]
+        if not D[k] < D[c]:
+            break
+        path.append(int(k))
+        c = int(k)
+    return path
+
+
+def _line_of_sight(geo, a, b) -> bool:
+    """The straight segment between the centres of cells a and b crosses free cells only."""
+    pa, pb = geo.centers[a], geo.centers[b]
+    L = float(np.hypot(*(pb - pa)))
+    k = max(2, int(math.ceil(3 * L / min(geo.dx, geo.dy))) + 1)
+    s = np.linspace(0.0, 1.0, k)[:, None]
+    pts = pa + s * (pb - pa)
+    x0, _, y0, _ = geo.extent
+    nx, ny = geo.free.shape
+    i = np.clip(((pts[:, 0] - x0) / geo.dx).astype(int), 0, nx - 1)
+    j = np.clip(((pts[:, 1] - y0) / geo.dy).astype(int), 0, ny - 1)
+    return bool(geo.free[i, j].all())
+
+
+def _string_pull(geo, cells) -> list:
+    """Shorten a cell path: from each kept cell jump to the farthest later one in straight sight."""
+    if len(cells) <= 2:
+        return list(cells)
+    out, i = [cells[0]], 0
+    while i < len(cells) - 1:
+        j = len(cells) - 1
+        while j > i + 1 and not _line_of_sight(geo, cells[i], cells[j]):
+            j -= 1
+        out.append(cells[j])
+        i = j
+    return out
+
+
+class ErgodicController(Controller):
+    """Spectral multiscale coverage (Mathew & Mezić 2011, :mod:`sim.ergodic`) towards the target
+    mu ∝ V, refreshed after every measurement: u_j = -v_max B_j / |B_j| with B_j = sum_k Lambda_k S_k
+    grad f_k(x_j), S_k the swarm's accumulated coefficient difference to the target; speed
+    ``planner.v_max``, ``sim.ergodic_modes`` cosine modes per axis, no planner."""
+
+    name = "ergodic"
+
+    def __init__(self, config):
+        super().__init__(config)
+        self.smc = SpectralCoverage(config.sim.domain, config.sim.ergodic_modes, self.v_max)
+        self.h = None
+
+    def start(self, ctx):
+        self.h = ctx.h
+        self.smc.set_target(ctx.var, ctx.centers)
+
+    def observe(self, ctx):
+        self.smc.set_target(ctx.var, ctx.centers)
+
+    def velocity(self, t, X, alive):
+        # called once per Euler sub-step of length h, with the positions at its start
+        if alive.all():
+            return self.smc.step(X, self.h)
+        v = np.zeros_like(X)
+        v[alive] = self.smc.step(X[alive], self.h)
+        return v
+
+
 CONTROLLERS = {c.name: c for c in (FeedbackController, OpenLoopController, DiffusionController, CoverageController,
-                                   GreedyController, LawnmowerController)}
+                                   GreedyController, LawnmowerController, ErgodicController)}
 
 
 def register(cls) -> type:

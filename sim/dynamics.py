@@ -16,6 +16,11 @@ estimate p_hat of all robots, so within one measurement period Δt the motion is
 ``n_sub`` sub-steps of ``h = Δt / n_sub`` and the velocity is re-evaluated (with the KDE refitted)
 at every sub-step; see :func:`advance`.
 
+Obstacles (issue 19): wherever ``domain`` is accepted it may also be a :class:`sim.domain.Domain`;
+the step is then reflected at the obstacle boundaries as well as at the walls
+(:meth:`sim.domain.Domain.move`), at the geometry's own resolution, so robots never enter an
+obstacle, and :func:`uniform_in_box` samples the start box intersected with the free space.
+
 Measurements (section "Problem Formulation"): ``y_i = f(X_i) + eps_i``, eps_i i.i.d.
 N(0, noise_variance).  All randomness comes from an explicit ``numpy.random.Generator``.
 """
@@ -52,7 +57,8 @@ def reflect(X, domain) -> np.ndarray:
 
 
 def euler_maruyama_step(X, v, h: float, sigma: float, rng: np.random.Generator, domain) -> np.ndarray:
-    """One Euler--Maruyama step of eq. "Langevin equation" followed by wall reflection."""
+    """One Euler--Maruyama step of eq. "Langevin equation" followed by wall reflection (and obstacle
+    reflection if ``domain`` is a :class:`sim.domain.Domain`)."""
     X = np.asarray(X, dtype=float)
     v = np.asarray(v, dtype=float)
     if v.shape != X.shape:
@@ -64,6 +70,8 @@ def euler_maruyama_step(X, v, h: float, sigma: float, rng: np.random.Generator, 
     step = X + v * h
     if sigma > 0:
         step = step + math.sqrt(2.0 * sigma * h) * rng.standard_normal(X.shape)
+    if hasattr(domain, "move"):
+        return domain.move(X, step)
     return reflect(step, domain)
 
 
@@ -97,7 +105,10 @@ def measure(field, X, noise_variance: float, rng: np.random.Generator) -> np.nda
     return f + math.sqrt(noise_variance) * rng.standard_normal(f.shape)
 
 
-def uniform_in_box(n: int, box, rng: np.random.Generator) -> np.ndarray:
-    """n positions uniform on ``box = (x0, x1, y0, y1)`` (the paper's initial distribution)."""
+def uniform_in_box(n: int, box, rng: np.random.Generator, domain=None) -> np.ndarray:
+    """n positions uniform on ``box = (x0, x1, y0, y1)`` (the paper's initial distribution); with a
+    :class:`sim.domain.Domain`, uniform on the box intersected with its free space."""
+    if domain is not None and hasattr(domain, "sample"):
+        return domain.sample(n, box, rng)
     bx0, bx1, by0, by1 = (float(v) for v in box)
     return np.column_stack([rng.uniform(bx0, bx1, n), rng.uniform(by0, by1, n)])

@@ -15,7 +15,14 @@ Analytic fields
             meandering Gaussian ridge.
 ``waves``   a seeded sum of 12 random plane waves of wavelengths 4-12 m (issue 20, a tuning field).
 
-All three take values in roughly [1, 4] on the default domain [0, 20]^2, i.e. the range of the
+Fine-structure fields (issue 20; generated, seeded, for checking stop rules and tuning):
+
+``bumps``     eight small Gaussian bumps (0.8-1.2 m) of either sign on a flat background, none
+              in the start box [0, 7]^2.
+``front``     a sharp two-level front (tanh of width 0.25 m) along a meandering line y ~ 12.
+``gp-sample`` a sample of a GP with l = 1.5 m (random Fourier features, seeded).
+
+All take values in roughly [1, 4] on the default domain [0, 20]^2, i.e. the range of the
 paper's field, so one set of GP hyperparameters suits them all.
 
 Fields from a file (``--field path``)
@@ -51,7 +58,7 @@ import numpy as np
 
 from ..runtime.cliargs import check_path
 
-__all__ = ["Field", "SincField", "PlumesField", "RidgeField", "WavesField", "GridField", "ScatteredField",
+__all__ = ["Field", "SincField", "PlumesField", "RidgeField", "WavesField", "BumpsField", "FrontField", "GPSampleField", "GridField", "ScatteredField",
            "FIELDS", "make_field", "load_field", "save_npz_field"]
 
 
@@ -202,8 +209,92 @@ class WavesField(Field):
         return {"name": self.name, "formula": "base + amp/sqrt(K) sum cos(<k_i, x> + phi_i), seeded", **self.params}
 
 
+class BumpsField(PlumesField):
+    """Fine structure: ``count`` small Gaussian bumps (widths ``width`` = (min, max) m, amplitudes of
+    random sign with |a| in ``amplitude``) on a flat background, centres drawn with ``seed`` 3 widths
+    outside ``keep_out`` (default the paper's start box [0, 7]^2, so the data of the first period see a flat
+    field) and at least 3 widths from each other.  A field whose structure is smaller than the GP's
+    prior length scale (1 m), for the stop-rule check (sim.stopping, issue 20)."""
+
+    name = "bumps"
+
+    def __init__(self, count: int = 8, width=(0.8, 1.2), amplitude=(1.0, 1.5), seed: int = 7,
+                 background: float = 2.0, domain=(0.0, 20.0, 0.0, 20.0), keep_out=(0.0, 7.0, 0.0, 7.0)):
+        rng = np.random.default_rng(int(seed))
+        x0, x1, y0, y1 = (float(v) for v in domain)
+        rows = []
+        for _ in range(10000):
+            if len(rows) == int(count):
+                break
+            w = rng.uniform(*width)
+            c = rng.uniform([x0 + 2 * w, y0 + 2 * w], [x1 - 2 * w, y1 - 2 * w])
+            a = rng.uniform(*amplitude) * rng.choice([-1.0, 1.0])
+            if keep_out[0] - 3 * w <= c[0] <= keep_out[1] + 3 * w and keep_out[2] - 3 * w <= c[1] <= keep_out[3] + 3 * w:
+                continue
+            if any(np.hypot(c[0] - r[0], c[1] - r[1]) < 3 * max(w, r[3]) for r in rows):
+                continue
+            rows.append((c[0], c[1], a, w))
+        if len(rows) < int(count):
+            raise ValueError(f"bumps: cannot place {count} bumps in {domain}")
+        super().__init__(background, rows)
+        self.seed = int(seed)
+
+    def describe(self):
+        return {**super().describe(), "name": self.name, "seed": self.seed}
+
+
+class FrontField(Field):
+    """A sharp two-level front: ``base + step * tanh(((y - y_f(x)) / width)``, ``y_f(x) = level +
+    meander sin(2 pi x / wavelength + phase)`` (a width of 0.25 m: a step on the scale of the GP's
+    prior length scale).  The start box [0, 7]^2 lies on the flat lower side."""
+
+    name = "front"
+
+    def __init__(self, base=2.0, step=1.0, level=12.0, meander=2.5, wavelength=9.0, phase=0.0, width=0.25):
+        self.params = dict(base=float(base), step=float(step), level=float(level), meander=float(meander),
+                           wavelength=float(wavelength), phase=float(phase), width=float(width))
+        if not (self.params["width"] > 0 and self.params["wavelength"] > 0):
+            raise ValueError("front field width and wavelength must be > 0")
+
+    def _evaluate(self, pts):
+        p = self.params
+        yf = p["level"] + p["meander"] * np.sin(2.0 * np.pi * pts[:, 0] / p["wavelength"] + p["phase"])
+        return p["base"] + p["step"] * np.tanh((pts[:, 1] - yf) / p["width"])
+
+    def describe(self):
+        return {"name": self.name, "formula": "base + step tanh((y - level - meander sin(2 pi x/wavelength + phase))/width)",
+                **self.params}
+
+
+class GPSampleField(Field):
+    """A sample of a GP with the squared-exponential kernel (length scale ``length_scale``, standard
+    deviation ``std``, mean ``mean``) drawn with ``seed``: ``features`` random Fourier features
+    (Rahimi & Recht 2007), ``f(x) = mean + std sqrt(2/D) sum_k cos(w_k . x + b_k)``, w_k ~ N(0, I/l^2),
+    b_k ~ U(0, 2 pi); defined everywhere, the same at every call."""
+
+    name = "gp-sample"
+
+    def __init__(self, length_scale: float = 1.5, std: float = 0.5, mean: float = 2.0, seed: int = 11,
+                 features: int = 2000):
+        if not (length_scale > 0 and std >= 0 and features >= 1):
+            raise ValueError("gp-sample: length_scale > 0, std >= 0 and features >= 1 needed")
+        rng = np.random.default_rng(int(seed))
+        self.params = dict(length_scale=float(length_scale), std=float(std), mean=float(mean), seed=int(seed),
+                           features=int(features))
+        self._w = rng.standard_normal((int(features), 2)) / float(length_scale)
+        self._b = rng.uniform(0.0, 2.0 * np.pi, int(features))
+
+    def _evaluate(self, pts):
+        p = self.params
+        return p["mean"] + p["std"] * np.sqrt(2.0 / p["features"]) * np.cos(pts @ self._w.T + self._b).sum(axis=1)
+
+    def describe(self):
+        return {"name": self.name, "formula": "mean + std sqrt(2/D) sum cos(w.x + b), w ~ N(0, I/l^2)", **self.params}
+
+
 #: Named analytic fields for ``--field``.
-FIELDS = {"sinc": SincField, "plumes": PlumesField, "ridge": RidgeField, "waves": WavesField}
+FIELDS = {"sinc": SincField, "plumes": PlumesField, "ridge": RidgeField, "waves": WavesField, "bumps": BumpsField, "front": FrontField,
+          "gp-sample": GPSampleField}
 
 
 # ---------------------------------------------------------------------------------- file fields

@@ -10,6 +10,9 @@
 ``field_error.png``  the paper's Fig. "sinc and prediction error": true field, final prediction and
                      |f - f̄|.
 ``animation.gif``    on request: robots over sqrt(V) at every measurement (pillow writer).
+
+With obstacles (:mod:`sim.domain`) every map shows them as a grey overlay at the geometry's own
+resolution, and the free planner cells the swarm cannot reach hatched in light grey.
 """
 from __future__ import annotations
 
@@ -43,6 +46,24 @@ def _image(ax, grid_values, domain, **kw):
     return ax.imshow(np.asarray(grid_values).T, origin="lower", extent=domain, interpolation="nearest", **kw)
 
 
+def _obstacles(ax, result):
+    """Grey overlay of the obstacles (fine raster of the domain) on a map axis; nothing without one."""
+    region = getattr(result, "region", None)
+    if region is None:
+        return
+    x0, x1, y0, y1 = region.extent
+    blocked = ~region.free_pixels
+    rgba = np.zeros(blocked.shape + (4,))
+    rgba[blocked] = (0.55, 0.55, 0.55, 1.0)
+    free = getattr(result, "free", None)
+    if free is not None:               # free at the fine resolution but outside the reachable cells
+        from ..control.kde import resample_mask
+        off = ~resample_mask(free, *blocked.shape) & ~blocked
+        rgba[off] = (0.85, 0.85, 0.85, 0.8)
+    ax.imshow(np.transpose(rgba, (1, 0, 2)), origin="lower", extent=(x0, x1, y0, y1), interpolation="nearest",
+              zorder=2)
+
+
 def panel_snapshots(result, periods=PANEL_PERIODS):
     """The snapshots shown in the columns: the ones closest in time to ``periods`` x T."""
     snaps = result.snapshots
@@ -67,10 +88,12 @@ def plot_panels(result, path, periods=PANEL_PERIODS):
     for c, sn in enumerate(snaps):
         ax = axes[0, c]
         im0 = _image(ax, sn.p_hat, dom, cmap="Greys", vmin=0, vmax=pmax)
-        ax.scatter(sn.X[:, 0], sn.X[:, 1], s=4, c="tab:red", lw=0)
+        ax.scatter(sn.X[:, 0], sn.X[:, 1], s=4, c="tab:red", lw=0, zorder=3)
         ax.set_title(f"t = {sn.t:.2f} s" + (f"  ({sn.t / result.config.sim.period:.0f}T)" if sn.t > 0 else ""))
         im1 = _image(axes[1, c], sn.mean, dom, cmap="viridis", vmin=fmin, vmax=fmax)
         im2 = _image(axes[2, c], np.sqrt(sn.var), dom, cmap="magma", vmin=0, vmax=sd_max)
+        for r in range(3):
+            _obstacles(axes[r, c], result)
         ax = axes[3, c]
         ax.set_xlim(x0, x1), ax.set_ylim(y0, y1), ax.set_aspect("equal")
         if sn.velocity is not None:
@@ -78,11 +101,15 @@ def plot_panels(result, path, periods=PANEL_PERIODS):
             xs = x0 + (np.arange(m) + 0.5) * (x1 - x0) / m
             ys = y0 + (np.arange(sn.velocity.shape[1]) + 0.5) * (y1 - y0) / sn.velocity.shape[1]
             XQ, YQ = np.meshgrid(xs, ys, indexing="ij")
-            sp = np.hypot(sn.velocity[..., 0], sn.velocity[..., 1])
-            q = ax.quiver(XQ, YQ, sn.velocity[..., 0], sn.velocity[..., 1], sp, cmap="plasma", clim=(0, vmax_speed),
-                          angles="xy")
+            vel = np.array(sn.velocity, float)
+            if getattr(result, "region", None) is not None:       # no arrows inside obstacles
+                vel[~result.region.contains(np.column_stack([XQ.ravel(), YQ.ravel()])).reshape(XQ.shape)] = 0.0
+            sp = np.hypot(vel[..., 0], vel[..., 1])
+            q = ax.quiver(XQ, YQ, vel[..., 0], vel[..., 1], sp, cmap="plasma", clim=(0, vmax_speed),
+                          angles="xy", zorder=3)
         else:
             ax.text(0.5, 0.5, "no plan", ha="center", va="center", transform=ax.transAxes)
+        _obstacles(ax, result)
         for r in range(4):
             axes[r, c].set_xticks([]), axes[r, c].set_yticks([])
     labels = ["robots over $\\hat p$", "GP mean $\\bar f$", "GP std $\\sqrt{V}$", "velocity $v$"]
@@ -153,6 +180,7 @@ def plot_field_error(result, path):
     axes[2].set_title(f"|f - $\\bar f$|  (RMSE {result.rows[-1]['rmse']:.3g})")
     for a in axes:
         a.set_xlabel("x"), a.set_ylabel("y")
+        _obstacles(a, result)
     try:
         return _save(fig, path)
     finally:
@@ -179,7 +207,8 @@ def write_animation(result, path, fps: int = 4) -> str:
     vmax = float(max(s.max() for s in sd))
     fig, ax = plt.subplots(figsize=(5, 4.4), constrained_layout=True)
     im = _image(ax, sd[0], dom, cmap="magma", vmin=0, vmax=vmax)
-    sc = ax.scatter(result.positions[0][:, 0], result.positions[0][:, 1], s=5, c="cyan", lw=0)
+    _obstacles(ax, result)
+    sc = ax.scatter(result.positions[0][:, 0], result.positions[0][:, 1], s=5, c="cyan", lw=0, zorder=3)
     fig.colorbar(im, ax=ax, shrink=0.85, label="$\\sqrt{V}$")
     title = ax.set_title("")
 

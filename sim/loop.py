@@ -25,20 +25,21 @@ __all__ = ["Snapshot", "SimulationResult", "run_simulation", "check_config", "QU
 def run_simulation(config: RunConfig | None = None, *, field: Field | None = None, planner=None,
                    progress: Callable[[dict], None] | None = None,
                    on_period: Callable[[SimulationResult], None] | None = None,
-                   controller=None, stop_rule=None, recorders=()) -> SimulationResult:
+                   controller=None, stop_rule=None, recorders=(), domain=None) -> SimulationResult:
     """Run Algorithm 1 with ``config``; returns a :class:`SimulationResult`.
 
     ``field`` overrides ``config.sim.field``; ``planner`` may be a prebuilt ``ocp.ReferencePlanner``
     for ``config.planner`` (it is built here otherwise, and only if the controller needs a plan).
     ``controller`` is a :class:`sim.controllers.Controller` instance (default: the one named by
     ``config.sim.controller``), ``stop_rule`` a :class:`sim.stopping.StopRule` (default:
-    ``config.sim.stop_rule``), ``recorders`` extra :class:`sim.recorders.Recorder` objects.
+    ``config.sim.stop_rule``), ``recorders`` extra :class:`sim.recorders.Recorder` objects, ``domain``
+    a :class:`sim.domain.Domain`, built-in name or file (default: ``config.domain.source``).
     ``progress(info)`` is called after every period start (``info["event"] == "plan"``) and at the end
     (``"done"``); ``on_period(result)`` after every completed period (the CLI writes the outputs so
     far there).
     """
     sim = Simulation(config, field=field, planner=planner, controller=controller, stop_rule=stop_rule,
-                     recorders=[CallbackRecorder(progress, on_period), *recorders])
+                     recorders=[CallbackRecorder(progress, on_period), *recorders], domain=domain)
     return sim.run()
 
 

@@ -13,7 +13,11 @@ p_f and the reference p_r live; 40 x 40 cells of 0.5 m by default):
 ``n_observations``  number of measurements in the data set
 ``signal_variance``, ``length_scale``  the GP hyperparameters in use (learned once per period with
                     ``gp.learn_hyperparameters``)
-``threshold``       the stopping threshold in effect: sim.gamma, or gamma_relative * signal_variance
+``threshold``       the stopping threshold in effect (sim.stopping): sim.gamma, or gamma_relative * signal_variance (scaled down by the robust rule)
+
+With obstacles (:mod:`sim.domain`) every field figure is taken over the free cells the swarm can
+reach only (``free``): sup V, mean V, RMSE (mean over free cells) and the L2 error (sum over free
+cells).
 """
 from __future__ import annotations
 
@@ -26,17 +30,22 @@ COLUMNS = ("step", "t", "period", "max_variance", "mean_variance", "rmse", "l2_e
            "mean_speed", "n_observations", "signal_variance", "length_scale", "threshold")
 
 
-def rmse(f_true: np.ndarray, f_bar: np.ndarray) -> float:
-    """Root-mean-square of ``f_true - f_bar`` over grid cells."""
+def rmse(f_true: np.ndarray, f_bar: np.ndarray, free: np.ndarray | None = None) -> float:
+    """Root-mean-square of ``f_true - f_bar`` over grid cells (the ``free`` ones if a mask is given)."""
     d = np.asarray(f_true, float) - np.asarray(f_bar, float)
+    if free is not None:
+        d = d[np.asarray(free, bool)]
     return float(np.sqrt(np.mean(d * d)))
 
 
-def l2_norm(values: np.ndarray, cell_area: float) -> float:
-    """Midpoint-rule L2 norm over the domain of a cell-centred field."""
+def l2_norm(values: np.ndarray, cell_area: float, free: np.ndarray | None = None) -> float:
+    """Midpoint-rule L2 norm over the domain (its ``free`` cells if a mask is given) of a cell-centred field."""
     v = np.asarray(values, float)
+    if free is not None:
+        v = v[np.asarray(free, bool)]
     return float(np.sqrt(np.sum(v * v) * cell_area))
 
 
-def max_variance(var: np.ndarray) -> float:
-    return float(np.max(var))
+def max_variance(var: np.ndarray, free: np.ndarray | None = None) -> float:
+    v = np.asarray(var)
+    return float(np.max(v if free is None else v[np.asarray(free, bool)]))

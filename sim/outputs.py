@@ -12,7 +12,8 @@
                         repeats the run
 ``DIR/trajectory.npz``  measurement times ``t`` (K,), positions ``X`` (K, n, 2), the planner grid's
                         cell centres ``xc``, ``yc``, the true field ``f_true`` and the final GP
-                        ``mean`` and ``var`` on it (nx, ny)
+                        ``mean`` and ``var`` on it (nx, ny); with obstacles also ``free`` (nx, ny) bool,
+                        the free planner cells the swarm can reach (the cells every metric is taken over)
 figures                 ``panels.png``, ``convergence.png``, ``field_error.png`` and, on request,
                         ``animation.gif`` (:mod:`sim.figures`)
 
@@ -181,6 +182,7 @@ def summary_dict(result, files=(), extra: dict | None = None) -> dict:
         "field": result.field.describe(),
         "config": cfg.as_dict(),
         "grid": {"nx": result.grid.nx, "ny": result.grid.ny, "domain": list(result.grid.domain)},
+        "obstacles": _obstacle_summary(result),
         "n_measurement_steps": len(rows),
         "wall_time_s": result.wall_time,
         "timings_s": result.timings,
@@ -191,6 +193,21 @@ def summary_dict(result, files=(), extra: dict | None = None) -> dict:
     if extra:
         summary.update(extra)
     return _clean(summary)
+
+
+def _obstacle_summary(result):
+    """Domain facts for summary.json (None on the empty rectangle)."""
+    region = getattr(result, "region", None)
+    if region is None:
+        return None
+    free = result.free
+    ms = result.config.domain.min_free_fraction
+    classified = region.free_cells(result.grid, ms)
+    return {"name": region.name, "extent": list(region.extent), "raster": list(region.shape),
+            "free_area_m2": region.free_area, "free_cells": int(free.sum()), "cells": int(free.size),
+            "unreachable_cells": int((classified & ~free).sum()),
+            "unreachable_area_m2": float((classified & ~free).sum()) * result.grid.cell_area,
+            "rule": f"a planner cell is free iff its free-area fraction >= {ms:g}"}
 
 
 def write_summary(result, out: Path, files=(), extra: dict | None = None) -> None:
@@ -204,7 +221,8 @@ def _write_trajectory(result, out: Path) -> None:
                         X=np.asarray(result.positions, float).reshape(len(result.positions), -1, 2),
                         xc=result.grid.xc, yc=result.grid.yc, f_true=result.f_true,
                         mean=result.mean if result.mean is not None else np.full(result.grid.shape, np.nan),
-                        var=result.var if result.var is not None else np.full(result.grid.shape, np.nan))
+                        var=result.var if result.var is not None else np.full(result.grid.shape, np.nan),
+                        **({} if getattr(result, "free", None) is None else {"free": np.asarray(result.free, bool)}))
     write_atomic(out / "trajectory.npz", buf.getvalue())
 
 

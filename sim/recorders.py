@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from .metrics import l2_norm, rmse
+from .metrics import l2_norm, max_variance, rmse
 
 __all__ = ["Recorder", "MetricsRecorder", "CallbackRecorder"]
 
@@ -58,10 +58,12 @@ class MetricsRecorder(Recorder):
         res, gp, grid = sim.result, sim.gp, sim.grid
         mean, var = sim.mean, sim.var
         err = mean - res.f_true
+        free = getattr(sim, "free", None)           # obstacles: the free cells only (sim.metrics)
         res.rows.append({
             "step": sim.step_index, "t": sim.t, "period": sim.period_index,
-            "max_variance": float(var.max()), "mean_variance": float(var.mean()),
-            "rmse": rmse(res.f_true, mean), "l2_error": l2_norm(err, grid.cell_area),
+            "max_variance": max_variance(var, free),
+            "mean_variance": float(var.mean() if free is None else var[free].mean()),
+            "rmse": rmse(res.f_true, mean, free), "l2_error": l2_norm(err, grid.cell_area, free),
             "tracking_error": np.nan if p_r is None else l2_norm(sim.p_hat - p_r, grid.cell_area),
             "mean_speed": sim.speed, "n_observations": gp.n_observations,
             "alive": int(sim.alive.sum()), "path_length": float(sim.path_length.mean()),
@@ -98,6 +100,6 @@ class CallbackRecorder(Recorder):
         if self.progress is None or sim.interrupted:
             return
         res = sim.result
-        self.progress({"event": "done", "t": sim.t, "period": sim.period_index, "max_variance": float(sim.var.max()),
+        self.progress({"event": "done", "t": sim.t, "period": sim.period_index, "max_variance": max_variance(sim.var, getattr(sim, "free", None)),
                        "rmse": res.rows[-1]["rmse"], "stop_reason": res.stop_reason, "error": res.error,
                        "time_to_threshold": res.time_to_threshold, "wall_time": time.perf_counter() - sim.wall0})

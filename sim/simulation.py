@@ -28,11 +28,20 @@ first measurement time at which sup V <= the threshold.  sup V, f̄ and all fiel
 the cell centres of the planner grid (:mod:`sim.metrics`).  A planner failure
 (``ocp.PlannerError``) ends the run with ``stop_reason = "planner_failed"``; everything recorded until
 then is kept in the result.
+
+Obstacles (issue 19): with a domain (``[domain] source`` or ``Simulation(..., domain=...)``, a
+:class:`sim.domain.Domain`, a built-in name or a file) the planner cells are classified by
+``domain.min_free_fraction`` and restricted to those the swarm can reach from the start box
+(``free``, (nx, ny)); the robots start uniformly on the start box (which must be free) and are
+reflected at obstacle boundaries at the geometry's resolution; the KDE is renormalised over the
+free cells; the GP is predicted on the free cells only (blocked cells: prior mean, variance 0), so
+sup V, the RMSE, the stop rule and the target p_f see the free cells only; the planner gets ``free``.
 """
 from __future__ import annotations
 
 import math
 import time
+import warnings
 
 import numpy as np
 
@@ -54,10 +63,15 @@ __all__ = ["Simulation", "LatestEstimate", "check_config"]
 def check_config(config: RunConfig) -> None:
     """Fail early (``ValueError``) on settings that the components would reject only mid-run:
     a GP inducing grid above ``max_inducing_points``, a fixed KDE bandwidth needing too many bins,
-    an unknown stop rule."""
+    an unknown stop rule, a bad domain (:func:`resolve_domain`)."""
     s = config.sim
     GaussianProcess(config.gp, domain=s.domain)
     make_stop_rule(s)
+    if config.domain.source:           # a bad domain fails here, in one line (warnings come with the run)
+        from ..ocp import Grid
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            resolve_domain(config, Grid(config.planner.domain, config.planner.nx, config.planner.ny))
     kde = KernelDensity(domain=s.domain, bandwidth=config.kde.bandwidth, bins=config.kde.bins)
     if config.kde.bandwidth is not None:
         try:
@@ -111,7 +125,7 @@ class Simulation:
     """
 
     def __init__(self, config: RunConfig | None = None, *, field=None, planner=None, controller=None,
-                 stop_rule=None, recorders=()):
+                 stop_rule=None, recorders=(), domain=None):
         from ..ocp import Grid
         from .controllers import make_controller
 
@@ -122,19 +136,23 @@ class Simulation:
         self.controller = make_controller(s.controller, config) if controller is None else controller
         self.stop_rule = make_stop_rule(s) if stop_rule is None else stop_rule
         self.planner_error = ()               # nothing to catch without a planner
+        grid = planner.grid if planner is not None else Grid(config.planner.domain, config.planner.nx,
+                                                              config.planner.ny)
+        self.region, self.free = resolve_domain(config, grid, domain)
         if self.controller.needs_plan:
             from ..ocp import PlannerError, ReferencePlanner
             self.planner_error = PlannerError
             if planner is None:
-                planner = ReferencePlanner(config.planner)
+                planner = make_planner(config.planner, self.free)
             grid = planner.grid
-        else:
-            grid = planner.grid if planner is not None else Grid(config.planner.domain, config.planner.nx,
-                                                                  config.planner.ny)
+            check_planner_free(planner, self.free)
         if tuple(grid.domain) != tuple(s.domain):
             raise ValueError(f"planner grid domain {grid.domain} differs from sim.domain {s.domain}")
         self.planner, self.grid = planner, grid
         self.centers = grid.centers()
+        self._free_centers = None if self.free is None else self.centers[self.free.ravel()]
+        # sup V is taken on the cell centres (the free, reachable ones with obstacles)
+        self.stop_rule.bind(self.centers if self.free is None else self._free_centers)
         self.quiver_points = _quiver_points(s.domain)
         f_true = self.field(self.centers).reshape(grid.shape)
         if not np.all(np.isfinite(f_true)):
@@ -143,8 +161,11 @@ class Simulation:
         self.rng = np.random.default_rng(s.seed)
         self.gp = GaussianProcess(config.gp, domain=s.domain)
         self.estimate = LatestEstimate(KernelDensity(domain=s.domain, bandwidth=config.kde.bandwidth,
-                                                     bins=config.kde.bins), config.kde.hold_substeps)
+                                                     bins=config.kde.bins, free=self.free), config.kde.hold_substeps)
         self.result = SimulationResult(config=config, field=self.field, grid=grid, f_true=f_true)
+        self.result.free = self.free
+        self.result.region = self.region
+        self.motion_domain = s.domain if self.region is None else self.region
         self.recorders = [MetricsRecorder(), *recorders]
         n = s.robots
         self.alive = np.ones(n, bool)
@@ -175,7 +196,7 @@ class Simulation:
     def start(self) -> None:
         """Initial positions, D_0 and the regression on D_0 (Algorithm 1, first two lines)."""
         s = self.settings
-        self.X = uniform_in_box(s.robots, s.start_box, self.rng)
+        self.X = uniform_in_box(s.robots, s.start_box, self.rng, self.region)
         self.lose_robots()
         self.measure()
         self.regress()
@@ -187,7 +208,7 @@ class Simulation:
         """One period [kT, (k+1)T] of Algorithm 1; False once the run is over."""
         self.refit_hyperparameters()
         snap = self.snapshot()
-        if self.stop_rule.reached(self.var, self.gp):
+        if self.stop_rule.reached(self.var_free(), self.gp):
             return self.stop("threshold")
         if self.out_of_time():
             return self.stop("max_time")
@@ -268,9 +289,24 @@ class Simulation:
             Xa, y = self._pending
         t0 = time.perf_counter()
         self.gp.add(Xa, y)
-        mean, var = self.gp.predict(self.centers)
-        self.mean, self.var = mean.reshape(self.grid.shape), var.reshape(self.grid.shape)
+        self.mean, self.var = self.predict()
         self.result.timings["regression"] += time.perf_counter() - t0
+
+    def predict(self):
+        """GP mean f̄ and variance V on the grid; with obstacles on the free cells only (blocked
+        cells: the prior mean and variance 0, so that they count in no maximum or target)."""
+        if self.free is None:
+            mean, var = self.gp.predict(self.centers)
+            return mean.reshape(self.grid.shape), var.reshape(self.grid.shape)
+        m_, v_ = self.gp.predict(self._free_centers)
+        mean = np.full(self.grid.shape, float(self.gp.prior_mean))
+        var = np.zeros(self.grid.shape)
+        mean[self.free], var[self.free] = m_, v_
+        return mean, var
+
+    def var_free(self):
+        """V on the grid with the blocked cells at 0 (the variance the stop rule and target see)."""
+        return self.var if self.free is None else np.where(self.free, self.var, 0.0)
 
     def estimate_density(self, fresh: bool = False, on_grid: bool = True) -> None:
         """KDE p̂ of the working robots (eq. "KDE"), on the planner grid if ``on_grid``."""
@@ -286,13 +322,12 @@ class Simulation:
         if self.config.gp.learn_hyperparameters and self.gp.n_observations >= 2:
             t0 = time.perf_counter()
             refit_online(self.gp)            # warm start; posterior recomputed below
-            m_, v_ = self.gp.predict(self.centers)
-            self.mean, self.var = m_.reshape(self.grid.shape), v_.reshape(self.grid.shape)
+            self.mean, self.var = self.predict()
             self.result.timings["regression"] += time.perf_counter() - t0
 
     def snapshot(self) -> Snapshot:
         """State at the period start, kept for the figures."""
-        self.sup_v = float(self.var.max())
+        self.sup_v = float(self.var_free().max())
         snap = Snapshot(t=self.t, period=self.period_index, X=self.X.copy(), mean=self.mean, var=self.var,
                         p_hat=self.p_hat)
         self.result.snapshots.append(snap)
@@ -312,8 +347,8 @@ class Simulation:
         eta = self.stop_rule.tolerance(self.gp)
         if s.target == "reachable":
             reach = 0.5 * self.config.planner.v_max * s.period if s.reach is None else s.reach   # 2 sd = v_max T
-            return reachable_target_density(self.var, eta, grid.cell_area, self.p_hat, reach, grid.dx, grid.dy)
-        return target_density(self.var, eta, grid.cell_area)
+            return reachable_target_density(self.var_free(), eta, grid.cell_area, self.p_hat, reach, grid.dx, grid.dy)
+        return target_density(self.var_free(), eta, grid.cell_area)
 
     def information_inputs(self) -> dict:
         """``{"information": InformationInputs}`` for ``planner.objective = "information"`` (the current GP
@@ -380,7 +415,7 @@ class Simulation:
             speed += float(np.mean(sp)) if alive.all() else float(np.mean(sp[alive]))
             self.path_length[:] += sp * h
             self.energy[:] += sp * sp * h
-            Xn = euler_maruyama_step(X, v, h, ctrl.sigma, self.rng, s.domain)
+            Xn = euler_maruyama_step(X, v, h, ctrl.sigma, self.rng, self.motion_domain)
             if not alive.all():
                 Xn[~alive] = X[~alive]
             X = Xn
@@ -392,8 +427,62 @@ class Simulation:
         return Context(t=self.t, period=self.period_index, X=self.X, alive=self.alive, mean=self.mean,
                        var=self.var, centers=self.centers, domain=self.settings.domain, h=self.h,
                        plan=self.plan if self.controller.needs_plan else None, estimate=self.estimate,
-                       rng=self.rng)
+                       rng=self.rng, free=self.free, region=self.region)
 
     def _notify(self, event: str) -> None:
         for r in self.recorders:
             getattr(r, event)(self)
+
+
+def resolve_domain(config: RunConfig, grid, domain=None):
+    """``(region, free)`` of a run: the :class:`sim.domain.Domain` (``domain`` argument, else
+    ``config.domain.source``; None for the empty rectangle) and the (nx, ny) mask of the planner
+    cells that are free (``config.domain.min_free_fraction``) and reachable from the start box.
+
+    ``ValueError`` (one line) for: no free cell, an extent other than sim.domain, a start box that is
+    not free, and -- with ``domain.unreachable = "refuse"`` -- free cells the swarm cannot reach; with
+    ``"exclude"`` (default) those cells are left out with a ``UserWarning`` naming their area."""
+    from .domain import make_domain
+    s, ds = config.sim, config.domain
+    region = make_domain(ds.source if domain is None else domain, s.domain)
+    if region is None:
+        return None, None
+    region.check_start_box(s.start_box)
+    free = region.free_cells(grid, ds.min_free_fraction)
+    if not free.any():
+        raise ValueError(f"domain {region.name}: no free cell at the planner's {grid.nx} x {grid.ny} cells "
+                         f"(domain.min_free_fraction = {ds.min_free_fraction:g})")
+    reach = region.reachable_cells(free, s.start_box)
+    if not reach.any():
+        raise ValueError(f"domain {region.name}: the start box {list(s.start_box)} overlaps no free planner cell")
+    lost = free & ~reach
+    if lost.any():
+        area = float(lost.sum()) * grid.cell_area
+        msg = (f"domain {region.name}: {area:g} m^2 of free space ({int(lost.sum())} planner cells) cannot be reached "
+               f"from the start box {list(s.start_box)}")
+        if ds.unreachable == "refuse":
+            raise ValueError(msg + " (domain.unreachable = \"refuse\")")
+        warnings.warn(msg + "; it is excluded from the planner, sup V, RMSE and the target", UserWarning, stacklevel=3)
+    return region, reach
+
+
+def make_planner(settings, free):
+    """``ocp.ReferencePlanner(settings)``, with the free-cell mask when there are obstacles."""
+    from ..ocp import ReferencePlanner
+    if free is None:
+        return ReferencePlanner(settings)
+    try:
+        return ReferencePlanner(settings, free=free)
+    except TypeError:
+        raise ValueError("this planner (ocp.ReferencePlanner) does not support obstacles (no 'free' argument); "
+                         "use a controller without a plan (diffusion, coverage, greedy, lawnmower)") from None
+
+
+def check_planner_free(planner, free) -> None:
+    """A prebuilt planner must have been built with the run's free cells."""
+    pf = getattr(planner, "free", None)
+    if free is None and pf is None:
+        return
+    if free is None or pf is None or np.shape(pf) != free.shape or not np.array_equal(np.asarray(pf, bool), free):
+        raise ValueError("the planner's free cells differ from the run's domain (build it with "
+                         "ReferencePlanner(settings, free=...) from the same domain)")

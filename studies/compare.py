@@ -1,4 +1,4 @@
-"""``compare-controllers``: controllers x fields x seeds x robot losses x robot counts, in parallel.
+"""``compare-controllers``: controllers x fields x seeds x robot losses x robot counts (x domains), in parallel.
 
 Every run is one closed-loop simulation (:func:`sim.loop.run_simulation`) of ``--max-periods``
 periods; the runs go through the generic runner :mod:`studies.runner` (local worker processes, or a
@@ -9,14 +9,23 @@ Dask cluster with ``--scheduler``; resumable: a restarted sweep skips the runs s
                   robot_loss, robots, t, t_T = t/T, max_variance, threshold, rmse, alive, path_length,
                   energy, signal_variance, length_scale, ...)
 ``summary.md``    Markdown table, one line per (field, robots, robot loss, controller): median and
-                  [min-max] over seeds of the time to sup V <= gamma (in periods T), the RMSE of f̄ at
+                  [min-max] over seeds of the time to sup V <= gamma (in periods T; also the median
+                  with never = ∞, and the count of runs before the travel-time limit, which ends
+                  each scenario as a reference row), the RMSE of f̄ at
                   fixed times, the mean path length and energy per robot at the end
 ``plots/*.png``   RMSE and sup V against t/T, a band (min-max over seeds) and the median per controller
 
-Comparison runs do not stop at sup V <= gamma (sim.gamma and sim.gamma_relative are set to 0 for
-the run; each configuration's own threshold -- gamma, or gamma_relative times the GP's current
-s_f^2 -- is recorded per row and only read the time off the metrics), so that every controller is
-scored at the same times.  A feedback run stops early only if sup V falls below eta (nothing left
+``--domains harbour floor FILE ...`` adds the domain (obstacles, :mod:`sim.domain`) as an axis: a
+``domain`` column in runs.csv and summary.md, one plot per domain; without it every run uses the
+configuration's own ``[domain]`` (the empty rectangle by default) and the outputs are unchanged.
+
+Comparison runs do not stop at sup V <= gamma: each configuration's own stop rule
+(:mod:`sim.stopping`: gamma, gamma_relative times the GP's current s_f^2, or the robust rule) is
+recorded per row (``threshold``) and only read the time off the metrics, so that every controller is
+scored at the same times.  summary.md also gives the median time with never-reached runs counted as
+∞, the number of runs that reached the threshold before the physical travel-time limit (the time the
+fastest robot needs from the start box to the farthest cell centre, rounded up to a measurement), and
+that limit as a reference row per scenario.  A feedback run stops early only if sup V falls below eta (nothing left
 to plan for); its last estimate then stands for the later times.
 """
 from __future__ import annotations
@@ -40,6 +49,8 @@ ROW_COLUMNS = ("preset", "controller", "field", "seed", "robot_loss", "robots", 
                "threshold", "rmse", "alive", "path_length", "energy", "n_observations", "signal_variance",
                "length_scale", "stop_reason")
 KEYS = ("field", "robots", "robot_loss", "preset", "controller")
+#: with a domain axis (--domains): the extra column of runs.csv and the first key of summary.md
+DOMAIN_KEYS = ("domain",) + KEYS
 
 
 # ------------------------------------------------------------------------------ one run
@@ -48,13 +59,17 @@ def run_task(task: dict) -> list[dict]:
     from ..sim.config import config_from_dict
     from ..sim.loop import run_simulation
 
+    from ..sim.stopping import make_stop_rule
+
     cfg = config_from_dict(task["config"])
-    res = run_simulation(cfg)
+    # the configuration's own stop rule, recorded at every measurement; the run itself never stops at it
+    res = run_simulation(cfg, stop_rule=make_stop_rule(cfg.sim, stops=False))
     T = cfg.sim.period
-    rule, level = task["stop_rule"]          # the configuration's own rule (the run itself never stops at it)
     label = {k: task[k] for k in ("preset", "controller", "field", "seed", "robot_loss", "robots")}
+    if "domain" in task:
+        label["domain"] = task["domain"]
     return [{**label, "step": r["step"], "t": r["t"], "t_T": r["t"] / T, "max_variance": r["max_variance"],
-             "threshold": level * r["signal_variance"] if rule == "relative" else level,
+             "threshold": r["threshold"],
              "rmse": r["rmse"], "alive": r["alive"], "path_length": r["path_length"], "energy": r["energy"],
              "n_observations": r["n_observations"], "signal_variance": r["signal_variance"],
              "length_scale": r["length_scale"], "stop_reason": res.stop_reason} for r in res.rows]
@@ -66,20 +81,41 @@ def _field_label(field: str) -> str:
 
 
 def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, loss_time=None, start_box=None,
-               max_periods=4, presets=None) -> list[dict]:
+               max_periods=4, presets=None, domains=None) -> list[dict]:
     """The sweep's task dicts: every combination, each with its fully resolved configuration.
 
     ``base_doc`` is a configuration document as written in a TOML file (only the values the user
     gives); each of ``presets`` (:mod:`sim.presets`; default: the document's own ``preset`` key, else
-    ``paper``) is laid under it, so the baselines of a preset share its GP and stopping settings."""
+    ``paper``) is laid under it, so the baselines of a preset share its GP and stopping settings.
+    ``domains`` (built-in names or files, :mod:`sim.domain`) adds the domain axis; each task then has
+    a ``domain`` label."""
     from ..sim.config import config_from_dict
+    from ..sim.controllers import make_controller
     from ..sim.fields import FIELDS
     from ..sim.presets import DEFAULT_PRESET
+    from ..sim.stopping import travel_time_limit
 
     if presets is None:
         presets = [base_doc.get("preset", DEFAULT_PRESET)]
     base_doc = {k: v for k, v in base_doc.items() if k != "preset"}
     tasks = []
+    if domains:
+        from ..sim.domain import BUILTIN_DOMAINS
+        for dom in domains:
+            if dom not in BUILTIN_DOMAINS and not Path(dom).is_file():
+                raise ValueError(f"domain {dom!r} is neither a built-in domain ({', '.join(BUILTIN_DOMAINS)}) "
+                                 "nor an existing file")
+        for dom in domains:
+            src = dom if dom in BUILTIN_DOMAINS else str(Path(dom).resolve())
+            doc = {**base_doc, "domain": {**base_doc.get("domain", {}), "source": src}}
+            sub = make_tasks(doc, controllers, fields, seeds, losses, robots, loss_time=loss_time,
+                             start_box=start_box, max_periods=max_periods, presets=presets)
+            for t in sub:
+                t["domain"] = dom if dom in BUILTIN_DOMAINS else Path(dom).stem
+                if dom not in BUILTIN_DOMAINS:
+                    t["domain_source"] = f"{src}#sha256={hashlib.sha256(Path(src).read_bytes()).hexdigest()[:16]}"
+            tasks += sub
+        return tasks
     for field in fields:
         fsig = field
         if field not in FIELDS:
@@ -94,33 +130,52 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
                     for seed in seeds:
                         sim = dict(base_doc.get("sim", {}))
                         sim.update(controller=ctrl, field=field, seed=int(seed), robots=int(n), robot_loss=float(loss),
-                                   max_periods=int(max_periods), gamma=0.0)
+                                   max_periods=int(max_periods))
                         if loss_time is not None:
                             sim["loss_time"] = float(loss_time)
                         if start_box is not None:
                             sim["start_box"] = list(start_box)
-                        own = config_from_dict({**base_doc, "sim": {k: v for k, v in sim.items()
-                                                                       if k not in ("gamma", "gamma_relative")}},
-                                               preset=preset).sim
-                        rule = ("relative", own.gamma_relative) if own.stop_rule == "relative" else \
-                            ("absolute", own.gamma)
-                        sim["gamma_relative"] = 0.0
                         doc = {**base_doc, "sim": sim}
                         cfg = config_from_dict(doc, preset=preset)   # validates every combination up front
-                        tasks.append({"preset": preset, "controller": ctrl, "stop_rule": list(rule),
+                        s = cfg.sim
+                        rule = [s.stop_rule, s.gamma_relative if s.stop_rule != "absolute" else s.gamma]
+                        speed = make_controller(ctrl, cfg).v_max
+                        free = _reachable_cells(cfg)
+                        tasks.append({"preset": preset, "controller": ctrl, "stop_rule": rule,
                                       "field": _field_label(field), "field_source": fsig,
                                       "seed": int(seed), "robot_loss": float(loss), "robots": int(n),
+                                      "travel_limit": travel_time_limit(cfg, speed=speed, free=free),
                                       "config": cfg.as_dict()})
     return tasks
+
+
+_FREE_CACHE: dict = {}
+
+
+def _reachable_cells(cfg):
+    """The planner cells a run of ``cfg`` maps (None on the empty rectangle), cached per domain and grid."""
+    if not cfg.domain.source:
+        return None
+    key = (cfg.domain.source, cfg.domain.min_free_fraction, tuple(cfg.sim.domain), tuple(cfg.sim.start_box),
+           cfg.planner.nx, cfg.planner.ny)
+    if key not in _FREE_CACHE:
+        import warnings
+        from ..ocp import Grid
+        from ..sim.simulation import resolve_domain
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)      # the run itself warns about unreachable space
+            _FREE_CACHE[key] = resolve_domain(cfg, Grid(cfg.planner.domain, cfg.planner.nx, cfg.planner.ny))[1]
+    return _FREE_CACHE[key]
 
 
 # ------------------------------------------------------------------------------ tables and plots
 def write_csv(rows, path: Path) -> None:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(ROW_COLUMNS)
+    cols = ("domain",) + ROW_COLUMNS if any("domain" in r for r in rows) else ROW_COLUMNS
+    w.writerow(cols)
     for r in rows:
-        w.writerow([_fmt(r.get(c)) for c in ROW_COLUMNS])
+        w.writerow([_fmt(r.get(c)) for c in cols])
     write_atomic(path, buf.getvalue())
 
 
@@ -139,10 +194,15 @@ def _value_at(run_rows, t_T):
     return best
 
 
+def _keys(runs):
+    return DOMAIN_KEYS if any("domain" in task for task, _ in runs) else KEYS
+
+
 def _group(runs):
     groups = {}
+    keys = _keys(runs)
     for task, rows in runs:
-        groups.setdefault(tuple(task[k] for k in KEYS), []).append((task, rows))
+        groups.setdefault(tuple(task.get(k) for k in keys), []).append((task, rows))
     return groups
 
 
@@ -157,36 +217,73 @@ def _stat(vals, fmt="{:.3f}"):
     return f"{fmt.format(med)} [{fmt.format(lo)}–{fmt.format(hi)}]"
 
 
+def _median_never_inf(ttt) -> str:
+    """Median of times with never-reached runs (None) counted as never (∞)."""
+    if not ttt:
+        return "—"
+    med = float(np.median([math.inf if x is None else x for x in ttt]))
+    return "∞" if math.isinf(med) else f"{med:.2f}"
+
+
+def _travel_limit_T(task) -> float | None:
+    lim = task.get("travel_limit")
+    return None if lim is None else lim / task["config"]["sim"]["period"]
+
+
 def summary_table(runs, gamma: float, times) -> str:
-    """Markdown table (deterministic: sorted keys, formatted numbers) of ``runs = [(task, rows), ...]``."""
-    head = ["field", "robots", "loss", "preset", "controller", "sup V ≤ γ at [T]"] + \
-        [f"RMSE at {t:g}T" for t in times] + ["path length [m]", "energy [m²/s]"]
+    """Markdown table (deterministic: sorted keys, formatted numbers) of ``runs = [(task, rows), ...]``.
+
+    Per ([domain,] field, robots, loss, preset, controller): the time to each run's own threshold over the
+    runs that reached it (median [min–max], "(k/n never)"), the median with never-reached runs
+    counted as ∞, how many runs reached it before the physical travel-time limit
+    (:func:`sim.stopping.travel_time_limit`, the fastest of the scenario's controllers), RMSE, path
+    length, energy.  Each scenario ends with a reference row holding that travel-time limit."""
+    dom = _keys(runs) is DOMAIN_KEYS
+    head = (["domain"] if dom else []) + ["field", "robots", "loss", "preset", "controller", "sup V ≤ γ at [T]", "median, never = ∞ [T]",
+            "before travel limit"] + [f"RMSE at {t:g}T" for t in times] + ["path length [m]", "energy [m²/s]"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     order = {}
     for task, _ in runs:
         order.setdefault((task["preset"], task["controller"]), len(order))
-    for key in sorted(_group(runs), key=lambda k: (k[0], k[1], k[2], order[k[3], k[4]])):
-        grp = _group(runs)[key]
-        ttt, reached = [], 0
+    groups = _group(runs)
+    limits = {}
+    for task, _ in runs:
+        lim = _travel_limit_T(task)
+        if lim is not None:
+            sc = tuple(task.get(k) for k in _keys(runs)[:-2])
+            limits[sc] = min(limits.get(sc, math.inf), lim)
+    keys = sorted(groups, key=lambda k: (*k[:-2], order[k[-2], k[-1]]))
+    for i, key in enumerate(keys):
+        grp = groups[key]
+        sc = key[:-2]                      # the scenario: [domain,] field, robots, loss
+        limit = limits.get(sc)
+        ttt, reached, early = [], 0, 0
         for _, rows in grp:
             hit = next((r["t_T"] for r in rows if r["max_variance"] <= r.get("threshold", gamma)), None)
             ttt.append(hit)
             reached += hit is not None
+            early += hit is not None and limit is not None and hit < limit - 1e-9
         tcell = _stat([x for x in ttt if x is not None], "{:.2f}")
         if reached < len(grp):
             tcell += f" ({len(grp) - reached}/{len(grp)} never)"
-        cells = [key[0], str(key[1]), f"{100 * key[2]:.0f} %", key[3], key[4], tcell]
+        cells = ([key[0]] if dom else []) + [key[-5], str(key[-4]), f"{100 * key[-3]:.0f} %", key[-2], key[-1], tcell,
+                                              _median_never_inf(ttt), "—" if limit is None else f"{early}/{len(grp)}"]
         for t in times:
             cells.append(_stat([(_value_at(rows, t) or {}).get("rmse") for _, rows in grp]))
         cells.append(_stat([rows[-1]["path_length"] for _, rows in grp], "{:.1f}"))
         cells.append(_stat([rows[-1]["energy"] for _, rows in grp], "{:.1f}"))
         lines.append("| " + " | ".join(cells) + " |")
+        if limit is not None and (i + 1 == len(keys) or keys[i + 1][:-2] != sc):
+            ref = ([key[0]] if dom else []) + [key[-5], str(key[-4]), f"{100 * key[-3]:.0f} %", "—",
+                                               "*physical travel-time limit*", f"*{limit:.3f}*", f"*{limit:.3f}*", "—"]
+            ref += ["—"] * (len(head) - len(ref))
+            lines.append("| " + " | ".join(ref) + " |")
     return "\n".join(lines) + "\n"
 
 
-def plot_name(field: str, robots: int, robot_loss: float) -> str:
-    """File name of the plot of one scenario (field, robot count, loss)."""
-    return f"{field}_n{robots}_loss{int(round(100 * robot_loss))}.png"
+def plot_name(field: str, robots: int, robot_loss: float, domain: str | None = None) -> str:
+    """File name of the plot of one scenario (field, robot count, loss[, domain])."""
+    return (f"{domain}_" if domain else "") + f"{field}_n{robots}_loss{int(round(100 * robot_loss))}.png"
 
 
 def write_plots(runs, out: Path, gamma: float) -> list[str]:
@@ -200,9 +297,9 @@ def write_plots(runs, out: Path, gamma: float) -> list[str]:
     several = len({task["preset"] for task, _ in runs}) > 1
     for task, rows in runs:
         label = f"{task['controller']} ({task['preset']})" if several else task["controller"]
-        by_scenario.setdefault((task["field"], task["robots"], task["robot_loss"]), {}) \
+        by_scenario.setdefault((task.get("domain") or "", task["field"], task["robots"], task["robot_loss"]), {}) \
             .setdefault(label, []).append(rows)
-    for (field, n, loss), ctrls in sorted(by_scenario.items()):
+    for (domain, field, n, loss), ctrls in sorted(by_scenario.items()):
         fig, axes = plt.subplots(1, 2, figsize=(11, 4))
         for ci, (ctrl, runs_c) in enumerate(ctrls.items()):
             m = min(len(r) for r in runs_c)
@@ -221,9 +318,10 @@ def write_plots(runs, out: Path, gamma: float) -> list[str]:
             ax.set_xlabel("t / T")
             ax.grid(alpha=0.3)
         axes[0].legend(fontsize=8)
-        fig.suptitle(f"{field}, {n} robots, {100 * loss:.0f} % lost (median and range over seeds)")
+        fig.suptitle((f"{domain}: " if domain else "") + f"{field}, {n} robots, {100 * loss:.0f} % lost "
+                     "(median and range over seeds)")
         fig.tight_layout()
-        name = plot_name(field, n, loss)
+        name = plot_name(field, n, loss, domain or None)
         fig.savefig(out / name, dpi=90)
         plt.close(fig)
         written.append(name)
@@ -242,12 +340,15 @@ def build_parser():
     p = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0])
     p.add_argument("--controllers", nargs="+", default=list(CONTROLLERS), metavar="NAME",
                    help=f"controllers to compare (default all: {' '.join(CONTROLLERS)})")
-    p.add_argument("--fields", nargs="+", default=["sinc"], metavar="FIELD", help="sinc | plumes | ridge | waves | FILE ...")
+    p.add_argument("--fields", nargs="+", default=["sinc"], metavar="FIELD", help="sinc | plumes | ridge | waves | bumps | front | gp-sample | FILE ...")
     p.add_argument("--seeds", nargs="+", type=int, default=[0], metavar="S")
     p.add_argument("--robot-loss", nargs="+", type=float, default=[0.0], metavar="FRACTION")
     p.add_argument("--loss-time", type=float, metavar="SECONDS", help="time of the loss (default T)")
     p.add_argument("--robots", nargs="+", type=int, default=None, metavar="N",
                    help="robot counts (default: the configuration's, 100)")
+    p.add_argument("--domains", "--domain", nargs="+", default=None, metavar="NAME|FILE",
+                   help="obstacles: built-in domains (harbour, floor, lake) or map files (.npz, .png, .tif, .geojson) "
+                        "as an axis of the sweep (default: the configuration's [domain], the empty rectangle)")
     p.add_argument("--start-box", type=float, nargs=4, metavar=("X0", "X1", "Y0", "Y1"))
     p.add_argument("--max-periods", type=int, default=4, help="length of every run in periods T (default 4)")
     p.add_argument("--times", nargs="+", type=float, default=None, metavar="K",
@@ -284,7 +385,15 @@ def run(argv=None) -> int:
         robots = args.robots or [base.sim.robots if base else 100]
         tasks = make_tasks(base_doc, args.controllers, args.fields, args.seeds, args.robot_loss, robots,
                            loss_time=args.loss_time, start_box=args.start_box, max_periods=args.max_periods,
-                           presets=args.presets)
+                           presets=args.presets, domains=args.domains)
+        if args.domains:               # bad domains fail here, in one line, before any run
+            from ..sim.config import config_from_dict
+            from ..sim.simulation import check_config
+            seen = set()
+            for t in tasks:
+                if t["domain"] not in seen:
+                    seen.add(t["domain"])
+                    check_config(config_from_dict(t["config"]))
     except ValueError as exc:
         raise InputError(str(exc)) from None
     if gamma <= 0:
@@ -293,7 +402,8 @@ def run(argv=None) -> int:
     out = args.out
     outputs = ["runs.csv", "summary.md"]
     if not args.no_plots:
-        outputs += sorted({f"plots/{plot_name(t['field'], t['robots'], t['robot_loss'])}" for t in tasks})
+        outputs += sorted({f"plots/{plot_name(t['field'], t['robots'], t['robot_loss'], t.get('domain'))}"
+                           for t in tasks})
     # OUT may hold other files (only these names are ever replaced); it is locked for the whole sweep,
     # and runs.csv, summary.md and the plots are published together (runtime.publish)
     folder = OutputFolder(out, PROG, outputs, foreign_ok=True)
@@ -333,7 +443,8 @@ def _sweep_and_publish(args, argv, tasks, gamma, times, folder) -> int:
         write_csv([r for rows in results for r in rows], stage / "runs.csv")
         write_atomic(stage / "summary.md", f"Command: `{cmd}`\n\nγ is each configuration's own stopping threshold "
                      f"(sim.gamma = {gamma:g}, or sim.gamma_relative × the GP's current s_f² with "
-                     f"sim.stop_rule = relative).  Median [min–max] over seeds {args.seeds}; runs of "
+                     f"sim.stop_rule = relative, tightened by the variance at the prior length scale with "
+                     f"robust; sim.stopping).  Median [min–max] over seeds {args.seeds}; runs of "
                      f"{args.max_periods} T = {args.max_periods * tasks[0]['config']['sim']['period']:g} s.\n\n{table}")
         if not args.no_plots:
             plots.extend(write_plots(runs, stage / "plots", gamma))

@@ -165,3 +165,16 @@ def test_cli_basis_flag_and_simulation_config(tmp_path):
     assert meta["basis"] == "sine-cosine" and meta["settings"]["speed_limit"] == "norm"
     cfg = config_from_dict({"planner": {"basis": "sine-cosine"}})
     assert cfg.planner.basis == "sine-cosine"
+
+
+@pytest.mark.parametrize("basis", ["sine", "sine-cosine"])
+def test_velocity_in_blocks_equals_one_pass(monkeypatch, basis):
+    """velocity_at evaluates large point sets in blocks; the blocks give the same bits as one pass."""
+    from swarmfield.ocp import basis as B
+    rng = np.random.default_rng(3)
+    coef = rng.normal(size=(2, 5, 4))
+    pts = rng.uniform(0.0, 20.0, size=(1001, 2))
+    whole = B.velocity_at(coef, (0, 20, 0, 20), pts, basis)
+    monkeypatch.setattr(B, "VELOCITY_CHUNK", 64)
+    blocks = B.velocity_at(coef, (0, 20, 0, 20), pts, basis)
+    assert np.array_equal(whole, blocks) and whole.shape == (1001, 2) and np.abs(whole).max() > 0

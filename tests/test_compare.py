@@ -82,7 +82,9 @@ def test_compare_controllers_local_outputs_and_resume(tmp_path, cfg, capsys):
     lost = [r for r in rows if r["robot_loss"] == "0.5" and float(r["t"]) > 1.75]
     assert lost and all(r["alive"] == "10" for r in lost)
     table = (out / "summary.md").read_text()
-    assert table.count("\n| sinc |") == 6 and table.count("\n| plumes |") == 6 and "RMSE at 2T" in table
+    # 3 controllers x 2 losses + one travel-time reference row per scenario
+    assert table.count("\n| sinc |") == 8 and table.count("\n| plumes |") == 8 and "RMSE at 2T" in table
+    assert table.count("*physical travel-time limit*") == 4 and "median, never = ∞ [T]" in table
     assert sorted(p.name for p in (out / "plots").iterdir()) == ["plumes_n20_loss0.png", "plumes_n20_loss50.png",
                                                                  "sinc_n20_loss0.png", "sinc_n20_loss50.png"]
     # restarted on the same output: nothing runs again, the same table results
@@ -174,3 +176,29 @@ def test_ctrl_c_before_the_sweep_is_one_line_and_exit_130(tmp_path, cfg, capsys,
     monkeypatch.setattr(compare, "make_tasks", interrupted)
     code = main(SMALL_ARGS + ["--config", str(cfg), "--out", str(tmp_path / "cmp")])
     assert code == 130 and capsys.readouterr().err.strip().splitlines() == ["compare-controllers: interrupted"]
+
+
+def _fake_run(controller, hits, limit_s=6.125, field="f"):
+    """(task, rows) pairs of runs whose sup V falls to the threshold at the times ``hits`` (None: never)."""
+    out = []
+    for seed, hit in enumerate(hits):
+        task = {"preset": "tuned", "controller": controller, "field": field, "robots": 100, "robot_loss": 0.0,
+                "seed": seed, "travel_limit": limit_s, "config": {"sim": {"period": 7.0}}}
+        rows = [{"t_T": k / 8, "max_variance": 0.05 if hit is not None and k / 8 >= hit else 0.2, "threshold": 0.1,
+                 "rmse": 0.1, "path_length": 1.0, "energy": 1.0} for k in range(25)]
+        out.append((task, rows))
+    return out
+
+
+def test_summary_counts_never_as_infinity_and_prints_the_travel_limit():
+    from swarmfield.studies.compare import summary_table
+    runs = _fake_run("lawnmower", [0.625, 0.75, 1.0]) + _fake_run("greedy", [1.0, None, None]) + \
+        _fake_run("ergodic", [1.0, 1.25, None])
+    table = summary_table(runs, 0.1, [1.0, 3.0])
+    lines = {ln.split(" | ")[4]: ln.split(" | ") for ln in table.splitlines()[2:]}
+    assert lines["lawnmower"][5:8] == ["0.75 [0.62–1.00]", "0.75", "2/3"]          # 2 runs before 0.875 T
+    assert lines["greedy"][5:8] == ["1.00 (2/3 never)", "∞", "0/3"]
+    assert lines["ergodic"][5:8] == ["1.12 [1.00–1.25] (1/3 never)", "1.25", "0/3"]
+    ref = lines["*physical travel-time limit*"]
+    assert ref[5] == ref[6] == "*0.875*"
+    assert table.splitlines()[-1].startswith("| f | 100 | 0 % | — | *physical travel-time limit*")

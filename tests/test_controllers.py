@@ -13,7 +13,7 @@ SMALL = {"sim": {"robots": 30, "domain": [0.0, 10.0, 0.0, 10.0], "start_box": [0
                  "max_periods": 2, "substeps": 4, "gamma": 0.0},
          "gp": {"length_scale": 1.5}, "kde": {"bins": [32, 32]},
          "planner": {"nx": 16, "ny": 16, "n_intervals": 3, "n_modes_x": 3, "n_modes_y": 3}}
-BASELINES = ("diffusion", "coverage", "greedy", "lawnmower")
+BASELINES = ("diffusion", "coverage", "greedy", "lawnmower", "ergodic")
 
 
 def cfg(**sim):

@@ -119,8 +119,12 @@ def test_named_fields_are_finite_and_smooth(name):
     xs = np.linspace(0, 20, 201)
     g = f.on_grid(xs, xs)
     assert g.shape == (201, 201) and np.all(np.isfinite(g))
-    assert 0.5 < g.min() and g.max() < 5.0 and g.max() - g.min() > 0.5
-    assert np.max(np.abs(np.diff(g, axis=0))) < 0.2 and np.max(np.abs(np.diff(g, axis=1))) < 0.2
+    lowest = 0.2 if name == "gp-sample" else 0.5     # a GP sample's excursions reach lower
+    assert lowest < g.min() and g.max() < 5.0 and g.max() - g.min() > 0.5
+    # at most 0.2 per 0.1 m (2 per m); the front is sharp by design: a step of 2 over a tanh of width
+    # 0.25 m (4 per m across it, more along its meanders), <= 1 per 0.1 m
+    step = 1.0 if name == "front" else 0.2
+    assert np.max(np.abs(np.diff(g, axis=0))) < step and np.max(np.abs(np.diff(g, axis=1))) < step
     assert f.describe()["name"] == name
 
 

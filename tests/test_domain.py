@@ -1,0 +1,418 @@
+"""Irregular domains and obstacles (issue 19): sim.domain, the swarm, the KDE, baselines, inputs, bad domains."""
+from __future__ import annotations
+
+import json
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from swarmfield.control import KernelDensity
+from swarmfield.sim.domain import (BUILTIN_DOMAINS, Domain, GeodesicGrid, load_domain, make_domain)
+from swarmfield.sim.dynamics import euler_maruyama_step
+
+EXT = (0.0, 20.0, 0.0, 20.0)
+
+
+# ------------------------------------------------------------------ one geometry in every format
+# free = the square minus a pier [4.3, 5.6] x [9.2, 20] and a round-ish block, with boundaries that are
+# not aligned with the 0.5 m planner cells
+PIER = (4.3, 5.6, 9.2, 20.0)
+HOLE = (12.2, 15.7, 3.1, 6.4)
+
+
+def _mask(pixels=200):
+    px = 20.0 / pixels
+    c = (np.arange(pixels) + 0.5) * px
+    X, Y = np.meshgrid(c, c, indexing="ij")
+    blocked = np.zeros((pixels, pixels), bool)
+    for a, b, cc, d in (PIER, HOLE):
+        blocked |= (X > a) & (X < b) & (Y > cc) & (Y < d)
+    return ~blocked
+
+
+def _write_all(tmp_path, pixels=200):
+    pytest.importorskip("PIL")
+    pytest.importorskip("tifffile")
+    pytest.importorskip("shapely")
+    from PIL import Image
+    import tifffile
+
+    free = _mask(pixels)
+    np.savez(tmp_path / "g.npz", free=free, extent=np.array(EXT))
+    img = (free[:, ::-1].T * 255).astype(np.uint8)          # image convention: first row = largest y
+    Image.fromarray(img).save(tmp_path / "g.png")
+    px = 20.0 / pixels
+    tifffile.imwrite(tmp_path / "g.tif", img, extratags=[
+        (33550, "d", 3, (px, px, 0.0), False),                # ModelPixelScale
+        (33922, "d", 6, (0.0, 0.0, 0.0, 0.0, 20.0, 0.0), False)])   # ModelTiepoint: pixel (0,0) -> (0, 20)
+
+    def ring(a, b, c, d):
+        return [[a, c], [b, c], [b, d], [a, d], [a, c]]
+    outer = [[0, 0], [20, 0], [20, 20], [0, 20], [0, 0]]
+    # the pier reaches the top wall: cut it out of the outer ring as a notch
+    outer = [[0, 0], [20, 0], [20, 20], [PIER[1], 20], [PIER[1], PIER[2]], [PIER[0], PIER[2]], [PIER[0], 20],
+             [0, 20], [0, 0]]
+    doc = {"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {}, "geometry": {"type": "Polygon", "coordinates": [outer, ring(*HOLE)]}}]}
+    (tmp_path / "g.geojson").write_text(json.dumps(doc))
+    return free
+
+
+def _boundary_cells(nx=40):
+    """Planner cells that an obstacle boundary passes through (where formats may legitimately differ)."""
+    e = np.linspace(0, 20, nx + 1)
+    out = np.zeros((nx, nx), bool)
+    for a, b, c, d in (PIER, HOLE):
+        for i in range(nx):
+            for j in range(nx):
+                overlap = e[i] < b and e[i + 1] > a and e[j] < d and e[j + 1] > c
+                inside = e[i] >= a and e[i + 1] <= b and e[j] >= c and e[j + 1] <= d
+                out[i, j] |= overlap and not inside
+    return out
+
+
+def test_formats_give_the_same_free_cells(tmp_path):
+    free = _write_all(tmp_path)
+    doms = {ext: load_domain(tmp_path / f"g.{ext}", EXT) for ext in ("npz", "png", "tif", "geojson")}
+    # the three rasters are the same pixels: identical, orientation included
+    for ext in ("png", "tif"):
+        assert np.array_equal(doms[ext].state == 1, free), ext
+        assert doms[ext].extent == EXT
+    cells = {k: d.free_cells((40, 40)) for k, d in doms.items()}
+    edge = _boundary_cells()
+    for k in ("png", "tif", "geojson"):
+        diff = cells[k] != cells["npz"]
+        assert not (diff & ~edge).any(), k            # differences only where a boundary passes
+    # a cell more than half covered by the pier is blocked, one less than half covered is free (the rule)
+    frac = doms["geojson"].cell_free_fraction(40, 40)
+    assert np.allclose(frac[8, 30], 1 - (4.5 - 4.3) / 0.5) and cells["geojson"][8, 30]      # 40 % blocked: free
+    assert not cells["geojson"][9, 30] and not cells["geojson"][10, 30]
+    assert np.isclose(frac[11, 30], 0.8) and cells["geojson"][11, 30]
+    # contains agrees with the polygons exactly, and with the raster at pixel centres
+    rng = np.random.default_rng(0)
+    P = rng.uniform(0, 20, (20000, 2))
+    truth = ~(((P[:, 0] > PIER[0]) & (P[:, 0] < PIER[1]) & (P[:, 1] > PIER[2]))
+              | ((P[:, 0] > HOLE[0]) & (P[:, 0] < HOLE[1]) & (P[:, 1] > HOLE[2]) & (P[:, 1] < HOLE[3])))
+    assert np.array_equal(doms["geojson"].contains(P), truth)
+    assert (doms["npz"].contains(P) != truth).mean() < 0.02
+
+
+def test_geotiff_extent_from_tags_and_sidecar(tmp_path):
+    pytest.importorskip("tifffile")
+    from PIL import Image
+    import tifffile
+    free = np.ones((10, 20), bool)
+    free[2:4, 15:] = False                                  # x in [2, 4], y in [15, 20] of a 10 x 20 map
+    img = (free[:, ::-1].T * 255).astype(np.uint8)
+    tifffile.imwrite(tmp_path / "m.tif", img, extratags=[(33550, "d", 3, (1.0, 1.0, 0.0), False),
+                                                         (33922, "d", 6, (0, 0, 0, 100.0, 220.0, 0), False)])
+    d = load_domain(tmp_path / "m.tif")
+    assert d.extent == (100.0, 110.0, 200.0, 220.0)
+    assert not d.contains([[103.0, 217.0]])[0] and d.contains([[103.0, 213.0]])[0]
+    Image.fromarray(img).save(tmp_path / "m.png")
+    (tmp_path / "m.json").write_text(json.dumps({"extent": [100, 110, 200, 220]}))
+    assert np.array_equal(load_domain(tmp_path / "m.png").state, d.state)
+    assert load_domain(tmp_path / "m.png").extent == d.extent
+
+
+def test_transparent_and_nodata_are_obstacles(tmp_path):
+    from PIL import Image
+    rgba = np.full((4, 6, 4), 255, np.uint8)
+    rgba[0, 0, 3] = 0                                        # transparent top-left pixel
+    rgba[3, 5, :3] = 10                                      # dark bottom-right pixel
+    Image.fromarray(rgba, "RGBA").save(tmp_path / "a.png")
+    d = load_domain(tmp_path / "a.png", (0, 6, 0, 4))
+    free = d.state == 1
+    assert not free[0, 3] and not free[5, 0] and free.sum() == 22
+
+
+# ------------------------------------------------------------------ robots never enter an obstacle
+@pytest.mark.parametrize("name", ["lake", "floor"])
+def test_no_robot_in_an_obstacle_1e4_robots_long_run(name):
+    dom = make_domain(name, EXT)
+    rng = np.random.default_rng(1)
+    X = dom.sample(10_000, dom.start_box, rng)
+    assert dom.contains(X).all()
+    v = np.zeros_like(X)
+    v[:, 0] = 2.0                                            # a drift pushes them into the obstacles too
+    for k in range(60):
+        X = euler_maruyama_step(X, v if k % 2 else -v[:, ::-1], 0.109, 3.0, rng, dom)
+        assert dom.contains(X).all(), f"step {k}: {int((~dom.contains(X)).sum())} robots inside an obstacle"
+    assert X[:, 0].max() > 15                               # they did spread past the obstacles
+
+
+def test_no_robot_in_a_polygon_obstacle():
+    shapely = pytest.importorskip("shapely")
+    geom = shapely.box(0, 0, 20, 20).difference(shapely.Point(10, 10).buffer(4.0)).difference(
+        shapely.Polygon([(2, 12), (8, 19), (3, 19)]))
+    dom = Domain.from_polygons(geom, EXT)
+    rng = np.random.default_rng(2)
+    X = dom.sample(10_000, (0, 7, 0, 7), rng)
+    for k in range(15):
+        X = euler_maruyama_step(X, np.zeros_like(X), 0.109, 3.0, rng, dom)
+        assert shapely.intersects_xy(geom, X[:, 0], X[:, 1]).all(), k
+
+
+def test_reflection_keeps_the_uniform_density_uniform():
+    """The particle counterpart of zero flux: the uniform density of the free space is invariant."""
+    dom = make_domain("floor", EXT)
+    rng = np.random.default_rng(3)
+    n = 40_000
+    X = dom.sample(n, EXT, rng)
+    for _ in range(20):
+        X = dom.move(X, X + 0.4 * rng.standard_normal(X.shape))
+    # boxes hugging walls, a door and the pillar, and one in open space
+    for box in [(9.0, 9.5, 3.0, 4.5), (10.0, 11.0, 4.5, 15.0), (14.0, 14.5, 4.5, 5.5), (15.5, 16.0, 4.0, 6.0),
+                (3.0, 5.0, 3.0, 5.0)]:
+        a, b, c, d = box
+        inside = (X[:, 0] > a) & (X[:, 0] < b) & (X[:, 1] > c) & (X[:, 1] < d)
+        expected = n * (b - a) * (d - c) / dom.free_area
+        assert abs(inside.sum() - expected) < 5 * math.sqrt(expected), (box, inside.sum(), expected)
+
+
+def test_start_positions_uniform_on_the_free_part_of_the_box():
+    dom = make_domain("harbour", EXT)
+    X = dom.sample(5000, (3.0, 6.0, 8.0, 12.0), np.random.default_rng(4))      # the box crosses pier 1
+    assert dom.contains(X).all()
+    assert not ((X[:, 0] > 4) & (X[:, 0] < 5) & (X[:, 1] > 10)).any()
+    assert X[:, 1].min() < 8.1 and X[:, 1].max() > 11.9
+
+
+# ------------------------------------------------------------------ KDE
+def test_kde_mass_on_free_cells():
+    dom = make_domain("floor", EXT)
+    free = dom.free_cells((40, 40))
+    rng = np.random.default_rng(5)
+    X = dom.sample(3000, (7.0, 13.0, 7.0, 13.0), rng)          # near walls and doors
+    est = KernelDensity(EXT, free=free).fit(X)
+    p = est.on_grid(40, 40)
+    assert np.all(p[~free] == 0.0)
+    assert math.isclose(p.sum() * 0.25, 1.0, rel_tol=1e-12)
+    plain = KernelDensity(EXT).fit(X).on_grid(40, 40)
+    assert plain[~free].sum() * 0.25 > 0.01                    # without the mask, mass sits on the walls
+    m = KernelDensity(EXT, free=free).mask(*est.bins)
+    dx, dy = est.cell_size
+    assert math.isclose(np.maximum(est.values[m], 0).sum() * dx * dy, 1.0, rel_tol=1e-12)
+    q, g = est.evaluate(X[:10])
+    q0, g0 = KernelDensity(EXT).fit(X).evaluate(X[:10])
+    assert np.allclose(q / q0, q[0] / q0[0]) and q[0] > q0[0]      # a uniform rescale, upwards
+
+
+# ------------------------------------------------------------------ geodesic distances
+def test_geodesic_distance_around_a_wall_against_the_analytic_path():
+    free = np.ones((40, 40), bool)
+    free[19:21, :30] = False                                    # wall x in [9.5, 10.5], y in [0, 15]
+    geo = GeodesicGrid(free, EXT)
+    a = geo.cell_of([[5.25, 5.25]])[0]
+    b = geo.cell_of([[14.75, 5.25]])[0]
+    d = geo.distances([a])[0, b]
+    # shortest path in the plane: A -> (9.5, 15) -> (10.5, 15) -> B
+    exact = 2 * math.hypot(9.5 - 5.25, 15 - 5.25) + 1.0
+    # the 16-neighbour stencil is at most ~2.7 % long, and the path runs through cell centres: + a cell
+    # on either side of the corner
+    assert exact < d < exact * 1.03 + 2 * 0.5
+    # straight and diagonal stretches are exact
+    c = geo.cell_of([[5.25, 9.25]])[0]
+    assert math.isclose(geo.distances([a])[0, c], 4.0)
+    e = geo.cell_of([[1.25, 1.25]])[0]
+    assert math.isclose(geo.distances([a])[0, e], 4 * math.sqrt(2))
+    k = geo.cell_of([[7.25, 9.25]])[0]
+    assert math.isclose(geo.distances([a])[0, k], 2 * math.sqrt(5))
+    # the next hop leads to the goal along decreasing distance
+    cell, path = a, [a]
+    for _ in range(200):
+        nxt = geo.next_hop([cell], [b])[0]
+        if nxt == cell:
+            break
+        assert free.ravel()[nxt] and geo.distances([b])[0, nxt] < geo.distances([b])[0, cell]
+        cell = nxt
+        path.append(cell)
+    assert cell == b and len(path) > 10
+
+
+def test_geodesic_matches_fast_marching():
+    skfmm = pytest.importorskip("skfmm")
+    free = np.ones((80, 80), bool)
+    free[38:42, :60] = False
+    geo = GeodesicGrid(free, EXT)
+    src = geo.cell_of([[5.125, 5.125]])[0]
+    phi = np.ones((80, 80))
+    i, j = divmod(src, 80)
+    phi[i, j] = -1
+    fmm = skfmm.distance(np.ma.MaskedArray(phi, ~free), dx=0.25)
+    D = geo.distances([src])[0].reshape(80, 80)
+    far = free & (D > 5)
+    rel = D[far] / (np.asarray(fmm)[far] + 0.125)
+    assert 0.97 < np.median(rel) < 1.04 and rel.min() > 0.95 and rel.max() < 1.08
+
+
+# ------------------------------------------------------------------ the closed loop with obstacles
+def _cfg(ctrl, source="floor", **sim):
+    from swarmfield.sim.config import config_from_dict
+    s = {"controller": ctrl, "max_periods": 1, "gamma": 0.0, "robots": 40, **sim}
+    return config_from_dict({"sim": s, "domain": {"source": source}})
+
+
+@pytest.mark.parametrize("ctrl", ["diffusion", "coverage", "greedy", "lawnmower"])
+def test_baselines_never_enter_obstacles(ctrl):
+    from swarmfield.sim import run_simulation
+    res = run_simulation(_cfg(ctrl))
+    allX = np.concatenate(res.positions)
+    assert res.region.contains(allX).all()
+    free = res.free
+    for r, var in zip(res.rows, res.variances):
+        assert math.isclose(r["max_variance"], float(var[free].max()), rel_tol=1e-6)
+    assert np.all(res.var[~free] == 0)
+    d = np.sqrt(np.mean((res.mean - res.f_true)[free] ** 2))
+    assert math.isclose(res.rows[-1]["rmse"], d, rel_tol=1e-9)
+    if ctrl in ("greedy", "lawnmower"):        # they do leave the start room through the doors
+        assert ((res.positions[-1][:, 0] > 10) | (res.positions[-1][:, 1] > 10)).sum() >= 3
+
+
+def test_lawnmower_sweeps_free_cells_only():
+    from swarmfield.sim.controllers import LawnmowerController
+    from swarmfield.sim.simulation import Simulation
+    sim = Simulation(_cfg("lawnmower", source="harbour", robots=100))
+    sim.start()
+    ctrl = sim.controller
+    assert isinstance(ctrl, LawnmowerController)
+    pts = ctrl.paths.reshape(-1, 2)
+    assert sim.region.contains(pts).all()
+    # the sweep covers (nearly) every free cell's column and row range
+    geo = ctrl.geo
+    cells = np.unique(geo.cell_of(pts))
+    assert len(cells) > 0.15 * sim.free.sum()
+    # the approach is driven once; afterwards the robot goes back and forth over its sweep only
+    i = int(np.argmax(ctrl.first))
+    f, L = int(ctrl.first[i]), int(ctrl.lengths[i])
+    assert f > 0
+    seen = []
+    for p in range(f + 3 * (L - f)):
+        ctrl.pos[i] = p
+        seen.append(ctrl._waypoint()[i])
+    seen = np.array(seen)
+    sweep = ctrl.paths[i, f:L]
+    assert all((np.abs(sweep - w).sum(1) < 1e-12).any() for w in seen[f:])
+    assert np.allclose(seen[:f], ctrl.paths[i, :f])
+
+
+def test_unreachable_free_space_is_excluded_with_a_warning(tmp_path):
+    from swarmfield.sim import run_simulation
+    free = np.ones((40, 40), bool)
+    free[28:40, 28] = False
+    free[28, 28:40] = False                                     # a closed 5.5 m x 5.5 m pocket in a corner
+    np.savez(tmp_path / "pocket.npz", free=free, extent=np.array(EXT))
+    cfg = _cfg("diffusion", source=str(tmp_path / "pocket.npz"), max_periods=1)
+    with pytest.warns(UserWarning, match=r"30.25 m\^2 of free space \(121 planner cells\) cannot be reached"):
+        res = run_simulation(cfg)
+    assert not res.free[30:, 30:].any() and res.free[:20, :20].all()
+    assert np.all(res.var[30:, 30:] == 0)
+    from swarmfield.sim.config import config_from_dict
+    bad = config_from_dict({"sim": {"controller": "diffusion", "max_periods": 1, "robots": 60},
+                            "domain": {"source": str(tmp_path / "pocket.npz"), "unreachable": "refuse"}})
+    with pytest.raises(ValueError, match="cannot be reached"):
+        run_simulation(bad)
+
+
+def test_domain_table_round_trips_through_toml(tmp_path):
+    from swarmfield.sim.config import load_config, to_toml
+    cfg = _cfg("greedy", source="harbour")
+    (tmp_path / "c.toml").write_text(to_toml(cfg))
+    back = load_config(tmp_path / "c.toml")
+    assert back.domain == cfg.domain and back.domain.source == "harbour"
+    with pytest.raises(ValueError, match="domain.min_free_fraction"):
+        from swarmfield.sim.config import config_from_dict
+        config_from_dict({"domain": {"min_free_fraction": 0}})
+
+
+# ------------------------------------------------------------------ bad domains: exit 2, one line
+def _bad_files(tmp_path):
+    from PIL import Image
+    np.savez(tmp_path / "allblocked.npz", free=np.zeros((10, 10), bool), extent=np.array(EXT))
+    np.savez(tmp_path / "small.npz", free=np.ones((10, 10), bool), extent=np.array([0, 10, 0, 10]))
+    np.savez(tmp_path / "nofree.npz", mask=np.ones((10, 10), bool))
+    Image.fromarray(np.zeros((8, 8), np.uint8)).save(tmp_path / "black.png")
+    (tmp_path / "fake.png").write_text("not an image")
+    (tmp_path / "map.txt").write_text("1 0 1")
+    (tmp_path / "point.geojson").write_text(json.dumps({"type": "Point", "coordinates": [1, 2]}))
+    (tmp_path / "broken.geojson").write_text("{")
+    blocked_start = np.ones((40, 40), bool)
+    blocked_start[4:6, 4:6] = False
+    np.savez(tmp_path / "rock.npz", free=blocked_start, extent=np.array(EXT))
+    return {"allblocked.npz": "no free cell", "small.npz": "does not match the simulation domain",
+            "nofree.npz": "is not a mask", "black.png": "no free cell", "fake.png": "is not an image",
+            "map.txt": "is not a mask, image or polygon file", "point.geojson": "is not a Polygon",
+            "broken.geojson": "is not GeoJSON", "rock.npz": "start box .* is not free",
+            "missing.npz": "neither a built-in domain .* nor an existing file"}
+
+
+def test_bad_domains_exit_2_with_one_line(tmp_path, capsys):
+    pytest.importorskip("shapely")
+    from swarmfield.cli.simulate_swarm import main
+    for name, msg in _bad_files(tmp_path).items():
+        out = tmp_path / ("out-" + name)
+        code = main(["--domain", str(tmp_path / name), "--controller", "diffusion", "--out", str(out), "--quiet"])
+        err = capsys.readouterr().err.strip()
+        assert code == 2, (name, err)
+        assert len(err.splitlines()) == 1 and err.startswith("simulate-swarm: error:"), (name, err)
+        import re
+        assert re.search(msg, err), (name, err)
+        assert not out.exists()
+
+
+def test_builtins_have_a_free_start_box():
+    for name, make in BUILTIN_DOMAINS.items():
+        d = make()
+        assert d.box_is_free(d.start_box) and d.box_is_free((0, 7, 0, 7)), name
+        free = d.free_cells((40, 40))
+        assert d.reachable_cells(free, d.start_box).sum() == free.sum(), name      # every free cell reachable
+
+
+# ------------------------------------------------------------------ with the planner (ocp: ReferencePlanner(free=))
+def _planner_has_free():
+    import inspect
+    from swarmfield.ocp import ReferencePlanner
+    return "free" in inspect.signature(ReferencePlanner).parameters
+
+
+needs_mask_planner = pytest.mark.skipif(not _planner_has_free(), reason="ocp.ReferencePlanner without obstacles (free=)")
+
+
+@needs_mask_planner
+def test_feedback_with_obstacles_end_to_end():
+    from swarmfield.sim.simulation import Simulation
+    sim = Simulation(_cfg("feedback", source="floor", robots=60, substeps=4))
+    res = sim.run()
+    assert res.stop_reason == "max_time" and res.replans and all(r["success"] for r in res.replans)
+    assert np.array_equal(np.asarray(sim.planner.free, bool), res.free)
+    assert np.array_equal(np.asarray(sim.plan.free, bool), res.free)
+    assert res.region.contains(np.concatenate(res.positions)).all()
+    for snap in res.snapshots:
+        assert np.all(snap.p_hat[~res.free] == 0)
+        if snap.target is not None:
+            assert np.all(snap.target[~res.free] == 0)
+
+
+@needs_mask_planner
+def test_plan_reference_with_a_domain(tmp_path, capsys):
+    from swarmfield.cli.plan_reference import main
+    from swarmfield.ocp import ReferencePlan
+    out = tmp_path / "plan.npz"
+    code = main(["--domain", "harbour", "--out", str(out), "--intervals", "4", "--modes", "4", "4", "--max-iter", "60"])
+    assert code in (0, 1), capsys.readouterr().err
+    if code == 0:
+        plan = ReferencePlan.load(out)
+        free = make_domain("harbour", EXT).free_cells((40, 40))
+        assert np.array_equal(np.asarray(plan.free, bool), free)
+        assert np.all(plan.p[:, ~free] == 0)
+    assert main(["--domain", "floor", "--min-free-fraction", "0", "--out", str(out)]) == 2
+
+
+def test_missing_extra_is_named(tmp_path, monkeypatch):
+    import sys
+    (tmp_path / "a.geojson").write_text(json.dumps({"type": "Polygon", "coordinates": [[[0, 0], [20, 0], [20, 20], [0, 0]]]}))
+    monkeypatch.setitem(sys.modules, "shapely", None)
+    with pytest.raises(ValueError, match=r"needs the Python package shapely: pip install 'swarmfield\[domains\]'"):
+        load_domain(tmp_path / "a.geojson", EXT)

@@ -1,0 +1,173 @@
+"""Stop rules (sim.stopping, issue 20): the robust rule, the GP follower it uses, the travel-time limit."""
+import math
+
+import numpy as np
+import pytest
+
+from swarmfield.regression import GaussianProcess, GPSettings
+from swarmfield.sim.config import RunConfig, SimSettings, to_toml, config_from_dict
+from swarmfield.sim.fields import FIELDS, make_field
+from swarmfield.sim.stopping import (AbsoluteThreshold, RelativeThreshold, RobustThreshold, farthest_distance,
+                                     make_stop_rule, travel_time_limit)
+
+
+def _grid(n=40, L=20.0):
+    c = (np.arange(n) + 0.5) * L / n
+    X, Y = np.meshgrid(c, c, indexing="ij")
+    return np.column_stack([X.ravel(), Y.ravel()])
+
+
+def _lattice(x0, x1, y0, y1, step):
+    X, Y = np.meshgrid(np.arange(x0, x1 + 1e-9, step), np.arange(y0, y1 + 1e-9, step), indexing="ij")
+    return np.column_stack([X.ravel(), Y.ravel()])
+
+
+def test_follower_matches_a_gp_built_from_scratch_and_follows_later_data():
+    rng = np.random.default_rng(0)
+    gp = GaussianProcess(GPSettings(length_scale=2.0, inducing_spacing=0.5), domain=(0, 10, 0, 10))
+    X1 = rng.uniform(0, 10, (60, 2))
+    gp.add(X1, np.sin(X1[:, 0]))
+    f = gp.follower(signal_variance=0.5, length_scale=0.8)
+    X2 = rng.uniform(0, 10, (40, 2))
+    gp.add(X2, np.cos(X2[:, 1]))                     # forwarded to the follower (Woodbury path there)
+    ref = GaussianProcess(GPSettings(signal_variance=0.5, length_scale=0.8, inducing_spacing=0.5), domain=(0, 10, 0, 10))
+    ref.add(np.vstack([X1, X2]), np.concatenate([np.sin(X1[:, 0]), np.cos(X2[:, 1])]))
+    Q = rng.uniform(0, 10, (200, 2))
+    fm, fv = f.predict(Q)
+    rm, rv = ref.predict(Q)
+    assert f.n_observations == 100
+    np.testing.assert_allclose(fv, rv, atol=1e-9)
+    np.testing.assert_allclose(fm, rm, atol=1e-9)
+    X3 = rng.uniform(0, 10, (30, 2))
+    gp.add(X3, X3[:, 0])
+    ref.add(X3, X3[:, 0])
+    np.testing.assert_allclose(f.predict(Q)[1], ref.predict(Q)[1], atol=1e-9)
+    assert f.n_woodbury_updates >= 1
+    # the leader is unchanged by having a follower
+    assert gp.settings.length_scale == 2.0 and gp.settings.signal_variance == 0.25
+
+
+def _robust_config(**sim):
+    return RunConfig(sim=SimSettings(stop_rule="robust", **sim), gp=GPSettings(learn_hyperparameters=True))
+
+
+def test_robust_rule_is_the_relative_rule_when_the_length_scale_is_not_longer():
+    pts = _grid()
+    gp = GaussianProcess(GPSettings(length_scale=1.0), domain=(0, 20, 0, 20))
+    X = _lattice(0.25, 19.75, 0.25, 19.75, 1.0)
+    gp.add(X, np.zeros(len(X)))
+    rob = make_stop_rule(_robust_config().sim).bind(pts)
+    rel = make_stop_rule(SimSettings(stop_rule="relative")).bind(pts)
+    assert isinstance(rob, RobustThreshold) and isinstance(rel, RelativeThreshold)
+    assert rob.threshold(gp) == rel.threshold(gp) == pytest.approx(0.1)
+    assert rob.tolerance(gp) == rel.tolerance(gp) == pytest.approx(0.05)
+    assert rob.last_check_variance is None
+    ab = make_stop_rule(SimSettings())
+    assert isinstance(ab, AbsoluteThreshold) and ab.threshold(gp) == 0.1 and ab.tolerance(gp) == 0.05 and ab.stops
+
+
+def test_a_long_learned_length_scale_cannot_make_an_unvisited_corner_look_mapped():
+    """The failure of issue 20: data 1.5 m apart everywhere but a corner of 3 m, learned l = 4.4 m.  The relative
+    rule fires (sup V <= 0.4 s_f^2 with nobody in the corner); the robust one does not, and its
+    threshold is the relative one scaled by sup V / sup V(l_c)."""
+    pts = _grid()
+    gp = GaussianProcess(GPSettings(length_scale=1.0), domain=(0, 20, 0, 20))
+    X = _lattice(0.5, 19.5, 0.5, 19.5, 1.5)
+    X = X[~((X[:, 0] > 17) & (X[:, 1] > 17))]
+    gp.add(X, np.zeros(len(X)))
+    gp.set_hyperparameters(0.25, 4.4)
+    sup_v = gp.predict(pts)[1].max()
+    rel = make_stop_rule(SimSettings(stop_rule="relative")).bind(pts)
+    rob = make_stop_rule(_robust_config().sim).bind(pts)
+    assert sup_v <= rel.threshold(gp)                       # the relative rule says "mapped"
+    thr = rob.threshold(gp)
+    assert sup_v > thr                                      # the robust one does not
+    ref = GaussianProcess(GPSettings(length_scale=1.0), domain=(0, 20, 0, 20))
+    ref.add(X, np.zeros(len(X)))
+    sup_c = ref.predict(pts)[1].max()
+    assert rob.last_check_variance == pytest.approx(sup_c, rel=1e-9)
+    assert sup_c > 0.9 * 0.25                                # the corner is at the prior
+    assert thr == pytest.approx(0.1 * sup_v / sup_c, rel=1e-9)
+    # dense data everywhere, the corner included: both rules fire
+    Xc = _lattice(0.25, 19.75, 0.25, 19.75, 0.5)
+    for _ in range(2):
+        gp.add(Xc, np.zeros(len(Xc)))
+    sup_v = gp.predict(pts)[1].max()
+    assert sup_v <= rob.threshold(gp) and sup_v <= rel.threshold(gp)
+
+
+def test_stop_length_scale_setting():
+    c = config_from_dict({"sim": {"stop_rule": "robust", "stop_length_scale": 2.0}})
+    assert c.sim.stop_length_scale == 2.0
+    assert config_from_dict({"sim": {"stop_rule": "robust"}}).sim.stop_length_scale is None
+    assert 'stop_rule = "robust"' in to_toml(c) and "stop_length_scale = 2.0" in to_toml(c)
+    with pytest.raises(ValueError, match="stop_rule must be one of absolute, relative, robust"):
+        SimSettings(stop_rule="robus")
+    with pytest.raises(ValueError, match="stop_length_scale must be > 0"):
+        SimSettings(stop_length_scale=0.0)
+    # l_c is never below what the inducing grid represents (1.5 x spacing)
+    gp = GaussianProcess(GPSettings(length_scale=3.0), domain=(0, 20, 0, 20))
+    rule = RobustThreshold(SimSettings(stop_rule="robust", stop_length_scale=0.1))
+    assert rule.check_scale(gp) == pytest.approx(1.5 * 1.5)
+
+
+def test_travel_time_limit_of_the_paper_scenario():
+    """Farthest cell centre (19.75, 19.75) is 12.75 sqrt 2 = 18.03 m from [0, 7]^2: 6.01 s at 3 m/s,
+    7 measurements of 0.875 s = 0.875 T (issue 20); 4.51 s at the paper's 4 m/s: 6 steps = 0.75 T."""
+    assert farthest_distance(_grid(), (0, 7, 0, 7)) == pytest.approx(12.75 * math.sqrt(2))
+    tuned = RunConfig.from_preset("tuned")
+    assert travel_time_limit(tuned) == pytest.approx(7 * 0.875)
+    assert travel_time_limit(RunConfig()) == pytest.approx(6 * 0.875)           # feedback.v_max = 4
+    assert travel_time_limit(RunConfig(), speed=3.0) == pytest.approx(7 * 0.875)
+    assert travel_time_limit(RunConfig(), points=np.array([[3.0, 3.0]])) == 0.0
+
+
+@pytest.mark.parametrize("ell", [1.0, 4.4, 20.0])
+def test_no_data_gathered_before_the_travel_limit_can_fire_the_robust_rule(ell):
+    """Any strategy's data before the travel-time limit lie within v (t_lim - dt) of the start box.
+    Even dense, repeated data on all of that set, at a high signal-to-noise ratio and whatever the
+    learned length scale, leave the farthest cells at the prior: the robust rule cannot fire."""
+    cfg = RunConfig(sim=SimSettings(stop_rule="robust"), gp=GPSettings(learn_hyperparameters=True))
+    pts = _grid()
+    t_before = travel_time_limit(cfg, speed=3.0) - cfg.sim.dt
+    reach = 3.0 * t_before
+    X = _lattice(0.25, 19.75, 0.25, 19.75, 0.5)
+    d = np.hypot(np.maximum(X[:, 0] - 7, 0), np.maximum(X[:, 1] - 7, 0))
+    X = X[d <= reach]
+    gp = GaussianProcess(GPSettings(length_scale=1.0), domain=(0, 20, 0, 20))
+    for _ in range(3):
+        gp.add(X, np.zeros(len(X)))
+    gp.set_hyperparameters(1.0, ell)                       # s_f^2 / s_n^2 = 25
+    rule = make_stop_rule(cfg.sim).bind(pts)
+    assert gp.predict(pts)[1].max() > rule.threshold(gp)
+
+
+@pytest.mark.parametrize("name", ["bumps", "front", "gp-sample"])
+def test_fine_structure_fields_are_seeded_and_in_range(name):
+    f = make_field(name, (0, 20, 0, 20))
+    assert name in FIELDS
+    v = f(_grid())
+    assert np.all(np.isfinite(v)) and 0.0 < v.min() and v.max() < 4.5 and v.std() > 0.2
+    np.testing.assert_array_equal(v, FIELDS[name]()(_grid()))            # same at every construction
+    assert f.describe()["name"] == name
+
+
+def test_bumps_leave_the_start_box_flat_and_are_small():
+    f = FIELDS["bumps"]()
+    assert len(f.plumes) == 8 and np.all((0.8 <= f.plumes[:, 3]) & (f.plumes[:, 3] <= 1.2))
+    box = _lattice(0, 7, 0, 7, 0.25)
+    assert np.ptp(f(box)) < 0.05
+    assert not np.array_equal(FIELDS["bumps"](seed=1).plumes, f.plumes)
+
+
+def test_travel_time_limit_goes_around_obstacles():
+    """With a wall between the start box and the far side, the limit is the geodesic distance."""
+    from swarmfield.sim.config import config_from_dict
+    cfg = config_from_dict({"sim": {"dt": 0.5}, "planner": {"nx": 20, "ny": 20}})
+    free = np.ones((20, 20), bool)
+    open_limit = travel_time_limit(cfg, speed=1.0, free=free)
+    assert open_limit == pytest.approx(travel_time_limit(cfg, speed=1.0), abs=cfg.sim.dt)
+    free[10, :18] = False                 # a wall at x = 10.5 m, open only at the top (y > 18 m)
+    walled = travel_time_limit(cfg, speed=1.0, free=free)
+    # from the box [0, 7]^2 up past the wall's end and down to the far corner (19.5, 0.5): > 12 + 17 m
+    assert walled > open_limit + 8.0 and walled >= 29.0
