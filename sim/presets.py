@@ -5,7 +5,8 @@ A preset is a partial configuration document (the ``[sim]``, ``[gp]``, ... table
 < command-line flags.  ``paper`` is empty: every default of :mod:`sim.config` is the paper's
 scenario (Zheng & Lin, section "Simulation studies") or a documented choice where the paper is
 silent.  ``tuned`` is the measured best combination of the changes that go beyond the paper
-(README, "Beyond the paper"); every entry below names the setting's own docstring for its meaning.
+(README, "Beyond the paper"; issue 20: the information objective, docs/results/tuned-preset.md with
+the ablation); every entry below names the setting's own docstring for its meaning.
 
 The resolved configuration a run writes (``DIR/config.toml``) names its preset and spells out every
 value, so ``simulate-swarm --config DIR/config.toml`` repeats it whatever the presets later become.
