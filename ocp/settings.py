@@ -172,6 +172,10 @@ class PlannerSettings:
     #: κ multiplying the mean-field measurement rate c = κ N / (Δt σ_n^2): the independent-information
     #: assumption over-counts (docs/results/information-objective.md measures by how much); κ < 1 discounts it
     information_efficiency: float = 1.0
+    #: which (V0, l) the closed loop supplies to the information objective: "gp" (the GP's variance and its
+    #: current, possibly learned, length scale) or "stop-rule" (those the stop rule judges by: with
+    #: sim.stop_rule = "robust" the variance at l_c = min(l, prior l) and l_c; else as "gp")
+    information_scale: str = "gp"
 
     def __post_init__(self):
         from .objectives import OBJECTIVES
@@ -179,6 +183,8 @@ class PlannerSettings:
             raise ValueError(f"planner.objective must be one of {', '.join(repr(o) for o in OBJECTIVES)}, "
                              f"got {self.objective!r}")
         _positive(self, "information_power", "information_weight", "information_efficiency")
+        if self.information_scale not in ("gp", "stop-rule"):
+            raise ValueError(f"planner.information_scale must be 'gp' or 'stop-rule', got {self.information_scale!r}")
         if self.objective == "information" and self.method != "ipopt":
             raise ValueError("planner.objective = 'information' is solved with method 'ipopt' only")
         if self.scheme not in ("upwind", "muscl"):

@@ -357,8 +357,16 @@ class Simulation:
             return {}
         from ..ocp.objectives import InformationInputs
         gs = self.gp.settings
-        return {"information": InformationInputs(self.var, int(self.alive.sum()), self.settings.dt,
-                                                 gs.noise_variance, gs.length_scale)}
+        var, ell = self.var, gs.length_scale
+        rule = self.stop_rule
+        if getattr(self.config.planner, "information_scale", "gp") == "stop-rule" and self.free is None \
+                and hasattr(rule, "check_variance"):
+            # plan for the variance the stop rule judges by (sim.stopping.RobustThreshold: l_c <= l)
+            vc = rule.check_variance(self.gp)
+            if vc is not None:
+                var, ell = np.maximum(var, np.asarray(vc).reshape(self.grid.shape)), rule.check_scale(self.gp)
+        return {"information": InformationInputs(var, int(self.alive.sum()), self.settings.dt,
+                                                 gs.noise_variance, ell)}
 
     def replan(self, p_f, snap: Snapshot) -> bool:
         """The reference for [t, t + T] (eqs. "optimization problem", "reference model"); False if the

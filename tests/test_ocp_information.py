@@ -104,3 +104,36 @@ def test_settings_reject_bad_objective():
     assert PlannerSettings().objective == "symmetric-kl"
     with pytest.raises(ValueError, match="robots"):
         InformationInputs(np.ones((3, 3)), 0, 1.0, 0.04, 1.0)
+
+
+def test_closed_loop_supplies_gp_or_stop_rule_scale():
+    """Simulation.information_inputs: the GP's V and l, or with information_scale = "stop-rule" the
+    variance and length scale the stop rule judges by (here a stand-in rule with l_c = 0.7)."""
+    from swarmfield.sim.config import config_from_dict
+    from swarmfield.sim.simulation import Simulation
+
+    class Rule:                                   # the robust rule's interface (sim.stopping.RobustThreshold)
+        def bind(self, points):
+            self.n = len(points)
+            return self
+
+        def check_variance(self, gp):
+            return np.full(self.n, 0.2)
+
+        def check_scale(self, gp):
+            return 0.7
+
+    base = {"planner": {"objective": "information", "nx": 10, "ny": 10, "n_intervals": 2, "n_modes_x": 2,
+                        "n_modes_y": 2}, "sim": {"robots": 7}}
+    for scale, want_l, want_v in (("gp", None, 0.05), ("stop-rule", 0.7, 0.2)):
+        doc = {k: dict(v) for k, v in base.items()}
+        doc["planner"]["information_scale"] = scale
+        sim = Simulation(config_from_dict(doc), stop_rule=Rule())
+        sim.var = np.full(sim.grid.shape, 0.05)
+        sim.alive[:2] = False
+        inp = sim.information_inputs()["information"]
+        assert inp.robots == 5 and inp.measurement_interval == sim.settings.dt
+        assert inp.length_scale == (sim.gp.settings.length_scale if want_l is None else want_l)
+        assert np.allclose(inp.variance, want_v)
+    with pytest.raises(ValueError, match="information_scale"):
+        PlannerSettings(information_scale="learned")
