@@ -43,6 +43,9 @@ PRESETS: dict[str, dict] = {
             # the mean field over-counts correlated measurements: the real GP keeps ~3x the predicted
             # variance reduction's complement (fitted kappa 0.27-0.38, docs/results/information-objective.md)
             "information_efficiency": 0.3,
+            # plan for the variance the stop rule judges by (with sim.stop_rule = "robust": V and l at
+            # l_c = min(l, prior l); with "relative" the same as "gp")
+            "information_scale": "stop-rule",
         },
         "feedback": {
             # the robots' speed limit of the baselines (planner.v_max), not the paper's 4 m/s
