@@ -137,3 +137,18 @@ def test_closed_loop_supplies_gp_or_stop_rule_scale():
         assert np.allclose(inp.variance, want_v)
     with pytest.raises(ValueError, match="information_scale"):
         PlannerSettings(information_scale="learned")
+
+
+def test_plan_reference_cli_supplies_the_default_scenario(tmp_path, capsys):
+    """plan-reference with objective = "information": V_0 of the default scenario's first measurements."""
+    from swarmfield.cli.plan_reference import main
+    from swarmfield.ocp.plan import ReferencePlan
+
+    (tmp_path / "cfg.toml").write_text('[planner]\nobjective = "information"\ninformation_power = 2.0\n')
+    out = tmp_path / "plan.npz"
+    code = main(["--nx", "12", "--ny", "10", "--intervals", "3", "--modes", "3", "3", "--config",
+                 str(tmp_path / "cfg.toml"), "--out", str(out)])
+    assert code == 0, capsys.readouterr().err
+    m = ReferencePlan.load(out).meta
+    assert m["objective_kind"] == "information" and m["information"]["robots"] == 100
+    assert m["information"]["phi"][-1] < m["information"]["phi"][0] == pytest.approx(1.0)
