@@ -2,7 +2,7 @@
 
     python benchmarks/muscl.py [--grids 40,60,80] [--repeat 2] [--schemes upwind,muscl] [--transports auto]
 
-The paper's first planning step (ocp.scenario: robots uniform on [0, 7]^2, target from the GP variance) on
+The paper's first planning step (sim.scenario: robots uniform on [0, 7]^2, target from the GP variance) on
 each n x n grid, cold start, with each scheme; prints the CPU time of the solve (min over ``--repeat``; this
 process is single-threaded with BLAS pinned, so CPU time is steadier than wall time on a shared machine),
 wall time, iterations, CPU ms per iteration, the objective, the time ratio muscl / upwind per grid, and the
@@ -16,7 +16,7 @@ import math
 import time
 
 from swarmfield.ocp.planner import ReferencePlanner
-from swarmfield.ocp.scenario import box_density, first_step_target
+from swarmfield.sim.scenario import box_density, first_step_target
 from swarmfield.ocp.settings import PlannerSettings
 
 

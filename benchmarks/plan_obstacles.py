@@ -6,7 +6,7 @@ The domains (``--layouts``): the paper's [0, 20]^2 with "rooms": a wall at 9 <= 
 12 <= y <= 15) and two blocks, [13, 17] x [3, 8] and [2, 6.5] x [12, 16] (14 % of the cells blocked at
 40 x 40), or "pillars": 21 pillars of 1 m x 3 m on a 4 m lattice (16 %); a cell is blocked when its
 centre is inside an obstacle.  Start: robots uniform on [0, 7]^2 (free), as in the paper; target: the GP
-variance of their first measurements (ocp.scenario.first_step_target), zeroed on blocked cells and
+variance of their first measurements (sim.scenario.first_step_target), zeroed on blocked cells and
 renormalised.  Prints per grid and transport the cold solve's time (min over ``--repeat``; CPU time of
 this single-threaded process, steadier than wall time on a shared machine, and wall time), iterations,
 CPU ms per iteration, objective, and the time ratios masked / empty (issue 19's goal: <= 1.2 at 40 x 40).
@@ -19,7 +19,7 @@ import time
 import numpy as np
 
 from swarmfield.ocp.planner import ReferencePlanner
-from swarmfield.ocp.scenario import box_density, first_step_target
+from swarmfield.sim.scenario import box_density, first_step_target
 from swarmfield.ocp.settings import PlannerSettings
 
 #: obstacles (x0, x1, y0, y1) of the benchmark domains: "rooms" (a wall with a door, two blocks) and

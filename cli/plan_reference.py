@@ -2,7 +2,8 @@
 
 With no arguments it plans the paper's first step (robots uniform on [0, 7]^2, target from the GP
 variance of their first measurements; :mod:`sim.scenario`) on the default grid and writes
-``plan.npz``.  Exit codes: 0 success, 1 solver failure, 2 bad input (nothing written).
+``plan.npz``.  Exit codes: 0 success, 1 solver failure, 2 bad input (nothing written), 130 Ctrl-C,
+143 SIGTERM.
 """
 from __future__ import annotations
 
@@ -15,9 +16,11 @@ from pathlib import Path
 import numpy as np
 
 from ..runtime.atomic import probe_writable
+from ..runtime.threads import limit_threads
 from ..runtime.cliargs import OneLineParser, UsageError as InputError, check_path
 from ..ocp.plan import ReferencePlan
 from ..runtime.publish import InterruptedAfterPublish, staged_files
+from ..runtime.signals import exit_code, ignore_interrupts, stopped
 from ..ocp.settings import PlannerSettings, dataclass_from_dict
 
 PROG = "plan-reference"
@@ -254,36 +257,50 @@ def run(argv=None) -> int:
     # plan and plot are written to temporary files first and renamed together (runtime.publish): an
     # interrupt or a write error leaves both previous files as they were
     writing = args.out
+    both = f"{args.out}" + (f" and {args.plot}" if args.plot else "")
+    staged = None
     try:
         with staged_files([args.out] + ([args.plot] if args.plot is not None else [])) as tmp:
+            staged = tmp
             plan.save(tmp[args.out])
             if args.plot is not None:
                 from ..ocp.figures import plot_plan
                 writing = args.plot
                 plot_plan(plan, tmp[args.plot])
             writing = None
-    except InterruptedAfterPublish:
-        print(f"{PROG}: interrupted after writing {args.out}" + (f" and {args.plot}" if args.plot else ""),
-              file=sys.stderr)
-        return 130
+    except InterruptedAfterPublish as exc:
+        print(f"{PROG}: {stopped(exc)} after writing {both}", file=sys.stderr)
+        return exit_code(exc)
+    except KeyboardInterrupt as exc:
+        if staged is not None and getattr(staged, "published", False):     # e.g. while the temporaries went
+            print(f"{PROG}: {stopped(exc)} after writing {both}", file=sys.stderr)
+            return exit_code(exc)
+        raise                               # before publication: main says "nothing written"
     except OSError as exc:
-        what = f"{writing}" if writing is not None else f"{args.out}" + (f" and {args.plot}" if args.plot else "")
+        what = f"{writing}" if writing is not None else both
         print(f"{PROG}: error: cannot write {what}: {exc.strerror or exc}; no file replaced", file=sys.stderr)
         return 1
-    m = plan.meta
-    sv = m["solver"]
-    terms = m["objective_terms"]
-    print(f"{sv['status']}: {sv['iterations']} iterations, build {m['build_time_s']:.2f} s, "
-          f"solve {sv['wall_time_s']:.2f} s ({settings.nx}x{settings.ny} cells, N={settings.n_intervals}, "
-          f"I=J={settings.n_modes_x}x{settings.n_modes_y}, {m['substeps']} sub-steps/interval)")
-    print(f"objective {m['objective']:.4f} = terminal {terms['terminal']:.4f} + running {terms['running']:.4f} "
-          f"+ energy {terms['energy']:.4f}; symmetric KL to target {m['symmetric_kl_initial']:.4f} -> "
-          f"{m['symmetric_kl_final']:.4f}")
-    print(f"wrote {args.out}" + (f" and {args.plot}" if args.plot else ""))
+    try:
+        m = plan.meta
+        sv = m["solver"]
+        terms = m["objective_terms"]
+        print(f"{sv['status']}: {sv['iterations']} iterations, build {m['build_time_s']:.2f} s, "
+              f"solve {sv['wall_time_s']:.2f} s ({settings.nx}x{settings.ny} cells, N={settings.n_intervals}, "
+              f"I=J={settings.n_modes_x}x{settings.n_modes_y}, {m['substeps']} sub-steps/interval)")
+        print(f"objective {m['objective']:.4f} = terminal {terms['terminal']:.4f} + running {terms['running']:.4f} "
+              f"+ energy {terms['energy']:.4f}; symmetric KL to target {m['symmetric_kl_initial']:.4f} -> "
+              f"{m['symmetric_kl_final']:.4f}")
+        print(f"wrote {both}")
+    except KeyboardInterrupt as exc:
+        print(f"{PROG}: {stopped(exc)} after writing {both}", file=sys.stderr)
+        return exit_code(exc)
     return 0
 
 
 def main(argv=None) -> int:
+    """Exit codes: 0 plan written, 1 solver or write failure (no file replaced), 2 bad input (nothing
+    written), 130 Ctrl-C / 143 SIGTERM (the message says whether the files were written)."""
+    limit_threads()          # BLAS/OpenMP threads: the measured best unless the environment sets them
     try:
         code = run(argv)
     except InputError as exc:
@@ -292,10 +309,11 @@ def main(argv=None) -> int:
     except ValueError as exc:  # validation inside the library (grid, densities, plan files)
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         code = 2
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted; nothing written", file=sys.stderr)
-        code = 130
+    except KeyboardInterrupt as exc:
+        print(f"{PROG}: {stopped(exc)}; nothing written", file=sys.stderr)
+        code = exit_code(exc)
     if __name__ == "__main__" or argv is None:
+        ignore_interrupts()         # decided: a Ctrl-C during the interpreter's exit changes nothing
         sys.exit(code)
     return code
 

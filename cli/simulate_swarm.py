@@ -6,7 +6,8 @@ the ``[sim]`` settings of ``--config``.  Exit codes: 0 run finished (whether or 
 below γ; see summary.json), 1 planner failure (the outputs up to that point are published, or set
 aside in DIR/.simulate-swarm-incomplete if DIR holds a complete run) or a simulation or write
 failure (one line; DIR keeps its previous contents), 2 bad input or DIR in use by another run (one
-line on stderr, nothing written), 130 interrupted (DIR keeps its previous contents).  Publication:
+line on stderr, nothing written), 130 interrupted by Ctrl-C, 143 by SIGTERM (DIR keeps its previous
+contents unless the message says the new run was written).  Publication:
 :mod:`runtime.publish`.
 """
 from __future__ import annotations
@@ -34,11 +35,11 @@ def _preset_names():
 
 def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0])
-    p.add_argument("--config", type=Path, help="TOML file with [sim], [gp], [kde], [feedback], [planner] tables")
+    p.add_argument("--config", type=Path, metavar="FILE", help="TOML file with [sim], [gp], [kde], [feedback], [planner] tables")
     p.add_argument("--preset", choices=_preset_names(),
                    help="paper: the paper's configuration (default); tuned: the measured best configuration "
-                        "beyond the paper (README, 'Beyond the paper'). Laid under --config and the flags")
-    p.add_argument("--out", type=Path, default=Path("run"), help="output folder")
+                        "beyond the paper (documentation: 'Beyond the paper'). Laid under --config and the flags")
+    p.add_argument("--out", type=Path, default=Path("run"), metavar="DIR", help="output folder")
     p.add_argument("--seed", type=int, help="random seed (default 0)")
     p.add_argument("--robots", type=int, help="number of robots (default 100)")
     p.add_argument("--field", help="sinc | plumes | ridge | waves | path to a .npz/.npy/.csv field file (default sinc)")
@@ -113,23 +114,47 @@ def with_domain(config, source):
         source = str(p.resolve())
     return dataclasses.replace(config, domain=dataclasses.replace(config.domain, source=source))
 
+STOP_REASONS = {"threshold": "sup V at or below the threshold", "max_time": "time limit (--max-periods)",
+                "variance_below_eta": "nothing left to plan for (V below eta everywhere)",
+                "planner_failed": "planner failure"}
+
 
 def _progress_printer(config):
     T = config.sim.period
 
     def show(info):
         if info["event"] == "plan":
-            print(f"{PROG}: t = {info['t']:7.2f} s ({info['t'] / T:4.1f} T)  sup V = {info['max_variance']:.4f}  "
-                  f"rmse = {info['rmse']:.4f}  planner: {info['status']}, {info['iterations']} it, "
+            hyper = (f"  s_f^2 = {info['signal_variance']:.4g}, l = {info['length_scale']:.3g} m (learned)"
+                     if info.get("learned") else "")
+            thr = info.get("threshold")
+            print(f"{PROG}: t = {info['t']:7.2f} s ({info['t'] / T:4.1f} T)  sup V = {info['max_variance']:.4f}"
+                  + (f" (stop at {thr:.4g})" if thr is not None else "") + hyper +
+                  f"  rmse = {info['rmse']:.4f}  planner: {info['status']}, {info['iterations']} it, "
                   f"{info['solve_time_s']:.2f} s", file=sys.stderr, flush=True)
         elif info["event"] == "done":
-            ttt = info["time_to_threshold"]
-            reached = f"sup V <= gamma at t = {ttt:.2f} s ({ttt / T:.2f} T)" if ttt is not None else \
-                "sup V stayed above gamma"
-            print(f"{PROG}: stopped ({info['stop_reason']}) at t = {info['t']:.2f} s: {reached}; "
-                  f"final sup V = {info['max_variance']:.4f}, rmse = {info['rmse']:.4f}, "
-                  f"wall time {info['wall_time']:.1f} s", file=sys.stderr, flush=True)
+            print(f"{PROG}: simulated {info['t']:.2f} s in {info['wall_time']:.1f} s (stopped: "
+                  f"{STOP_REASONS.get(info['stop_reason'], info['stop_reason'])}); writing the outputs",
+                  file=sys.stderr, flush=True)
     return show
+
+
+def headline(result) -> list[str]:
+    """What the run achieved, in two lines: sup V against the stopping threshold (and when it got
+    there), the RMSE of the estimate and the mean variance at the start and at the end."""
+    rows = result.rows
+    if not rows:
+        return []
+    T = result.config.sim.period
+    first, last = rows[0], rows[-1]
+    thr = last.get("threshold", result.config.sim.gamma)
+    ttt = result.time_to_threshold
+    when = (f"at or below it from t = {ttt:.2f} s ({ttt / T:.2f} T)" if ttt is not None else "never at or below it")
+    return [f"{PROG}: sup V {first['max_variance']:.4f} -> {last['max_variance']:.4f} "
+            f"(threshold {thr:.4g}), {when}; stopped at t = {last['t']:.2f} s: "
+            f"{STOP_REASONS.get(result.stop_reason, result.stop_reason)}",
+            f"{PROG}: mean V {first['mean_variance']:.4f} -> {last['mean_variance']:.4f}; RMSE of the estimate "
+            f"{first['rmse']:.4f} at t = 0 -> {last['rmse']:.4f} at t = {last['t']:.2f} s; "
+            f"simulation wall time {result.wall_time:.1f} s"]
 
 
 def run(argv=None) -> int:
@@ -177,6 +202,8 @@ def _run(argv=None) -> int:
 
 def _run_locked(args, argv, config, field, planner, folder) -> int:
     from ..runtime.publish import InterruptedAfterPublish
+    from ..runtime.threads import thread_info
+    from ..runtime.signals import exit_code, stopped
     from ..sim.loop import run_simulation
     from ..sim.outputs import write_metrics, write_outputs
 
@@ -192,17 +219,21 @@ def _run_locked(args, argv, config, field, planner, folder) -> int:
     try:
         result = run_simulation(config, field=field, planner=planner, progress=progress,
                                 on_period=lambda res: write_metrics(res, stage))
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted; {kept()}", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        print(f"{PROG}: {stopped(exc)}; nothing written: {kept()}", file=sys.stderr)
+        return exit_code(exc)
     except (ValueError, RuntimeError, ArithmeticError, MemoryError, OSError, np.linalg.LinAlgError) as exc:
         # not a planner failure (those end the run normally): one line, the previous run left in place
         print(f"{PROG}: error: simulation failed: {type(exc).__name__}: {exc}; {kept()}", file=sys.stderr)
         return 1
     failed = result.stop_reason == "planner_failed"
     try:
+        def writing(name):
+            print(f"{PROG}: writing {name} ...", file=sys.stderr, flush=True)
         files = write_outputs(result, stage, figures=not args.no_figures, gif=args.gif,
+                              progress=None if args.quiet else writing,
                               extra={"command": [PROG] + [str(a) for a in (sys.argv[1:] if argv is None else argv)],
+                                     "threads": thread_info(),
                                      "planner_build_time_s": None if planner is None else planner.build_time})
         if failed and folder.holds_complete_run():
             where = folder.set_aside(stage)      # partial results never replace a complete run
@@ -210,18 +241,20 @@ def _run_locked(args, argv, config, field, planner, folder) -> int:
                   f"t = {result.rows[-1]['t']:g} s are in {where}", file=sys.stderr)
             return 1
         folder.publish(stage, files, complete=not failed)
-    except InterruptedAfterPublish:
-        print(f"{PROG}: interrupted after the new run was published in {args.out}", file=sys.stderr)
-        return 130
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted while writing the outputs; {kept()}", file=sys.stderr)
-        return 130
+    except InterruptedAfterPublish as exc:
+        print(f"{PROG}: {stopped(exc)} after writing the new run to {args.out}", file=sys.stderr)
+        return exit_code(exc)
+    except KeyboardInterrupt as exc:
+        print(f"{PROG}: {stopped(exc)} while writing the outputs; nothing written: {kept()}", file=sys.stderr)
+        return exit_code(exc)
     except OSError as exc:
         print(f"{PROG}: error: cannot write the outputs ({exc.strerror or exc}); {args.out} keeps its previous "
               f"contents, whatever was written is in {folder.set_aside(stage)}", file=sys.stderr)
         return 1
     if not args.quiet:
         print(f"{PROG}: wrote {', '.join(files)} to {args.out}", file=sys.stderr)
+        for line in headline(result):
+            print(line, file=sys.stderr)
     if failed:
         print(f"{PROG}: error: {result.error}; outputs up to t = {result.rows[-1]['t']:g} s are in {args.out}",
               file=sys.stderr)

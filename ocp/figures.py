@@ -3,36 +3,50 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..runtime.atomic import atomic_path
+from ..runtime.plotting import new_figure, save_figure
 from .basis import velocity_on_grid
 from .plan import ReferencePlan
 
+__all__ = ["make_plan_figure", "plot_plan"]
 
-def plot_plan(plan: ReferencePlan, path, n_snapshots: int = 4, arrows: int = 12):
-    """Write a PNG: p_r at ``n_snapshots`` times across the horizon (v_r as arrows) and the target."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
+def make_plan_figure(plan: ReferencePlan, n_snapshots: int = 4, arrows: int = 12):
+    """A Figure: p_r at ``n_snapshots`` times across the horizon with v_r as arrows (eq. "reference
+    model"), and the target p_f, on one colour scale."""
     g = plan.grid
     x0, x1, y0, y1 = g.domain
     times = np.linspace(plan.t_start, plan.t_end, n_snapshots)
     xa = np.linspace(x0, x1, arrows + 2)[1:-1]
     ya = np.linspace(y0, y1, arrows + 2)[1:-1]
     vmax = max(plan.p.max(), plan.target.max())
-    fig, axes = plt.subplots(1, n_snapshots + 1, figsize=(3.2 * (n_snapshots + 1), 3.2), constrained_layout=True)
+    size, ws, left, right, bottom, top = 2.7, 0.25, 0.75, 1.2, 0.6, 0.75
+    n = n_snapshots + 1
+    W, H = left + n * size + (n - 1) * ws + right, bottom + size + top
+    fig = new_figure(W, H)
+    axes = [fig.add_axes([(left + k * (size + ws)) / W, bottom / H, size / W, size / H]) for k in range(n)]
+    cax = fig.add_axes([(left + n * size + (n - 1) * ws + 0.15) / W, (bottom + 0.1 * size) / H, 0.13 / W,
+                        0.8 * size / H])
+    ticks_x, ticks_y = np.linspace(x0, x1, 3), np.linspace(y0, y1, 3)
     for ax, t in zip(axes, times):
         im = ax.imshow(plan.density_grid(t).T, origin="lower", extent=g.domain, vmin=0, vmax=vmax, cmap="viridis")
         k = plan.interval_index(min(t, np.nextafter(plan.t_end, -np.inf)))
         v = velocity_on_grid(plan.coef[k], g.domain, xa, ya, plan.basis)
         XA, YA = np.meshgrid(xa, ya, indexing="ij")
         ax.quiver(XA, YA, v[0], v[1], color="w", angles="xy")
-        ax.set_title(f"$p_r$, $v_r$ at t = {t:.2f} s")
-        ax.set_xticks([]), ax.set_yticks([])
+        ax.set_title(f"p_r, v_r at t = {t:.2f} s", y=1.0, fontsize=10)
     axes[-1].imshow(plan.target.T, origin="lower", extent=g.domain, vmin=0, vmax=vmax, cmap="viridis")
-    axes[-1].set_title("target $p_f$")
-    axes[-1].set_xticks([]), axes[-1].set_yticks([])
-    fig.colorbar(im, ax=axes, shrink=0.8, label="density [1/m²]")
-    with atomic_path(path, ".png") as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
-    plt.close(fig)
+    axes[-1].set_title("target p_f", y=1.0, fontsize=10)
+    for k, ax in enumerate(axes):
+        ax.set_xticks(ticks_x), ax.set_xlabel("x [m]")
+        if k == 0:
+            ax.set_yticks(ticks_y), ax.set_ylabel("y [m]")
+        else:
+            ax.set_yticks([])
+    fig.colorbar(im, cax=cax, label="density [1/m²]")
+    fig.suptitle(f"Reference plan on {g.nx} x {g.ny} cells: density p_r with the velocity v_r (arrows)", fontsize=11)
+    return fig
+
+
+def plot_plan(plan: ReferencePlan, path, n_snapshots: int = 4, arrows: int = 12):
+    """Write :func:`make_plan_figure` as a PNG."""
+    save_figure(make_plan_figure(plan, n_snapshots, arrows), path)

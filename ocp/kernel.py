@@ -13,13 +13,19 @@ the split velocities v+ and v- of every face are multiplied by them (zero flux t
 a blocked cell, as at the walls), and the face-velocity adjoint by the same masks.  Without a mask
 they are ones, which leaves every result unchanged bit for bit.
 
+Second order (issue 21, ``scheme="muscl"``, compiled backend only): the minmod-MUSCL face values with
+Heun's SSP-RK2 of :func:`ocp.transport.muscl_step` (bit for bit), slopes not reaching across closed
+faces; its adjoint recomputes the first stage of each sub-step from the stored trajectory and takes the
+branch of minmod the forward pass took (docs/design/muscl-kernel.md).
+
 Memory layout (column-major, as CasADi's ``vec``): p[i + nx j] (nx*ny), vx[i + (nx-1) j] on the
 interior x-faces ((nx-1)*ny), vy[i + nx j] on the interior y-faces (nx*(ny-1)).
 
 Backends:
 
 * ``"compiled"``: one fused C loop per sub-step, compiled once with the system C compiler (``cc``,
-  or ``$CC``) into a per-user cache folder keyed by a hash of the source and flags, loaded with
+  or ``$CC``; ``-march=native`` first where the CPU is identified, :data:`NATIVE_FLAGS`) into a per-user
+  cache folder keyed by a hash of the source, the flags (and the CPU), loaded with
   ctypes;  :func:`compiled_available` says whether that worked (else one line on stderr and the
   planner falls back to the CasADi graph);
 * ``"numpy"``: the same loops vectorised per sub-step (no compiler; the reference for the C code).

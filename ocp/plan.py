@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..runtime.validation import points_array, real_scalar
+from ..runtime.validation import points_array, real_array, real_scalar
 from ..runtime.atomic import atomic_path
 from .basis import check_basis, velocity_at
 from .grid import Grid
@@ -59,12 +59,13 @@ class ReferencePlan:
     free: np.ndarray | None = None
 
     def __post_init__(self):
-        self.domain = np.asarray(self.domain, dtype=np.float64).reshape(-1)
-        self.t = np.asarray(self.t, dtype=np.float64).reshape(-1)
-        self.p = np.asarray(self.p, dtype=np.float64)
-        self.t_intervals = np.asarray(self.t_intervals, dtype=np.float64).reshape(-1)
-        self.coef = np.asarray(self.coef, dtype=np.float64)
-        self.target = np.asarray(self.target, dtype=np.float64)
+        # real numbers only: a complex, boolean or text array is refused, never cast (finiteness below)
+        self.domain = real_array(self.domain, "plan: domain", finite=False).reshape(-1)
+        self.t = real_array(self.t, "plan: t", finite=False).reshape(-1)
+        self.p = real_array(self.p, "plan: p", finite=False)
+        self.t_intervals = real_array(self.t_intervals, "plan: t_intervals", finite=False).reshape(-1)
+        self.coef = real_array(self.coef, "plan: coef", finite=False)
+        self.target = real_array(self.target, "plan: target", finite=False)
         self._validate()
 
     # ------------------------------------------------------------------ validation
@@ -261,7 +262,10 @@ class ReferencePlan:
             meta = json.loads(str(data.pop("meta")))
         except json.JSONDecodeError as exc:
             raise ValueError(f"plan file {path}: meta is not JSON ({exc})") from exc
-        return cls(meta=meta, **data)
+        try:
+            return cls(meta=meta, **data)
+        except ValueError as exc:
+            raise ValueError(f"plan file {path}: {exc}") from None
 
 
 def _json_default(o):

@@ -4,11 +4,14 @@
   (DESIGN.md: "CLIs exit non-zero with one readable line").
 * :class:`OneLineParser` — ``argparse`` raises :class:`UsageError` instead of printing the usage
   block and calling ``sys.exit(2)`` itself.
-* :func:`cli_main` — the common ``main``: runs a command, turns :class:`UsageError` into one line
-  and exit 2 and Ctrl-C into one line and exit 130, and exits the process when called as a script.
-* :class:`DefaultsFormatter` — ``--help`` shows "(default: X)" only where there is a default to
-  show: options whose default is resolved later from a TOML file (``None``) and plain switches
-  (``False``) state their default in their own help text.
+* :func:`cli_main` — the common ``main``: limits the BLAS/OpenMP threads (:mod:`runtime.threads`), runs a
+  command, turns :class:`UsageError` into one line and exit 2 and Ctrl-C into one line and exit 130
+  (SIGTERM: 143; runtime.signals), and exits the process when called as a script.
+* :class:`DefaultsFormatter` — ``--help`` in plain text (no reST markup) showing "(default: X)"
+  once, only where there is a default to show and the help does not state it: options whose
+  default is resolved later from a TOML file (``None``) and plain switches (``False``) state their
+  default in their own help text.
+* ``--version`` on every command: ``PROG swarmfield X.Y.Z``.
 """
 from __future__ import annotations
 
@@ -20,21 +23,47 @@ class UsageError(ValueError):
     """Bad user input: reported in one line on stderr, exit code 2."""
 
 
+def plain(text: str) -> str:
+    """Help text as plain text: reST inline literals (double backticks) lose their markup."""
+    return text.replace("``", "")
+
+
 class DefaultsFormatter(argparse.RawDescriptionHelpFormatter):
+    """Plain-text help (no reST markup) that states each default once: "(default: X)" is added
+    only where the option has a default to show and its help does not state it already (options
+    whose default is resolved later from a TOML file, ``None``, say so in their own words)."""
+
     def _get_help_string(self, action):
-        text = action.help or ""
+        text = plain(action.help or "")
         d = action.default
-        if not (d is None or d is False or d == argparse.SUPPRESS) and "%(default)" not in text:
-            text += " (default: %(default)s)"
-        return text
+        if d is None or d is False or d == argparse.SUPPRESS or "(default" in text or \
+                isinstance(action, (argparse._VersionAction, argparse._HelpAction)):
+            return text
+        if isinstance(d, (list, tuple)):
+            d = " ".join(str(v) for v in d)
+        return f"{text} (default: {str(d).replace('%', '%%')})"
+
+    def _format_text(self, text):
+        return super()._format_text(plain(text))
+
+
+def version_string(prog: str) -> str:
+    """What ``PROG --version`` prints: ``PROG swarmfield X.Y.Z``."""
+    from .. import DISTRIBUTION, __version__
+    return f"{prog} {DISTRIBUTION} {__version__}"
 
 
 class OneLineParser(argparse.ArgumentParser):
+    """``argparse`` with one-line errors (:class:`UsageError`), no abbreviated flags, plain-text
+    help with each default stated once (:class:`DefaultsFormatter`) and ``--version``."""
+
     def __init__(self, *args, **kwargs):
         kwargs.setdefault("formatter_class", DefaultsFormatter)
         # no prefixes of long flags: a misspelt flag is an error, not whichever flag it abbreviates
         kwargs.setdefault("allow_abbrev", False)
         super().__init__(*args, **kwargs)
+        self.add_argument("--version", action="version", version=version_string(self.prog),
+                          help="print the program's name and the swarmfield version, then exit")
 
     def error(self, message):
         raise UsageError(message)
@@ -44,16 +73,23 @@ def cli_main(prog: str, run, argv=None, *, value_errors: bool = False) -> int:
     """Run ``run(argv)`` as the command ``prog``: exit code 2 with one line for a
     :class:`UsageError` (any ``ValueError`` if ``value_errors``: validation inside the library),
     130 with one line for Ctrl-C; ``sys.exit`` with the code when ``argv`` is None (console script)."""
+    from .signals import exit_code, ignore_interrupts
+
     errors = ValueError if value_errors else UsageError
+    from .threads import limit_threads
+    limit_threads()          # BLAS/OpenMP threads: the measured best unless the environment sets them
     try:
         code = run(argv)
     except errors as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         code = 2
-    except KeyboardInterrupt:
-        print(f"{prog}: interrupted", file=sys.stderr)
-        code = 130
+    except KeyboardInterrupt as exc:
+        code = exit_code(exc)
+        if argv is None:
+            ignore_interrupts()
+        print(f"{prog}: {'terminated' if code == 143 else 'interrupted'}", file=sys.stderr)
     if argv is None:
+        ignore_interrupts()             # the outcome is decided: a late Ctrl-C must not turn it into a traceback
         sys.exit(code)
     return code
 

@@ -97,8 +97,10 @@ def _commit(action):
     try:
         with deferred_signals():
             result = action()
-    except KeyboardInterrupt:
-        raise InterruptedAfterPublish() from None
+    except KeyboardInterrupt as exc:
+        after = InterruptedAfterPublish()
+        after.signum = getattr(exc, "signum", signal.SIGINT)       # SIGTERM (runtime.signals.Terminated): 143
+        raise after from None
     return result
 
 
@@ -108,7 +110,7 @@ def staged_files(paths):
     """Yield ``{final path: temporary path}`` for the given destinations (temporary files beside
     them, so that the renames stay on one file system); on normal exit all of them are renamed
     into place together (:func:`publish_files`); on an exception none is, and the temporaries go."""
-    tmps = {}
+    tmps = _Staged()
     try:
         for p in paths:
             p = Path(p)
@@ -125,6 +127,12 @@ def staged_files(paths):
                 pass
 
 
+class _Staged(dict):
+    """``{final: temporary}``; ``published`` turns true once the renames are done (so that an
+    interrupt arriving afterwards can be reported as "after writing")."""
+    published = False
+
+
 def publish_files(tmps: dict) -> None:
     """Rename every temporary file over its destination, all inside one signal-deferred section."""
     def rename_all():
@@ -132,6 +140,8 @@ def publish_files(tmps: dict) -> None:
             os.chmod(tmp, FILE_MODE)
         for final, tmp in tmps.items():
             os.replace(tmp, final)
+        if isinstance(tmps, _Staged):
+            tmps.published = True
     _commit(rename_all)
 
 

@@ -1,13 +1,16 @@
 """Closed-loop simulation of the swarm: Algorithm 1 of Zheng & Lin ("Deployment algorithm").
 
-* :mod:`sim.fields`   -- unknown fields f(x): the paper's sinc, plumes, ridge, fields from files
+* :mod:`sim.fields`   -- unknown fields f(x): the paper's sinc, plumes, ridge, fine-structure bumps, front,
+  gp-sample, fields from files
 * :mod:`sim.dynamics` -- eq. "Langevin equation" by Euler--Maruyama with reflecting walls; measurements
 * :mod:`sim.config`   -- ``SimSettings``, ``KDESettings``, ``RunConfig`` and their TOML form
 * :mod:`sim.simulation` -- Algorithm 1 as an object (:class:`Simulation`): GP regression, target density,
   planner, controller, metrics; :mod:`sim.loop` has the facade :func:`run_simulation`
-* :mod:`sim.stopping` -- stop rules (when is the field mapped?); :mod:`sim.recorders` -- what a run keeps
+* :mod:`sim.stopping` -- stop rules (when is the field mapped? absolute, relative, robust) and the physical
+  travel-time limit; :mod:`sim.recorders` -- what a run keeps
 * :mod:`sim.controllers` -- the controller interface: the paper's feedback, open loop and baselines
-  (diffusion, coverage, greedy, lawnmower); a user's own strategy is one ``Controller`` subclass
+  (diffusion, coverage, greedy, lawnmower, ergodic = :mod:`sim.ergodic`); a user's own strategy is one
+  ``Controller`` subclass
 * :mod:`sim.tracking` -- the feedback law alone towards a given plan (Theorems "Exponential
   stability" and "ISS" at the particle level)
 * :mod:`sim.metrics`, :mod:`sim.outputs`, :mod:`sim.figures` -- metrics.csv, summary.json, figures

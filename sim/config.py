@@ -248,6 +248,13 @@ class SimSettings:
             set_("reach", _number("reach", self.reach, positive=True))
         if self.robot_loss > 1:
             raise ValueError(f"sim.robot_loss must be a fraction in [0, 1], got {self.robot_loss:g}")
+        if self.robot_loss > 0:
+            # the loop stops round(robot_loss * robots) robots, at most robots - 1; the density estimate
+            # (KDE bandwidth from the spread of the positions) needs at least 2 working robots
+            left = self.robots - min(int(round(self.robot_loss * self.robots)), self.robots - 1)
+            if left < 2:
+                raise ValueError(f"sim.robot_loss {self.robot_loss:g} of {self.robots} robots leaves {left} robot "
+                                 "working; the density estimate needs at least 2 (lower the loss or add robots)")
         if not isinstance(self.field, str) or not self.field:
             raise ValueError(f"sim.field must be a field name or a file path, got {self.field!r}")
         x0, x1, y0, y1 = self.domain

@@ -359,6 +359,7 @@ class LawnmowerController(Controller):
         the start) are joined by geodesic paths through the free cells."""
         from .domain import GeodesicGrid
         geo = self.geo = GeodesicGrid(ctx.free, ctx.domain)
+        self.region = ctx.region
         free = geo.free
         nx, ny = free.shape
         X = ctx.X
@@ -379,7 +380,7 @@ class LawnmowerController(Controller):
             for r, i in enumerate(members):
                 paths[i] = self._sweep_cells(geo, ia, ib, yb[r], yb[r + 1])
         # one Dijkstra call for every waypoint the connectors lead to, then the connected paths
-        geo.distances(np.unique([c for p in paths for c in p]))
+        geo.distances(np.unique([c for p in paths for c, _ in p]).astype(np.intp))
         paths, firsts = zip(*[self._connect(geo, X[i], pts) for i, pts in enumerate(paths)])
         self.first = np.array(firsts)
         K = max(len(p) for p in paths)
@@ -391,46 +392,49 @@ class LawnmowerController(Controller):
         self.rows, self.cols = None, cols
 
     def _sweep_cells(self, geo, ia, ib, ja, jb) -> list:
-        """Waypoint cells of the boustrophedon in cells [ia, ib) x [ja, jb): the ends of each lane's free runs."""
+        """Waypoints ``(cell, x)`` of the boustrophedon in cells [ia, ib) x [ja, jb): lanes at
+        ``(k + 1/2) w / m`` across the rectangle (as on the empty rectangle), each cut into the free runs
+        of the column of cells it lies in; ``x`` is the lane's position kept a quarter cell inside that
+        column."""
         free = geo.free
         ny = free.shape[1]
-        x0, _, y0, _ = geo.extent
-        w = (ib - ia) * geo.dx
+        x0 = geo.extent[0]
+        xa, w = x0 + ia * geo.dx, (ib - ia) * geo.dx
         m = max(1, int(round(w / self.lane)))
-        lanes = np.unique(np.clip(ia + ((np.arange(m) + 0.5) * (ib - ia) / m).astype(int), ia, max(ia, ib - 1)))
-        pts = []          # (cell index) waypoints in sweep order
-        for k, ci in enumerate(lanes):
+        pts = []
+        for k in range(m):
+            lx = xa + (k + 0.5) * w / m
+            ci = int(min(max((lx - x0) // geo.dx, ia), ib - 1))
+            lx = min(max(lx, x0 + (ci + 0.25) * geo.dx), x0 + (ci + 0.75) * geo.dx)
             runs = _free_runs(free[ci, ja:jb])
             if k % 2:
                 runs = [(b, a) for a, b in runs[::-1]]
             for a, b in runs:
-                pts += [ci * ny + ja + a, ci * ny + ja + b]
+                pts += [(ci * ny + ja + a, lx), (ci * ny + ja + b, lx)]
         return pts
 
     def _connect(self, geo, x_start, pts):
         """``(waypoints, first)``: the approach from x_start (waypoints ``[0, first)``), then the sweep
-        (from index ``first``, swept back and forth), runs joined by shortest paths."""
+        (from index ``first``, swept back and forth), runs joined by shortest paths (straightened by
+        string pulling, with line of sight checked against the domain's own geometry)."""
         free = geo.free
         ny = free.shape[1]
         c0 = int(geo.cell_of(x_start[None, :])[0])
         if not pts:                    # no free cell in the rectangle: stay near the start
             return np.array([geo.centers[c0]]), 0
-        # approach and the connectors between runs: shortest paths, straightened (string pulling);
-        # along a free run: straight
-        approach = _string_pull(geo, _geodesic_cells(geo, c0, pts[0]))[:-1]
-        cells = [pts[0]]
-        for a, b in zip(pts[:-1], pts[1:]):
-            if a == b:
+        region = self.region
+        approach = [geo.centers[c] for c in _string_pull(geo, _geodesic_cells(geo, c0, pts[0][0]), region)[:-1]]
+
+        def point(c, x):
+            return np.array([x, geo.centers[c][1]])
+        out = [point(*pts[0])]
+        for (a, xa_), (b, xb) in zip(pts[:-1], pts[1:]):
+            if a == b and xa_ == xb:
                 continue
-            if _same_run(a, b, ny, free):
-                cells.append(b)
-            else:
-                cells += _string_pull(geo, _geodesic_cells(geo, a, b))[1:]
-        out = [cells[0]]
-        for c in cells[1:]:
-            if c != out[-1]:
-                out.append(c)
-        return geo.centers[approach + out], len(approach)
+            if not _same_run(a, b, ny, free):
+                out += [geo.centers[c] for c in _string_pull(geo, _geodesic_cells(geo, a, b), region)[1:-1]]
+            out.append(point(b, xb))
+        return np.array(approach + out).reshape(-1, 2), len(approach)
 
     def _waypoint(self):
         L = self.lengths
@@ -527,8 +531,9 @@ def _geodesic_cells(geo, a, b) -> list:
     return path
 
 
-def _line_of_sight(geo, a, b) -> bool:
-    """The straight segment between the centres of cells a and b crosses free cells only."""
+def _line_of_sight(geo, a, b, region=None) -> bool:
+    """The straight segment between the centres of cells a and b crosses free cells only (sampled at a
+    third of a cell) and, with a domain, keeps a quarter cell away from its obstacles."""
     pa, pb = geo.centers[a], geo.centers[b]
     L = float(np.hypot(*(pb - pa)))
     k = max(2, int(math.ceil(3 * L / min(geo.dx, geo.dy))) + 1)
@@ -538,17 +543,19 @@ def _line_of_sight(geo, a, b) -> bool:
     nx, ny = geo.free.shape
     i = np.clip(((pts[:, 0] - x0) / geo.dx).astype(int), 0, nx - 1)
     j = np.clip(((pts[:, 1] - y0) / geo.dy).astype(int), 0, ny - 1)
-    return bool(geo.free[i, j].all())
+    if not geo.free[i, j].all():
+        return False
+    return region is None or bool((region.clearance(pts) >= 0.25 * min(geo.dx, geo.dy)).all())
 
 
-def _string_pull(geo, cells) -> list:
+def _string_pull(geo, cells, region=None) -> list:
     """Shorten a cell path: from each kept cell jump to the farthest later one in straight sight."""
     if len(cells) <= 2:
         return list(cells)
     out, i = [cells[0]], 0
     while i < len(cells) - 1:
         j = len(cells) - 1
-        while j > i + 1 and not _line_of_sight(geo, cells[i], cells[j]):
+        while j > i + 1 and not _line_of_sight(geo, cells[i], cells[j], region):
             j -= 1
         out.append(cells[j])
         i = j

@@ -670,6 +670,7 @@ class GeodesicGrid:
         if len(missing):
             if len(self._rows) + len(missing) > 2048:
                 self._rows.clear()
+                missing = np.unique(sources)
             D = csgraph.dijkstra(self.graph, directed=True, indices=missing)
             for s, row in zip(missing.tolist(), D):
                 self._rows[s] = row

@@ -1,18 +1,26 @@
-"""Figures of a closed-loop run (matplotlib, Agg backend).
+"""Figures of a closed-loop run (matplotlib's object API on the Agg canvas; pyplot is never used).
 
 ``panels.png``       the paper's Fig. "GP and density tracking": rows are the robots (over their KDE
                      p_hat), the GP prediction f̄, the GP standard deviation sqrt(V) and the commanded
                      feedback velocity v (eq. "density feedback law using estimation") on a coarse
                      grid; columns are t = 0, T, 3T, 4T, or the closest recorded re-planning times
                      when the run ended earlier.
-``convergence.png``  sup V (with the threshold gamma), RMSE and L2 prediction error, tracking error
-                     ||p_hat - p_r||_L2 and mean speed against time; dotted lines mark re-plans.
+``convergence.png``  sup V and mean V (with the stopping threshold in force), the RMSE of f̄, the
+                     tracking error ||p_hat - p_r||_L2 and the mean speed against time; dotted lines
+                     mark re-plans.  (The L2 error is not drawn: on the uniform grid it is
+                     RMSE x sqrt(|Omega|), the same curve.)
 ``field_error.png``  the paper's Fig. "sinc and prediction error": true field, final prediction and
                      |f - f̄|.
-``animation.gif``    on request: robots over sqrt(V) at every measurement (pillow writer).
+``animation.gif``    on request: robots over sqrt(V) at every measurement (one figure redrawn per
+                     frame, written by Pillow).
+
+Every ``make_*`` function returns the :class:`matplotlib.figure.Figure` (for tests, notebooks and
+further editing); the ``plot_*``/``write_*`` functions save it.  Colour scales that clip the data
+say so in the colour bar's label ("clipped to [a, b]") and show the clipped end(s) as a triangle.
+The field's values carry the field's own unit ("field units"); lengths are in metres.
 
 With obstacles (:mod:`sim.domain`) every map shows them as a grey overlay at the geometry's own
-resolution, and the free planner cells the swarm cannot reach hatched in light grey.
+resolution, and free space outside the planner cells the swarm can reach in light grey.
 """
 from __future__ import annotations
 
@@ -21,25 +29,24 @@ from pathlib import Path
 import numpy as np
 
 from ..runtime.atomic import atomic_path
+from ..runtime.plotting import new_figure, plain_log_axis, save_figure
 
-__all__ = ["write_figures", "plot_panels", "plot_convergence", "plot_field_error", "write_animation",
-           "panel_snapshots"]
+__all__ = ["write_figures", "make_panels", "make_convergence", "make_field_error", "plot_panels",
+           "plot_convergence", "plot_field_error", "write_animation", "panel_snapshots", "FIGURE_FILES"]
 
 PANEL_PERIODS = (0, 1, 3, 4)
+FIGURE_FILES = ("panels.png", "convergence.png", "field_error.png")
+_figure = new_figure
+_save = save_figure
 
 
-def _plt():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
-
-
-def _save(fig, path: Path, fmt: str = "png", dpi: int = 110):
-    path = Path(path)
-    with atomic_path(path, f".{fmt}") as tmp:
-        fig.savefig(tmp, format=fmt, dpi=dpi)
-    return path
+def _ticks(ax, domain, x=True, y=True, n=3):
+    """``n`` ticks per axis from wall to wall (tick labels are most of a figure's drawing time)."""
+    x0, x1, y0, y1 = domain
+    if x:
+        ax.set_xticks(np.linspace(x0, x1, n))
+    if y:
+        ax.set_yticks(np.linspace(y0, y1, n))
 
 
 def _image(ax, grid_values, domain, **kw):
@@ -47,10 +54,11 @@ def _image(ax, grid_values, domain, **kw):
 
 
 def _obstacles(ax, result):
-    """Grey overlay of the obstacles (fine raster of the domain) on a map axis; nothing without one."""
+    """Grey overlay of the obstacles (fine raster of the domain) on a map axis; returns the image
+    (None without obstacles)."""
     region = getattr(result, "region", None)
     if region is None:
-        return
+        return None
     x0, x1, y0, y1 = region.extent
     blocked = ~region.free_pixels
     rgba = np.zeros(blocked.shape + (4,))
@@ -60,8 +68,39 @@ def _obstacles(ax, result):
         from ..control.kde import resample_mask
         off = ~resample_mask(free, *blocked.shape) & ~blocked
         rgba[off] = (0.85, 0.85, 0.85, 0.8)
-    ax.imshow(np.transpose(rgba, (1, 0, 2)), origin="lower", extent=(x0, x1, y0, y1), interpolation="nearest",
-              zorder=2)
+    return ax.imshow(np.transpose(rgba, (1, 0, 2)), origin="lower", extent=(x0, x1, y0, y1),
+                     interpolation="nearest", zorder=2)
+
+
+def clip_note(values, vmin, vmax):
+    """(extend, note): matplotlib's colour-bar ``extend`` and a label suffix if ``values`` fall
+    outside [vmin, vmax] (the colour scale clips them)."""
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    low = v.size and vmin is not None and v.min() < vmin - 1e-12 * max(1.0, abs(vmin))
+    high = v.size and vmax is not None and v.max() > vmax + 1e-12 * max(1.0, abs(vmax))
+    extend = {(True, True): "both", (True, False): "min", (False, True): "max"}.get((bool(low), bool(high)),
+                                                                                     "neither")
+    if extend == "neither":
+        return extend, ""
+    return extend, f"\nclipped to [{vmin:.3g}, {vmax:.3g}] (data {v.min():.3g} to {v.max():.3g})"
+
+
+def _few_ticks(n=4):
+    from matplotlib.ticker import MaxNLocator
+    return MaxNLocator(n)
+
+
+def _colorbar(fig, mappable, cax, label, values=None):
+    """Colour bar in ``cax``; the label states the clipping of ``values`` by the mappable's range."""
+    extend, note = "neither", ""
+    if values is not None:
+        extend, note = clip_note(values, *mappable.get_clim())
+    cb = fig.colorbar(mappable, cax=cax, extend=extend)
+    cb.locator = _few_ticks()
+    cb.update_ticks()
+    cb.set_label(label + note, fontsize=9 if note else None)
+    return cb
 
 
 def panel_snapshots(result, periods=PANEL_PERIODS):
@@ -72,25 +111,46 @@ def panel_snapshots(result, periods=PANEL_PERIODS):
     return [snaps[int(np.argmin(np.abs(times - p * T)))] for p in periods]
 
 
-def plot_panels(result, path, periods=PANEL_PERIODS):
-    plt = _plt()
+def _grid_axes(fig, nrow, ncol, left, right, bottom, top, wspace, hspace, size):
+    """nrow x ncol square axes of ``size`` inches placed by hand (no layout engine: it costs more
+    than the drawing), margins in inches; returns the array of axes and the colour-bar rectangles."""
+    W, H = fig.get_size_inches()
+    axes = np.empty((nrow, ncol), object)
+    cbar = []
+    for r in range(nrow):
+        y = H - top - (r + 1) * size - r * hspace
+        for c in range(ncol):
+            x = left + c * (size + wspace)
+            axes[r, c] = fig.add_axes([x / W, y / H, size / W, size / H])
+        xc = left + ncol * size + (ncol - 1) * wspace + 0.15
+        cbar.append(fig.add_axes([xc / W, (y + 0.1 * size) / H, 0.13 / W, 0.8 * size / H]))
+    return axes, cbar
+
+
+def make_panels(result, periods=PANEL_PERIODS):
+    """The paper's Fig. "GP and density tracking" (see the module docstring) as a Figure."""
     snaps = panel_snapshots(result, periods)
     dom = result.grid.domain
     x0, x1, y0, y1 = dom
+    T = result.config.sim.period
     fmin, fmax = float(result.f_true.min()), float(result.f_true.max())
     sd_max = float(np.sqrt(max(sn.var.max() for sn in snaps)))
-    ncol = len(snaps)
-    fig, axes = plt.subplots(4, ncol, figsize=(3.0 * ncol + 1.2, 11.5), constrained_layout=True, squeeze=False)
+    ncol, size = len(snaps), 2.4
+    left, right, bottom, top, ws, hs = 1.15, 1.6, 0.55, 0.85, 0.3, 0.32
+    fig = _figure(left + ncol * size + (ncol - 1) * ws + right, top + 4 * size + 3 * hs + bottom)
+    axes, cax = _grid_axes(fig, 4, ncol, left, right, bottom, top, ws, hs, size)
     q = None
     pmax = max(float(sn.p_hat.max()) for sn in snaps)
     speeds = [np.hypot(sn.velocity[..., 0], sn.velocity[..., 1]).max() for sn in snaps if sn.velocity is not None]
     vmax_speed = max(speeds) if speeds else 1.0
+    means = []
     for c, sn in enumerate(snaps):
         ax = axes[0, c]
         im0 = _image(ax, sn.p_hat, dom, cmap="Greys", vmin=0, vmax=pmax)
         ax.scatter(sn.X[:, 0], sn.X[:, 1], s=4, c="tab:red", lw=0, zorder=3)
-        ax.set_title(f"t = {sn.t:.2f} s" + (f"  ({sn.t / result.config.sim.period:.0f}T)" if sn.t > 0 else ""))
+        ax.set_title(f"t = {sn.t:.2f} s" + (f" ({sn.t / T:.3g} T)" if sn.t > 0 else ""), fontsize=10, y=1.0)
         im1 = _image(axes[1, c], sn.mean, dom, cmap="viridis", vmin=fmin, vmax=fmax)
+        means.append(sn.mean)
         im2 = _image(axes[2, c], np.sqrt(sn.var), dom, cmap="magma", vmin=0, vmax=sd_max)
         for r in range(3):
             _obstacles(axes[r, c], result)
@@ -111,117 +171,168 @@ def plot_panels(result, path, periods=PANEL_PERIODS):
             ax.text(0.5, 0.5, "no plan", ha="center", va="center", transform=ax.transAxes)
         _obstacles(ax, result)
         for r in range(4):
-            axes[r, c].set_xticks([]), axes[r, c].set_yticks([])
-    labels = ["robots over $\\hat p$", "GP mean $\\bar f$", "GP std $\\sqrt{V}$", "velocity $v$"]
-    for r, lab in enumerate(labels):
-        axes[r, 0].set_ylabel(lab)
-    fig.colorbar(im0, ax=axes[0, :], shrink=0.8, label="$\\hat p$ [1/m²]")
-    fig.colorbar(im1, ax=axes[1, :], shrink=0.8, label="$\\bar f$")
-    fig.colorbar(im2, ax=axes[2, :], shrink=0.8, label="$\\sqrt{V}$")
+            a = axes[r, c]
+            _ticks(a, dom, x=r == 3, y=c == 0)
+            if r < 3:
+                a.set_xticks([])
+            else:
+                a.set_xlabel("x [m]")
+            if c:
+                a.set_yticks([])
+    rows = ["robots over p̂", "GP mean f̄", "GP std √V", "feedback velocity v"]
+    for r, lab in enumerate(rows):
+        axes[r, 0].set_ylabel(f"{lab}\ny [m]")
+    _colorbar(fig, im0, cax[0], "p̂ [1/m²]")
+    _colorbar(fig, im1, cax[1], "f̄ [field units]", np.array(means))
+    _colorbar(fig, im2, cax[2], "√V [field units]")
     if q is not None:
-        fig.colorbar(q, ax=axes[3, :], shrink=0.8, label="|v| [m/s]")
-    try:
-        return _save(fig, path)
-    finally:
-        plt.close(fig)
+        _colorbar(fig, q, cax[3], "|v| [m/s]")
+    else:
+        cax[3].set_visible(False)
+    fig.suptitle(f"Robots, GP estimate, its uncertainty and the feedback velocity at re-planning times "
+                 f"(T = {T:g} s)", fontsize=11)
+    return fig
+
+
+def plot_panels(result, path, periods=PANEL_PERIODS):
+    return _save(make_panels(result, periods), path)
 
 
 def _column(rows, key):
     return np.array([np.nan if r.get(key) is None else float(r[key]) for r in rows])
 
 
-def plot_convergence(result, path):
-    plt = _plt()
+def make_convergence(result):
+    """sup V against the threshold in force, RMSE, tracking error and speed against time."""
     rows = result.rows
     t = _column(rows, "t")
-    gamma = result.config.sim.gamma
-    fig, axes = plt.subplots(2, 2, figsize=(10, 6.5), constrained_layout=True, sharex=True)
+    T = result.config.sim.period
+    fig = _figure(10, 6.5)
+    axes = fig.subplots(2, 2, sharex=True)
+    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.09, top=0.87, wspace=0.25, hspace=0.3)
     ax = axes[0, 0]
     ax.semilogy(t, _column(rows, "max_variance"), "o-", ms=3, label="sup V")
     ax.semilogy(t, _column(rows, "mean_variance"), "-", lw=1, label="mean V")
-    ax.axhline(gamma, color="k", ls="--", lw=1, label=f"γ = {gamma:g}")
-    ax.set_ylabel("GP variance"), ax.legend()
+    thr = _column(rows, "threshold") if all("threshold" in r for r in rows) else \
+        np.full(len(rows), result.config.sim.gamma)
+    if np.nanmax(thr) > 0:
+        if np.allclose(thr, thr[0]):
+            ax.axhline(thr[0], color="k", ls="--", lw=1, label=f"threshold γ = {thr[0]:.3g}")
+        else:
+            ax.step(t, thr, "k--", where="post", lw=1, label="threshold (relative to s_f²)")
+    plain_log_axis(ax.yaxis)
+    ax.set_ylabel("GP variance [field units²]"), ax.set_title("uncertainty (Algorithm 1 stops at sup V ≤ γ)", y=1.0)
+    ax.legend(fontsize=8)
     ax = axes[0, 1]
-    ax.plot(t, _column(rows, "rmse"), "o-", ms=3, label="RMSE")
-    ax2 = ax.twinx()
-    ax2.plot(t, _column(rows, "l2_error"), color="tab:orange", lw=1, label="$\\|f-\\bar f\\|_{L^2}$")
-    ax.set_ylabel("RMSE"), ax2.set_ylabel("$\\|f-\\bar f\\|_{L^2}$", color="tab:orange")
+    ax.plot(t, _column(rows, "rmse"), "o-", ms=3)
+    ax.set_ylabel("RMSE of f̄ [field units]")
+    ax.set_title("prediction error on the grid (‖f − f̄‖_L² = RMSE·√|Ω|)", fontsize=10, y=1.0)
     ax = axes[1, 0]
     ax.plot(t, _column(rows, "tracking_error"), "o-", ms=3)
-    ax.set_ylabel("$\\|\\hat p - p_r\\|_{L^2}$"), ax.set_xlabel("t [s]")
+    ax.set_ylabel("‖p̂ − p_r‖_L² [1/m]"), ax.set_xlabel("t [s]")
+    ax.set_title("density tracking error", y=1.0)
     ax = axes[1, 1]
     ax.plot(t, _column(rows, "mean_speed"), "o-", ms=3)
-    ax.set_ylabel("mean |v| [m/s]"), ax.set_xlabel("t [s]")
+    ax.set_ylabel("mean |v| [m/s]"), ax.set_xlabel("t [s]"), ax.set_title("commanded speed", y=1.0)
     for a in axes.ravel():
         for r in result.replans:
             a.axvline(r["t0"], color="0.8", ls=":", lw=0.8, zorder=0)
+        a.grid(alpha=0.25)
+        a.locator_params(axis="x", nbins=5)
+        if a.get_yscale() == "linear":
+            a.locator_params(axis="y", nbins=5)
     ttt = result.time_to_threshold
-    fig.suptitle("sup V ≤ γ at " + (f"t = {ttt:.3g} s = {ttt / result.config.sim.period:.3g} T" if ttt is not None
-                                    else "— (not reached)"))
-    try:
-        return _save(fig, path)
-    finally:
-        plt.close(fig)
+    fig.suptitle("Convergence: sup V ≤ γ " + (f"first at t = {ttt:.3g} s = {ttt / T:.3g} T" if ttt is not None
+                                              else "not reached") + "; dotted: re-plans")
+    return fig
+
+
+def plot_convergence(result, path):
+    return _save(make_convergence(result), path)
+
+
+def make_field_error(result):
+    """True field, final prediction (on the true field's colour scale) and |f - f̄|."""
+    dom = result.grid.domain
+    f, fb = result.f_true, result.mean
+    W, H, slot, size = 14.9, 4.3, 4.9, 3.0
+    fig = _figure(W, H)
+    axes = [fig.add_axes([(0.7 + k * slot) / W, 0.55 / H, size / W, size / H]) for k in range(3)]
+    cax = [fig.add_axes([(0.7 + k * slot + size + 0.12) / W, 0.85 / H, 0.12 / W, 0.8 * size / H]) for k in range(3)]
+    im = _image(axes[0], f, dom, cmap="viridis")
+    _colorbar(fig, im, cax[0], "f [field units]")
+    axes[0].set_title(f"true field f ({result.field.describe().get('name')})", y=1.0)
+    im = _image(axes[1], fb, dom, cmap="viridis", vmin=f.min(), vmax=f.max())
+    _colorbar(fig, im, cax[1], "f̄ [field units]", fb)
+    axes[1].set_title(f"prediction f̄ at t = {result.rows[-1]['t']:.2f} s", y=1.0)
+    im = _image(axes[2], np.abs(f - fb), dom, cmap="magma")
+    _colorbar(fig, im, cax[2], "|f - f̄| [field units]")
+    axes[2].set_title(f"|f - f̄|  (RMSE {result.rows[-1]['rmse']:.3g})", y=1.0)
+    for a in axes:
+        _ticks(a, dom)
+        a.set_xlabel("x [m]"), a.set_ylabel("y [m]")
+        _obstacles(a, result)
+    return fig
 
 
 def plot_field_error(result, path):
-    plt = _plt()
-    dom = result.grid.domain
-    f, fb = result.f_true, result.mean
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4), constrained_layout=True)
-    im = _image(axes[0], f, dom, cmap="viridis")
-    fig.colorbar(im, ax=axes[0], shrink=0.85)
-    axes[0].set_title(f"true field f ({result.field.describe().get('name')})")
-    im = _image(axes[1], fb, dom, cmap="viridis", vmin=f.min(), vmax=f.max())
-    fig.colorbar(im, ax=axes[1], shrink=0.85)
-    axes[1].set_title(f"prediction $\\bar f$ at t = {result.rows[-1]['t']:.2f} s")
-    im = _image(axes[2], np.abs(f - fb), dom, cmap="magma")
-    fig.colorbar(im, ax=axes[2], shrink=0.85)
-    axes[2].set_title(f"|f - $\\bar f$|  (RMSE {result.rows[-1]['rmse']:.3g})")
-    for a in axes:
-        a.set_xlabel("x"), a.set_ylabel("y")
-        _obstacles(a, result)
-    try:
-        return _save(fig, path)
-    finally:
-        plt.close(fig)
+    return _save(make_field_error(result), path)
 
 
-def write_figures(result, out) -> list:
-    """The three PNG figures; returns their file names."""
+def write_figures(result, out, progress=None) -> list:
+    """The three PNG figures; returns their file names.  ``progress(name)`` before each."""
     out = Path(out)
-    plot_panels(result, out / "panels.png")
-    plot_convergence(result, out / "convergence.png")
-    plot_field_error(result, out / "field_error.png")
-    return ["panels.png", "convergence.png", "field_error.png"]
+    for name, make in zip(FIGURE_FILES, (make_panels, make_convergence, make_field_error)):
+        if progress is not None:
+            progress(name)
+        _save(make(result), out / name)
+    return list(FIGURE_FILES)
 
 
-def write_animation(result, path, fps: int = 4) -> str:
-    """GIF of the robots over sqrt(V) at every measurement (matplotlib's pillow writer)."""
-    plt = _plt()
-    from matplotlib.animation import FuncAnimation, PillowWriter
+def write_animation(result, path, fps: int = 4, dpi: int = 80) -> str:
+    """GIF of the robots over sqrt(V) at every measurement.
+
+    One figure is drawn once; each frame redraws only the image, the robots and the title over the
+    saved background (blitting; no layout engine, no matplotlib animation machinery), converted to
+    a palette image with the first frame's palette (it holds the whole colour bar) and written by
+    Pillow in one go."""
+    from PIL import Image
 
     path = Path(path)
     dom = result.grid.domain
     sd = [np.sqrt(v) for v in result.variances]
     vmax = float(max(s.max() for s in sd))
-    fig, ax = plt.subplots(figsize=(5, 4.4), constrained_layout=True)
+    fig = _figure(5, 4.4, dpi)
+    ax = fig.add_axes([0.12, 0.11, 0.66, 0.78])
+    cax = fig.add_axes([0.82, 0.15, 0.035, 0.7])
     im = _image(ax, sd[0], dom, cmap="magma", vmin=0, vmax=vmax)
-    _obstacles(ax, result)
+    obstacles = _obstacles(ax, result)
     sc = ax.scatter(result.positions[0][:, 0], result.positions[0][:, 1], s=5, c="cyan", lw=0, zorder=3)
-    fig.colorbar(im, ax=ax, shrink=0.85, label="$\\sqrt{V}$")
-    title = ax.set_title("")
-
-    def frame(k):
+    fig.colorbar(im, cax=cax, label="GP std √V [field units]")
+    ax.set_xlabel("x [m]"), ax.set_ylabel("y [m]")
+    title = ax.set_title(" ", y=1.0)
+    # blitting: everything but the image, the robots and the title is drawn once
+    animated = [a for a in (im, obstacles, sc, title) if a is not None]
+    for a in animated:
+        a.set_animated(True)
+    canvas = fig.canvas
+    canvas.draw()
+    background = canvas.copy_from_bbox(fig.bbox)
+    frames, palette = [], None
+    for k in range(len(sd)):
+        canvas.restore_region(background)
         im.set_data(sd[k].T)
         sc.set_offsets(result.positions[k])
         title.set_text(f"t = {result.times[k]:.2f} s, sup V = {sd[k].max() ** 2:.3f}")
-        return im, sc, title
-
-    anim = FuncAnimation(fig, frame, frames=len(sd), blit=False)
-    try:
-        with atomic_path(path, ".gif") as tmp:
-            anim.save(tmp, writer=PillowWriter(fps=fps))
-    finally:
-        plt.close(fig)
+        for a in animated[:-1]:          # the image, the obstacles over it, the robots
+            ax.draw_artist(a)
+        for spine in ax.spines.values():
+            ax.draw_artist(spine)
+        ax.draw_artist(title)
+        rgb = Image.fromarray(np.asarray(canvas.buffer_rgba())[..., :3])
+        if palette is None:
+            palette = rgb.quantize(colors=255, method=Image.Quantize.MEDIANCUT)
+        frames.append(rgb.quantize(palette=palette, dither=Image.Dither.NONE))
+    with atomic_path(path, ".gif") as tmp:
+        frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:], duration=int(1000 / fps), loop=0)
     return path.name

@@ -7,7 +7,9 @@
                         iterations, solve time, objective
 ``DIR/summary.json``    resolved configuration (every setting), seed, field description,
                         ``time_to_threshold`` (null if never reached), ``periods_to_threshold``,
-                        final figures, planner statistics, timings, wall time, package versions
+                        final figures, planner statistics, timings (the simulation's phases and
+                        ``output_timings_s``: the writing of each figure), wall time, package versions,
+                        the BLAS/OpenMP thread pools (``threads``, :mod:`runtime.threads`)
 ``DIR/config.toml``     the resolved configuration as TOML: ``simulate-swarm --config DIR/config.toml``
                         repeats the run
 ``DIR/trajectory.npz``  measurement times ``t`` (K,), positions ``X`` (K, n, 2), the planner grid's
@@ -226,19 +228,41 @@ def _write_trajectory(result, out: Path) -> None:
     write_atomic(out / "trajectory.npz", buf.getvalue())
 
 
-def write_outputs(result, out, *, figures: bool = True, gif: bool = False, extra: dict | None = None) -> list:
-    """Write every output of ``result`` into the (prepared) folder ``out``; returns the file names."""
+def write_outputs(result, out, *, figures: bool = True, gif: bool = False, extra: dict | None = None,
+                  progress=None) -> list:
+    """Write every output of ``result`` into the (prepared) folder ``out``; returns the file names.
+
+    ``progress(name)`` is called before each figure and the GIF is written (they take seconds);
+    summary.json records each one's writing time under ``output_timings_s``."""
+    import time
+
     out = Path(out)
     files = ["metrics.csv", "replans.csv", "config.toml", "trajectory.npz"]
+    t0 = time.perf_counter()
     write_metrics(result, out)
     write_atomic(out / "config.toml", to_toml(result.config))
     _write_trajectory(result, out)
+    timings = {"tables": time.perf_counter() - t0}
     if result.rows and (figures or gif):
         from . import figures as fig
+
+        clock = {}
+
+        def started(name):
+            clock[name] = time.perf_counter()
+            if progress is not None:
+                progress(name)
+
         if figures:
-            files += fig.write_figures(result, out)
+            names = fig.write_figures(result, out, progress=started)
+            now = time.perf_counter()
+            for name, nxt in zip(names, names[1:] + [None]):
+                timings[name] = (clock[nxt] if nxt else now) - clock[name]
+            files += names
         if gif:
+            started("animation.gif")
             files.append(fig.write_animation(result, out / "animation.gif"))
+            timings["animation.gif"] = time.perf_counter() - clock["animation.gif"]
     files.append("summary.json")
-    write_summary(result, out, files, extra)
+    write_summary(result, out, files, {**(extra or {}), "output_timings_s": timings})
     return files

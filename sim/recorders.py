@@ -6,6 +6,7 @@ trackers) and reads the simulation's state; it never changes it::
     start(sim)      after D_0 and the first regression (t = 0)
     measured(sim)   after a measurement step whose posterior was computed (every ``sim.metrics_every``
                     steps and at the end of each period)
+    refitted(sim)   after the hyperparameters were refitted at a period start (same data, new (s_f^2, l))
     planned(sim)    after the period's reference was planned (or the period started, without a planner)
     period(sim)     after each completed period
     finish(sim)     once, when the run ends (normally, by a stop rule, a failure or an interrupt)
@@ -35,6 +36,9 @@ class Recorder:
     def measured(self, sim) -> None:
         pass
 
+    def refitted(self, sim) -> None:
+        pass
+
     def planned(self, sim) -> None:
         pass
 
@@ -54,26 +58,43 @@ class MetricsRecorder(Recorder):
     def measured(self, sim) -> None:
         self._record(sim, p_r=None if sim.plan is None else sim.plan.density_grid(sim.t))
 
-    def _record(self, sim, p_r) -> None:
+    def refitted(self, sim) -> None:
+        """The row at t = kT records the posterior in force from now on (same data, refitted (s_f^2, l)),
+        so that the stopping test, the summary and metrics.csv agree."""
+        sim.result.rows[-1].update(self._posterior_columns(sim))
+        sim.result.variances[-1] = sim.var.astype(np.float32)
+
+    @staticmethod
+    def _posterior_columns(sim) -> dict:
+        """The row's entries that depend on the GP posterior and its hyperparameters."""
         res, gp, grid = sim.result, sim.gp, sim.grid
         mean, var = sim.mean, sim.var
-        err = mean - res.f_true
         free = getattr(sim, "free", None)           # obstacles: the free cells only (sim.metrics)
-        res.rows.append({
-            "step": sim.step_index, "t": sim.t, "period": sim.period_index,
-            "max_variance": max_variance(var, free),
-            "mean_variance": float(var.mean() if free is None else var[free].mean()),
-            "rmse": rmse(res.f_true, mean, free), "l2_error": l2_norm(err, grid.cell_area, free),
+        return {"max_variance": max_variance(var, free),
+                "mean_variance": float(var.mean() if free is None else var[free].mean()),
+                "rmse": rmse(res.f_true, mean, free), "l2_error": l2_norm(mean - res.f_true, grid.cell_area, free),
+                "signal_variance": gp.settings.signal_variance, "length_scale": gp.settings.length_scale,
+                "threshold": sim.stop_rule.threshold(gp)}
+
+    def _record(self, sim, p_r) -> None:
+        res, gp, grid = sim.result, sim.gp, sim.grid
+        row = {"step": sim.step_index, "t": sim.t, "period": sim.period_index, **self._posterior_columns(sim)}
+        row.update({
             "tracking_error": np.nan if p_r is None else l2_norm(sim.p_hat - p_r, grid.cell_area),
             "mean_speed": sim.speed, "n_observations": gp.n_observations,
             "alive": int(sim.alive.sum()), "path_length": float(sim.path_length.mean()),
             "energy": float(sim.energy.mean()),
-            "signal_variance": gp.settings.signal_variance, "length_scale": gp.settings.length_scale,
-            "threshold": sim.stop_rule.threshold(gp),
         })
+        res.rows.append({c: row[c] for c in ROW_ORDER if c in row})
         res.times.append(sim.t)
         res.positions.append(sim.X.copy())
-        res.variances.append(var.astype(np.float32))
+        res.variances.append(sim.var.astype(np.float32))
+
+
+#: key order of a metrics row (as before the posterior columns were factored out)
+ROW_ORDER = ("step", "t", "period", "max_variance", "mean_variance", "rmse", "l2_error", "tracking_error",
+             "mean_speed", "n_observations", "alive", "path_length", "energy", "signal_variance", "length_scale",
+             "threshold")
 
 
 class CallbackRecorder(Recorder):
@@ -88,8 +109,11 @@ class CallbackRecorder(Recorder):
             return
         info = sim.result.replans[-1] if sim.controller.needs_plan else \
             {"status": "no planner", "iterations": 0, "solve_time_s": 0.0}
+        row = sim.result.rows[-1]
         self.progress({"event": "plan", "period": sim.period_index, "t": sim.t, "max_variance": sim.sup_v,
-                       "rmse": sim.result.rows[-1]["rmse"], **info})
+                       "rmse": row["rmse"], "threshold": row["threshold"],
+                       "signal_variance": sim.gp.settings.signal_variance, "length_scale": sim.gp.settings.length_scale,
+                       "learned": bool(sim.config.gp.learn_hyperparameters), **info})
 
     def period(self, sim) -> None:
         if self.on_period is not None:

@@ -324,6 +324,7 @@ class Simulation:
             refit_online(self.gp)            # warm start; posterior recomputed below
             self.mean, self.var = self.predict()
             self.result.timings["regression"] += time.perf_counter() - t0
+            self._notify("refitted")
 
     def snapshot(self) -> Snapshot:
         """State at the period start, kept for the figures."""

@@ -150,6 +150,9 @@ class RobustThreshold(RelativeThreshold):
 
     def threshold(self, gp):
         base = super().threshold(gp)
+        if self.points is None:          # unbound (e.g. sim.loop.stop_threshold): the relative level,
+            self.last_check_variance = None      # an upper bound of the robust one
+            return base
         vc = self.check_variance(gp)
         if vc is None:
             self.last_check_variance = None

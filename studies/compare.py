@@ -34,6 +34,7 @@ import argparse
 import csv
 import hashlib
 import io
+import json
 import math
 import sys
 from pathlib import Path
@@ -95,10 +96,14 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
     from ..sim.presets import DEFAULT_PRESET
     from ..sim.stopping import travel_time_limit
 
+    from ..sim.fields import make_field
+    from ..sim.loop import check_config
+
     if presets is None:
         presets = [base_doc.get("preset", DEFAULT_PRESET)]
     base_doc = {k: v for k, v in base_doc.items() if k != "preset"}
     tasks = []
+    loaded, checked = {}, set()       # every field file and configuration is checked once, here in the parent
     if domains:
         from ..sim.domain import BUILTIN_DOMAINS
         for dom in domains:
@@ -120,9 +125,12 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
         fsig = field
         if field not in FIELDS:
             path = Path(field).resolve()
-            if not path.is_file():
+            if not path.exists():
                 raise ValueError(f"field {field!r} is neither a known field ({', '.join(FIELDS)}) nor a file")
-            fsig = f"{path}#sha256={hashlib.sha256(path.read_bytes()).hexdigest()[:16]}"
+            try:
+                fsig = f"{path}#sha256={hashlib.sha256(path.read_bytes()).hexdigest()[:16]}"
+            except OSError as exc:
+                raise ValueError(f"cannot read field file {field}: {exc.strerror or exc}") from None
             field = str(path)
         for n in robots:
             for loss in losses:
@@ -139,13 +147,25 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
                         cfg = config_from_dict(doc, preset=preset)   # validates every combination up front
                         s = cfg.sim
                         rule = [s.stop_rule, s.gamma_relative if s.stop_rule != "absolute" else s.gamma]
+                        if s.robot_loss > 0 and s.loss_time > s.max_time + 1e-9 * s.period:
+                            raise ValueError(f"--loss-time {s.loss_time:g} s is after the end of the runs "
+                                             f"({s.max_periods} T = {s.max_time:g} s): no robot would be lost")
+                        key = (field, tuple(s.domain))
+                        if key not in loaded:            # the checks simulate-swarm runs before its run
+                            loaded[key] = make_field(field, s.domain)
+                        cdoc = cfg.as_dict()
+                        ckey = json.dumps({**cdoc, "sim": {k: v for k, v in cdoc["sim"].items() if k != "seed"}},
+                                          sort_keys=True, default=str)
+                        if ckey not in checked:
+                            check_config(cfg)
+                            checked.add(ckey)
                         speed = make_controller(ctrl, cfg).v_max
                         free = _reachable_cells(cfg)
-                        tasks.append({"preset": preset, "controller": ctrl, "stop_rule": rule,
+                        tasks.append({"preset": preset, "controller": ctrl, "stop_rule": list(rule),
                                       "field": _field_label(field), "field_source": fsig,
                                       "seed": int(seed), "robot_loss": float(loss), "robots": int(n),
                                       "travel_limit": travel_time_limit(cfg, speed=speed, free=free),
-                                      "config": cfg.as_dict()})
+                                      "config": cdoc})
     return tasks
 
 
@@ -286,44 +306,64 @@ def plot_name(field: str, robots: int, robot_loss: float, domain: str | None = N
     return (f"{domain}_" if domain else "") + f"{field}_n{robots}_loss{int(round(100 * robot_loss))}.png"
 
 
-def write_plots(runs, out: Path, gamma: float) -> list[str]:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    out.mkdir(parents=True, exist_ok=True)
-    written = []
+def scenario_curves(runs) -> dict:
+    """``{(domain, field, robots, robot_loss): {label: [rows of each seed]}}`` (domain "" without obstacles); the label is the controller,
+    with the preset when the sweep has several."""
     by_scenario = {}
     several = len({task["preset"] for task, _ in runs}) > 1
     for task, rows in runs:
         label = f"{task['controller']} ({task['preset']})" if several else task["controller"]
         by_scenario.setdefault((task.get("domain") or "", task["field"], task["robots"], task["robot_loss"]), {}) \
             .setdefault(label, []).append(rows)
-    for (domain, field, n, loss), ctrls in sorted(by_scenario.items()):
-        fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-        for ci, (ctrl, runs_c) in enumerate(ctrls.items()):
-            m = min(len(r) for r in runs_c)
-            t = np.array([r["t_T"] for r in runs_c[0][:m]])
-            for ax, col in zip(axes, ("rmse", "max_variance")):
-                Y = np.array([[r[col] / (r.get("threshold") or gamma if col == "max_variance" else 1.0)
-                               for r in rows[:m]] for rows in runs_c])
-                color = f"C{ci}"
+    return by_scenario
+
+
+def make_plot(scenario, curves: dict, gamma: float):
+    """One scenario's Figure: RMSE and sup V / threshold against t/T, the median over seeds as a line
+    and the min-max range as a band, one colour per controller (``curves`` from :func:`scenario_curves`)."""
+    from ..runtime.plotting import new_figure, plain_log_axis
+
+    domain, field, n, loss = scenario
+    fig = new_figure(11, 4.3)
+    axes = fig.subplots(1, 2)
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.13, top=0.83, wspace=0.25)
+    for ci, (ctrl, runs_c) in enumerate(curves.items()):
+        m = min(len(r) for r in runs_c)
+        t = np.array([r["t_T"] for r in runs_c[0][:m]])
+        for ax, col in zip(axes, ("rmse", "max_variance")):
+            Y = np.array([[r[col] / (r.get("threshold") or gamma if col == "max_variance" else 1.0)
+                           for r in rows[:m]] for rows in runs_c])
+            color = f"C{ci}"
+            if len(runs_c) > 1:
                 ax.fill_between(t, Y.min(0), Y.max(0), color=color, alpha=0.2, lw=0)
-                ax.plot(t, np.median(Y, 0), color=color, label=ctrl)
-        axes[0].set_ylabel("RMSE of f̄ on the grid")
-        axes[1].set_ylabel("sup V / γ (each configuration's own stopping threshold)")
-        axes[1].axhline(1.0, color="k", ls=":", lw=1)
-        axes[1].set_yscale("log")
-        for ax in axes:
-            ax.set_xlabel("t / T")
-            ax.grid(alpha=0.3)
-        axes[0].legend(fontsize=8)
-        fig.suptitle((f"{domain}: " if domain else "") + f"{field}, {n} robots, {100 * loss:.0f} % lost "
-                     "(median and range over seeds)")
-        fig.tight_layout()
+            ax.plot(t, np.median(Y, 0), color=color, label=ctrl)
+    axes[0].set_ylabel("RMSE of f\u0304 on the grid [field units]")
+    axes[0].set_title("prediction error", y=1.0)
+    axes[1].set_ylabel("sup V / threshold")
+    axes[1].set_title("sup V relative to each configuration's stopping threshold", y=1.0, fontsize=10)
+    axes[1].axhline(1.0, color="k", ls=":", lw=1)
+    axes[1].set_yscale("log")
+    plain_log_axis(axes[1].yaxis)
+    for ax in axes:
+        ax.set_xlabel("t / T (periods)")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8)
+    seeds = max(len(r) for r in curves.values())
+    fig.suptitle((f"{domain}: " if domain else "") + f"{field}, {n} robots, {100 * loss:.0f} % lost: median over {seeds} seed(s)"
+                 + (" with the min-max range" if seeds > 1 else ""))
+    return fig
+
+
+def write_plots(runs, out: Path, gamma: float) -> list[str]:
+    """One PNG per scenario (:func:`make_plot`) in ``out``; returns the file names."""
+    from ..runtime.plotting import save_figure
+
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    for scenario, curves in sorted(scenario_curves(runs).items()):
+        domain, field, n, loss = scenario
         name = plot_name(field, n, loss, domain or None)
-        fig.savefig(out / name, dpi=90)
-        plt.close(fig)
+        save_figure(make_plot(scenario, curves, gamma), out / name)
         written.append(name)
     return written
 
@@ -341,34 +381,44 @@ def build_parser():
     p.add_argument("--controllers", nargs="+", default=list(CONTROLLERS), metavar="NAME",
                    help=f"controllers to compare (default all: {' '.join(CONTROLLERS)})")
     p.add_argument("--fields", nargs="+", default=["sinc"], metavar="FIELD", help="sinc | plumes | ridge | waves | bumps | front | gp-sample | FILE ...")
-    p.add_argument("--seeds", nargs="+", type=int, default=[0], metavar="S")
-    p.add_argument("--robot-loss", nargs="+", type=float, default=[0.0], metavar="FRACTION")
+    p.add_argument("--seeds", nargs="+", type=int, default=[0], metavar="S", help="random seeds, one run each")
+    p.add_argument("--robot-loss", nargs="+", type=float, default=[0.0], metavar="FRACTION",
+                   help="fractions of the robots that stop at --loss-time, one sweep axis")
     p.add_argument("--loss-time", type=float, metavar="SECONDS", help="time of the loss (default T)")
     p.add_argument("--robots", nargs="+", type=int, default=None, metavar="N",
                    help="robot counts (default: the configuration's, 100)")
     p.add_argument("--domains", "--domain", nargs="+", default=None, metavar="NAME|FILE",
                    help="obstacles: built-in domains (harbour, floor, lake) or map files (.npz, .png, .tif, .geojson) "
                         "as an axis of the sweep (default: the configuration's [domain], the empty rectangle)")
-    p.add_argument("--start-box", type=float, nargs=4, metavar=("X0", "X1", "Y0", "Y1"))
-    p.add_argument("--max-periods", type=int, default=4, help="length of every run in periods T (default 4)")
+    p.add_argument("--start-box", type=float, nargs=4, metavar=("X0", "X1", "Y0", "Y1"),
+                   help="the swarm is released uniformly on this box (default: the configuration's, 0 7 0 7)")
+    p.add_argument("--max-periods", type=int, default=4, metavar="N", help="length of every run in periods T")
     p.add_argument("--times", nargs="+", type=float, default=None, metavar="K",
                    help="RMSE columns at these multiples of T (default 1 2 and --max-periods)")
-    p.add_argument("--config", type=Path, help="TOML base configuration ([sim], [gp], ...)")
+    p.add_argument("--config", type=Path, metavar="FILE", help="TOML base configuration ([sim], [gp], ...)")
     p.add_argument("--presets", nargs="+", choices=_preset_names(), default=None, metavar="PRESET",
                    help="presets laid under --config, one sweep axis: paper (default) and/or tuned; every "
                         "controller runs with each preset's GP and stopping settings")
-    p.add_argument("--out", type=Path, default=Path("compare"), help="output folder (reused: finished runs are skipped)")
-    p.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
-    p.add_argument("--scheduler", help="Dask scheduler address (tcp://host:8786): run the sweep on that cluster")
-    p.add_argument("--no-plots", action="store_true")
+    p.add_argument("--out", type=Path, default=Path("compare"), metavar="DIR", help="output folder (reused: finished runs are skipped)")
+    p.add_argument("--workers", type=int, default=None, metavar="N", help="local worker processes (default: all cores)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address (tcp://host:8786): run the sweep on that cluster")
+    p.add_argument("--scheduler-timeout", type=float, default=10.0, metavar="SECONDS",
+                   help="give up connecting to --scheduler after this long (exit 2)")
+    p.add_argument("--no-plots", action="store_true", help="write runs.csv and summary.md only")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return p
+
+
+def _field_key(field: str):
+    from ..sim.fields import FIELDS
+    return field if field in FIELDS else str(Path(field).resolve())
 
 
 def run(argv=None) -> int:
     args = build_parser().parse_args(argv)
     from ..sim.config import load_config, read_toml
     from ..sim.controllers import CONTROLLERS
+    from .runner import SchedulerError, connect_scheduler, quiet_dask_logs, unique_values
 
     for name in args.controllers:
         if name not in CONTROLLERS:
@@ -377,12 +427,35 @@ def run(argv=None) -> int:
         raise InputError("--robots must be >= 2, --max-periods >= 1, --seeds >= 0")
     if args.workers is not None and args.workers < 1:
         raise InputError("--workers must be >= 1")
+    if not (math.isfinite(args.scheduler_timeout) and args.scheduler_timeout > 0):
+        raise InputError(f"--scheduler-timeout must be a positive number of seconds, got {args.scheduler_timeout:g}")
+    for t in args.times or []:
+        if not (math.isfinite(t) and 0 < t <= args.max_periods):
+            raise InputError(f"--times {t:g}: every time must lie in (0, --max-periods = {args.max_periods}] "
+                             "(multiples of T within the runs)")
+    if args.loss_time is not None and not math.isfinite(args.loss_time):
+        raise InputError(f"--loss-time must be a finite time in seconds, got {args.loss_time}")
+    # one rule for repeated axis values in every sweep command: dropped, with a one-line note
+    note = sys.stderr
+    args.controllers = unique_values(args.controllers, "--controllers", note)
+    args.fields = unique_values(args.fields, "--fields", note, key=_field_key)
+    args.seeds = unique_values(args.seeds, "--seeds", note)
+    args.robot_loss = unique_values(args.robot_loss, "--robot-loss", note, key=float)
+    if args.robots is not None:
+        args.robots = unique_values(args.robots, "--robots", note)
+    if args.presets is not None:
+        args.presets = unique_values(args.presets, "--presets", note)
+    if args.times is not None:
+        args.times = unique_values(args.times, "--times", note, key=float)
     try:
         # the file as written (values the user gave), validated; presets are laid under it per task
+        if args.config is not None:
+            check_path(args.config, "config file")
         base = load_config(args.config) if args.config else None
         base_doc = read_toml(args.config) if args.config else {}
         gamma = base.sim.gamma if base else 0.1
         robots = args.robots or [base.sim.robots if base else 100]
+        # every field file and every run's configuration is loaded and checked here, before any worker
         tasks = make_tasks(base_doc, args.controllers, args.fields, args.seeds, args.robot_loss, robots,
                            loss_time=args.loss_time, start_box=args.start_box, max_periods=args.max_periods,
                            presets=args.presets, domains=args.domains)
@@ -410,30 +483,58 @@ def run(argv=None) -> int:
     try:
         check_path(out, "output folder")
         folder.check()
-        folder.lock()
     except ValueError as exc:
         raise InputError(str(exc)) from None
+    client = None
+    if args.scheduler is not None:       # connected before OUT is touched: a bad address leaves nothing behind
+        try:
+            client = connect_scheduler(args.scheduler, args.scheduler_timeout)
+            quiet_dask_logs()
+        except SchedulerError as exc:
+            raise InputError(str(exc)) from None
     try:
-        return _sweep_and_publish(args, argv, tasks, gamma, times, folder)
+        try:
+            folder.lock()
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
+        try:
+            return _sweep_and_publish(args, argv, tasks, gamma, times, folder, client)
+        finally:
+            folder.unlock()
     finally:
-        folder.unlock()
+        if client is not None:
+            _close_client(client)
 
 
-def _sweep_and_publish(args, argv, tasks, gamma, times, folder) -> int:
+def _close_client(client) -> None:
+    from ..runtime.signals import shielded
+    with shielded():
+        try:
+            client.close(timeout=5)
+        except Exception:       # noqa: BLE001 -- the cluster may be gone already
+            pass
+
+
+def _sweep_and_publish(args, argv, tasks, gamma, times, folder, client=None) -> int:
     from . import runner as sweep
+    from ..runtime.signals import exit_code, stopped
 
     out = args.out
     try:
-        results = sweep.run_tasks(tasks, run_task, out / "runs", workers=args.workers, scheduler=args.scheduler,
+        results = sweep.run_tasks(tasks, run_task, out / "runs", workers=args.workers, scheduler=client,
                                   label=PROG, stream=None if args.quiet else sys.stderr)
     except sweep.SweepError as exc:
         print(f"{PROG}: error: {exc}; the finished runs are stored in {out / 'runs'}: run the same command again "
               "to retry only the failed ones", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted; finished runs are kept in {out / 'runs'} (the same command resumes)",
-              file=sys.stderr)
-        return 130
+    except sweep.SweepAborted as exc:
+        print(f"{PROG}: error: {exc}; the runs finished before are kept in {out / 'runs'} (the same command "
+              "resumes)", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt as exc:
+        print(f"{PROG}: {stopped(exc)}; nothing written to {out} but the finished runs, kept in {out / 'runs'} "
+              "(the same command resumes)", file=sys.stderr)
+        return exit_code(exc)
     runs = list(zip(tasks, results))
     table = summary_table(runs, gamma, times)
     cmd = " ".join([PROG] + [str(a) for a in (sys.argv[1:] if argv is None else argv)])
@@ -451,21 +552,25 @@ def _sweep_and_publish(args, argv, tasks, gamma, times, folder) -> int:
         return ["runs.csv", "summary.md"] + [f"plots/{p}" for p in plots]
     try:
         folder.write_and_publish(write)
-    except InterruptedAfterPublish:
-        print(f"{PROG}: interrupted after the outputs were published in {out}", file=sys.stderr)
-        return 130
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted while writing the outputs; {out} keeps its previous outputs (the runs are "
-              f"stored in {out / 'runs'}: the same command writes them again)", file=sys.stderr)
-        return 130
+    except InterruptedAfterPublish as exc:
+        print(f"{PROG}: {stopped(exc)} after writing runs.csv, summary.md and the plots to {out}", file=sys.stderr)
+        return exit_code(exc)
+    except KeyboardInterrupt as exc:
+        print(f"{PROG}: {stopped(exc)} while writing the outputs; nothing written: {out} keeps its previous outputs "
+              f"(the runs are stored in {out / 'runs'}: the same command writes them again)", file=sys.stderr)
+        return exit_code(exc)
     except (OSError, ValueError) as exc:
         print(f"{PROG}: error: cannot write the outputs ({getattr(exc, 'strerror', None) or exc}); {out} keeps its "
               f"previous outputs, the runs are stored in {out / 'runs'}", file=sys.stderr)
         return 1
-    if not args.quiet:
-        print(table, end="", file=sys.stderr)
-        print(f"{PROG}: wrote runs.csv, summary.md{', ' + str(len(plots)) + ' plots' if plots else ''} to {out}",
-              file=sys.stderr)
+    try:
+        if not args.quiet:
+            print(table, end="", file=sys.stderr)
+            print(f"{PROG}: wrote runs.csv, summary.md{', ' + str(len(plots)) + ' plots' if plots else ''} to {out}",
+                  file=sys.stderr)
+    except KeyboardInterrupt as exc:
+        print(f"{PROG}: {stopped(exc)} after writing runs.csv, summary.md and the plots to {out}", file=sys.stderr)
+        return exit_code(exc)
     return 0
 
 

@@ -13,16 +13,24 @@ nothing imports CasADi, so any study (the planner's solver study too) can run th
   to a temporary file and renamed), ``key`` = :func:`task_key`, a SHA-256 of the task's canonical
   JSON.  A sweep interrupted and restarted on the same folder skips the tasks already stored, and
   a changed task (any setting) gets a new key, so it never reuses a stale result.
-* Local: ``concurrent.futures.ProcessPoolExecutor(workers)`` (``workers=1``: in this process).
-  ``scheduler``: ``distributed.Client(scheduler)`` -- an address (``tcp://...``) or an existing
-  ``Client``/``LocalCluster``; results come back to this process, which writes the files, so the
-  workers need no shared file system (optional extra ``pip install 'swarmfield[dask]'``).
+* Local: worker processes tied to this one (:mod:`studies.pool`: started from the fork server, so
+  they hold none of this process's descriptors -- not the output folder's lock; they ignore
+  Ctrl-C and die with this process however it ends; ``workers=1``: in this process).
+  ``scheduler``: an existing ``distributed.Client``/``LocalCluster`` or an address (``tcp://...``,
+  connected by :func:`connect_scheduler` with a timeout: :class:`SchedulerError` in one line for a
+  malformed, unreachable or non-Dask address); results come back to this process, which writes
+  the files, so the workers need no shared file system (``pip install 'swarmfield[dask]'``).
+* A finished run that cannot be stored (disk full, read-only, permission denied) stops the sweep
+  with :class:`SweepAborted` naming the path; the runs stored before stay, so a restart resumes.
+* Repeated axis values: the commands drop them with a one-line note (:func:`unique_values`);
+  a task list with duplicates is refused here before anything is created.
+* Threads: every worker process (local or Dask) runs its tasks with one BLAS/OpenMP thread
+  (:data:`runtime.threads.WORKER_THREADS`) unless ``OPENBLAS_NUM_THREADS``/``OMP_NUM_THREADS``/... are set.
 * Progress on stderr: tasks done / total, failures, elapsed time and ETA.  A task that raises is
   reported (one line) and not stored, so a restart retries it; :class:`SweepError` at the end lists them.
 """
 from __future__ import annotations
 
-import concurrent.futures as cf
 import hashlib
 import json
 import os
@@ -31,7 +39,8 @@ import time
 from pathlib import Path
 from typing import Callable
 
-__all__ = ["task_key", "run_tasks", "load_results", "SweepError"]
+__all__ = ["task_key", "run_tasks", "load_results", "SweepError", "SweepAborted", "SchedulerError",
+           "connect_scheduler", "quiet_dask_logs", "unique_values"]
 
 
 class SweepError(RuntimeError):
@@ -42,6 +51,34 @@ class SweepError(RuntimeError):
         super().__init__(f"{len(failures)} task(s) failed; first: {failures[0][1]}")
 
 
+class SweepAborted(RuntimeError):
+    """The sweep stopped before its end (a finished run could not be stored: disk full, read-only or
+    permission denied; the cluster went away); the runs stored so far are kept, so the same
+    command resumes.  The message is one line naming the path or the cause."""
+
+
+class SchedulerError(ValueError):
+    """``--scheduler`` is malformed, unreachable or not a Dask scheduler (one line; nothing was run)."""
+
+
+def unique_values(values, flag: str, stream="stderr", key=None) -> list:
+    """``values`` without repeats (first occurrence kept, ``key(value)`` compared); a one-line note on
+    ``stream`` names the dropped ones.  The same rule in every sweep command."""
+    if stream == "stderr":
+        stream = sys.stderr
+    out, seen, dropped = [], set(), []
+    for v in values:
+        k = v if key is None else key(v)
+        if k in seen:
+            dropped.append(v)
+            continue
+        seen.add(k)
+        out.append(v)
+    if dropped and stream is not None:
+        print(f"note: {flag}: dropped repeated value(s) {' '.join(str(v) for v in dropped)}", file=stream, flush=True)
+    return out
+
+
 def task_key(task: dict) -> str:
     """Stable key of a task: SHA-256 (first 20 hex digits) of its canonical JSON."""
     text = json.dumps(task, sort_keys=True, separators=(",", ":"), default=str)
@@ -49,10 +86,21 @@ def task_key(task: dict) -> str:
 
 
 def _store(runs_dir: Path, task: dict, rows: list) -> None:
+    """Store one finished run (temporary file, then rename); :class:`SweepAborted` naming the path if
+    the file system refuses (ENOSPC, EROFS, EACCES ...): a partial file is never left under the key."""
     path = runs_dir / f"{task_key(task)}.json"
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(json.dumps({"task": task, "rows": rows}, default=float))
-    os.replace(tmp, path)
+    try:
+        text = json.dumps({"task": task, "rows": rows}, default=float)
+        with open(tmp, "w") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except OSError as exc:
+        try:
+            tmp.unlink()
+        except OSError:
+            pass
+        raise SweepAborted(f"cannot store a finished run in {path}: {exc.strerror or exc}") from None
 
 
 def load_results(runs_dir, tasks: list[dict]) -> dict:
@@ -100,10 +148,13 @@ def run_tasks(tasks: list[dict], fn: Callable[[dict], list], runs_dir, *, worker
     if isolate and scheduler is not None:
         raise ValueError("isolate (a fresh process per task) is for local workers; a Dask cluster reuses its workers")
     runs_dir = Path(runs_dir)
-    runs_dir.mkdir(parents=True, exist_ok=True)
     keys = [task_key(t) for t in tasks]
     if len(set(keys)) != len(keys):
         raise ValueError("the sweep has duplicate tasks")
+    try:
+        runs_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SweepAborted(f"cannot create {runs_dir}: {exc.strerror or exc}") from None
     results = load_results(runs_dir, tasks)
     todo = [t for t, k in zip(tasks, keys) if k not in results]
     prog = _Progress(len(tasks), len(tasks) - len(todo), label, stream)
@@ -114,14 +165,21 @@ def run_tasks(tasks: list[dict], fn: Callable[[dict], list], runs_dir, *, worker
             _store(runs_dir, task, rows)
             results[task_key(task)] = rows
         else:
-            failures.append((task, f"{type(exc).__name__}: {exc}"))
+            msg = exc if isinstance(exc, str) else f"{type(exc).__name__}: {exc}"
+            failures.append((task, msg))
             if stream is not None:
-                print(f"{label}: run failed ({type(exc).__name__}: {exc}) for {json.dumps(task, default=str)[:200]}",
+                print(f"{label}: run failed ({msg}) for {json.dumps(task, default=str)[:200]}",
                       file=stream, flush=True)
         prog.tick(exc is None)
 
+    # while workers or a cluster run the tasks this process only waits: SIGTERM then stops the sweep
+    # like Ctrl-C (runtime.signals.Terminated: workers stopped, one line, exit 143)
+    from ..runtime.signals import terminate_as_interrupt
+    from ..runtime.threads import WORKER_THREADS, limited
     if todo and scheduler is not None:
-        _run_dask(todo, fn, scheduler, finished)
+        # one BLAS thread per task on the cluster too (a Dask nanny sets 1 by default; a plain worker may not)
+        with terminate_as_interrupt():
+            _run_dask(todo, limited(fn, WORKER_THREADS), scheduler, finished)
     elif todo and (workers or os.cpu_count() or 1) == 1 and not isolate:
         for task in todo:
             try:
@@ -131,35 +189,102 @@ def run_tasks(tasks: list[dict], fn: Callable[[dict], list], runs_dir, *, worker
             else:
                 finished(task, rows)
     elif todo:
-        extra = {}
-        if isolate:
-            import multiprocessing
-            extra = {"mp_context": multiprocessing.get_context("forkserver"), "max_tasks_per_child": 1}
-        with cf.ProcessPoolExecutor(max_workers=min(workers or os.cpu_count() or 1, len(todo)), **extra) as pool:
-            futs = {pool.submit(fn, t): t for t in todo}
-            try:
-                for fut in cf.as_completed(futs):
-                    exc = fut.exception()
-                    finished(futs[fut], None if exc else fut.result(), exc)
-            except KeyboardInterrupt:
-                for f in futs:
-                    f.cancel()
-                raise
+        # worker processes tied to this one (studies.pool): they never outlive it, never hold the
+        # output folder's lock, ignore Ctrl-C; an interrupt here kills them before it propagates.
+        # One BLAS/OpenMP thread per worker (runtime.threads; the environment may say otherwise):
+        # the workers are the parallelism, and cpu_count workers x cpu_count BLAS threads oversubscribe
+        from .pool import run_pool
+        with terminate_as_interrupt():
+            run_pool(todo, limited(fn, WORKER_THREADS), min(workers or os.cpu_count() or 1, len(todo)),
+                     lambda i, rows, error: finished(todo[i], rows, error), once=isolate)
     if failures:
         raise SweepError(failures)
     return [results[k] for k in keys]
 
 
-def _run_dask(todo, fn, scheduler, finished):
+def connect_scheduler(address: str, timeout: float = 10.0):
+    """A ``distributed.Client`` connected to the Dask scheduler at ``address`` within ``timeout``
+    seconds; :class:`SchedulerError` (one line) if the address is malformed, nothing answers, or
+    what answers is not a Dask scheduler.  Distributed's own log lines are held back meanwhile."""
+    import logging
     try:
-        from distributed import Client, as_completed
+        from distributed import Client
+        from distributed.comm import parse_address
     except ImportError:
-        raise RuntimeError("--scheduler needs Dask distributed: pip install 'swarmfield[dask]'") from None
+        raise SchedulerError("--scheduler needs Dask distributed: pip install 'swarmfield[dask]'") from None
+    if not isinstance(address, str) or not address.strip():
+        raise SchedulerError("--scheduler: empty address")
+    try:
+        scheme, loc = parse_address(address if "://" in address else f"tcp://{address}")
+        if scheme not in ("tcp", "tls", "ws", "wss", "inproc", "ucx"):
+            raise ValueError(f"unknown protocol {scheme!r}")
+        if not loc:
+            raise ValueError("no host")
+        if scheme in ("tcp", "tls", "ws", "wss"):
+            from distributed.comm.addressing import parse_host_port
+            host, port = parse_host_port(loc)
+            if not host or not 0 < int(port) < 65536:
+                raise ValueError("expected host:port")
+    except (ValueError, TypeError) as exc:
+        raise SchedulerError(f"--scheduler {address!r} is not a scheduler address like tcp://host:8786 "
+                             f"({exc})") from None
+    loggers = [logging.getLogger(n) for n in ("distributed", "tornado", "asyncio")]
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(logging.CRITICAL + 1)
+    try:
+        kind = _probe(address, timeout)     # first a bare connection: a failed Client leaves noise at exit
+        if kind != "Scheduler":
+            raise ConnectionError(f"the endpoint answers as {kind!r}, not as a Dask scheduler" if kind else
+                                  "the endpoint does not speak the Dask protocol")
+        return Client(address, timeout=f"{timeout}s")
+    except KeyboardInterrupt:
+        raise
+    except BaseException as exc:                # noqa: BLE001 -- any failure to connect is the address's fault
+        why = str(exc).splitlines()[0][:160] if str(exc) else type(exc).__name__
+        if isinstance(exc, (MemoryError, OverflowError)):
+            why = "the endpoint does not speak the Dask protocol"
+        raise SchedulerError(f"cannot connect to the Dask scheduler at {address} within {timeout:g} s: {why}") from None
+    finally:
+        for lg, lv in zip(loggers, levels):
+            lg.setLevel(lv)
+
+
+def _probe(address: str, timeout: float):
+    """The ``type`` a Dask server at ``address`` reports for itself (``"Scheduler"``), or None."""
+    import asyncio
+
+    from distributed.comm import connect
+
+    async def ask():
+        comm = await connect(address, timeout=timeout)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            reply = await asyncio.wait_for(comm.read(), timeout)
+        finally:
+            comm.abort()
+        return reply.get("type") if isinstance(reply, dict) else None
+    return asyncio.run(ask())
+
+
+def quiet_dask_logs() -> None:
+    """Silence distributed's own log lines in this process (a CLI reports in its own one line)."""
+    import logging
+    names = ["distributed"] + [n for n in list(logging.root.manager.loggerDict) if n.startswith("distributed.")]
+    for name in names:                  # distributed gives some of its loggers their own levels
+        logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+
+
+def _cluster_lost(exc, client) -> bool:
+    text = str(exc)
+    return ("connection-lost" in text or "lost the connection" in text or type(exc).__name__ == "CommClosedError"
+            or getattr(client, "status", "running") not in ("running", "connecting"))
+
+
+def _run_dask(todo, fn, scheduler, finished):
+    from distributed import as_completed
     own = not hasattr(scheduler, "submit")
-    if own:
-        client = Client(scheduler) if isinstance(scheduler, str) else Client(scheduler)
-    else:
-        client = scheduler
+    client = connect_scheduler(scheduler) if own else scheduler
     try:
         futs = client.map(fn, todo, pure=False)
         index = {f.key: t for f, t in zip(futs, todo)}
@@ -168,6 +293,9 @@ def _run_dask(todo, fn, scheduler, finished):
             try:
                 rows = fut.result()
             except Exception as exc:            # noqa: BLE001
+                if _cluster_lost(exc, client):  # the cluster went away: stop, the stored runs stay
+                    where = getattr(getattr(client, "scheduler", None), "address", None) or "the Dask scheduler"
+                    raise SweepAborted(f"lost the connection to {where} ({str(exc).splitlines()[0][:120]})") from None
                 finished(task, exc=exc)
             else:
                 finished(task, rows)

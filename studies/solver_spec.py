@@ -116,8 +116,11 @@ AXES = {
 }
 
 
-def parse_spec(spec: dict) -> dict:
-    """Validate ``{axis: [values]}``; returns the axes with converted, de-duplicated values."""
+def parse_spec(spec: dict, note="stderr") -> dict:
+    """Validate ``{axis: [values]}``; returns the axes with converted, de-duplicated values (a
+    repeated value is dropped with a one-line note on ``note``, as ``compare-controllers`` does)."""
+    if note == "stderr":
+        note = sys.stderr
     if not isinstance(spec, dict):
         raise SpecError("the sweep must be a table of axis = [values]")
     out = {}
@@ -131,7 +134,7 @@ def parse_spec(spec: dict) -> dict:
         if len(values) == 0:
             raise SpecError(f"sweep axis {axis!r} has no values (the product would be empty)")
         conv = AXES[axis][0]
-        vals = []
+        vals, dropped = [], []
         for v in values:
             try:
                 c = conv(v)
@@ -139,6 +142,11 @@ def parse_spec(spec: dict) -> dict:
                 raise SpecError(f"sweep axis {axis!r}: {exc}") from None
             if c not in vals:
                 vals.append(c)
+            else:
+                dropped.append(v)
+        if dropped and note is not None:
+            print(f"note: --{axis.replace('_', '-')}: dropped repeated value(s) {' '.join(str(v) for v in dropped)}",
+                  file=note, flush=True)
         out[axis] = vals
     if "linear_solver" in out:
         have = available_linear_solvers()

@@ -9,33 +9,41 @@ and the sweep plots.  Objectives of different grids are different discrete probl
 within a study, not across.
 
     solver-study --out study            # all studies at the paper size (minutes)
-    solver-study --study ipopt --quick  # one study on a small grid (seconds)
+    solver-study --preset ipopt --quick  # one study on a small grid (seconds)
 """
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
 from ..runtime.cliargs import OneLineParser, UsageError
+from .solver_spec import PRESETS
 
 PROG = "solver-study"
 
 
 def main(argv=None) -> int:
+    from ..runtime.cliargs import cli_main
+    return cli_main(PROG, _run, argv)       # BLAS/OpenMP threads limited there; each sweep worker's own: studies.runner
+
+
+def _run(argv) -> int:
     ap = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0])
-    ap.add_argument("--study", choices=["all", "formulation", "ipopt", "discretisation", "hessian"], default="all",
-                    help="which of the paper's fixed studies to run (the same as --preset; ignored with sweep axes)")
-    ap.add_argument("--out", type=Path, default=Path("study"), help="folder for study.csv, study.md and the plots")
+    # --study: the old spelling of --preset, kept working but not shown
+    ap.add_argument("--study", choices=list(PRESETS), default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--out", type=Path, default=Path("study"), metavar="DIR",
+                    help="folder for study.csv, study.md and the plots")
     ap.add_argument("--quick", action="store_true", help="small grid (12x12, N=4, I=J=3) for a fast check")
     from .sweepcli import AXES, add_sweep_arguments, run_sweep_cli
     add_sweep_arguments(ap)
-    try:
-        args = ap.parse_args(argv)
-    except UsageError as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
+    args = ap.parse_args(argv)
+    if args.study is not None:
+        if args.preset is not None and args.preset != args.study:
+            raise UsageError(f"--study is the old name of --preset; got both ({args.study}, {args.preset})")
+        args.preset = args.study
     if args.preset is None and args.spec is None and all(getattr(args, f"sw_{a}") is None for a in AXES):
-        args.preset = args.study            # the fixed studies are presets of the one sweep runner
+        args.preset = "all"                 # the fixed studies are presets of the one sweep runner
     return run_sweep_cli(args, PROG)
 
 

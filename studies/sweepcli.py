@@ -5,7 +5,8 @@
     solver-study --preset all --scheduler tcp://host:8786
 
 Writes ``study.csv`` (one row per run, :data:`studies.solver_spec.COLUMNS`), ``study.md``,
-``study_scaling.png`` (solve time against cells, log-log, fitted exponent per solver/transport),
+``study_scaling.png`` (solve time against cells, log-log, fitted exponent per solver/transport
+from three sizes or more, "too few sizes" otherwise),
 ``study_time_objective.png`` (objective against solve time per solver) and ``runs/`` (one file per
 finished run: a restarted sweep skips them).
 """
@@ -17,7 +18,8 @@ import math
 import sys
 from pathlib import Path
 
-from ..runtime.atomic import atomic_path, write_atomic
+from ..runtime.atomic import write_atomic
+from ..runtime.plotting import new_figure, plain_log_axis, save_figure
 from .solver_spec import AXES, COLUMNS, PRESETS, SpecError, expand, load_toml, parse_spec, preset_tasks
 
 #: axis -> command-line flag
@@ -25,14 +27,17 @@ FLAGS = {a: "--" + a.replace("_", "-") for a in AXES}
 
 
 def add_sweep_arguments(ap) -> None:
-    g = ap.add_argument_group("sweeps (Cartesian product of every axis given; README \"Solver study\")")
+    g = ap.add_argument_group("sweeps (the Cartesian product of every axis given)")
     for axis, (_, help_) in AXES.items():
         g.add_argument(FLAGS[axis], dest=f"sw_{axis}", nargs="+", default=None, metavar="V", help=help_)
-    g.add_argument("--spec", type=Path, default=None, help="TOML file with a [sweep] table of axis = [values] "
+    g.add_argument("--spec", type=Path, default=None, metavar="FILE", help="TOML file with a [sweep] table of axis = [values] "
                    "(command-line axes override it)")
-    g.add_argument("--preset", choices=PRESETS, default=None, help="the paper's fixed studies through the runner")
-    g.add_argument("--workers", type=int, default=None, help="parallel worker processes (default: CPU count)")
-    g.add_argument("--scheduler", default=None, help="Dask scheduler address (tcp://host:8786)")
+    g.add_argument("--preset", choices=PRESETS, default=None,
+                   help="one of the paper's fixed studies, or all of them; without sweep axes or --spec: all")
+    g.add_argument("--workers", type=int, default=None, metavar="N", help="parallel worker processes (default: CPU count)")
+    g.add_argument("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler address (tcp://host:8786)")
+    g.add_argument("--scheduler-timeout", type=float, default=10.0, metavar="SECONDS",
+                   help="give up connecting to --scheduler after this long (exit 2)")
     g.add_argument("--isolate", action="store_true",
                    help="every run in a fresh worker process, so that peak_rss_mb is that run's own peak "
                         "(otherwise a reused worker's lifetime maximum: an upper bound); local workers only")
@@ -82,14 +87,28 @@ def run_sweep(tasks, out: Path, workers=None, scheduler=None, stream="stderr", i
         return rows
 
 
+#: Fewest distinct grid sizes from which a time-vs-cells exponent is fitted (two points always fit a line).
+MIN_SIZES_FOR_EXPONENT = 3
+
+
 def fit_exponent(cells, times):
-    """Least-squares slope of log(time) against log(cells) (nan with fewer than 2 distinct sizes)."""
+    """Least-squares slope of log(time) against log(cells); nan with fewer than
+    :data:`MIN_SIZES_FOR_EXPONENT` distinct sizes (two sizes give a line through two points, not a fit)."""
     import numpy as np
     c, t = np.asarray(cells, float), np.asarray(times, float)
     ok = np.isfinite(t) & (t > 0) & (c > 0)
-    if len(set(c[ok])) < 2:
+    if len(set(c[ok])) < MIN_SIZES_FOR_EXPONENT:
         return math.nan
     return float(np.polyfit(np.log(c[ok]), np.log(t[ok]), 1)[0])
+
+
+def exponent_text(pts) -> str:
+    """The fitted exponent of ``pts`` = [(cells, time, ...)], or why there is none."""
+    sizes = len({p[0] for p in pts})
+    e = fit_exponent([p[0] for p in pts], [p[1] for p in pts])
+    if math.isnan(e):
+        return f"too few sizes ({sizes}; an exponent needs {MIN_SIZES_FOR_EXPONENT})"
+    return f"{e:.2f} ({sizes} sizes)"
 
 
 def _f(v, fmt):
@@ -119,38 +138,52 @@ def write_sweep_outputs(rows, out: Path) -> list[Path]:
                      f"{_f(r.get('peak_rss_mb'), '.0f')} |")
     groups = _groups(rows)
     if any(len({c for c, _, _ in pts}) > 1 for pts in groups.values()):
-        lines += ["", "| method / transport | time-vs-cells exponent |", "|---|---:|"]
+        lines += ["", "| method / transport | time-vs-cells exponent |", "|---|---|"]
         for key, pts in groups.items():
-            lines.append(f"| {key} | {_f(fit_exponent([p[0] for p in pts], [p[1] for p in pts]), '.2f')} |")
+            lines.append(f"| {key} | {exponent_text(pts)} |")
     write_atomic(out / "study.md", "\n".join(lines) + "\n")
     paths = [out / "study.csv", out / "study.md"]
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(5.5, 4.2), constrained_layout=True)
+    save_figure(make_scaling(rows), out / "study_scaling.png")
+    save_figure(make_time_objective(rows), out / "study_time_objective.png")
+    plot_cases(rows, out / "study.png")            # solve time per case, one panel per study
+    return paths + [out / "study_scaling.png", out / "study_time_objective.png", out / "study.png"]
+
+
+def make_scaling(rows):
+    """Solve time against cells (log-log) per method / transport, with the fitted exponent (or "too
+    few sizes") in the legend."""
+    groups = _groups(rows)
+    fig = new_figure(6.2, 4.4)
+    ax = fig.add_axes([0.13, 0.12, 0.83, 0.78])
     for key, pts in groups.items():
         pts = sorted(pts)
-        e = fit_exponent([p[0] for p in pts], [p[1] for p in pts])
-        ax.loglog([p[0] for p in pts], [p[1] for p in pts], "o-", label=f"{key} (slope {e:.2f})")
-    ax.set_xlabel("cells nx*ny")
+        ax.loglog([p[0] for p in pts], [p[1] for p in pts], "o-", label=f"{key}: exponent {exponent_text(pts)}")
+    if groups:
+        plain_log_axis(ax.xaxis), plain_log_axis(ax.yaxis)
+    ax.set_xlabel("cells nx·ny")
     ax.set_ylabel("solve time [s]")
-    ax.legend(fontsize=7)
+    ax.set_title("Solve time against grid size", y=1.0)
+    if groups:
+        ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.3)
-    with atomic_path(out / "study_scaling.png", ".png") as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
-    plt.close(fig)
-    fig, ax = plt.subplots(figsize=(5.5, 4.2), constrained_layout=True)
+    return fig
+
+
+def make_time_objective(rows):
+    """Objective against solve time, one marker series per method / transport."""
+    groups = _groups(rows)
+    fig = new_figure(6.2, 4.4)
+    ax = fig.add_axes([0.13, 0.12, 0.83, 0.78])
     for key, pts in groups.items():
         ax.plot([p[1] for p in pts], [p[2] for p in pts], "o", label=key)
     ax.set_xscale("log")
+    plain_log_axis(ax.xaxis)
     ax.set_xlabel("solve time [s]")
-    ax.set_ylabel("objective")
-    ax.legend(fontsize=7)
-    with atomic_path(out / "study_time_objective.png", ".png") as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
-    plt.close(fig)
-    plot_cases(rows, out / "study.png")            # solve time per case, one panel per study
-    return paths + [out / "study_scaling.png", out / "study_time_objective.png", out / "study.png"]
+    ax.set_ylabel("objective J (dimensionless)")
+    ax.set_title("Optimum against solve time (compare within one grid)", y=1.0)
+    if groups:
+        ax.legend(fontsize=7)
+    return fig
 
 
 def _groups(rows):
@@ -175,57 +208,84 @@ def run_sweep_cli(args, prog: str) -> int:
     if getattr(args, "isolate", False) and args.scheduler is not None:
         print(f"{prog}: error: --isolate runs local workers; it cannot be combined with --scheduler", file=sys.stderr)
         return 2
+    timeout = getattr(args, "scheduler_timeout", 10.0)
+    if not (math.isfinite(timeout) and timeout > 0):
+        print(f"{prog}: error: --scheduler-timeout must be a positive number of seconds, got {timeout:g}",
+              file=sys.stderr)
+        return 2
     from ..runtime.cliargs import UsageError, check_path
     from ..runtime.publish import InterruptedAfterPublish, OutputFolder
+    from .runner import SchedulerError, connect_scheduler, quiet_dask_logs
 
     # OUT is locked for the sweep; the study files are staged and published together (runtime.publish)
     folder = OutputFolder(args.out, prog, SWEEP_OUTPUTS, foreign_ok=True)
     try:
         check_path(args.out, "output folder")
         folder.check()
-        folder.lock()
     except (UsageError, ValueError) as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return 2
+    client = None
+    if args.scheduler is not None:      # connected before OUT is touched: a bad address leaves nothing behind
+        try:
+            client = connect_scheduler(args.scheduler, timeout)
+            quiet_dask_logs()
+        except SchedulerError as exc:
+            print(f"{prog}: error: {exc}", file=sys.stderr)
+            return 2
     try:
-        return _sweep_and_publish(args, prog, tasks, folder, InterruptedAfterPublish)
+        try:
+            folder.lock()
+        except ValueError as exc:
+            print(f"{prog}: error: {exc}", file=sys.stderr)
+            return 2
+        try:
+            return _sweep_and_publish(args, prog, tasks, folder, InterruptedAfterPublish, client)
+        finally:
+            folder.unlock()
     finally:
-        folder.unlock()
+        if client is not None:
+            from .compare import _close_client
+            _close_client(client)
 
 
-def _sweep_and_publish(args, prog, tasks, folder, InterruptedAfterPublish) -> int:
+def _sweep_and_publish(args, prog, tasks, folder, InterruptedAfterPublish, client=None) -> int:
+    from ..runtime.signals import exit_code, stopped
     try:
-        rows = run_sweep(tasks, args.out, workers=args.workers, scheduler=args.scheduler,
-                         isolate=getattr(args, "isolate", False))
-    except KeyboardInterrupt:
-        print(f"{prog}: interrupted; finished runs are kept in {args.out / 'runs'} (rerun to resume)", file=sys.stderr)
-        return 130
+        rows = run_sweep(tasks, args.out, workers=args.workers, scheduler=client if client is not None else
+                         args.scheduler, isolate=getattr(args, "isolate", False))
+    except KeyboardInterrupt as exc:
+        print(f"{prog}: {stopped(exc)}; nothing written to {args.out} but the finished runs, kept in "
+              f"{args.out / 'runs'} (rerun to resume)", file=sys.stderr)
+        return exit_code(exc)
     except RuntimeError as exc:
-        print(f"{prog}: error: {exc}", file=sys.stderr)
+        print(f"{prog}: error: {exc}; the runs finished before are kept in {args.out / 'runs'} (the same command "
+              "resumes)", file=sys.stderr)
         return 1
     try:
         names = folder.write_and_publish(lambda stage: [p.name for p in write_sweep_outputs(rows, stage)])
-    except InterruptedAfterPublish:
-        print(f"{prog}: interrupted after the study was published in {args.out}", file=sys.stderr)
-        return 130
-    except KeyboardInterrupt:
-        print(f"{prog}: interrupted while writing; {args.out} keeps its previous study (the runs are stored in "
-              f"{args.out / 'runs'}: the same command writes it again)", file=sys.stderr)
-        return 130
+    except InterruptedAfterPublish as exc:
+        print(f"{prog}: {stopped(exc)} after writing the study to {args.out}", file=sys.stderr)
+        return exit_code(exc)
+    except KeyboardInterrupt as exc:
+        print(f"{prog}: {stopped(exc)} while writing; nothing written: {args.out} keeps its previous study (the runs "
+              f"are stored in {args.out / 'runs'}: the same command writes it again)", file=sys.stderr)
+        return exit_code(exc)
     except (OSError, ValueError) as exc:
         print(f"{prog}: error: cannot write the study to {args.out}: {getattr(exc, 'strerror', None) or exc}",
               file=sys.stderr)
         return 1
     failed = sum(1 for r in rows if r.get("error"))
-    print(f"wrote {', '.join(str(args.out / n) for n in names)} ({len(rows)} runs, {failed} failed)")
+    try:
+        print(f"wrote {', '.join(str(args.out / n) for n in names)} ({len(rows)} runs, {failed} failed)")
+    except KeyboardInterrupt as exc:
+        print(f"{prog}: {stopped(exc)} after writing the study to {args.out}", file=sys.stderr)
+        return exit_code(exc)
     return 0
 
 
-def plot_cases(rows, path: Path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+def make_cases(rows):
+    """Solve time per case, one panel per study (the iterations and the objective written at each bar)."""
     def num(v):
         try:
             v = float(v)
@@ -234,8 +294,13 @@ def plot_cases(rows, path: Path):
         return v if math.isfinite(v) else 0.0
 
     studies = list(dict.fromkeys(r.get("study", "") for r in rows))
-    fig, axes = plt.subplots(1, len(studies), figsize=(4.6 * len(studies), 4.2), squeeze=False, constrained_layout=True)
-    for ax, st in zip(axes[0], studies):
+    # room on the left of each panel for its case names (about 0.06 in per character at 7 pt)
+    label = 0.45 + 0.06 * max([len(str(r.get("case"))) for r in rows] + [1])
+    panel, W, H = 3.6, len(studies) * (label + 3.6 + 0.25), 4.2
+    fig = new_figure(W, H)
+    axes = [fig.add_axes([(k * (label + panel + 0.25) + label) / W, 0.55 / H, panel / W, (H - 1.05) / H])
+            for k in range(len(studies))]
+    for ax, st in zip(axes, studies):
         rs = [r for r in rows if r.get("study", "") == st]
         y = range(len(rs))
         ax.barh(y, [num(r.get("solve_s")) for r in rs], color="tab:blue")
@@ -245,8 +310,11 @@ def plot_cases(rows, path: Path):
         ax.set_yticks(list(y), [str(r.get("case")) for r in rs], fontsize=7)
         ax.invert_yaxis()
         ax.set_xlabel("solve wall time [s]")
-        ax.set_title(st)
+        ax.set_ylabel("case")
+        ax.set_title(f"study: {st}", y=1.0)
         ax.set_xlim(0, 1.6 * max([num(r.get("solve_s")) for r in rs] + [1e-3]))
-    with atomic_path(path, ".png") as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
-    plt.close(fig)
+    return fig
+
+
+def plot_cases(rows, path: Path):
+    save_figure(make_cases(rows), path)

@@ -1,6 +1,7 @@
 """Tests of control/: reflected KDE (eq. "KDE") and the feedback law (eq. "density feedback law using estimation")."""
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 
@@ -342,7 +343,7 @@ def test_feedback_settings_validation(kwargs, match):
 def test_feedback_settings_frozen_and_inf_allowed():
     s = FeedbackSettings(v_max=math.inf)
     assert s.v_max == math.inf
-    with pytest.raises(Exception):
+    with pytest.raises(dataclasses.FrozenInstanceError, match="cannot assign to field 'alpha'"):
         s.alpha = 3.0
 
 

@@ -416,3 +416,35 @@ def test_missing_extra_is_named(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "shapely", None)
     with pytest.raises(ValueError, match=r"needs the Python package shapely: pip install 'swarmfield\[domains\]'"):
         load_domain(tmp_path / "a.geojson", EXT)
+
+
+def test_compare_controllers_domain_axis(tmp_path, capsys):
+    import csv
+    from swarmfield.studies.compare import main
+    out = tmp_path / "cmp"
+    code = main(["--controllers", "diffusion", "--domains", "floor", "harbour", "--max-periods", "1", "--robots", "20",
+                 "--workers", "1", "--out", str(out), "--quiet"])
+    assert code == 0, capsys.readouterr().err
+    rows = list(csv.DictReader(open(out / "runs.csv")))
+    assert {r["domain"] for r in rows} == {"floor", "harbour"}
+    table = (out / "summary.md").read_text()
+    assert "| domain | field |" in table and "| floor | sinc |" in table and "| harbour | sinc |" in table
+    assert (out / "plots" / "floor_sinc_n20_loss0.png").is_file()
+    assert main(["--controllers", "diffusion", "--domains", "nowhere", "--out", str(tmp_path / "x")]) == 2
+
+
+def test_move_mirrors_at_obstacle_faces_and_walls():
+    dom = make_domain("harbour", EXT)             # pier 1 is x in [4, 5], y in [10, 18]
+    X = np.array([[3.9, 12.0], [3.9, 9.9], [5.2, 12.0], [0.1, 5.0], [3.9, 12.0]])
+    Y = np.array([[4.2, 12.0],                    # into the pier's west face: mirrored at x = 4
+                  [4.2, 10.1],                    # diagonally through its south face (at x = 4.05)
+                  [4.9, 12.3],                    # into the east face: mirrored at x = 5
+                  [-0.3, 5.0],                    # through the west wall: mirrored at x = 0
+                  [3.95, 12.0]])                  # a step that stays free: unchanged
+    Z = dom.move(X, Y)
+    assert np.allclose(Z[0], [3.8, 12.0], atol=1e-7)
+    assert np.allclose(Z[2], [5.1, 12.3], atol=1e-7)
+    assert np.allclose(Z[3], [0.3, 5.0], atol=1e-12)
+    assert np.array_equal(Z[4], Y[4])
+    assert dom.contains(Z).all()
+    assert np.allclose(Z[1], [4.2, 9.9], atol=1e-7)       # y mirrored at y = 10

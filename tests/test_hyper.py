@@ -170,3 +170,36 @@ def test_refit_on_rectangles_coarsens_only_when_the_grid_tiles(domain, factor):
         assert coarse._mom[:, 0, 0].sum() == pytest.approx(400)           # every point counted once
     new = refit_online(gp)
     assert np.isfinite(new.signal_variance) and new.length_scale >= 1.5 * c * min(gp._ax.h, gp._ay.h) - 1e-9
+
+
+def test_refit_at_a_period_start_rewrites_that_row_so_progress_summary_and_metrics_agree():
+    """Issue 17: the hyperparameters refitted at t = kT change V on the same data; the row at t = kT
+    must hold that posterior (the one the stopping test and the progress line use), not the old one."""
+    from test_sim import small_config
+    from swarmfield.sim.config import config_from_dict
+    from swarmfield.sim.loop import run_simulation
+    doc = small_config(controller="lawnmower", max_periods=2, stop_rule="relative", gamma_relative=0.05,
+                       eta_relative=0.01).as_dict()
+    doc["gp"]["learn_hyperparameters"] = True
+    doc["gp"].pop("noise_variance")
+    doc["planner"].pop("domain")
+    events = []
+    res = run_simulation(config_from_dict(doc), progress=events.append)
+    by_t = {r["t"]: r for r in res.rows}
+    plans = [e for e in events if e["event"] == "plan"]
+    assert len(plans) == 2 and plans[1]["t"] > 0
+    for e in plans:                       # what the progress line shows is what metrics.csv holds
+        row = by_t[e["t"]]
+        assert row["max_variance"] == e["max_variance"] and row["signal_variance"] == e["signal_variance"]
+        assert row["threshold"] == e["threshold"] == pytest.approx(0.05 * e["signal_variance"])
+        assert e["learned"] is True and e["length_scale"] == row["length_scale"]
+    # the row at T uses the hyperparameters of the period it starts (the same as the rows after it, up
+    # to the last row, which is refitted once more when the run ends at 2T)
+    second = [r for r in res.rows if plans[1]["t"] <= r["t"] < res.rows[-1]["t"]]
+    assert len({r["signal_variance"] for r in second}) == 1
+    assert second[0]["signal_variance"] != res.rows[1]["signal_variance"]
+    done = events[-1]
+    assert done["event"] == "done" and done["max_variance"] == res.rows[-1]["max_variance"]
+    assert float(res.variances[-1].max()) == pytest.approx(res.rows[-1]["max_variance"], rel=1e-6)
+    assert (res.stop_reason == "threshold") == (res.time_to_threshold is not None and
+                                                res.rows[-1]["max_variance"] <= res.rows[-1]["threshold"])

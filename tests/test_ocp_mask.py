@@ -370,3 +370,12 @@ def test_masked_solve_refuses_mass_in_obstacles_and_foreign_warm_starts(door_pla
         pl2.solve(np.where(other, plan.p[0], 0), np.where(other, plan.target, 0), warm_start=plan)
     with pytest.raises(ValueError, match="free-cell mask"):
         ReferencePlanner(PlannerSettings(**DOOR)).solve(plan.p[0], plan.target, warm_start=plan)
+
+
+def test_masked_grg_reaches_the_ipopt_optimum(door_plan):
+    pl, plan, free = door_plan
+    g = pl.grid
+    grg = ReferencePlanner(PlannerSettings(**DOOR, method="grg"), free=free).solve(*door_densities(g, free))
+    assert grg.meta["solver"]["success"] and grg.meta["method"] == "grg"
+    assert grg.meta["objective"] == pytest.approx(plan.meta["objective"], rel=1e-4)
+    assert np.all(grg.p[:, ~free] == 0)

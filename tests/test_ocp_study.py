@@ -1,4 +1,4 @@
-"""solver-study: a quick study runs, writes its table, and the two Hessian options agree on the optimum."""
+"""solver-study: a quick study (--preset; --study, the old spelling, is covered in test_publish) runs, writes its table, and the two Hessian options agree on the optimum."""
 import csv
 
 import pytest
@@ -7,7 +7,7 @@ from swarmfield.studies.solver_study import main
 
 
 def test_quick_hessian_study(tmp_path, capsys):
-    assert main(["--study", "hessian", "--quick", "--out", str(tmp_path)]) == 0
+    assert main(["--preset", "hessian", "--quick", "--out", str(tmp_path)]) == 0
     rows = list(csv.DictReader(open(tmp_path / "study.csv")))
     assert [r["study"] for r in rows] == ["hessian", "hessian"]
     assert all(r["status"] in ("Solve_Succeeded", "Solved_To_Acceptable_Level") for r in rows)
@@ -19,7 +19,7 @@ def test_quick_hessian_study(tmp_path, capsys):
     # the fixed study went through the sweep runner: its runs are stored, and a rerun resumes
     assert len(list((tmp_path / "runs").glob("*.json"))) == 2
     capsys.readouterr()
-    assert main(["--study", "hessian", "--quick", "--out", str(tmp_path)]) == 0
+    assert main(["--preset", "hessian", "--quick", "--out", str(tmp_path)]) == 0
     assert "2 runs, 2 already done" in capsys.readouterr().err
     assert list(csv.DictReader(open(tmp_path / "study.csv"))) == rows
 
@@ -27,13 +27,13 @@ def test_quick_hessian_study(tmp_path, capsys):
 def test_out_must_be_a_folder(tmp_path, capsys):
     f = tmp_path / "file"
     f.write_text("x")
-    assert main(["--study", "hessian", "--quick", "--out", str(f)]) == 2
+    assert main(["--preset", "hessian", "--quick", "--out", str(f)]) == 2
     assert "not a folder" in capsys.readouterr().err
     assert f.read_text() == "x"
 
 
 def test_usage_errors_are_one_line(tmp_path, capsys):
-    assert main(["--study", "nonsense", "--out", str(tmp_path / "s")]) == 2
+    assert main(["--preset", "nonsense", "--out", str(tmp_path / "s")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("solver-study: error: argument --study: invalid choice"), err
+    assert len(err) == 1 and err[0].startswith("solver-study: error: argument --preset: invalid choice"), err
     assert not (tmp_path / "s").exists()

@@ -138,13 +138,13 @@ def test_a_sweep_into_a_locked_folder_is_refused_before_any_run(tmp_path, capsys
 def test_isolate_gives_each_run_its_own_peak_memory(tmp_path, capsys):
     """Without isolation a reused worker reports its lifetime maximum (the large run's peak for the
     small run after it); with --isolate each run's peak is its own."""
-    args = ["--grid", "72", "8", "--intervals", "2", "--modes", "3", "--solver", "ipopt", "--workers", "1"]
+    args = ["--grid", "160", "8", "--intervals", "2", "--modes", "3", "--solver", "ipopt", "--workers", "1"]
     peaks = {}
     for mode in ("reused", "isolated"):
         extra = ["--isolate"] if mode == "isolated" else []
         assert study.main(args + extra + ["--out", str(tmp_path / mode)]) == 0
         rows = list(csv.DictReader(open(tmp_path / mode / "study.csv")))
-        assert [int(r["nx"]) for r in rows] == [72, 8]
+        assert [int(r["nx"]) for r in rows] == [160, 8]
         assert {r["peak_rss_scope"] for r in rows} == {"run" if mode == "isolated" else "worker"}
         peaks[mode] = [float(r["peak_rss_mb"]) for r in rows]
     big, small = peaks["reused"]

@@ -20,3 +20,21 @@ def test_readme_python_example_runs(tmp_path, monkeypatch):
     v = namespace["v"]
     assert v.shape == (100, 2) and np.all(np.isfinite(v))
     assert np.all(np.hypot(v[:, 0], v[:, 1]) <= namespace["FeedbackSettings"]().v_max + 1e-12)
+
+
+def test_readme_is_a_short_guide_with_the_setup_commands_on_the_first_screen():
+    lines = README.read_text().splitlines()
+    assert len(lines) <= 400, f"README has {len(lines)} lines; keep it a guide (research notes go to docs/)"
+    first_screen = "\n".join(lines[:30])
+    assert "python3 -m venv .venv && .venv/bin/pip install . && .venv/bin/simulate-swarm --out run" in first_screen
+    assert ("python3 -m venv .venv && .venv/bin/pip install '.[test]' && .venv/bin/python -m pytest -q"
+            in first_screen)
+
+
+def test_readme_links_point_to_files_in_the_repository():
+    root = README.parent
+    targets = re.findall(r"\]\(([^)#\s]+)\)", README.read_text())
+    local = [t for t in targets if "://" not in t]
+    assert local, "README links to no file (the picture at least)"
+    missing = [t for t in local if not (root / t).exists()]
+    assert not missing, f"README links to missing files: {missing}"

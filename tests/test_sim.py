@@ -1,6 +1,7 @@
 """sim/: fields, reflecting dynamics, configuration, and Algorithm 1 end to end on small problems."""
 import copy
 import csv
+import dataclasses
 import json
 import math
 
@@ -324,7 +325,7 @@ def test_bad_toml_files(tmp_path):
 
 
 def test_sim_settings_are_frozen():
-    with pytest.raises(Exception):
+    with pytest.raises(dataclasses.FrozenInstanceError, match="cannot assign to field 'robots'"):
         SimSettings().robots = 3
 
 

@@ -48,7 +48,21 @@ def test_normal_run_writes_metrics_summary_and_figures(tmp_path, cfg, capsys):
     assert code == 0, err
     lines = err.strip().splitlines()
     assert lines[0].startswith("simulate-swarm: t =") and "sup V" in lines[0] and "it," in lines[0]
-    assert "stopped (max_time)" in err
+    assert "(stopped: time limit (--max-periods)); writing the outputs" in err
+    for name in ("panels.png", "convergence.png", "field_error.png"):       # a line while each is written
+        assert f"simulate-swarm: writing {name} ..." in lines
+    # the headline: sup V against the threshold, mean V and RMSE at the start and the end
+    rows = [line.split(",") for line in (out / "metrics.csv").read_text().splitlines()]
+    col = {c: i for i, c in enumerate(rows[0])}
+    first, last = rows[1], rows[-1]
+
+    def sup(r, c):
+        return float(r[col[c]])
+    assert lines[-2] == (f"simulate-swarm: sup V {sup(first, 'max_variance'):.4f} -> {sup(last, 'max_variance'):.4f} "
+                         f"(threshold 0.1), never at or below it; stopped at t = 1.75 s: time limit (--max-periods)")
+    assert lines[-1].startswith(f"simulate-swarm: mean V {sup(first, 'mean_variance'):.4f} -> "
+                                f"{sup(last, 'mean_variance'):.4f}; RMSE of the estimate {sup(first, 'rmse'):.4f} at "
+                                f"t = 0 -> {sup(last, 'rmse'):.4f} at t = 1.75 s; simulation wall time ")
     for name in ("metrics.csv", "replans.csv", "summary.json", "config.toml", "trajectory.npz", "panels.png",
                  "convergence.png", "field_error.png", MARKER):
         assert (out / name).is_file(), name

@@ -184,3 +184,20 @@ def test_norm_planner_solution_is_feasible_and_faster_than_l1():
         assert sups[limit] <= s.v_max * (1 + 1e-6)
         assert plan.p.min() >= 0.0
     assert sups["norm"] > sups["l1"]
+
+
+def test_norm_polygon_rows_reach_the_nlp_unscrambled():
+    """The NLP's polygon rows are exactly kron(I_N, rows) on the auxiliary (B_x, B_y): a CasADi DM
+    built from a sparsity and NumPy's row-major non-zeros would take them in column-major order."""
+    import casadi as ca
+    from swarmfield.ocp.problem import TransportProblem, norm_polygon
+    s = PlannerSettings(**{**N_S, "speed_limit": "norm"})
+    prob = TransportProblem(s)
+    nlp = prob.nlp
+    rows, bound = norm_polygon(s.v_max)
+    n_b = 2 * prob.N
+    B = nlp["x"][-n_b:]
+    J = ca.Function("J", [nlp["x"], nlp["p"]], [ca.jacobian(nlp["g"][n_b:], B)])
+    Jv = np.array(J(np.zeros(nlp["x"].shape[0]), np.zeros(nlp["p"].shape[0])))
+    np.testing.assert_array_equal(Jv, np.kron(np.eye(prob.N), rows))
+    assert np.all(prob.ubg[n_b:] == bound)

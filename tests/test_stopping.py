@@ -62,6 +62,8 @@ def test_robust_rule_is_the_relative_rule_when_the_length_scale_is_not_longer():
     assert rob.threshold(gp) == rel.threshold(gp) == pytest.approx(0.1)
     assert rob.tolerance(gp) == rel.tolerance(gp) == pytest.approx(0.05)
     assert rob.last_check_variance is None
+    from swarmfield.sim.loop import stop_threshold
+    assert stop_threshold(_robust_config(), 0.5) == pytest.approx(0.2)       # unbound: the relative level
     ab = make_stop_rule(SimSettings())
     assert isinstance(ab, AbsoluteThreshold) and ab.threshold(gp) == 0.1 and ab.tolerance(gp) == 0.05 and ab.stops
 
@@ -171,3 +173,27 @@ def test_travel_time_limit_goes_around_obstacles():
     walled = travel_time_limit(cfg, speed=1.0, free=free)
     # from the box [0, 7]^2 up past the wall's end and down to the far corner (19.5, 0.5): > 12 + 17 m
     assert walled > open_limit + 8.0 and walled >= 29.0
+
+
+def test_closed_loop_records_the_robust_threshold_and_stops_at_it():
+    from swarmfield.sim.loop import run_simulation
+    doc = {"sim": {"robots": 30, "domain": [0.0, 10.0, 0.0, 10.0], "start_box": [0.0, 4.0, 0.0, 4.0],
+                   "period": 1.75, "max_periods": 3, "substeps": 2, "controller": "lawnmower", "stop_rule": "robust"},
+           "gp": {"length_scale": 1.5, "learn_hyperparameters": True, "hyper_maxiter": 4},
+           "kde": {"bins": [32, 32]}, "planner": {"nx": 16, "ny": 16}}
+    cfg = config_from_dict(doc)
+    res = run_simulation(cfg, stop_rule=make_stop_rule(cfg.sim, stops=False))
+    assert res.stop_reason == "max_time"
+    rel = [0.4 * r["signal_variance"] for r in res.rows]
+    thr = [r["threshold"] for r in res.rows]
+    assert all(t <= q * (1 + 1e-12) for t, q in zip(thr, rel))
+    assert any(r["length_scale"] > 1.5 and t < 0.99 * q for r, t, q in zip(res.rows, thr, rel))
+    # the same run with the rule stopping: the same trajectory (the check does not touch the run's
+    # random stream or its GP) up to where it stops, at a period start
+    res2 = run_simulation(cfg)
+    assert res2.stop_reason in ("threshold", "max_time")
+    n = len(res2.rows)
+    assert [r["rmse"] for r in res2.rows] == [r["rmse"] for r in res.rows[:n]]
+    # (the twin GP is updated at other moments when the rule is also asked at period starts: round-off)
+    np.testing.assert_allclose([r["threshold"] for r in res2.rows], [r["threshold"] for r in res.rows[:n]],
+                               rtol=1e-9)

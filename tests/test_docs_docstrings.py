@@ -1,0 +1,70 @@
+"""The documentation's docstring hook (docs/_ext/plaintext_docstrings.py) turns this code base's
+plain-text docstrings into reST that docutils parses without a warning, and leaves valid reST alone."""
+import importlib.util
+import io
+from pathlib import Path
+
+import pytest
+
+docutils_core = pytest.importorskip("docutils.core")
+
+EXT = Path(__file__).resolve().parents[1] / "docs" / "_ext" / "plaintext_docstrings.py"
+
+
+def _fix_lines():
+    spec = importlib.util.spec_from_file_location("plaintext_docstrings", EXT)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod.fix_lines
+
+
+def _warnings(text: str) -> str:
+    stream = io.StringIO()
+    docutils_core.publish_doctree(text, settings_overrides={"warning_stream": stream, "report_level": 2,
+                                                            "halt_level": 5})
+    return stream.getvalue()
+
+
+PLAIN = """Gains of the feedback law.
+
+alpha : feedback gain (> 0), |v| <= v_max
+sigma : diffusion coefficient of the robots'
+        Brownian motion; must match the simulation.
+p_floor : lower bound on p_hat
+
+Formulation (single shooting):
+
+    min_a   w_f KLs(p(t_f), q)
+    s.t.    sum |a| <= v_max
+
+with KLs(p, q) = sum (p - q) log(p / q) and ``a|b`` literal.
+"""
+
+VALID = """A valid docstring.
+
+Example::
+
+    x = |y|
+
+* item one
+  continued
+* item two
+
+``code`` and *emphasis*.
+"""
+
+
+def test_plain_text_docstring_parses_without_warnings_after_the_hook():
+    fix = _fix_lines()
+    assert _warnings(PLAIN), "the sample should be invalid reST without the hook"
+    fixed = "\n".join(fix(PLAIN.split("\n")))
+    assert _warnings(fixed) == ""
+    assert "Formulation (single shooting)::" in fixed          # the formula block becomes a literal block
+    assert "\\|v\\|" not in fixed                               # inside the literal block: kept verbatim
+    assert "``a|b``" in fixed                                   # inline literals untouched
+
+
+def test_valid_rest_is_left_alone():
+    fix = _fix_lines()
+    assert _warnings(VALID) == ""
+    assert fix(VALID.split("\n")) == VALID.split("\n")

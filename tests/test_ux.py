@@ -1,0 +1,285 @@
+"""Issue 17: what a newcomer meets -- --version, python -m swarmfield, plain help, figures with content,
+thread limits that the environment overrides."""
+import argparse
+import copy
+import json
+import os
+import pickle
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+COMMANDS = {
+    "plan-reference": "swarmfield.cli.plan_reference",
+    "simulate-swarm": "swarmfield.cli.simulate_swarm",
+    "compare-controllers": "swarmfield.studies.compare",
+    "solver-study": "swarmfield.studies.solver_study",
+}
+
+
+# ----------------------------------------------------------------------------------- commands
+@pytest.mark.parametrize("prog", COMMANDS)
+def test_version_on_every_command(prog, capsys):
+    import importlib
+    import swarmfield
+    with pytest.raises(SystemExit) as info:
+        importlib.import_module(COMMANDS[prog]).main(["--version"])
+    assert info.value.code == 0
+    assert capsys.readouterr().out.strip() == f"{prog} swarmfield {swarmfield.__version__}"
+
+
+def test_python_m_swarmfield_lists_the_commands_and_loads_nothing_heavy():
+    code = ("import runpy, sys; sys.argv = ['swarmfield']\n"
+            "try:\n    runpy.run_module('swarmfield', run_name='__main__')\nexcept SystemExit as e:\n    rc = e.code\n"
+            "heavy = sorted(m for m in sys.modules if m.split('.')[0] in ('numpy', 'scipy', 'casadi', 'matplotlib'))\n"
+            "print('HEAVY', heavy, rc)")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    lines = proc.stdout.splitlines()
+    assert lines[-1] == "HEAVY [] 0", proc.stdout + proc.stderr
+    listed = [line.split()[0] for line in lines if line.startswith("  ")]
+    assert listed == list(COMMANDS)
+    assert all(len(line.split(None, 1)[1]) > 20 for line in lines if line.startswith("  "))   # a line each
+    assert "--help" in proc.stdout
+
+
+def test_python_m_swarmfield_runs_a_command_and_rejects_unknown_ones(capsys):
+    from swarmfield.__main__ import main
+    with pytest.raises(SystemExit) as info:
+        main(["compare-controllers", "--version"])
+    assert info.value.code == 0 and capsys.readouterr().out.startswith("compare-controllers swarmfield ")
+    assert main(["simulate-swarms"]) == 2
+    assert "unknown command 'simulate-swarms'" in capsys.readouterr().err
+
+
+def _parsers():
+    from swarmfield.cli import plan_reference, simulate_swarm
+    from swarmfield.studies import compare
+    return {"plan-reference": plan_reference.build_parser(), "simulate-swarm": simulate_swarm.build_parser(),
+            "compare-controllers": compare.build_parser()}
+
+
+@pytest.mark.parametrize("prog", ["plan-reference", "simulate-swarm", "compare-controllers"])
+def test_help_is_plain_text_with_each_default_stated_once(prog):
+    parser = _parsers()[prog]
+    text = parser.format_help()
+    assert "``" not in text and ":mod:" not in text and ":func:" not in text
+    formatter = parser._get_formatter()
+    helped = 0
+    for action in parser._actions:
+        if action.help in (None, argparse.SUPPRESS):
+            continue
+        line = formatter._get_help_string(action) % {"default": action.default}
+        assert line.count("(default") <= 1, line
+        helped += 1
+        # an option with a default to show states it (by hand or by the formatter)
+        if action.default not in (None, False, argparse.SUPPRESS) and action.option_strings[0] not in ("-h",):
+            assert "(default" in line, line
+    assert helped >= 10
+
+
+def test_solver_study_has_one_documented_way_to_run_the_fixed_studies(capsys):
+    from swarmfield.studies.solver_study import main
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    text = capsys.readouterr().out
+    assert "--preset" in text and "--study" not in text and "``" not in text
+    assert main(["--study", "hessian", "--preset", "ipopt", "--quick"]) == 2
+    assert "--study is the old name of --preset" in capsys.readouterr().err
+
+
+# ----------------------------------------------------------------------------------- threads
+def _pool_threads(_task=None):
+    from threadpoolctl import threadpool_info
+    return [{"threads": [p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"],
+             "env": os.environ.get("OPENBLAS_NUM_THREADS")}]
+
+
+def test_limit_threads_sets_one_and_the_environment_wins(monkeypatch):
+    pytest.importorskip("threadpoolctl")
+    import numpy  # noqa: F401 -- a BLAS must be loaded for threadpoolctl to see it
+    from swarmfield.runtime import threads
+    for var in threads.ENV_VARS:
+        monkeypatch.delenv(var, raising=False)
+    assert threads.environment_sets_threads() is None
+    with threads.limit_threads(1):
+        assert set(_pool_threads()[0]["threads"]) == {1}
+    monkeypatch.setenv("OMP_NUM_THREADS", "3")
+    assert threads.environment_sets_threads() == "OMP_NUM_THREADS"
+    assert isinstance(threads.limit_threads(1), threads._NoLimit)          # nothing changed
+    assert threads.thread_info()["source"] == "environment: OMP_NUM_THREADS=3"
+    wrapped = pickle.loads(pickle.dumps(threads.limited(_pool_threads, 1)))
+    assert wrapped.fn is _pool_threads and wrapped.n == 1
+
+
+def test_limit_reaches_scipys_own_blas_loaded_later():
+    """NumPy and SciPy wheels each bundle an OpenBLAS; SciPy's loads with scipy.linalg, possibly after
+    the command limited the threads: the limit must reach it too (fresh interpreter, nothing pinned)."""
+    pytest.importorskip("threadpoolctl")
+    if (os.cpu_count() or 1) < 2:
+        pytest.skip("one core: every BLAS starts with one thread anyway")
+    from swarmfield.runtime.threads import ENV_VARS
+    env = {k: v for k, v in os.environ.items() if k not in ENV_VARS}
+    code = ("from swarmfield.runtime.threads import limit_threads\nlimit_threads(1)\nimport scipy.linalg\n"
+            "from threadpoolctl import threadpool_info\n"
+            "print(sorted(p['num_threads'] for p in threadpool_info() if p['user_api'] == 'blas'))")
+    proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    pools = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert pools and set(pools) == {1}, proc.stdout + proc.stderr
+
+
+def test_sweep_workers_run_one_blas_thread(tmp_path, monkeypatch):
+    pytest.importorskip("threadpoolctl")
+    from swarmfield.runtime import threads
+    from swarmfield.studies.runner import run_tasks
+    for var in threads.ENV_VARS:
+        monkeypatch.delenv(var, raising=False)
+    rows = run_tasks([{"i": 0}, {"i": 1}], _pool_threads, tmp_path / "runs", workers=2, stream=None)
+    assert [r[0]["threads"] and set(r[0]["threads"]) for r in rows] == [{threads.WORKER_THREADS}] * 2
+    # and a BLAS a task loads later reads the worker's environment
+    assert [r[0]["env"] for r in rows] == [str(threads.WORKER_THREADS)] * 2
+    assert threads.environment_sets_threads() is None          # this process's environment is untouched
+
+
+# ----------------------------------------------------------------------------------- figures
+@pytest.fixture(scope="module")
+def result():
+    from test_sim import SMALL
+    from swarmfield.sim.config import config_from_dict
+    from swarmfield.sim.loop import run_simulation
+    doc = copy.deepcopy(SMALL)
+    doc["sim"].update(max_periods=2, gamma=0.0)
+    return run_simulation(config_from_dict(doc))
+
+
+def _labels(fig):
+    return [(a.get_xlabel(), a.get_ylabel(), a.get_title()) for a in fig.axes]
+
+
+def test_panels_figure_content(result):
+    from swarmfield.sim.figures import make_panels, panel_snapshots
+    fig = make_panels(result)
+    ncol = len(panel_snapshots(result))
+    bars = [a for a in fig.axes if getattr(a, "_colorbar", None) is not None]
+    grid = [a for a in fig.axes if a not in bars]
+    assert len(grid) == 4 * ncol
+    assert len(bars) == 4 and all(b.get_ylabel() for b in bars)            # four colour bars, each labelled
+    assert sum(len(a.images) for a in grid) == 3 * ncol                    # p_hat, f_bar, sqrt(V) per column
+    quivers = [a for a in grid if any(type(c).__name__ == "Quiver" for c in a.collections)]
+    assert len(quivers) == sum(sn.velocity is not None for sn in panel_snapshots(result))
+    assert [a.get_xlabel() for a in grid[-ncol:]] == ["x [m]"] * ncol
+    assert all(a.get_ylabel().endswith("y [m]") for a in grid[::ncol])
+    assert all(a.get_title().startswith("t = ") for a in grid[:ncol])
+    assert "[1/m²]" in bars[0].get_ylabel() and "[m/s]" in bars[3].get_ylabel()
+    assert fig.get_suptitle()
+
+
+def test_convergence_figure_has_no_duplicated_curve(result):
+    from swarmfield.sim.figures import make_convergence
+    fig = make_convergence(result)
+    assert len(fig.axes) == 4 and all(t and y for _, y, t in _labels(fig))
+    n = len(result.rows)
+    curves = [ln.get_ydata() for a in fig.axes for ln in a.lines if len(ln.get_ydata()) == n]
+    assert len(curves) == 5                    # sup V, mean V, RMSE, tracking error, speed (no L2 = RMSE x c)
+    norm = [np.asarray(c, float) / np.nanmax(np.abs(c)) for c in curves]
+    for i in range(len(norm)):
+        for j in range(i):
+            assert not np.allclose(norm[i], norm[j], equal_nan=True), (i, j)
+    first = fig.axes[0]
+    assert [ln.get_label() for ln in first.lines[:2]] == ["sup V", "mean V"] and first.get_legend() is not None
+
+
+def test_field_error_colour_bar_states_clipping(result):
+    from swarmfield.sim.figures import make_field_error
+    clean = copy.copy(result)
+    clean.mean = result.f_true.copy()
+    fig = make_field_error(clean)
+    assert sum(len(a.images) for a in fig.axes) == 3
+    assert [a.get_xlabel() for a in fig.axes[:3]] == ["x [m]"] * 3
+    assert not any("clipped" in a.get_ylabel() for a in fig.axes)
+    over = copy.copy(result)
+    over.mean = result.f_true + 0.5 * (result.f_true.max() - result.f_true.min())
+    fig = make_field_error(over)
+    bar = [a for a in fig.axes if getattr(a, "_colorbar", None) is not None][1]   # the prediction's colour bar
+    lo, hi = float(result.f_true.min()), float(result.f_true.max())
+    assert f"clipped to [{lo:.3g}, {hi:.3g}]" in bar.get_ylabel()
+
+
+def test_gif_has_one_frame_per_measurement(result, tmp_path):
+    PIL = pytest.importorskip("PIL.Image")
+    from swarmfield.sim.figures import write_animation
+    write_animation(result, tmp_path / "a.gif")
+    with PIL.open(tmp_path / "a.gif") as im:
+        assert im.n_frames == len(result.times)
+        im.seek(im.n_frames - 1)
+        rgb = np.asarray(im.convert("RGB"))
+    assert rgb.std() > 10                                  # a picture, not a blank frame
+
+
+def test_outputs_record_each_figure_time_and_report_progress(result, tmp_path):
+    from swarmfield.sim.outputs import write_outputs
+    seen = []
+    files = write_outputs(result, tmp_path, figures=True, gif=False, progress=seen.append)
+    assert seen == ["panels.png", "convergence.png", "field_error.png"]
+    timings = json.loads((tmp_path / "summary.json").read_text())["output_timings_s"]
+    assert set(timings) == {"tables", *seen} and all(v > 0 for v in timings.values())
+    assert set(seen) <= set(files)
+
+
+def test_plan_figure_content():
+    from swarmfield.ocp import PlannerSettings, ReferencePlanner
+    from swarmfield.ocp.figures import make_plan_figure
+    from swarmfield.ocp.grid import Grid
+    from swarmfield.sim.scenario import box_density, first_step_target
+    s = PlannerSettings(nx=10, ny=10, n_intervals=2, n_modes_x=2, n_modes_y=2)
+    grid = Grid(s.domain, s.nx, s.ny)
+    plan = ReferencePlanner(s).solve(box_density(grid), first_step_target(grid, seed=0)[0], t0=0.0)
+    fig = make_plan_figure(plan, n_snapshots=3)
+    image_axes = [a for a in fig.axes if a.images]
+    assert len(image_axes) == 4 and image_axes[-1].get_title() == "target p_f"
+    assert all(a.get_xlabel() == "x [m]" for a in image_axes) and image_axes[0].get_ylabel() == "y [m]"
+    assert sum(1 for a in image_axes for c in a.collections if type(c).__name__ == "Quiver") == 3
+    assert fig.axes[-1].get_ylabel() == "density [1/m²]"
+
+
+# ----------------------------------------------------------------------------------- study plots
+def _rows(sizes, exponent=1.5):
+    return [{"study": "s", "case": f"n{n}", "method": "ipopt", "kernel": "compiled", "nx": n, "ny": n,
+             "solve_s": 1e-3 * (n * n) ** exponent, "objective": 1.0, "iterations": 5} for n in sizes]
+
+
+def test_no_exponent_from_fewer_than_three_sizes():
+    from swarmfield.studies.sweepcli import exponent_text, fit_exponent, make_scaling
+    two, three = _rows([8, 16]), _rows([8, 16, 32])
+    assert np.isnan(fit_exponent([64, 256], [1.0, 4.0]))
+    assert fit_exponent([r["nx"] ** 2 for r in three], [r["solve_s"] for r in three]) == pytest.approx(1.5)
+    assert exponent_text([(64, 1.0, 0), (256, 4.0, 0)]).startswith("too few sizes (2")
+    leg = [t.get_text() for t in make_scaling(two).axes[0].get_legend().get_texts()]
+    assert len(leg) == 1 and "too few sizes" in leg[0] and "nan" not in leg[0]
+    leg = [t.get_text() for t in make_scaling(three).axes[0].get_legend().get_texts()]
+    assert leg == ["ipopt / compiled: exponent 1.50 (3 sizes)"]
+
+
+def test_study_md_says_too_few_sizes(tmp_path):
+    from swarmfield.studies.sweepcli import write_sweep_outputs
+    write_sweep_outputs(_rows([8, 16]), tmp_path)
+    md = (tmp_path / "study.md").read_text()
+    assert "too few sizes (2; an exponent needs 3)" in md and "nan" not in md
+
+
+def test_compare_plot_one_curve_per_controller_with_labels():
+    from swarmfield.studies.compare import make_plot, scenario_curves
+    def rows(scale):
+        return [{"t_T": k / 2, "rmse": scale / (1 + k), "max_variance": 0.25 * scale / (1 + k), "threshold": 0.1}
+                for k in range(5)]
+    runs = [({"preset": "paper", "controller": c, "field": "sinc", "robots": 20, "robot_loss": 0.0}, rows(s))
+            for c, s in (("feedback", 1.0), ("feedback", 1.1), ("lawnmower", 2.0))]
+    curves = scenario_curves(runs)
+    fig = make_plot(("", "sinc", 20, 0.0), curves[("", "sinc", 20, 0.0)], 0.1)   # (domain, field, robots, loss)
+    rmse_ax, var_ax = fig.axes
+    assert [ln.get_label() for ln in rmse_ax.lines] == ["feedback", "lawnmower"]
+    assert len(rmse_ax.collections) == 1                   # a min-max band only where there are two seeds
+    assert "[field units]" in rmse_ax.get_ylabel() and rmse_ax.get_xlabel() == "t / T (periods)"
+    assert var_ax.get_yscale() == "log" and var_ax.get_title()
+    np.testing.assert_allclose(var_ax.lines[1].get_ydata(), [0.25 * 2.0 / (1 + k) / 0.1 for k in range(5)])
