@@ -235,8 +235,17 @@ def run(argv=None) -> int:
             raise InputError("this planner (ocp.ReferencePlanner) does not support obstacles yet") from None
     else:
         planner = ReferencePlanner(settings)
+    extra = {}
+    if settings.objective == "information":
+        # the default scenario's inputs: V_0 of the first measurements, 100 robots, Δt = 0.875 s, the GP defaults
+        from ..ocp.objectives import InformationInputs
+        from ..regression import GPSettings
+        from ..sim.scenario import N_ROBOTS, first_step_variance
+        gs = GPSettings()
+        extra["information"] = InformationInputs(first_step_variance(grid, seed=args.seed), N_ROBOTS, 0.875,
+                                                 gs.noise_variance, gs.length_scale)
     try:
-        plan = planner.solve(p0, target, t0=args.t0, warm_start=warm)
+        plan = planner.solve(p0, target, t0=args.t0, warm_start=warm, **extra)
     except PlannerError as exc:
         print(f"{PROG}: error: {exc}; no plan written", file=sys.stderr)
         return 1

@@ -76,6 +76,7 @@ class ReferencePlanner:
             raise ValueError(f"IPOPT rejected the options: {reason}") from None
         self.build_time = time.perf_counter() - t0
         self._grg = None
+        self._info, self._info_meta = None, None
 
     @property
     def grid(self) -> Grid:
@@ -116,20 +117,27 @@ class ReferencePlanner:
 
     # ------------------------------------------------------------------ solve
     def solve(self, p0: np.ndarray, target: np.ndarray, t0: float = 0.0,
-              warm_start: ReferencePlan | None = None, method: str | None = None) -> ReferencePlan:
+              warm_start: ReferencePlan | None = None, method: str | None = None,
+              information=None) -> ReferencePlan:
         """Solve eq. "optimization problem" from density p0 towards target p_f; both (nx, ny) cell densities.
 
         Both are validated and normalised; p0 is mixed with ``initial_floor`` of the uniform density
         (the plan's p[0]).  With a free-cell mask both must be zero on blocked cells (mass there above
         round-off, :data:`ocp.mask.BLOCKED_MASS_TOL`, is refused), are zeroed there and normalised over the
         free cells, and the floors are uniform over the free cells.  ``method`` (default ``settings.method``): "ipopt" (the NLP in CasADi) or "grg" (the paper's
-        generalized reduced gradient, :mod:`ocp.grg`, a baseline).  Raises ``ValueError`` on bad
+        generalized reduced gradient, :mod:`ocp.grg`, a baseline).  ``information``
+        (:class:`ocp.objectives.InformationInputs`: current GP variance on the grid, robots, measurement
+        interval, noise variance, length scale) is required by ``objective = "information"`` and
+        ignored otherwise (blocked cells of a mask get no weight in it).  Raises ``ValueError`` on bad
         densities and :class:`PlannerError` when the solver returns no usable solution.
         """
         if method is None:
             method = self.settings.method
         if method not in METHODS:
             raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+        if method == "grg" and self.settings.objective != "symmetric-kl":
+            raise ValueError(f"method 'grg' minimises the symmetric KL only; planner.objective is "
+                             f"{self.settings.objective!r}: use method 'ipopt'")
         if method == "grg" and self.settings.speed_limit != "l1":
             raise ValueError(f"method 'grg' projects onto the l1 speed limit only; planner.speed_limit is "
                              f"{self.settings.speed_limit!r}: use method 'ipopt'")
@@ -139,6 +147,17 @@ class ReferencePlanner:
         target = normalize_free(g, target, self.free, "target density")
         t0 = real_scalar(t0, "plan start time t0")
         q = P.floored_target(target)
+        info = None
+        if s.objective == "information":
+            if information is None:
+                raise ValueError("planner.objective = 'information' needs solve(..., information=InformationInputs(...))")
+            info = information.parameters(g)
+            info[-1] *= s.information_efficiency
+            if self.free is not None:        # blocked cells: (almost) no variance to remove, no weight
+                n = g.nx * g.ny
+                v0 = info[:n].reshape(g.shape, order="F")
+                info[:n] = np.where(self.free, v0, 1e-12 * float(v0.max())).ravel(order="F")
+        self._info, self._info_meta = info, (information.meta() if info is not None else None)
 
         coef0 = self.initial_coefficients(warm_start, t0)
         # scale the initial guess into the admissible set, then start strictly interior
@@ -158,7 +177,7 @@ class ReferencePlanner:
                 raise PlannerError(f"GRG failed: {summary['status']} after {summary['iterations']} iterations", summary)
             return self._package(p0, q, target, t0, warm_start, coef, objective, summary)
 
-        par = P.parameters(p0, q)
+        par = P.parameters(p0, q, info)
         x0 = P.initial_point(P.coef_to_vector(coef0))
         t_start = time.perf_counter()
         with _interrupt_guard() as interrupted:
@@ -200,8 +219,9 @@ class ReferencePlanner:
             ratio = sums.sum(axis=1) / s.v_max
         coef = coef / np.maximum(ratio, 1.0)[:, None, None, None]
         logq = P.log_target(q)
-        f = float(P.objective(P.coef_to_vector(coef), p0, q, logq))
-        f0 = float(P.objective(P.coefficients_from_solution(x0), p0, q, logq))
+        extra = [] if self._info is None else [self._info]
+        f = float(P.objective(P.coef_to_vector(coef), p0, q, logq, *extra))
+        f0 = float(P.objective(P.coefficients_from_solution(x0), p0, q, logq, *extra))
         return (coef, f) if np.isfinite(f) and f < f0 else None
 
     def grg_solver(self):
@@ -216,7 +236,8 @@ class ReferencePlanner:
         a = P.coef_to_vector(coef)
         snapshots = P.trajectory(p0, coef)
         logq = P.log_target(q)
-        terms = [float(v) for v in P.objective_terms(a, p0, q, logq)]
+        info = getattr(self, "_info", None) if s.objective == "information" else None
+        terms = [float(v) for v in P.objective_terms(a, p0, q, logq, *([] if info is None else [info]))]
         kl0 = float(P.sym_kl(p0, q, logq))
         kl_end = float(P.sym_kl(snapshots[-1], q, logq))
         meta = {
@@ -230,6 +251,11 @@ class ReferencePlanner:
             "build_time_s": self.build_time,
             "objective": float(objective),
             "objective_terms": {"terminal": terms[0], "running": terms[1], "energy": terms[2]},
+            "objective_kind": s.objective,
+            **({"information": {**self._info_meta, "power": s.information_power, "weight": s.information_weight,
+                                "efficiency": s.information_efficiency,
+                                "phi": [float(v) for v in np.array(P.information_curve(a, p0, info)).ravel()]}}
+               if info is not None else {}),
             "symmetric_kl_initial": kl0,
             "symmetric_kl_final": kl_end,
             "speed_bound": [float(v) for v in np.abs(coef).reshape(P.N, -1).sum(axis=1)],

@@ -197,7 +197,19 @@ class TransportProblem:
             VY = ca.horzcat(*[ca.vec(ca.mtimes([Sxc, ay_l, Syf_T])) for _, ay_l in coefs])
             Pk = self._transport_fn(VX, VY, ca.vec(p0))
             states = [ca.reshape(Pk[:, k], nx, ny) for k in range(N + 1)]
-        if self.kernel is None:
+        # the cost's extra parameters (objective "information": V0, spread matrices, rate; ocp.objectives)
+        self.info = ca.MX.sym("info", 0)
+        if s.objective == "information":
+            from .objectives import information_size, information_terms
+            self.info = ca.MX.sym("info", information_size(nx, ny))
+            M = ca.horzcat(*states) if self.kernel is None else ca.reshape(Pk, nx, ny * (N + 1))
+            phi = information_terms(M, self.info, nx, ny, tau, s.information_power)     # (1, N + 1)
+            trap = np.ones(N + 1)
+            trap[[0, -1]] = 0.5
+            running = s.information_weight * ca.mtimes(phi, ca.DM(trap))
+            terminal = s.information_weight * phi[N]
+            self.information_curve = ca.Function("information_curve", [a, p0, self.info], [phi])
+        elif self.kernel is None:
             kls = [self.sym_kl(pk, qt, lq) for pk in states]
             running = 0.5 * (kls[0] + kls[-1]) + sum(kls[1:-1])   # trapezoid over the interval boundaries
             terminal = kls[-1]
@@ -219,16 +231,18 @@ class TransportProblem:
         J_f = s.w_f * terminal
         J_p = s.w_p * tau * running
         J_v = s.w_v * energy
+        extra = [self.info] if s.objective == "information" else []
         self.objective_terms = ca.Function(
-            "objective_terms", [a, p0, qt, lq], [J_f, J_p, J_v], ["a", "p0", "q", "logq"], ["terminal", "running", "energy"])
+            "objective_terms", [a, p0, qt, lq] + extra, [J_f, J_p, J_v], ["a", "p0", "q", "logq"] + ["info"] * len(extra),
+            ["terminal", "running", "energy"])
         self.shoot = ca.Function("shoot", [a, p0], [ca.horzcat(*[ca.vec(x) for x in states])], ["a", "p0"], ["P"])
 
-        param = ca.vertcat(ca.vec(p0), ca.vec(qt), ca.vec(lq))
+        param = ca.vertcat(ca.vec(p0), ca.vec(qt), ca.vec(lq), *extra)
         if s.speed_limit_form == "split":
             self._split_nlp(a, J_f + J_p, param)
         else:
             self._slack_nlp(a, J_f + J_p + J_v, param)
-        self.objective = ca.Function("objective", [a, p0, qt, lq], [J_f + J_p + J_v])
+        self.objective = ca.Function("objective", [a, p0, qt, lq] + extra, [J_f + J_p + J_v])
 
     def _block(self):
         """(N x n_coef) 0/1 matrix summing the coefficients of each interval."""
@@ -341,9 +355,11 @@ class TransportProblem:
         """log q, 0 on blocked cells (their KL terms are weighted by 0)."""
         return log_target(q, self.free)
 
-    def parameters(self, p0: np.ndarray, q: np.ndarray) -> np.ndarray:
+    def parameters(self, p0: np.ndarray, q: np.ndarray, info: np.ndarray | None = None) -> np.ndarray:
+        """NLP parameters [vec p0, vec q, vec log q (, info block of objective "information")]."""
         # CasADi vec() is column-major: pass the arrays in Fortran order
-        return np.concatenate([p0.ravel(order="F"), q.ravel(order="F"), self.log_target(q).ravel(order="F")])
+        extra = [] if info is None else [np.asarray(info, dtype=float).ravel()]
+        return np.concatenate([p0.ravel(order="F"), q.ravel(order="F"), self.log_target(q).ravel(order="F"), *extra])
 
     def coef_to_vector(self, coef: np.ndarray) -> np.ndarray:
         """(N, 2, I, J) -> decision vector a (column (2l+d) of reshape(a, IJ, 2N) is a[l,d] in C order)."""

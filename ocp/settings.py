@@ -161,8 +161,32 @@ class PlannerSettings:
     #: ocp.transport.muscl_step): the compiled kernel (with its hand-written adjoint) or the CasADi graph,
     #: i.e. transport "auto", "compiled" or "casadi", method "ipopt")
     scheme: str = "upwind"
+    #: cost of the OCP (ocp.objectives, issue 20): "symmetric-kl" (the paper's: w_f KLs(p(t_f), q) + w_p int KLs
+    #: + w_v energy) or "information" (the mean-field expected GP variance after the planned measurements, same
+    #: w_f / w_p structure times ``information_weight``; needs ``solve(..., information=...)``)
+    objective: str = "symmetric-kl"
+    #: q of the information cost's power mean M_q(V) = (mean V^q)^(1/q): 1 = mean variance, large = smooth sup
+    information_power: float = 1.0
+    #: scale of the (dimensionless, <= 1) information terms against the energy w_v int int |v|^2
+    information_weight: float = 100.0
+    #: κ multiplying the mean-field measurement rate c = κ N / (Δt σ_n^2): the independent-information
+    #: assumption over-counts (docs/results/information-objective.md measures by how much); κ < 1 discounts it
+    information_efficiency: float = 1.0
+    #: which (V0, l) the closed loop supplies to the information objective: "gp" (the GP's variance and its
+    #: current, possibly learned, length scale) or "stop-rule" (those the stop rule judges by: with
+    #: sim.stop_rule = "robust" the variance at l_c = min(l, prior l) and l_c; else as "gp")
+    information_scale: str = "gp"
 
     def __post_init__(self):
+        from .objectives import OBJECTIVES
+        if self.objective not in OBJECTIVES:
+            raise ValueError(f"planner.objective must be one of {', '.join(repr(o) for o in OBJECTIVES)}, "
+                             f"got {self.objective!r}")
+        _positive(self, "information_power", "information_weight", "information_efficiency")
+        if self.information_scale not in ("gp", "stop-rule"):
+            raise ValueError(f"planner.information_scale must be 'gp' or 'stop-rule', got {self.information_scale!r}")
+        if self.objective == "information" and self.method != "ipopt":
+            raise ValueError("planner.objective = 'information' is solved with method 'ipopt' only")
         if self.scheme not in ("upwind", "muscl"):
             raise ValueError(f"planner.scheme must be 'upwind' or 'muscl', got {self.scheme!r}")
         if self.scheme == "muscl" and (self.transport == "numpy" or self.method != "ipopt"):

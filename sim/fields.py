@@ -13,6 +13,7 @@ Analytic fields
             ``f(x) = b + sum_k a_k exp(-|x - c_k|^2 / (2 s_k^2))``.
 ``ridge``   a smooth "bathymetry": a continental-shelf step (tanh across a slanted line) plus a
             meandering Gaussian ridge.
+``waves``   a seeded sum of 12 random plane waves of wavelengths 4-12 m (issue 20, a tuning field).
 
 Fine-structure fields (issue 20; generated, seeded, for checking stop rules and tuning):
 
@@ -57,7 +58,7 @@ import numpy as np
 
 from ..runtime.cliargs import check_path
 
-__all__ = ["Field", "SincField", "PlumesField", "RidgeField", "BumpsField", "FrontField", "GPSampleField", "GridField", "ScatteredField",
+__all__ = ["Field", "SincField", "PlumesField", "RidgeField", "WavesField", "BumpsField", "FrontField", "GPSampleField", "GridField", "ScatteredField",
            "FIELDS", "make_field", "load_field", "save_npz_field"]
 
 
@@ -178,6 +179,36 @@ class RidgeField(Field):
                 **self.params}
 
 
+class WavesField(Field):
+    """Seeded random smooth field (issue 20, a tuning field): a sum of plane waves
+
+    ``f(x) = base + amp / sqrt(K) * sum_k cos(2 pi <u_k, x> / lambda_k + phi_k)``,
+
+    K = ``waves`` directions u_k uniform on the circle, wavelengths lambda_k uniform in
+    [``shortest``, ``longest``] m, phases uniform; all drawn from ``numpy.random.default_rng(seed)``.
+    """
+
+    name = "waves"
+
+    def __init__(self, seed=0, waves=12, shortest=4.0, longest=12.0, base=2.5, amp=0.7):
+        if not (int(waves) >= 1 and 0 < float(shortest) <= float(longest)):
+            raise ValueError("waves field: waves >= 1 and 0 < shortest <= longest")
+        rng = np.random.default_rng(int(seed))
+        ang = rng.uniform(0.0, 2.0 * np.pi, int(waves))
+        lam = rng.uniform(float(shortest), float(longest), int(waves))
+        self.k = np.column_stack([np.cos(ang), np.sin(ang)]) * (2.0 * np.pi / lam)[:, None]
+        self.phase = rng.uniform(0.0, 2.0 * np.pi, int(waves))
+        self.params = dict(seed=int(seed), waves=int(waves), shortest=float(shortest), longest=float(longest),
+                           base=float(base), amp=float(amp))
+
+    def _evaluate(self, pts):
+        p = self.params
+        return p["base"] + p["amp"] / np.sqrt(p["waves"]) * np.cos(pts @ self.k.T + self.phase).sum(axis=1)
+
+    def describe(self):
+        return {"name": self.name, "formula": "base + amp/sqrt(K) sum cos(<k_i, x> + phi_i), seeded", **self.params}
+
+
 class BumpsField(PlumesField):
     """Fine structure: ``count`` small Gaussian bumps (widths ``width`` = (min, max) m, amplitudes of
     random sign with |a| in ``amplitude``) on a flat background, centres drawn with ``seed`` 3 widths
@@ -262,7 +293,7 @@ class GPSampleField(Field):
 
 
 #: Named analytic fields for ``--field``.
-FIELDS = {"sinc": SincField, "plumes": PlumesField, "ridge": RidgeField, "bumps": BumpsField, "front": FrontField,
+FIELDS = {"sinc": SincField, "plumes": PlumesField, "ridge": RidgeField, "waves": WavesField, "bumps": BumpsField, "front": FrontField,
           "gp-sample": GPSampleField}
 
 

@@ -5,7 +5,8 @@ A preset is a partial configuration document (the ``[sim]``, ``[gp]``, ... table
 < command-line flags.  ``paper`` is empty: every default of :mod:`sim.config` is the paper's
 scenario (Zheng & Lin, section "Simulation studies") or a documented choice where the paper is
 silent.  ``tuned`` is the measured best combination of the changes that go beyond the paper
-(README, "Beyond the paper"); every entry below names the setting's own docstring for its meaning.
+(README, "Beyond the paper"; issue 20: the information objective, docs/results/tuned-preset.md with
+the ablation); every entry below names the setting's own docstring for its meaning.
 
 The resolved configuration a run writes (``DIR/config.toml``) names its preset and spells out every
 value, so ``simulate-swarm --config DIR/config.toml`` repeats it whatever the presets later become.
@@ -33,6 +34,18 @@ PRESETS: dict[str, dict] = {
             "speed_limit": "norm",
             # a re-plan stopped at max_iter keeps its (feasible, improved) last iterate
             "accept_feasible_iterate": True,
+            # issue 20: minimise the expected GP variance after the planned measurements (mean-field GP
+            # update, ocp.objectives; docs/design/information-objective.md) instead of the KL to p_f ∝ V:
+            # the swarm sweeps the uncertainty away instead of spreading in proportion to it
+            "objective": "information",
+            # power mean q = 4 of V: a smooth sup (the stop rule looks at sup V)
+            "information_power": 4.0,
+            # the mean field over-counts correlated measurements: the real GP keeps ~3x the predicted
+            # variance reduction's complement (fitted kappa 0.27-0.38, docs/results/information-objective.md)
+            "information_efficiency": 0.3,
+            # plan for the variance the stop rule judges by (with sim.stop_rule = "robust": V and l at
+            # l_c = min(l, prior l); with "relative" the same as "gp")
+            "information_scale": "stop-rule",
         },
         "feedback": {
             # the robots' speed limit of the baselines (planner.v_max), not the paper's 4 m/s
@@ -50,7 +63,9 @@ PRESETS: dict[str, dict] = {
         "gp": {"learn_hyperparameters": True, "hyper_maxiter": 8},
         # a learned s_f^2 changes the scale of V: stop at sup V <= 0.4 s_f^2 and target
         # max(V - 0.2 s_f^2, 0), the paper's 0.1 and 0.05 relative to its s_f^2 = 0.25
-        "sim": {"stop_rule": "relative"},
+        # eta_relative 0.05 (issue 20): keep planning until sup V < 0.05 s_f^2, the map keeps improving
+        # after the threshold instead of the loop stopping with "variance_below_eta" at 0.2 s_f^2
+        "sim": {"stop_rule": "relative", "eta_relative": 0.05},
     },
 }
 

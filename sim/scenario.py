@@ -42,15 +42,21 @@ def box_density(grid: Grid, box=START_BOX, bandwidth: float | None = None, n_rob
     return grid.normalize(p)
 
 
-def first_step_target(grid: Grid, seed: int = 0, eta: float = 0.05, box=START_BOX, n_robots: int = N_ROBOTS):
-    """Target p_f of the paper's first planning step; returns (p_f, description)."""
+def first_step_variance(grid: Grid, seed: int = 0, box=START_BOX, n_robots: int = N_ROBOTS) -> np.ndarray:
+    """GP variance V_0 on ``grid`` after the first measurements of ``n_robots`` uniform on ``box``."""
     rng = np.random.default_rng(seed)
     bx0, bx1, by0, by1 = box
     pts = np.column_stack([rng.uniform(bx0, bx1, n_robots), rng.uniform(by0, by1, n_robots)])
     gp = GaussianProcess(GPSettings(), domain=grid.domain)
     gp.add(pts, np.zeros(n_robots))      # the variance does not depend on the measured values
     _, var = gp.predict(grid.centers())
-    p_f = target_density(var.reshape(grid.shape), eta, grid.cell_area)
+    return var.reshape(grid.shape)
+
+
+def first_step_target(grid: Grid, seed: int = 0, eta: float = 0.05, box=START_BOX, n_robots: int = N_ROBOTS):
+    """Target p_f of the paper's first planning step; returns (p_f, description)."""
+    var = first_step_variance(grid, seed, box, n_robots)
+    p_f = target_density(var, eta, grid.cell_area)
     if p_f is None:
         raise ValueError("the GP variance is below eta everywhere: nothing to plan for")
     return p_f, f"GP variance of {n_robots} robots' first measurements (seed {seed}, eta {eta})"

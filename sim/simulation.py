@@ -364,13 +364,31 @@ class Simulation:
             return reachable_target_density(self.var_free(), eta, grid.cell_area, self.p_hat, reach, grid.dx, grid.dy)
         return target_density(self.var_free(), eta, grid.cell_area)
 
+    def information_inputs(self) -> dict:
+        """``{"information": InformationInputs}`` for ``planner.objective = "information"`` (the current GP
+        variance on the grid, the working robots, Δt, the GP's σ_n^2 and ℓ; :mod:`ocp.objectives`), else {}."""
+        if getattr(self.config.planner, "objective", "symmetric-kl") != "information":
+            return {}
+        from ..ocp.objectives import InformationInputs
+        gs = self.gp.settings
+        var, ell = self.var, gs.length_scale
+        rule = self.stop_rule
+        if getattr(self.config.planner, "information_scale", "gp") == "stop-rule" and self.free is None \
+                and hasattr(rule, "check_variance"):
+            # plan for the variance the stop rule judges by (sim.stopping.RobustThreshold: l_c <= l)
+            vc = rule.check_variance(self.gp)
+            if vc is not None:
+                var, ell = np.maximum(var, np.asarray(vc).reshape(self.grid.shape)), rule.check_scale(self.gp)
+        return {"information": InformationInputs(var, int(self.alive.sum()), self.settings.dt,
+                                                 gs.noise_variance, ell)}
+
     def replan(self, p_f, snap: Snapshot) -> bool:
         """The reference for [t, t + T] (eqs. "optimization problem", "reference model"); False if the
         planner failed (the failure is recorded in ``result.replans`` and ``result.error``)."""
         res, k, t = self.result, self.period_index, self.t
         t_plan = time.perf_counter()
         try:
-            plan = self.planner.solve(self.p_hat, p_f, t0=t, warm_start=self.plan)
+            plan = self.planner.solve(self.p_hat, p_f, t0=t, warm_start=self.plan, **self.information_inputs())
         except self.planner_error as exc:
             info = dict(getattr(exc, "stats", {}) or {})
             res.replans.append({"period": k, "t0": t, "max_variance": self.sup_v, "rmse": res.rows[-1]["rmse"],

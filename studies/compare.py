@@ -380,7 +380,7 @@ def build_parser():
     p = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0])
     p.add_argument("--controllers", nargs="+", default=list(CONTROLLERS), metavar="NAME",
                    help=f"controllers to compare (default all: {' '.join(CONTROLLERS)})")
-    p.add_argument("--fields", nargs="+", default=["sinc"], metavar="FIELD", help="sinc | plumes | ridge | bumps | front | gp-sample | FILE ...")
+    p.add_argument("--fields", nargs="+", default=["sinc"], metavar="FIELD", help="sinc | plumes | ridge | waves | bumps | front | gp-sample | FILE ...")
     p.add_argument("--seeds", nargs="+", type=int, default=[0], metavar="S", help="random seeds, one run each")
     p.add_argument("--robot-loss", nargs="+", type=float, default=[0.0], metavar="FRACTION",
                    help="fractions of the robots that stop at --loss-time, one sweep axis")

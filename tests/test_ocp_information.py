@@ -1,0 +1,154 @@
+"""The information objective (ocp.objectives, issue 20): value against a NumPy oracle, exact gradient
+against central finite differences, both transports, settings and planner plumbing."""
+import casadi as ca
+import numpy as np
+import pytest
+
+from swarmfield.ocp import PlannerSettings, ReferencePlanner
+from swarmfield.ocp.objectives import InformationInputs, predicted_variance
+from swarmfield.ocp.problem import TransportProblem
+
+
+def _bump(g, x, y, s):
+    c = g.centers()
+    p = np.exp(-((c[:, 0] - x) ** 2 + (c[:, 1] - y) ** 2) / (2 * s * s)).reshape(g.shape)
+    return p / (p.sum() * g.cell_area)
+
+
+def _small(**kw):
+    base = dict(domain=(0.0, 8.0, 0.0, 6.0), nx=10, ny=8, horizon=3.0, n_intervals=3, n_modes_x=3, n_modes_y=2,
+                objective="information", basis="sine-cosine")
+    base.update(kw)
+    return PlannerSettings(**base)
+
+
+def _inputs(g, power_robots=50.0):
+    c = g.centers()
+    V0 = (0.25 * (1 - 0.8 * np.exp(-((c[:, 0] - 2) ** 2 + (c[:, 1] - 2) ** 2) / 4.0))).reshape(g.shape)
+    return InformationInputs(V0, power_robots, 0.5, 0.04, 1.2)
+
+
+@pytest.mark.parametrize("transport", ["casadi", "numpy"])
+@pytest.mark.parametrize("power", [1.0, 3.0])
+def test_value_matches_numpy_oracle_and_gradient_matches_finite_differences(transport, power):
+    s = _small(transport=transport, information_power=power)
+    P = TransportProblem(s)
+    g = P.grid
+    inp = _inputs(g)
+    info = inp.parameters(g)
+    p0 = _bump(g, 2.0, 2.0, 1.0)
+    q = P.floored_target(_bump(g, 6.0, 4.0, 1.5))
+    rng = np.random.default_rng(3)
+    a = 0.3 * rng.standard_normal(P.n_coef)
+    # value: Φ_l from the CasADi graph equals the NumPy oracle on the shooting snapshots
+    phi = np.array(P.information_curve(a, p0, info)).ravel()
+    snaps = P.trajectory(p0, P.vector_to_coef(a))[:: P.n_sub]
+    V = predicted_variance(snaps, inp, g, np.arange(s.n_intervals + 1) * s.interval)
+    V0 = inp.variance
+    ref = np.mean(V0 ** power) ** (1 / power)
+    oracle = np.array([np.mean(v ** power) ** (1 / power) / ref for v in V])
+    assert phi == pytest.approx(oracle, rel=1e-10)
+    assert phi[0] == pytest.approx(1.0) and phi[-1] < phi[0]
+    # gradient of the whole objective (terminal + running + energy) against central differences
+    f = ca.Function("f", [P.nlp["x"], P.nlp["p"]], [P.nlp["f"]])
+    grad = ca.Function("gf", [P.nlp["x"], P.nlp["p"]], [ca.gradient(P.nlp["f"], P.nlp["x"])])
+    x = P.initial_point(a)
+    par = P.parameters(p0, q, info)
+    gx = np.array(grad(x, par)).ravel()
+    idx = rng.choice(len(x), 12, replace=False)
+    h = 1e-6
+    for i in idx:
+        e = np.zeros_like(x)
+        e[i] = h
+        fd = (float(f(x + e, par)) - float(f(x - e, par))) / (2 * h)
+        assert gx[i] == pytest.approx(fd, rel=1e-5, abs=1e-7)
+
+
+def test_planner_needs_information_and_records_it():
+    s = _small(transport="numpy")
+    pl = ReferencePlanner(s)
+    g = pl.grid
+    p0, pf = _bump(g, 2.0, 2.0, 1.0), _bump(g, 6.0, 4.0, 1.5)
+    with pytest.raises(ValueError, match="information"):
+        pl.solve(p0, pf)
+    plan = pl.solve(p0, pf, information=_inputs(g))
+    m = plan.meta
+    assert m["objective_kind"] == "information" and m["settings"]["objective"] == "information"
+    phi = m["information"]["phi"]
+    assert phi[0] == pytest.approx(1.0) and phi[-1] < 0.9      # the plan measures: expected variance falls
+    assert m["information"]["robots"] == 50.0
+    with pytest.raises(ValueError, match="grg"):
+        pl.solve(p0, pf, information=_inputs(g), method="grg")
+
+
+def test_information_moves_density_towards_uncertainty():
+    """Swarm at the well-known left end, all uncertainty at the right: the plan's mass moves right."""
+    s = _small(transport="numpy", information_weight=100.0)
+    pl = ReferencePlanner(s)
+    g = pl.grid
+    c = g.centers()
+    V0 = np.where(c[:, 0] > 4.0, 0.25, 0.01).reshape(g.shape)
+    p0 = _bump(g, 1.5, 3.0, 0.8)
+    plan = pl.solve(p0, p0, information=InformationInputs(V0, 50, 0.5, 0.04, 1.0))
+    xbar = lambda p: float((p.ravel() * c[:, 0]).sum() / p.sum())
+    assert xbar(plan.p[-1]) > xbar(plan.p[0]) + 1.0
+
+
+def test_settings_reject_bad_objective():
+    with pytest.raises(ValueError, match="objective"):
+        PlannerSettings(objective="entropy")
+    with pytest.raises(ValueError, match="information_power"):
+        PlannerSettings(objective="information", information_power=0.0)
+    with pytest.raises(ValueError, match="ipopt"):
+        PlannerSettings(objective="information", method="grg")
+    assert PlannerSettings().objective == "symmetric-kl"
+    with pytest.raises(ValueError, match="robots"):
+        InformationInputs(np.ones((3, 3)), 0, 1.0, 0.04, 1.0)
+
+
+def test_closed_loop_supplies_gp_or_stop_rule_scale():
+    """Simulation.information_inputs: the GP's V and l, or with information_scale = "stop-rule" the
+    variance and length scale the stop rule judges by (here a stand-in rule with l_c = 0.7)."""
+    from swarmfield.sim.config import config_from_dict
+    from swarmfield.sim.simulation import Simulation
+
+    class Rule:                                   # the robust rule's interface (sim.stopping.RobustThreshold)
+        def bind(self, points):
+            self.n = len(points)
+            return self
+
+        def check_variance(self, gp):
+            return np.full(self.n, 0.2)
+
+        def check_scale(self, gp):
+            return 0.7
+
+    base = {"planner": {"objective": "information", "nx": 10, "ny": 10, "n_intervals": 2, "n_modes_x": 2,
+                        "n_modes_y": 2}, "sim": {"robots": 7}}
+    for scale, want_l, want_v in (("gp", None, 0.05), ("stop-rule", 0.7, 0.2)):
+        doc = {k: dict(v) for k, v in base.items()}
+        doc["planner"]["information_scale"] = scale
+        sim = Simulation(config_from_dict(doc), stop_rule=Rule())
+        sim.var = np.full(sim.grid.shape, 0.05)
+        sim.alive[:2] = False
+        inp = sim.information_inputs()["information"]
+        assert inp.robots == 5 and inp.measurement_interval == sim.settings.dt
+        assert inp.length_scale == (sim.gp.settings.length_scale if want_l is None else want_l)
+        assert np.allclose(inp.variance, want_v)
+    with pytest.raises(ValueError, match="information_scale"):
+        PlannerSettings(information_scale="learned")
+
+
+def test_plan_reference_cli_supplies_the_default_scenario(tmp_path, capsys):
+    """plan-reference with objective = "information": V_0 of the default scenario's first measurements."""
+    from swarmfield.cli.plan_reference import main
+    from swarmfield.ocp.plan import ReferencePlan
+
+    (tmp_path / "cfg.toml").write_text('[planner]\nobjective = "information"\ninformation_power = 2.0\n')
+    out = tmp_path / "plan.npz"
+    code = main(["--nx", "12", "--ny", "10", "--intervals", "3", "--modes", "3", "3", "--config",
+                 str(tmp_path / "cfg.toml"), "--out", str(out)])
+    assert code == 0, capsys.readouterr().err
+    m = ReferencePlan.load(out).meta
+    assert m["objective_kind"] == "information" and m["information"]["robots"] == 100
+    assert m["information"]["phi"][-1] < m["information"]["phi"][0] == pytest.approx(1.0)
