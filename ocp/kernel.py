@@ -62,6 +62,16 @@ static void split(long n, const double *v, double eps2, const double *m, double 
     }
 }
 
+/* adjoint of split: g = m (a+ dv+/dv + a- dv-/dv) with dv+/dv = (1 + v/s)/2, dv-/dv = (v/s - 1)/2,
+   s = sqrt(v^2 + eps^2) */
+static void split_adj(long n, const double *v, double eps, const double *m, const double *ap, const double *am,
+                      double *g) {
+    for (long k = 0; k < n; k++) {
+        double r = v[k] / sqrt(v[k] * v[k] + eps * eps);
+        g[k] = m[k] * (0.5 * (ap[k] * (1.0 + r) + am[k] * (r - 1.0)));
+    }
+}
+
 /* one explicit donor-cell sub-step q = p - rx (F_i - F_{i-1}) - ry (G_j - G_{j-1}); gprev: nx scratch */
 static void step(int nx, int ny, double rx, double ry, const double *xp, const double *xm,
                  const double *yp, const double *ym, const double *p, double *q, double *gprev) {
@@ -341,14 +351,8 @@ int sf_adjoint_muscl(int nx, int ny, int N, int nsub, double rx, double ry, doub
             for (long c = 0; c < n; c++) tmp[c] += l2[c];
             double *t = lam; lam = tmp; tmp = t;
         }
-        for (long k = 0; k < nfx; k++) {
-            double r = v[k] / sqrt(v[k] * v[k] + eps * eps);
-            gvx[nfx * l + k] = mx[k] * (0.5 * (axp[k] * (1.0 + r) + axm[k] * (r - 1.0)));
-        }
-        for (long k = 0; k < nfy; k++) {
-            double r = w[k] / sqrt(w[k] * w[k] + eps * eps);
-            gvy[nfy * l + k] = my[k] * (0.5 * (ayp[k] * (1.0 + r) + aym[k] * (r - 1.0)));
-        }
+        split_adj(nfx, v, eps, mx, axp, axm, gvx + nfx * l);
+        split_adj(nfy, w, eps, my, ayp, aym, gvy + nfy * l);
         const double *ls = lsnap + n * l;
         for (long k = 0; k < n; k++) lam[k] += ls[k];
     }
@@ -399,15 +403,8 @@ int sf_adjoint(int nx, int ny, int N, int nsub, double rx, double ry, double eps
             step_adj(nx, ny, rx, ry, xp, xm, yp, ym, traj + n * k, lam, tmp, axp, axm, ayp, aym, scratch);
             double *t = lam; lam = tmp; tmp = t;
         }
-        /* dv+/dv = m (1 + v/s)/2, dv-/dv = m (v/s - 1)/2, s = sqrt(v^2 + eps^2), m the face mask */
-        for (long k = 0; k < nfx; k++) {
-            double r = v[k] / sqrt(v[k] * v[k] + eps * eps);
-            gvx[nfx * l + k] = mx[k] * (0.5 * (axp[k] * (1.0 + r) + axm[k] * (r - 1.0)));
-        }
-        for (long k = 0; k < nfy; k++) {
-            double r = w[k] / sqrt(w[k] * w[k] + eps * eps);
-            gvy[nfy * l + k] = my[k] * (0.5 * (ayp[k] * (1.0 + r) + aym[k] * (r - 1.0)));
-        }
+        split_adj(nfx, v, eps, mx, axp, axm, gvx + nfx * l);
+        split_adj(nfy, w, eps, my, ayp, aym, gvy + nfy * l);
         const double *ls = lsnap + n * l;
         for (long k = 0; k < n; k++) lam[k] += ls[k];
     }
