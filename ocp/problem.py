@@ -252,7 +252,8 @@ class TransportProblem:
             rows, bound = norm_polygon(s.v_max)
             C = np.kron(np.eye(self.N), rows)                                 # (N K, 2N)
             Bv = ca.MX.sym("B", 2 * self.N)
-            Cs = ca.DM(ca.Sparsity.triplet(*C.shape, *[list(v) for v in np.nonzero(C)]), C[np.nonzero(C)])
+            r, c = np.nonzero(C)        # DM.triplet: the values follow the (row, col) lists, in any order
+            Cs = ca.DM.triplet(r.tolist(), c.tolist(), ca.DM(C[r, c]), *C.shape)
             self.nlp = {"x": ca.vertcat(ap, am, Bv), "p": param, "f": f,
                         "g": ca.vertcat(ca.mtimes(self._component_block(), ap + am) - Bv, ca.mtimes(Cs, Bv))}
             self.lbg = np.concatenate([np.zeros(2 * self.N), np.full(C.shape[0], -np.inf)])
