@@ -6,6 +6,7 @@ new (p0, p_f) as NLP *parameters*, optionally warm-started from the previous pla
 """
 from __future__ import annotations
 
+import dataclasses
 import re
 import signal
 import threading
@@ -49,6 +50,10 @@ class ReferencePlanner:
         s = self.settings
         # how the problem becomes an NLP (ocp.formulations): settings.formulation unless given here
         self.formulation = resolve_formulation(formulation, s)
+        if (s.formulation, s.formulation_hessian) != (self.formulation.name, self.formulation.hessian):
+            # an explicit formulation object: the plan's recorded settings say which one ran
+            self.settings = s = dataclasses.replace(s, formulation=self.formulation.name,
+                                                    formulation_hessian=self.formulation.hessian)
         n_coef = s.n_intervals * 2 * s.n_modes_x * s.n_modes_y
         if isinstance(self.formulation, SingleShooting) and self.formulation._resolved_hessian(
                 s.ipopt.hessian_approximation) == "exact" and n_coef > MAX_EXACT_HESSIAN_COEFFICIENTS:
