@@ -58,6 +58,13 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--scheme", choices=["upwind", "muscl"],
                    help="finite-volume scheme: upwind (first-order donor cell, the paper's, default) or muscl "
                         "(second order: minmod MUSCL with SSP-RK2, 1.5x the sub-steps)")
+    g.add_argument("--formulation", choices=["single-shooting", "multiple-shooting", "direct-transcription"],
+                   help="NLP formulation: single-shooting (default; the density eliminated by the transport), "
+                        "multiple-shooting (densities at the interval boundaries as variables) or direct-transcription "
+                        "(the density after every sub-step as variables, every step a constraint)")
+    g.add_argument("--formulation-hessian", choices=["auto", "exact", "limited-memory"],
+                   help="Hessian of the formulation (auto: single shooting follows --hessian, the others use the "
+                        "exact sparse Hessian)")
     g.add_argument("--method", "--solver", dest="method", choices=["ipopt", "grg"], default=None,
                    help="solver: IPOPT on the NLP (default), or the paper's GRG baseline")
     g.add_argument("--domain", metavar="FILE|NAME",
@@ -95,7 +102,9 @@ def resolve_settings(args) -> PlannerSettings:
              "w_f": args.w_f, "w_p": args.w_p, "w_v": args.w_v, "v_max": args.v_max,
              "target_floor": args.target_floor, "transport": args.transport,
              "basis": getattr(args, "basis", None), "speed_limit": getattr(args, "speed_limit", None),
-             "method": getattr(args, "method", None), "scheme": getattr(args, "scheme", None)}
+             "method": getattr(args, "method", None), "scheme": getattr(args, "scheme", None),
+             "formulation": getattr(args, "formulation", None),
+             "formulation_hessian": getattr(args, "formulation_hessian", None)}
     if args.modes is not None:
         flags["n_modes_x"], flags["n_modes_y"] = args.modes
     cfg.update({k: v for k, v in flags.items() if v is not None})
@@ -284,7 +293,8 @@ def run(argv=None) -> int:
         m = plan.meta
         sv = m["solver"]
         terms = m["objective_terms"]
-        print(f"{sv['status']}: {sv['iterations']} iterations, build {m['build_time_s']:.2f} s, "
+        print(f"{sv['status']}: {sv['iterations']} iterations ({m.get('formulation', 'single-shooting')}), "
+              f"build {m['build_time_s']:.2f} s, "
               f"solve {sv['wall_time_s']:.2f} s ({settings.nx}x{settings.ny} cells, N={settings.n_intervals}, "
               f"I=J={settings.n_modes_x}x{settings.n_modes_y}, {m['substeps']} sub-steps/interval)")
         print(f"objective {m['objective']:.4f} = terminal {terms['terminal']:.4f} + running {terms['running']:.4f} "

@@ -10,6 +10,7 @@ zero on blocked cells; the plan carries the mask (``ReferencePlan.free``).
 """
 from __future__ import annotations
 
+import dataclasses
 import re
 import signal
 import threading
@@ -24,6 +25,7 @@ from ..runtime.validation import real_scalar
 from .grid import Grid
 from .mask import floor_free, normalize_free
 from .plan import ReferencePlan
+from .formulations import Formulation, SingleShooting, resolve_formulation
 from .problem import TransportProblem
 from .settings import PlannerSettings, to_dict
 
@@ -50,27 +52,48 @@ class ReferencePlanner:
 
     ``free``: optional free-cell mask, array (nx, ny) of bool or 0/1 (x first, True = free cell), at
     least one free cell; None (default) = the empty rectangle, today's problem unchanged.
+    ``formulation``: how the problem becomes an NLP (:mod:`ocp.formulations`; default
+    ``settings.formulation``).
     """
 
-    def __init__(self, settings: PlannerSettings | None = None, free=None):
+    def __init__(self, settings: PlannerSettings | None = None, free=None,
+                 formulation: Formulation | str | None = None):
         self.settings = settings or PlannerSettings()
         s = self.settings
+        # how the problem becomes an NLP (ocp.formulations): settings.formulation unless given here
+        self.formulation = resolve_formulation(formulation, s)
+        if (s.formulation, s.formulation_hessian) != (self.formulation.name, self.formulation.hessian):
+            # an explicit formulation object: the plan's recorded settings say which one ran
+            self.settings = s = dataclasses.replace(s, formulation=self.formulation.name,
+                                                    formulation_hessian=self.formulation.hessian)
         n_coef = s.n_intervals * 2 * s.n_modes_x * s.n_modes_y
-        if s.ipopt.hessian_approximation == "exact" and n_coef > MAX_EXACT_HESSIAN_COEFFICIENTS:
+        if isinstance(self.formulation, SingleShooting) and self.formulation._resolved_hessian(
+                s.ipopt.hessian_approximation) == "exact" and n_coef > MAX_EXACT_HESSIAN_COEFFICIENTS:
             raise ValueError(
                 f"the exact Hessian is dense in the {n_coef} velocity coefficients (N x 2 x I x J) and takes minutes "
                 f"to hours beyond {MAX_EXACT_HESSIAN_COEFFICIENTS}; use hessian_approximation='limited-memory' or "
                 "fewer intervals/modes (README, 'Solver study')")
+        if free is not None and not isinstance(self.formulation, SingleShooting):
+            raise ValueError(f"obstacles (free=) are posed in the single-shooting formulation only, not "
+                             f"{self.formulation.name!r} (its own costs and steps know no mask)")
         t0 = time.perf_counter()
         self.problem = TransportProblem(self.settings, free)
+        self.nlp = self.formulation.build(self.problem)
         opts = {"ipopt": self.settings.ipopt.options(), "print_time": False, "record_time": True,
                 "error_on_fail": False}
         ipopt = opts["ipopt"]
-        # the constraints are linear: IPOPT may evaluate their Jacobian once
-        ipopt.setdefault("jac_c_constant", "yes")
-        ipopt.setdefault("jac_d_constant", "yes")
+        if self.nlp.hessian != ipopt["hessian_approximation"]:
+            ipopt["hessian_approximation"] = self.nlp.hessian
+            if self.nlp.hessian == "exact":
+                ipopt.pop("limited_memory_max_history", None)
+                ipopt.pop("limited_memory_aug_solver", None)
+            else:
+                ipopt.setdefault("limited_memory_max_history", self.settings.ipopt.limited_memory_max_history)
+                ipopt.setdefault("limited_memory_aug_solver", self.settings.ipopt.limited_memory_aug_solver)
+        for key, value in self.nlp.ipopt_options.items():
+            ipopt.setdefault(key, value)
         try:
-            self.solver = ca.nlpsol("reference_density", "ipopt", self.problem.nlp, opts)
+            self.solver = ca.nlpsol("reference_density", "ipopt", self.nlp.nlp, opts)
         except RuntimeError as exc:
             reason = re.sub(r"^.*?\.cpp:\d+:\s*", "", str(exc).strip().splitlines()[-1])
             raise ValueError(f"IPOPT rejected the options: {reason}") from None
@@ -178,10 +201,11 @@ class ReferencePlanner:
             return self._package(p0, q, target, t0, warm_start, coef, objective, summary)
 
         par = P.parameters(p0, q, info)
-        x0 = P.initial_point(P.coef_to_vector(coef0))
+        F, nlp = self.formulation, self.nlp
+        x0 = F.initial_point(coef0, p0)
         t_start = time.perf_counter()
         with _interrupt_guard() as interrupted:
-            sol = self.solver(x0=x0, p=par, lbx=P.lbx, ubx=P.ubx, lbg=P.lbg, ubg=P.ubg)
+            sol = self.solver(x0=x0, p=par, lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg)
         if interrupted:
             raise KeyboardInterrupt
         wall = time.perf_counter() - t_start
@@ -192,7 +216,12 @@ class ReferencePlanner:
             raise PlannerError(f"IPOPT failed: {status} (is linear solver {s.ipopt.linear_solver!r} available? "
                                "the HSL solvers need ipopt.extra.hsllib)", _stats_summary(stats, wall))
         summary = _stats_summary(stats, wall)
-        coef = P.vector_to_coef(P.coefficients_from_solution(x))
+        summary["formulation"] = F.name
+        summary["hessian"] = nlp.hessian
+        if not isinstance(F, SingleShooting):
+            # max |continuity / step / lift residual| at the returned point (the plan is re-simulated anyway)
+            summary["dynamics_residual"] = F.residual(x, par)
+        coef = P.vector_to_coef(F.coefficients(x))
         objective = float(sol["f"])
         if status not in SUCCESS or not np.all(np.isfinite(x)):
             used = self._usable_iterate(coef, x0, p0, q) if s.accept_feasible_iterate else None
@@ -221,7 +250,7 @@ class ReferencePlanner:
         logq = P.log_target(q)
         extra = [] if self._info is None else [self._info]
         f = float(P.objective(P.coef_to_vector(coef), p0, q, logq, *extra))
-        f0 = float(P.objective(P.coefficients_from_solution(x0), p0, q, logq, *extra))
+        f0 = float(P.objective(self.formulation.coefficients(x0), p0, q, logq, *extra))
         return (coef, f) if np.isfinite(f) and f < f0 else None
 
     def grg_solver(self):
@@ -245,6 +274,7 @@ class ReferencePlanner:
             "basis": s.basis,
             "substeps": P.n_sub,
             "transport": P.transport,
+            "formulation": self.formulation.name,
             "method": solver_summary.get("method", "ipopt"),
             "initial_guess": "warm" if warm_start is not None else "cold",
             "solver": solver_summary,

@@ -177,7 +177,18 @@ class PlannerSettings:
     #: sim.stop_rule = "robust" the variance at l_c = min(l, prior l) and l_c; else as "gp")
     information_scale: str = "gp"
 
+    #: how the problem becomes an NLP (:mod:`ocp.formulations`, docs/design/formulations.md):
+    #: "single-shooting" (default: the coefficients only, the density eliminated by the transport kernel),
+    #: "multiple-shooting" (plus the densities at the interval boundaries, continuity constraints) or
+    #: "direct-transcription" (plus the density after every sub-step and the face velocities, every
+    #: finite-volume step an equality constraint)
+    formulation: str = "single-shooting"
+    #: Hessian of the formulation: "auto" (single shooting: ``ipopt.hessian_approximation``; multiple
+    #: shooting and direct transcription: the exact sparse Hessian), "exact" or "limited-memory"
+    formulation_hessian: str = "auto"
+
     def __post_init__(self):
+        _check_formulation(self)
         from .objectives import OBJECTIVES
         if self.objective not in OBJECTIVES:
             raise ValueError(f"planner.objective must be one of {', '.join(repr(o) for o in OBJECTIVES)}, "
@@ -187,6 +198,9 @@ class PlannerSettings:
             raise ValueError(f"planner.information_scale must be 'gp' or 'stop-rule', got {self.information_scale!r}")
         if self.objective == "information" and self.method != "ipopt":
             raise ValueError("planner.objective = 'information' is solved with method 'ipopt' only")
+        if self.objective == "information" and self.formulation != "single-shooting":
+            raise ValueError("planner.objective = 'information' is posed in the single-shooting formulation only "
+                             f"(multiple shooting and direct transcription form the KL costs), got {self.formulation!r}")
         if self.scheme not in ("upwind", "muscl"):
             raise ValueError(f"planner.scheme must be 'upwind' or 'muscl', got {self.scheme!r}")
         if self.scheme == "muscl" and (self.transport == "numpy" or self.method != "ipopt"):
@@ -292,6 +306,24 @@ class PlannerSettings:
         budget = math.sqrt(2.0) * self.v_max if self.speed_limit == "norm" else self.v_max
         return self.interval * 2.0 * (budget + self.upwind_smoothing) / (self._cell_width() * self.cfl) \
             * (1.5 if self.scheme == "muscl" else 1.0)
+
+
+#: choices of ``PlannerSettings.formulation`` (ocp.formulations.FORMULATIONS)
+FORMULATIONS = ("single-shooting", "multiple-shooting", "direct-transcription")
+
+
+def _check_formulation(s):
+    if s.formulation not in FORMULATIONS:
+        raise ValueError(f"planner.formulation must be one of {', '.join(FORMULATIONS)}, got {s.formulation!r}")
+    if s.formulation_hessian not in ("auto", "exact", "limited-memory"):
+        raise ValueError("planner.formulation_hessian must be 'auto', 'exact' or 'limited-memory', "
+                         f"got {s.formulation_hessian!r}")
+    if s.formulation == "direct-transcription" and s.scheme != "upwind":
+        raise ValueError("planner.formulation = 'direct-transcription' implements the upwind scheme only, "
+                         f"not {s.scheme!r}")
+    if s.formulation != "single-shooting" and s.method != "ipopt":
+        raise ValueError(f"planner.formulation = {s.formulation!r} is an IPOPT formulation; method 'grg' "
+                         "runs single shooting on its own")
 
 
 def _positive(obj, *names):

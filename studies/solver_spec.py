@@ -5,6 +5,7 @@ through the one generic runner :mod:`studies.runner` (local processes or Dask, r
 A spec is a dict of axis -> list of values.  Axes (all optional; a missing axis keeps the default):
 
     grid, intervals, modes, horizon, w_f, w_p, w_v, v_max, solver (ipopt|grg),
+    formulation (single-shooting|multiple-shooting|direct-transcription; :mod:`ocp.formulations`),
     transport (auto|compiled|numpy|casadi), hessian (limited-memory|exact), tol,
     mu_strategy (monotone|adaptive), linear_solver (those present in the installed CasADi),
     warm_start (true|false), seeds
@@ -12,6 +13,11 @@ A spec is a dict of axis -> list of values.  Axes (all optional; a missing axis 
 Every value is checked and every task's :class:`PlannerSettings` is built *before* any run
 starts (:class:`SpecError` otherwise).  Presets name the paper's four fixed studies
 (:func:`preset_tasks`, same cases as :func:`cases`).
+
+Each row also records the NLP's size (``n_x`` variables, ``n_g`` constraints, ``jac_nnz`` and
+``hess_nnz`` non-zeros of the constraint Jacobian and of the upper triangle of the exact Hessian of
+the Lagrangian), the Hessian IPOPT used and the solve's CPU time (``solve_cpu_s``: wall time on a
+shared machine overstates the work).
 
 Peak memory: each task records ``peak_rss_mb`` = ``ru_maxrss`` of the worker process after the run
 and ``rss_growth_mb`` = its growth during the run.  ``ru_maxrss`` is the process's lifetime maximum,
@@ -26,7 +32,7 @@ import resource
 import sys
 import time
 
-from ..ocp.settings import TRANSPORTS, IpoptSettings, PlannerSettings, dataclass_from_dict, to_dict
+from ..ocp.settings import FORMULATIONS, TRANSPORTS, IpoptSettings, PlannerSettings, dataclass_from_dict, to_dict
 
 __all__ = ["SpecError", "AXES", "parse_spec", "expand", "preset_tasks", "run_planner_task", "COLUMNS"]
 
@@ -106,6 +112,7 @@ AXES = {
     "w_v": (_nonneg_float, "control effort weight"),
     "v_max": (_pos_float, "speed limit"),
     "solver": (_choice("ipopt", "grg"), "ipopt or grg"),
+    "formulation": (_choice(*FORMULATIONS), "NLP formulation (ocp.formulations)"),
     "transport": (_choice(*TRANSPORTS), "transport kernel"),
     "hessian": (_choice("limited-memory", "exact"), "IPOPT Hessian approximation"),
     "tol": (_pos_float, "IPOPT tol"),
@@ -183,7 +190,7 @@ def _settings_for(base: PlannerSettings, combo: dict) -> PlannerSettings:
             kw["n_intervals"] = v
         elif axis == "modes":
             kw.update(n_modes_x=v, n_modes_y=v)
-        elif axis in ("horizon", "w_f", "w_p", "w_v", "v_max", "transport"):
+        elif axis in ("horizon", "w_f", "w_p", "w_v", "v_max", "transport", "formulation"):
             kw[axis] = v
         elif axis == "hessian":
             ip["hessian_approximation"] = v
@@ -261,9 +268,9 @@ def preset_tasks(name: str, base: PlannerSettings | None = None, quick: bool = F
             for st, label, s in cases(name, base, quick)]
 
 
-COLUMNS = ["study", "case", "method", "transport", "kernel", "nx", "ny", "n_intervals", "n_modes", "horizon", "w_f", "w_p",
+COLUMNS = ["study", "case", "method", "formulation", "transport", "kernel", "nx", "ny", "n_intervals", "n_modes", "horizon", "w_f", "w_p",
            "w_v", "v_max", "hessian", "tol", "mu_strategy", "linear_solver", "warm_start", "seed", "build_s",
-           "solve_s", "iterations", "status", "success", "error", "objective", "J_terminal", "J_running",
+           "solve_s", "solve_cpu_s", "iterations", "n_x", "n_g", "jac_nnz", "hess_nnz", "status", "success", "error", "objective", "J_terminal", "J_running",
            "J_effort", "kl_final", "t_f_s", "t_grad_s", "t_hess_s", "peak_rss_mb", "peak_rss_scope", "rss_growth_mb",
            "settings"]
 
@@ -286,13 +293,15 @@ def run_planner_task(task: dict) -> list[dict]:
 
     s = dataclass_from_dict(PlannerSettings, task["settings"])
     row = {"study": task["study"], "case": task["case"], "method": task["method"], "transport": s.transport,
+           "formulation": s.formulation,
            "nx": s.nx, "ny": s.ny, "n_intervals": s.n_intervals, "n_modes": s.n_modes_x, "horizon": s.horizon,
            "w_f": s.w_f, "w_p": s.w_p, "w_v": s.w_v, "v_max": s.v_max,
            "hessian": s.ipopt.hessian_approximation, "tol": s.ipopt.tol, "mu_strategy": s.ipopt.mu_strategy,
            "linear_solver": s.ipopt.linear_solver, "warm_start": task["warm_start"], "seed": task["seed"],
            "settings": json.dumps(task["settings"], sort_keys=True, default=str)}
     nan = math.nan
-    row.update(kernel="", build_s=nan, solve_s=nan, iterations=-1, status="", success=False, error="", objective=nan,
+    row.update(kernel="", build_s=nan, solve_s=nan, solve_cpu_s=nan, n_x=-1, n_g=-1, jac_nnz=-1, hess_nnz=-1,
+               iterations=-1, status="", success=False, error="", objective=nan,
                J_terminal=nan, J_running=nan, J_effort=nan, kl_final=nan, t_f_s=0.0, t_grad_s=0.0, t_hess_s=0.0)
     rss0 = _rss_mb()
     try:
@@ -302,19 +311,23 @@ def run_planner_task(task: dict) -> list[dict]:
         t0 = time.perf_counter()
         planner = ReferencePlanner(s)
         row["build_s"] = time.perf_counter() - t0
+        if task["method"] == "ipopt":
+            row.update(planner.formulation.sizes(planner.solver))
         warm = None
         if task["warm_start"]:
             # a re-plan proxy: first solve towards another GP sample's target (seed + 1000), then
             # time the solve towards this seed's target started from that plan
             other, _ = first_step_target(grid, seed=task["seed"] + 1000)
             warm = planner.solve(p0, other, method=task["method"])
-        t1 = time.perf_counter()
+        t1, c1 = time.perf_counter(), time.process_time()
         plan = planner.solve(p0, target, warm_start=warm, method=task["method"])
         wall = time.perf_counter() - t1
+        row["solve_cpu_s"] = time.process_time() - c1
         m = plan.meta
         sv = m.get("solver", {})
         row.update(solve_s=sv.get("wall_time_s", wall), iterations=sv.get("iterations", -1),
                    status=sv.get("status", ""), success=bool(sv.get("success", True)),
+                   hessian=sv.get("hessian", row["hessian"]),
                    objective=m.get("objective", nan), kl_final=m.get("symmetric_kl_final", nan),
                    # the kernel actually used: GRG always runs on the transport kernel (compiled, or NumPy)
                    kernel=sv.get("kernel", m.get("transport", "")),

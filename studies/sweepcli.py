@@ -127,14 +127,19 @@ def write_sweep_outputs(rows, out: Path) -> list[Path]:
     w.writeheader()
     w.writerows(rows)
     write_atomic(out / "study.csv", buf.getvalue())
-    lines = ["| study | case | method | kernel used | cells | build [s] | solve [s] | it | status | objective "
-             "| final sym. KL | peak RSS [MB] |", "|---|---|---|---|---:|---:|---:|---:|---|---:|---:|---:|"]
+    lines = ["| study | case | method | formulation | kernel used | cells | variables | constraints | Jacobian nnz "
+             "| Hessian nnz | Hessian | build [s] | solve [s] | solve CPU [s] | it | status | objective "
+             "| final sym. KL | peak RSS [MB] |",
+             "|---|---|---|---|---|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---|---:|---:|---:|"]
     for r in rows:
         cells = (r.get("nx") or 0) * (r.get("ny") or 0)
         status = r.get("status", "") if not r.get("error") else f"{r.get('status', '')}: {r['error'][:60]}"
-        lines.append(f"| {r.get('study')} | {r.get('case')} | {r.get('method')} | {r.get('kernel') or r.get('transport', '')} | {cells} | "
-                     f"{_f(r.get('build_s'), '.2f')} | {_f(r.get('solve_s'), '.2f')} | {r.get('iterations', '')} | "
-                     f"{status} | {_f(r.get('objective'), '.5g')} | {_f(r.get('kl_final'), '.4f')} | "
+        sizes = " | ".join(str(r.get(k, "")) if r.get(k, -1) not in (-1, None) else ""
+                           for k in ("n_x", "n_g", "jac_nnz", "hess_nnz"))
+        lines.append(f"| {r.get('study')} | {r.get('case')} | {r.get('method')} | {r.get('formulation', '')} | "
+                     f"{r.get('kernel') or r.get('transport', '')} | {cells} | {sizes} | {r.get('hessian', '')} | "
+                     f"{_f(r.get('build_s'), '.2f')} | {_f(r.get('solve_s'), '.2f')} | {_f(r.get('solve_cpu_s'), '.2f')} | "
+                     f"{r.get('iterations', '')} | {status} | {_f(r.get('objective'), '.5g')} | {_f(r.get('kl_final'), '.4f')} | "
                      f"{_f(r.get('peak_rss_mb'), '.0f')} |")
     groups = _groups(rows)
     if any(len({c for c, _, _ in pts}) > 1 for pts in groups.values()):
@@ -192,6 +197,8 @@ def _groups(rows):
         if r.get("error") or not r.get("nx"):
             continue
         key = f"{r.get('method')} / {r.get('kernel') or r.get('transport')}"
+        if r.get("formulation") and r.get("formulation") != "single-shooting":
+            key = f"{r.get('formulation')} / {r.get('hessian')}"
         groups.setdefault(key, []).append((r["nx"] * r["ny"], float(r["solve_s"]), float(r["objective"])))
     return groups
 

@@ -1,0 +1,386 @@
+"""Formulations of the reference-density problem as swappable objects (single / multiple shooting,
+direct transcription), in the manner of rockit's transcription methods (docs/design/formulations.md).
+
+One problem, :class:`ocp.problem.TransportProblem` (grid, basis, costs, speed limit, horizon), and
+three ways to hand it to IPOPT.  Each :class:`Formulation` turns the problem into an :class:`NLP`
+(``build(problem)``), maps velocity coefficients and p0 to a starting point (``initial_point``) and
+reads the coefficients back from a solution (``coefficients``):
+
+* :class:`SingleShooting` (default): only the coefficients are variables; the density is eliminated by
+  the transport (the compiled kernel with its adjoint, or the CasADi graph).  The NLP of
+  :class:`~ocp.problem.TransportProblem` itself.
+* :class:`MultipleShooting`: the densities at the N interval boundaries are variables too; the
+  intervals are integrated independently (one CasADi Function of n_sub donor-cell steps, ``map``-ped
+  over the N intervals) and continuity p_{l+1} = Phi(p_l, a_l) is an equality constraint.
+* :class:`DirectTranscription`: the density after *every* sub-step and the face velocities of every
+  interval are variables; each finite-volume step p_{k+1} = step(p_k, v_l) and each velocity lift
+  v_l = M a_l (the separable basis sampled on the faces, :func:`ocp.speedlimit.face_matrix`) is an
+  equality constraint.  The step is a small SX Function mapped over all sub-steps, so the
+  constraint Jacobian and the Hessian of the Lagrangian stay sparse (a few non-zeros per cell),
+  and IPOPT gets the exact Hessian (factorised by MUMPS) unless ``hessian="limited-memory"``.
+
+All three share the speed-limit rows and the velocity energy (the coefficient block of the single-shooting
+NLP, built by :class:`~ocp.problem.TransportProblem` for ``speed_limit`` l1 / norm / face and both
+``speed_limit_form`` values) and the costs on the interval-boundary snapshots (eq. "optimization
+problem"), so they pose the same problem and reach the same optimum; the planner re-simulates p0
+with the solved coefficients to build the plan, whatever the formulation.
+
+Usage: ``ReferencePlanner(settings)`` with ``settings.formulation`` ("single-shooting",
+"multiple-shooting", "direct-transcription"), or ``ReferencePlanner(settings, formulation=MultipleShooting())``.
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+__all__ = ["FORMULATIONS", "HESSIANS", "NLP", "Formulation", "SingleShooting", "MultipleShooting",
+           "DirectTranscription", "resolve_formulation"]
+
+#: Hessian choices of a formulation ("auto": single shooting follows ``ipopt.hessian_approximation``,
+#: multiple shooting and direct transcription use the exact sparse Hessian)
+HESSIANS = ("auto", "exact", "limited-memory")
+
+
+@dataclass
+class NLP:
+    """An NLP ready for ``casadi.nlpsol``: the problem dict, bounds, the Hessian to use and extra
+    IPOPT options the formulation needs (e.g. constant Jacobians for linear constraints)."""
+
+    nlp: dict
+    lbx: np.ndarray
+    ubx: np.ndarray
+    lbg: np.ndarray
+    ubg: np.ndarray
+    hessian: str
+    ipopt_options: dict = field(default_factory=dict)
+    #: rows of g that are the formulation's equality constraints (dynamics / lifts), for residual checks
+    dynamics_rows: slice = field(default_factory=lambda: slice(0, 0))
+
+    @property
+    def n_x(self) -> int:
+        return int(self.nlp["x"].numel())
+
+    @property
+    def n_g(self) -> int:
+        return int(self.nlp["g"].numel())
+
+
+class Formulation:
+    """How the reference-density problem becomes an NLP (rockit's ``method`` objects).
+
+    ``build(problem)`` stores the problem and returns the :class:`NLP`; afterwards
+    ``initial_point(coef0, p0)`` gives IPOPT's starting vector for coefficients (N, 2, I, J) and
+    the (already floored) initial density, and ``coefficients(x)`` the coefficient vector a of a solution.
+    """
+
+    name = "formulation"
+
+    def __init__(self, hessian: str = "auto"):
+        if hessian not in HESSIANS:
+            raise ValueError(f"formulation hessian must be one of {', '.join(HESSIANS)}, got {hessian!r}")
+        self.hessian = hessian
+        self.problem = None
+        self.nlp: NLP | None = None
+
+    def __repr__(self):
+        return f"{type(self).__name__}(hessian={self.hessian!r})"
+
+    def bind(self):
+        """A fresh copy of this formulation (a planner owns its own, as rockit's ``Stage.method``)."""
+        out = copy.copy(self)
+        out.problem = None
+        out.nlp = None
+        return out
+
+    # -- to override
+    def build(self, problem) -> NLP:
+        raise NotImplementedError
+
+    def initial_point(self, coef0, p0) -> np.ndarray:
+        raise NotImplementedError
+
+    def coefficients(self, x) -> np.ndarray:
+        """Coefficient vector a (n_coef,) of the NLP point x (layout of ``TransportProblem.coef_to_vector``)."""
+        return self.problem.coefficients_from_solution(np.asarray(x, dtype=float).ravel()[: self._n_coef_vars])
+
+    # -- shared
+    def _resolved_hessian(self, default: str) -> str:
+        return default if self.hessian == "auto" else self.hessian
+
+    def sizes(self, solver=None) -> dict:
+        """NLP size: variables, constraints, non-zeros of the constraint Jacobian and of the (upper
+        triangle of the) Hessian of the Lagrangian.  ``hess_nnz`` is that of the exact Hessian
+        (dense over the coefficient variables for single shooting, whose transport kernel has no
+        second derivatives), whether or not IPOPT uses it."""
+        nlp = self.nlp
+        x, g = nlp.nlp["x"], nlp.nlp["g"]
+        p = nlp.nlp["p"]
+        jac = ca.Function("g", [x, p], [g]).sparsity_jac(0, 0).nnz()
+        hess = self._hess_nnz(solver)
+        return {"n_x": nlp.n_x, "n_g": nlp.n_g, "jac_nnz": int(jac), "hess_nnz": int(hess)}
+
+    def _hess_nnz(self, solver) -> int:
+        if solver is not None and self.nlp.hessian == "exact":
+            return solver.get_function("nlp_hess_l").sparsity_out(0).nnz()
+        x, p = self.nlp.nlp["x"], self.nlp.nlp["p"]
+        lam = ca.MX.sym("lam", self.nlp.n_g)
+        lag = self.nlp.nlp["f"] + ca.dot(lam, self.nlp.nlp["g"])
+        grad = ca.Function("grad", [x, p, lam], [ca.gradient(lag, x)])
+        return ca.triu(grad.sparsity_jac(0, 0)).nnz()
+
+    def residual(self, x, par) -> float:
+        """max |g| over the formulation's equality rows (dynamics, lifts) at x (0 for single shooting)."""
+        rows = self.nlp.dynamics_rows
+        if rows.stop <= rows.start:
+            return 0.0
+        if not hasattr(self, "_g_fn"):
+            self._g_fn = ca.Function("g", [self.nlp.nlp["x"], self.nlp.nlp["p"]], [self.nlp.nlp["g"][rows]])
+        return float(np.max(np.abs(np.array(self._g_fn(x, par)))))
+
+
+class SingleShooting(Formulation):
+    """Today's formulation: the coefficients are the only variables (the density eliminated by the
+    transport kernel; :class:`~ocp.problem.TransportProblem`)."""
+
+    name = "single-shooting"
+
+    def build(self, problem) -> NLP:
+        self.problem = problem
+        s = problem.settings
+        self._n_coef_vars = int(problem.nlp["x"].numel())
+        # the constraints are linear: IPOPT may evaluate their Jacobian once
+        self.nlp = NLP(problem.nlp, problem.lbx, problem.ubx, problem.lbg, problem.ubg,
+                       self._resolved_hessian(s.ipopt.hessian_approximation),
+                       {"jac_c_constant": "yes", "jac_d_constant": "yes"})
+        return self.nlp
+
+    def initial_point(self, coef0, p0) -> np.ndarray:
+        P = self.problem
+        return P.initial_point(P.coef_to_vector(coef0))
+
+    def _hess_nnz(self, solver) -> int:
+        if solver is not None and self.nlp.hessian == "exact":
+            return super()._hess_nnz(solver)
+        # the transport callback has no second derivatives: the exact Hessian is dense over the
+        # variables the objective depends on (a+, a-, or a and t: the first 2 n_coef)
+        n = 2 * self.problem.n_coef
+        return n * (n + 1) // 2
+
+
+class _StateFormulation(Formulation):
+    """Shared pieces of the formulations with density variables: the coefficient block of the
+    single-shooting NLP (variables, speed-limit rows, bounds, energy) and the costs on the
+    interval-boundary snapshots."""
+
+    def _coefficient_block(self, problem):
+        s, g = problem.settings, problem.grid
+        nlp = problem.nlp
+        xc = nlp["x"]
+        n = problem.n_coef
+        self._n_coef_vars = int(xc.numel())
+        if s.speed_limit_form == "split":
+            a = xc[:n] - xc[n: 2 * n]
+            sq = ca.sumsqr(xc[: 2 * n])     # energy on a+^2 + a-^2 (TransportProblem._split_nlp)
+        else:
+            a = xc[:n]
+            sq = ca.sumsqr(a)
+        energy = s.w_v * s.interval * (g.lx * g.ly / 4.0) * sq
+        return xc, a, energy, nlp["g"], np.asarray(problem.lbx), np.asarray(problem.ubx), \
+            np.asarray(problem.lbg), np.asarray(problem.ubg)
+
+    @staticmethod
+    def _parameters(problem):
+        par = problem.nlp["p"]
+        nc = problem.grid.nx * problem.grid.ny
+        return par, par[:nc], par[nc: 2 * nc], par[2 * nc:]
+
+    @staticmethod
+    def _snapshot_cost(problem, Pk, q, lq):
+        """w_f KLs(p(t_N), q) + tau w_p sum^trap KLs(p(t_l), q) for snapshots Pk (n_cell, N+1)
+        (the same sums as the single-shooting objective, eq. "optimization problem")."""
+        s, g, N = problem.settings, problem.grid, problem.N
+        ones = ca.DM.ones(1, N + 1)
+        klv = ca.sum1((Pk - ca.mtimes(q, ones)) * (ca.log(Pk + s.log_eps) - ca.mtimes(lq, ones))) * g.cell_area
+        trap = np.ones(N + 1)
+        trap[[0, -1]] = 0.5
+        return s.w_f * klv[N] + s.w_p * s.interval * ca.mtimes(klv, ca.DM(trap))
+
+    def _coef_start(self, coef0):
+        P = self.problem
+        return P.initial_point(P.coef_to_vector(coef0))
+
+    def _ipopt_options(self, hessian):
+        # the speed-limit rows (inequalities) stay linear; the dynamics (equalities) do not.  MUMPS with
+        # METIS ordering: ~5x faster factorisations of these KKT systems than its automatic choice
+        # (measured at 10 x 10; docs/results/formulations.md)
+        return {"jac_d_constant": "yes", "mumps_pivot_order": 5}
+
+
+class MultipleShooting(_StateFormulation):
+    """Densities at the interval boundaries p_1..p_N as variables; p_{l+1} = Phi(p_l, a_l) as
+    N n_cell equality constraints, Phi = n_sub donor-cell steps of ``TransportProblem.interval_map``
+    (the CasADi MX graph of matrix operations), evaluated for all intervals at once with ``map``.
+
+    ``parallelization``: CasADi's ``map`` mode ("serial", "thread"; "openmp" runs serially in the
+    PyPI build).  ``expand``: SX expansion of the interval function (off: at 10 x 10 it took 7x the
+    build time for no faster solve)."""
+
+    name = "multiple-shooting"
+
+    def __init__(self, hessian: str = "auto", parallelization: str = "serial", expand: bool = False):
+        super().__init__(hessian)
+        self.parallelization = parallelization
+        self.expand = expand
+
+    def build(self, problem) -> NLP:
+        self.problem = problem
+        g = problem.grid
+        nx, ny, N, I, J = g.nx, g.ny, problem.N, problem.I, problem.J
+        nc, m = nx * ny, 2 * I * J
+        xc, a, energy, g_speed, lbx, ubx, lbg, ubg = self._coefficient_block(problem)
+        par, p0, q, lq = self._parameters(problem)
+
+        pv = ca.MX.sym("p", nc)
+        al = ca.MX.sym("a", m)
+        A = ca.reshape(al, I * J, 2)
+        ax, ay = ca.reshape(A[:, 0], J, I).T, ca.reshape(A[:, 1], J, I).T     # C order (i, j) -> I x J
+        out = ca.vec(problem.interval_map(ca.reshape(pv, nx, ny), ax, ay))
+        phi = ca.Function("interval", [pv, al], [out], ["p", "a"], ["p_next"])
+        if self.expand:
+            phi = phi.expand()
+        self.phi = phi
+        phi_all = phi.map(N, self.parallelization)
+
+        S = ca.MX.sym("P", nc, N)                     # p(t_1) .. p(t_N), column-major cells
+        prev = ca.horzcat(p0, S[:, : N - 1]) if N > 1 else p0
+        dyn = ca.vec(S - phi_all(prev, ca.reshape(a, m, N)))
+        Pk = ca.horzcat(p0, S)
+        f = self._snapshot_cost(problem, Pk, q, lq) + energy
+        x = ca.vertcat(xc, ca.vec(S))
+        n_speed = int(g_speed.numel())
+        self.nlp = NLP(
+            {"x": x, "p": par, "f": f, "g": ca.vertcat(g_speed, dyn)},
+            np.concatenate([lbx, np.zeros(nc * N)]),          # densities >= 0 (the log in the KL)
+            np.concatenate([ubx, np.full(nc * N, np.inf)]),
+            np.concatenate([lbg, np.zeros(nc * N)]), np.concatenate([ubg, np.zeros(nc * N)]),
+            self._resolved_hessian("exact"), self._ipopt_options(None),
+            dynamics_rows=slice(n_speed, n_speed + nc * N))
+        return self.nlp
+
+    def initial_point(self, coef0, p0) -> np.ndarray:
+        """The coefficient start and the densities of p0 simulated under coef0 (a feasible point)."""
+        P = self.problem
+        traj = P.trajectory(p0, coef0)[P.n_sub:: P.n_sub]        # (N, nx, ny) at t_1 .. t_N
+        return np.concatenate([self._coef_start(coef0), np.concatenate([s.ravel(order="F") for s in traj])])
+
+
+class DirectTranscription(_StateFormulation):
+    """The density after every sub-step (N n_sub n_cell variables) and the interior-face velocities
+    of every interval as variables; every explicit donor-cell step and every velocity lift
+    v_l = M a_l is an equality constraint.  One SX Function for one step, ``map``-ped over the
+    sub-steps of an interval (velocities shared) and again over the intervals: the graph stays
+    small and the derivatives sparse.  Exact Hessian by default (MUMPS factorises the sparse KKT
+    system); ``hessian="limited-memory"`` for L-BFGS.  Upwind (donor-cell) scheme only."""
+
+    name = "direct-transcription"
+
+    def __init__(self, hessian: str = "auto", parallelization: str = "serial"):
+        super().__init__(hessian)
+        self.parallelization = parallelization
+
+    def step_function(self, problem):
+        """One explicit donor-cell sub-step p -> p - dt div(v p) (:func:`ocp.transport.upwind_step`)
+        as an SX Function of (p, vx, vy), column-major vectors."""
+        s, g = problem.settings, problem.grid
+        nx, ny = g.nx, g.ny
+        eps = s.upwind_smoothing
+        rx, ry = problem.dt / g.dx, problem.dt / g.dy
+        p = ca.SX.sym("p", nx, ny)
+        vx = ca.SX.sym("vx", nx - 1, ny)
+        vy = ca.SX.sym("vy", nx, ny - 1)
+        vxp = 0.5 * (vx + ca.sqrt(vx * vx + eps * eps))
+        vyp = 0.5 * (vy + ca.sqrt(vy * vy + eps * eps))
+        fx = vxp * p[: nx - 1, :] - (vxp - vx) * p[1:, :]          # (nx-1, ny) interior x-faces
+        fy = vyp * p[:, : ny - 1] - (vyp - vy) * p[:, 1:]          # (nx, ny-1)
+        zx, zy = ca.SX.zeros(1, ny), ca.SX.zeros(nx, 1)
+        FX = ca.vertcat(zx, fx, zx)
+        FY = ca.horzcat(zy, fy, zy)
+        q = p - rx * (FX[1:, :] - FX[: nx, :]) - ry * (FY[:, 1:] - FY[:, : ny])
+        return ca.Function("fv_step", [ca.vec(p), ca.vec(vx), ca.vec(vy)], [ca.vec(q)], ["p", "vx", "vy"], ["p_next"])
+
+    def build(self, problem) -> NLP:
+        s = problem.settings
+        if s.scheme != "upwind":
+            raise ValueError("formulation 'direct-transcription' implements the upwind (donor-cell) step only; "
+                             f"planner.scheme is {s.scheme!r}")
+        self.problem = problem
+        g = problem.grid
+        nx, ny, N, n_sub = g.nx, g.ny, problem.N, problem.n_sub
+        nc, nfx, nfy = nx * ny, (nx - 1) * ny, nx * (ny - 1)
+        K = N * n_sub
+        xc, a, energy, g_speed, lbx, ubx, lbg, ubg = self._coefficient_block(problem)
+        par, p0, q, lq = self._parameters(problem)
+
+        step = self.step_function(problem)
+        self.step = step
+        # n_sub steps sharing the interval's velocities, then all intervals
+        interval = step.map("fv_interval", "serial", n_sub, [1, 2], [])
+        horizon = interval.map(N, self.parallelization)
+
+        from .speedlimit import face_matrix
+        M = face_matrix(problem.basis, N).tocoo()
+        Msp = ca.DM.triplet(M.row.tolist(), M.col.tolist(), ca.DM(M.data), M.shape[0], M.shape[1])
+
+        V = ca.MX.sym("V", nfx + nfy, N)               # column l: [vx_l; vy_l] (column-major faces)
+        S = ca.MX.sym("P", nc, K)                      # density after sub-step k = 1..K
+        prev = ca.horzcat(p0, S[:, : K - 1]) if K > 1 else p0
+        dyn = ca.vec(S - horizon(prev, V[:nfx, :], V[nfx:, :]))
+        lift = ca.vec(V) - ca.mtimes(Msp, a)
+        cols = list(range(n_sub - 1, K, n_sub))        # t_1 .. t_N
+        Pk = ca.horzcat(p0, S[:, cols])
+        f = self._snapshot_cost(problem, Pk, q, lq) + energy
+        x = ca.vertcat(xc, ca.vec(V), ca.vec(S))
+        nv = (nfx + nfy) * N
+        lb_state = np.full((nc, K), -np.inf)
+        lb_state[:, cols] = 0.0                        # the snapshots enter the log of the KL
+        n_speed = int(g_speed.numel())
+        self._n_v = nv
+        self.nlp = NLP(
+            {"x": x, "p": par, "f": f, "g": ca.vertcat(g_speed, lift, dyn)},
+            np.concatenate([lbx, np.full(nv, -np.inf), lb_state.ravel(order="F")]),
+            np.concatenate([ubx, np.full(nv + nc * K, np.inf)]),
+            np.concatenate([lbg, np.zeros(nv + nc * K)]), np.concatenate([ubg, np.zeros(nv + nc * K)]),
+            self._resolved_hessian("exact"), self._ipopt_options(None),
+            dynamics_rows=slice(n_speed, n_speed + nv + nc * K))
+        return self.nlp
+
+    def initial_point(self, coef0, p0) -> np.ndarray:
+        """The coefficient start, its face velocities and p0 simulated under coef0 (a feasible point)."""
+        P = self.problem
+        xc = self._coef_start(coef0)
+        a = P.coefficients_from_solution(xc)
+        coef = P.vector_to_coef(a)
+        VX, VY = P.face_velocities(coef)
+        V = np.concatenate([np.concatenate([vx, vy]) for vx, vy in zip(VX, VY)])
+        traj = P.trajectory(p0, coef)[1:]
+        return np.concatenate([xc, V, np.concatenate([s.ravel(order="F") for s in traj])])
+
+
+#: settings name -> formulation class
+FORMULATIONS = {"single-shooting": SingleShooting, "multiple-shooting": MultipleShooting,
+                "direct-transcription": DirectTranscription}
+
+
+def resolve_formulation(spec, settings=None) -> Formulation:
+    """A :class:`Formulation` from a name of :data:`FORMULATIONS` (with ``settings.formulation_hessian``)
+    or a Formulation object (copied); None means ``settings.formulation``."""
+    if spec is None:
+        spec = getattr(settings, "formulation", "single-shooting")
+    if isinstance(spec, Formulation):
+        return spec.bind()
+    if isinstance(spec, str) and spec in FORMULATIONS:
+        return FORMULATIONS[spec](hessian=getattr(settings, "formulation_hessian", "auto"))
+    raise ValueError(f"unknown formulation {spec!r}; known: {', '.join(FORMULATIONS)}")
