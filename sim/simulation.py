@@ -141,7 +141,7 @@ class Simulation:
                                                               config.planner.ny)
         self.region, self.free = resolve_domain(config, grid, domain)
         if self.controller.needs_plan:
-            from ..ocp import PlannerError, ReferencePlanner
+            from ..ocp import PlannerError
             self.planner_error = PlannerError
             if planner is None:
                 planner = make_planner(config.planner, self.free)

@@ -30,7 +30,6 @@ to plan for); its last estimate then stands for the later times.
 """
 from __future__ import annotations
 
-import argparse
 import csv
 import hashlib
 import io
@@ -43,7 +42,7 @@ import numpy as np
 
 from ..runtime.atomic import write_atomic
 from ..runtime.cliargs import OneLineParser, UsageError as InputError, cli_main, check_path
-from ..runtime.publish import InterruptedAfterPublish, OutputFolder
+from ..runtime.publish import OutputFolder
 
 PROG = "compare-controllers"
 ROW_COLUMNS = ("preset", "controller", "field", "seed", "robot_loss", "robots", "step", "t", "t_T", "max_variance",
@@ -550,19 +549,9 @@ def _sweep_and_publish(args, argv, tasks, gamma, times, folder, client=None) -> 
         if not args.no_plots:
             plots.extend(write_plots(runs, stage / "plots", gamma))
         return ["runs.csv", "summary.md"] + [f"plots/{p}" for p in plots]
-    try:
-        folder.write_and_publish(write)
-    except InterruptedAfterPublish as exc:
-        print(f"{PROG}: {stopped(exc)} after writing runs.csv, summary.md and the plots to {out}", file=sys.stderr)
-        return exit_code(exc)
-    except KeyboardInterrupt as exc:
-        print(f"{PROG}: {stopped(exc)} while writing the outputs; nothing written: {out} keeps its previous outputs "
-              f"(the runs are stored in {out / 'runs'}: the same command writes them again)", file=sys.stderr)
-        return exit_code(exc)
-    except (OSError, ValueError) as exc:
-        print(f"{PROG}: error: cannot write the outputs ({getattr(exc, 'strerror', None) or exc}); {out} keeps its "
-              f"previous outputs, the runs are stored in {out / 'runs'}", file=sys.stderr)
-        return 1
+    _, code = sweep.publish_outputs(folder, write, PROG, out, "runs.csv, summary.md and the plots")
+    if code is not None:
+        return code
     try:
         if not args.quiet:
             print(table, end="", file=sys.stderr)

@@ -39,7 +39,7 @@ import time
 from pathlib import Path
 from typing import Callable
 
-__all__ = ["task_key", "run_tasks", "load_results", "SweepError", "SweepAborted", "SchedulerError",
+__all__ = ["task_key", "run_tasks", "publish_outputs", "load_results", "SweepError", "SweepAborted", "SchedulerError",
            "connect_scheduler", "quiet_dask_logs", "unique_values"]
 
 
@@ -302,3 +302,27 @@ def _run_dask(todo, fn, scheduler, finished):
     finally:
         if own:
             client.close()
+
+
+def publish_outputs(folder, write, prog: str, out: Path, what: str):
+    """Write a sweep's outputs through ``folder.write_and_publish(write)`` (:mod:`runtime.publish`) and
+    turn what can go wrong into one line on stderr.  Returns ``(names, None)`` once published, or
+    ``(None, exit_code)``: an interrupt after publication ("interrupted after writing ``what``"), an
+    interrupt before it ("nothing written"), or a write error (exit 1); the runs stay in ``out/runs``
+    either way, so the same command writes the outputs again."""
+    from ..runtime.publish import InterruptedAfterPublish
+    from ..runtime.signals import exit_code, stopped
+    kept = f"the runs are stored in {out / 'runs'}: the same command writes them again"
+    try:
+        return folder.write_and_publish(write), None
+    except InterruptedAfterPublish as exc:
+        print(f"{prog}: {stopped(exc)} after writing {what} to {out}", file=sys.stderr)
+        return None, exit_code(exc)
+    except KeyboardInterrupt as exc:
+        print(f"{prog}: {stopped(exc)} while writing the outputs; nothing written: {out} keeps its previous outputs ({kept})",
+              file=sys.stderr)
+        return None, exit_code(exc)
+    except (OSError, ValueError) as exc:
+        print(f"{prog}: error: cannot write {what} to {out} ({getattr(exc, 'strerror', None) or exc}); {out} keeps "
+              f"its previous outputs ({kept})", file=sys.stderr)
+        return None, 1

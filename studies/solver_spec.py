@@ -32,7 +32,7 @@ import resource
 import sys
 import time
 
-from ..ocp.settings import FORMULATIONS, TRANSPORTS, IpoptSettings, PlannerSettings, dataclass_from_dict, to_dict
+from ..ocp.settings import FORMULATIONS, TRANSPORTS, PlannerSettings, dataclass_from_dict, to_dict
 
 __all__ = ["SpecError", "AXES", "parse_spec", "expand", "preset_tasks", "run_planner_task", "COLUMNS"]
 

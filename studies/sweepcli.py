@@ -221,7 +221,7 @@ def run_sweep_cli(args, prog: str) -> int:
               file=sys.stderr)
         return 2
     from ..runtime.cliargs import UsageError, check_path
-    from ..runtime.publish import InterruptedAfterPublish, OutputFolder
+    from ..runtime.publish import OutputFolder
     from .runner import SchedulerError, connect_scheduler, quiet_dask_logs
 
     # OUT is locked for the sweep; the study files are staged and published together (runtime.publish)
@@ -247,7 +247,7 @@ def run_sweep_cli(args, prog: str) -> int:
             print(f"{prog}: error: {exc}", file=sys.stderr)
             return 2
         try:
-            return _sweep_and_publish(args, prog, tasks, folder, InterruptedAfterPublish, client)
+            return _sweep_and_publish(args, prog, tasks, folder, client)
         finally:
             folder.unlock()
     finally:
@@ -256,7 +256,7 @@ def run_sweep_cli(args, prog: str) -> int:
             _close_client(client)
 
 
-def _sweep_and_publish(args, prog, tasks, folder, InterruptedAfterPublish, client=None) -> int:
+def _sweep_and_publish(args, prog, tasks, folder, client=None) -> int:
     from ..runtime.signals import exit_code, stopped
     try:
         rows = run_sweep(tasks, args.out, workers=args.workers, scheduler=client if client is not None else
@@ -269,19 +269,11 @@ def _sweep_and_publish(args, prog, tasks, folder, InterruptedAfterPublish, clien
         print(f"{prog}: error: {exc}; the runs finished before are kept in {args.out / 'runs'} (the same command "
               "resumes)", file=sys.stderr)
         return 1
-    try:
-        names = folder.write_and_publish(lambda stage: [p.name for p in write_sweep_outputs(rows, stage)])
-    except InterruptedAfterPublish as exc:
-        print(f"{prog}: {stopped(exc)} after writing the study to {args.out}", file=sys.stderr)
-        return exit_code(exc)
-    except KeyboardInterrupt as exc:
-        print(f"{prog}: {stopped(exc)} while writing; nothing written: {args.out} keeps its previous study (the runs "
-              f"are stored in {args.out / 'runs'}: the same command writes it again)", file=sys.stderr)
-        return exit_code(exc)
-    except (OSError, ValueError) as exc:
-        print(f"{prog}: error: cannot write the study to {args.out}: {getattr(exc, 'strerror', None) or exc}",
-              file=sys.stderr)
-        return 1
+    from .runner import publish_outputs
+    names, code = publish_outputs(folder, lambda stage: [p.name for p in write_sweep_outputs(rows, stage)],
+                                  prog, args.out, "the study")
+    if code is not None:
+        return code
     failed = sum(1 for r in rows if r.get("error"))
     try:
         print(f"wrote {', '.join(str(args.out / n) for n in names)} ({len(rows)} runs, {failed} failed)")
