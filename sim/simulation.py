@@ -209,7 +209,7 @@ class Simulation:
         """One period [kT, (k+1)T] of Algorithm 1; False once the run is over."""
         self.refit_hyperparameters()
         snap = self.snapshot()
-        if self.stop_rule.reached(self.var_free(), self.gp):
+        if self.stop_rule.reached(self.var, self.gp):
             return self.stop("threshold")
         if self.out_of_time():
             return self.stop("max_time")
@@ -317,10 +317,6 @@ class Simulation:
         mean[self.free], var[self.free] = m_, v_
         return mean, var
 
-    def var_free(self):
-        """V on the grid with the blocked cells at 0 (the variance the stop rule and target see)."""
-        return self.var if self.free is None else np.where(self.free, self.var, 0.0)
-
     def estimate_density(self, fresh: bool = False, on_grid: bool = True) -> None:
         """KDE p̂ of the working robots (eq. "KDE"), on the planner grid if ``on_grid``."""
         self.est = self.estimate(self.working(), fresh=fresh)
@@ -341,7 +337,7 @@ class Simulation:
 
     def snapshot(self) -> Snapshot:
         """State at the period start, kept for the figures."""
-        self.sup_v = float(self.var_free().max())
+        self.sup_v = float(self.var.max())
         snap = Snapshot(t=self.t, period=self.period_index, X=self.X.copy(), mean=self.mean, var=self.var,
                         p_hat=self.p_hat)
         self.result.snapshots.append(snap)
@@ -361,8 +357,8 @@ class Simulation:
         eta = self.stop_rule.tolerance(self.gp)
         if s.target == "reachable":
             reach = 0.5 * self.config.planner.v_max * s.period if s.reach is None else s.reach   # 2 sd = v_max T
-            return reachable_target_density(self.var_free(), eta, grid.cell_area, self.p_hat, reach, grid.dx, grid.dy)
-        return target_density(self.var_free(), eta, grid.cell_area)
+            return reachable_target_density(self.var, eta, grid.cell_area, self.p_hat, reach, grid.dx, grid.dy)
+        return target_density(self.var, eta, grid.cell_area)
 
     def information_inputs(self) -> dict:
         """``{"information": InformationInputs}`` for ``planner.objective = "information"`` (the current GP
