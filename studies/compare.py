@@ -75,9 +75,16 @@ def run_task(task: dict) -> list[dict]:
              "length_scale": r["length_scale"], "stop_reason": res.stop_reason} for r in res.rows]
 
 
-def _field_label(field: str) -> str:
-    from ..sim.fields import FIELDS
-    return field if field in FIELDS else Path(field).stem
+def _labels(items, builtins) -> dict:
+    """The label of each field (or domain) in runs.csv and summary.md: a built-in's name, a file's stem --
+    or, where two of the sweep would get the same label (``tune/bumps.npz`` next to ``bumps``), the path
+    as given, so that different fields are never merged into one row."""
+    items = list(dict.fromkeys(items))
+    stem = {f: (f if f in builtins else Path(f).stem) for f in items}
+    counts: dict = {}
+    for f in items:
+        counts[stem[f]] = counts.get(stem[f], 0) + 1
+    return {f: (stem[f] if counts[stem[f]] == 1 or f in builtins else Path(f).as_posix()) for f in items}
 
 
 def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, loss_time=None, start_box=None,
@@ -103,8 +110,10 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
     base_doc = {k: v for k, v in base_doc.items() if k != "preset"}
     tasks = []
     loaded, checked = {}, set()       # every field file and configuration is checked once, here in the parent
+    labels = _labels(fields, FIELDS)
     if domains:
         from ..sim.domain import BUILTIN_DOMAINS
+        dlabels = _labels(domains, BUILTIN_DOMAINS)
         for dom in domains:
             if dom not in BUILTIN_DOMAINS and not Path(dom).is_file():
                 raise ValueError(f"domain {dom!r} is neither a built-in domain ({', '.join(BUILTIN_DOMAINS)}) "
@@ -115,13 +124,13 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
             sub = make_tasks(doc, controllers, fields, seeds, losses, robots, loss_time=loss_time,
                              start_box=start_box, max_periods=max_periods, presets=presets)
             for t in sub:
-                t["domain"] = dom if dom in BUILTIN_DOMAINS else Path(dom).stem
+                t["domain"] = dlabels[dom]
                 if dom not in BUILTIN_DOMAINS:
                     t["domain_source"] = f"{src}#sha256={hashlib.sha256(Path(src).read_bytes()).hexdigest()[:16]}"
             tasks += sub
         return tasks
     for field in fields:
-        fsig = field
+        fsig, label = field, labels[field]
         if field not in FIELDS:
             path = Path(field).resolve()
             if not path.exists():
@@ -161,7 +170,7 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
                         speed = make_controller(ctrl, cfg).v_max
                         free = _reachable_cells(cfg)
                         tasks.append({"preset": preset, "controller": ctrl, "stop_rule": list(rule),
-                                      "field": _field_label(field), "field_source": fsig,
+                                      "field": label, "field_source": fsig,
                                       "seed": int(seed), "robot_loss": float(loss), "robots": int(n),
                                       "travel_limit": travel_time_limit(cfg, speed=speed, free=free),
                                       "config": cdoc})

@@ -243,3 +243,24 @@ def test_summary_counts_never_as_infinity_and_prints_the_travel_limit():
     ref = lines["*physical travel-time limit*"]
     assert ref[5] == ref[6] == "*0.875*"
     assert table.splitlines()[-1].startswith("| f | 100 | 0 % | — | *physical travel-time limit*")
+
+
+def test_field_files_whose_stem_collides_keep_separate_labels(tmp_path):
+    """tune/bumps.npz next to the built-in bumps (or a second bumps.npz) must not share a label:
+    runs.csv and summary.md would merge two different fields into one row."""
+    from swarmfield.sim.fields import save_npz_field
+    from swarmfield.studies.compare import make_tasks
+
+    cfg = tmp_path / "small.toml"
+    cfg.write_text(SMALL_TOML)
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    x = np.linspace(0, 1, 5)
+    fa = save_npz_field(tmp_path / "a" / "bumps.npz", np.add.outer(x, x), (0.0, 10.0, 0.0, 10.0))
+    fb = save_npz_field(tmp_path / "b" / "bumps.npz", np.subtract.outer(x, x), (0.0, 10.0, 0.0, 10.0))
+    fc = save_npz_field(tmp_path / "b" / "ridgeish.npz", np.multiply.outer(x, x), (0.0, 10.0, 0.0, 10.0))
+    from swarmfield.sim.config import read_toml
+    doc = read_toml(cfg)
+    tasks = make_tasks(doc, ["lawnmower"], ["bumps", str(fa), str(fb), str(fc)], [0], [0.0], [20], max_periods=1)
+    labels = [t["field"] for t in tasks]
+    assert labels == ["bumps", str(fa), str(fb), "ridgeish"]
