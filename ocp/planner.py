@@ -59,6 +59,9 @@ class ReferencePlanner:
     def __init__(self, settings: PlannerSettings | None = None, free=None,
                  formulation: Formulation | str | None = None):
         self.settings = settings or PlannerSettings()
+        if self.settings.reference_speed is not None:     # the plan's own bound (PlannerSettings.reference_speed)
+            self.settings = dataclasses.replace(self.settings, v_max=self.settings.reference_speed,
+                                                reference_speed=None)
         s = self.settings
         # how the problem becomes an NLP (ocp.formulations): settings.formulation unless given here
         self.formulation = resolve_formulation(formulation, s)

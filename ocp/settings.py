@@ -128,6 +128,12 @@ class PlannerSettings:
     w_p: float = 1.0
     w_v: float = 0.01
     v_max: float = 3.0
+    #: bound of the *planned* reference velocity v_r [m/s]; None: ``v_max``.  ``v_max`` stays the robots'
+    #: speed (the motion baselines drive at it, sim.controllers); a reference planned faster than the robots
+    #: can follow (issue 20: 4 m/s for robots of 3 m/s) keeps the feedback law saturated at the swarm's front,
+    #: where the density lags the plan, instead of letting the robots settle at the plan's pace
+    #: (docs/results/tuned-preset.md).  The planner solves with v_max = reference_speed (its plan meta says so)
+    reference_speed: float | None = None
     target_floor: float = 0.05
     initial_floor: float = 0.02
     upwind_smoothing: float = 0.02
@@ -218,6 +224,8 @@ class PlannerSettings:
         if self.nx < 3 or self.ny < 3:
             raise ValueError(f"planner grid must be at least 3x3 cells, got {self.nx}x{self.ny}")
         _positive(self, "horizon", "v_max", "upwind_smoothing", "log_eps")
+        if self.reference_speed is not None:
+            _positive(self, "reference_speed")
         for name in ("w_f", "w_p", "w_v"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):

@@ -201,3 +201,29 @@ def test_norm_polygon_rows_reach_the_nlp_unscrambled():
     Jv = np.array(J(np.zeros(nlp["x"].shape[0]), np.zeros(nlp["p"].shape[0])))
     np.testing.assert_array_equal(Jv, np.kron(np.eye(prob.N), rows))
     assert np.all(prob.ubg[n_b:] == bound)
+
+
+def test_reference_speed_bounds_the_plan_not_the_robots():
+    """planner.reference_speed (issue 20): the plan is solved with v_max = reference_speed (its meta says
+    so, and it uses the larger bound on a far target), the configuration's v_max -- the robots' speed,
+    which the baselines drive at -- is unchanged; a non-positive value is refused."""
+    from swarmfield.ocp import ReferencePlanner
+    from swarmfield.sim.config import RunConfig
+    from swarmfield.sim.controllers import make_controller
+    base = {**N_S, "speed_limit": "l1"}
+    s = PlannerSettings(**base, reference_speed=4.5)
+    assert s.v_max == 3.0
+    pl = ReferencePlanner(s)
+    assert pl.settings.v_max == 4.5 and pl.settings.reference_speed is None
+    assert pl.settings.substeps > PlannerSettings(**base).substeps          # the CFL rule of the faster plan
+    g = pl.grid
+    X, Y = np.meshgrid(g.xc, g.yc, indexing="ij")
+    plan = pl.solve(np.exp(-((X - 3) ** 2 + (Y - 3) ** 2) / 4), np.exp(-((X - 15) ** 2 + (Y - 15) ** 2) / 20))
+    assert plan.meta["settings"]["v_max"] == 4.5
+    assert np.abs(plan.coef).reshape(s.n_intervals, -1).sum(axis=1).max() > 3.0 * (1 + 1e-3)
+    assert plan.p.min() >= 0.0
+    with pytest.raises(ValueError, match="reference_speed"):
+        PlannerSettings(**base, reference_speed=0.0)
+    cfg = RunConfig.default()
+    cfg = cfg.__class__(**{**cfg.__dict__, "planner": PlannerSettings(reference_speed=4.0)})
+    assert make_controller("greedy", cfg).v_max == 3.0
