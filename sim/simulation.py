@@ -207,6 +207,8 @@ class Simulation:
 
     def step(self) -> bool:
         """One period [kT, (k+1)T] of Algorithm 1; False once the run is over."""
+        if self.lose_robots():            # a loss due now is known before the re-plan (its N and p̂ count)
+            self.estimate_density(fresh=True)
         self.refit_hyperparameters()
         snap = self.snapshot()
         if self.stop_rule.reached(self.var, self.gp):
@@ -276,15 +278,17 @@ class Simulation:
         self._notify("finish")
 
     # ----------------------------------------------------------------------------- the parts
-    def lose_robots(self) -> None:
+    def lose_robots(self) -> bool:
         """At sim.loss_time, a random fraction of the robots stops (own generator: the run's stream
-        is unchanged)."""
+        is unchanged); True if robots were lost now."""
         s, alive = self.settings, self.alive
         if s.robot_loss > 0 and alive.all() and self.t >= s.loss_time - 1e-9 * s.period:
             n = s.robots
             m = int(round(s.robot_loss * n))
             lost = np.random.default_rng([s.seed, 0x105]).choice(n, size=min(m, n - 1), replace=False)
             alive[lost] = False
+            return True
+        return False
 
     def working(self) -> np.ndarray:
         """Positions of the robots that still work (the array itself while all do)."""

@@ -483,3 +483,27 @@ def test_kde_hold_refits_once_per_measurement_step(monkeypatch):
     assert counts[2] == 1 + steps * (1 + (sub - 1) // 2)
     with pytest.raises(ValueError, match="hold_substeps"):
         config_from_dict({"kde": {"hold_substeps": 0}})
+
+
+def test_a_loss_at_a_period_start_is_known_to_that_periods_plan():
+    """Robots lost at t = kT (the default loss time is T) are gone before the re-plan at kT: the planner's
+    p0 (p̂) is the KDE of the survivors and the information objective counts them only."""
+    from swarmfield.sim.recorders import Recorder
+    from swarmfield.sim.simulation import Simulation
+
+    seen = []
+
+    class AtPlan(Recorder):
+        def planned(self, sim):
+            seen.append((sim.t, int(sim.alive.sum()), sim.information_inputs()["information"].robots))
+
+    cfg = small_config(robot_loss=0.3, loss_time=1.75, max_periods=2)
+    cfg = dataclasses.replace(cfg, planner=dataclasses.replace(cfg.planner, objective="information"))
+    sim = Simulation(cfg, recorders=[AtPlan()])
+    sim.run()
+    assert [s[0] for s in seen] == [0.0, 1.75]
+    assert seen[0][1:] == (30, 30) and seen[1][1:] == (21, 21)
+    # p̂ at the second plan is the survivors' KDE
+    np.testing.assert_allclose(sim.result.snapshots[1].p_hat,
+                               sim.grid.normalize(sim.estimate.kde.fit(sim.result.snapshots[1].X[sim.alive])
+                                                  .on_grid(sim.grid.nx, sim.grid.ny)), rtol=1e-10)
