@@ -182,6 +182,10 @@ class SimSettings:
                     where the reference can get in one period), floored at 1e-3 max R (regression.reachable_target_density; issue 10)
     reach           standard deviation [m] of that Gaussian for ``target = "reachable"``; None (default):
                     planner.v_max * T / 2
+    replan_every    receding horizon (beyond the paper, issue 20): also re-plan the reference (horizon T,
+                    from the current p̂ and GP variance) after every this many measurement steps inside a
+                    period; 0 (default, Algorithm 1): at the period starts only.  The stop rule and the
+                    hyperparameter refit stay at the period starts
     """
 
     robots: int = 100
@@ -212,6 +216,7 @@ class SimSettings:
     metrics_every: int | str = 1
     target: str = "variance"
     reach: float | None = None
+    replan_every: int = 0
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -251,6 +256,7 @@ class SimSettings:
             if isinstance(self.metrics_every, str):
                 raise ValueError(f"sim.metrics_every must be a positive integer or \"auto\", got {self.metrics_every!r}")
             set_("metrics_every", _integer("metrics_every", self.metrics_every, 1))
+        set_("replan_every", _integer("replan_every", self.replan_every, 0))
         if self.target not in ("variance", "reachable"):
             raise ValueError(f"sim.target must be 'variance' or 'reachable', got {self.target!r}")
         if self.reach is not None:

@@ -105,6 +105,9 @@ class Controller:
     def observe(self, ctx: Context) -> None:
         """Called after every measurement and regression (t = kT + jΔt)."""
 
+    def replanned(self, ctx: Context) -> None:
+        """Called after a re-plan inside a period (``sim.replan_every``): ``ctx.plan`` is the new plan."""
+
     def velocity(self, t: float, X: np.ndarray, alive: np.ndarray) -> np.ndarray:
         return np.zeros_like(X)
 
@@ -126,6 +129,9 @@ class FeedbackController(Controller):
         self.plan, self.estimate = ctx.plan, ctx.estimate
         self.stir = stirring_pattern(self.periods, self.config.feedback.stir_cells)
         self.periods += 1
+
+    def replanned(self, ctx):
+        self.plan = ctx.plan          # the stirring pattern stays the period's
 
     def velocity(self, t, X, alive):
         fb = self.config.feedback

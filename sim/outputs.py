@@ -163,7 +163,7 @@ def summary_dict(result, files=(), extra: dict | None = None) -> dict:
         "periods_to_threshold": result.periods_to_threshold,
         "gamma": s.gamma,
         "period": s.period,
-        "periods_run": sum(1 for r in result.replans if r.get("success")) if result.replans or not rows
+        "periods_run": len({r["period"] for r in result.replans if r.get("success")}) if result.replans or not rows
         else int(rows[-1]["period"]) + (1 if len(rows) > 1 else 0),
         "controller": s.controller,
         "motion": _motion(result),

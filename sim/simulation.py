@@ -225,6 +225,8 @@ class Simulation:
         self._notify("planned")
         for j in range(1, self.settings.steps_per_period + 1):
             self.measurement_step(j)
+            if self.replan_due(j) and not self.replan_within_period():
+                return self.stop("planner_failed")
         self.period_index += 1
         self._notify("period")
         return True
@@ -251,13 +253,31 @@ class Simulation:
         self._notify("measured")
         self.controller.observe(self.context())
 
+    def replan_due(self, j: int) -> bool:
+        """Whether the receding horizon (``sim.replan_every``) re-plans after measurement step ``j`` of the
+        period (never after the last: the period start re-plans)."""
+        k = self.settings.replan_every
+        return bool(k) and self.controller.needs_plan and j % k == 0 and j < self.settings.steps_per_period
+
+    def replan_within_period(self) -> bool:
+        """Re-plan [t, t + T] from the current p̂ and posterior (receding horizon); the controller keeps
+        its period state (``Controller.replanned``).  Nothing to plan for (V <= eta): the plan stays."""
+        self.p_hat = self._p_hat_grid()
+        p_f = self.target()
+        if p_f is None:
+            return True
+        if not self.replan(p_f, None):
+            return False
+        self.controller.replanned(self.context())
+        return True
+
     def posterior_due(self, j: int, n_new: int) -> bool:
         """Whether measurement step ``j`` of the period (1 .. T/Δt) computes the posterior and a
         metrics row (``sim.metrics_every``): always at the period's end (Algorithm 1 needs V at
         t = kT); every ``metrics_every`` steps; ``"auto"``: while the ``n_new`` new points fit a
         Woodbury update of the GP (:meth:`GaussianProcess.update_fits`), otherwise at the end only."""
         s = self.settings
-        if j == s.steps_per_period:
+        if j == s.steps_per_period or self.replan_due(j):
             return True
         if s.metrics_every == "auto":
             return self.gp.update_fits(n_new)
@@ -382,16 +402,17 @@ class Simulation:
         return {"information": InformationInputs(var, int(self.alive.sum()), self.settings.dt,
                                                  gs.noise_variance, ell)}
 
-    def replan(self, p_f, snap: Snapshot) -> bool:
+    def replan(self, p_f, snap: Snapshot | None) -> bool:
         """The reference for [t, t + T] (eqs. "optimization problem", "reference model"); False if the
-        planner failed (the failure is recorded in ``result.replans`` and ``result.error``)."""
+        planner failed (the failure is recorded in ``result.replans`` and ``result.error``).  ``snap``:
+        the period start's snapshot (its velocity field is drawn), None inside a period."""
         res, k, t = self.result, self.period_index, self.t
         t_plan = time.perf_counter()
         try:
             plan = self.planner.solve(self.p_hat, p_f, t0=t, warm_start=self.plan, **self.information_inputs())
         except self.planner_error as exc:
             info = dict(getattr(exc, "stats", {}) or {})
-            res.replans.append({"period": k, "t0": t, "max_variance": self.sup_v, "rmse": res.rows[-1]["rmse"],
+            res.replans.append({"period": k, "t0": t, "max_variance": float(self.var.max()), "rmse": res.rows[-1]["rmse"],
                                 "status": info.get("status", "failed"), "success": False,
                                 "iterations": info.get("iterations", -1),
                                 "solve_time_s": time.perf_counter() - t_plan})
@@ -401,7 +422,7 @@ class Simulation:
         self.plan = plan
         sv = plan.meta.get("solver", {})
         res.replans.append({
-            "period": k, "t0": t, "max_variance": self.sup_v, "rmse": res.rows[-1]["rmse"],
+            "period": k, "t0": t, "max_variance": float(self.var.max()), "rmse": res.rows[-1]["rmse"],
             "status": sv.get("status", "?"), "success": True, "iterations": sv.get("iterations", -1),
             "solve_time_s": sv.get("wall_time_s", time.perf_counter() - t_plan),
             "objective": plan.meta.get("objective"),
@@ -410,7 +431,8 @@ class Simulation:
         })
         if k == 0 and math.isnan(res.rows[0]["tracking_error"]):
             res.rows[0]["tracking_error"] = l2_norm(self.p_hat - plan.density_grid(t), self.grid.cell_area)
-        snap.velocity = self.commanded_velocity()
+        if snap is not None:
+            snap.velocity = self.commanded_velocity()
         return True
 
     def commanded_velocity(self) -> np.ndarray:

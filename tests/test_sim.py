@@ -507,3 +507,19 @@ def test_a_loss_at_a_period_start_is_known_to_that_periods_plan():
     np.testing.assert_allclose(sim.result.snapshots[1].p_hat,
                                sim.grid.normalize(sim.estimate.kde.fit(sim.result.snapshots[1].X[sim.alive])
                                                   .on_grid(sim.grid.nx, sim.grid.ny)), rtol=1e-10)
+
+
+def test_receding_horizon_replans_inside_the_period_from_the_current_state():
+    """sim.replan_every = k: besides the period starts, a plan from t = kT + j k Δt (horizon T) after every
+    k-th measurement step but the last; the feedback follows the newest plan; periods_run counts periods."""
+    from swarmfield.sim.outputs import summary_dict
+    cfg = small_config(replan_every=2, max_periods=2, period=1.75, dt=0.4375)      # 4 steps a period
+    res = run_simulation(cfg)
+    t0 = [round(r["t0"], 6) for r in res.replans]
+    assert t0 == [0.0, 0.875, 1.75, 2.625]
+    assert all(r["success"] for r in res.replans)
+    assert [r["period"] for r in res.replans] == [0, 0, 1, 1]
+    assert res.replans[1]["max_variance"] < res.replans[0]["max_variance"]    # planned from the newer posterior
+    assert summary_dict(res)["periods_run"] == 2
+    with pytest.raises(ValueError, match="replan_every"):
+        small_config(replan_every=-1)
