@@ -11,6 +11,7 @@ NumPy/SciPy only; the reference (p_r, v_r) comes from :class:`ocp.plan.Reference
 """
 from .feedback import FeedbackSettings, feedback_velocity, saturate, tracking_velocity
 from .kde import DensityEstimate, KernelDensity, silverman_bandwidth
+from . import robot_kernel
 
 __all__ = ["KernelDensity", "DensityEstimate", "silverman_bandwidth",
            "FeedbackSettings", "feedback_velocity", "tracking_velocity", "saturate"]

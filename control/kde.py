@@ -269,6 +269,14 @@ def resample_mask(free: np.ndarray, nx: int, ny: int) -> np.ndarray:
 
 
 def _linear_binning(X, x0, y0, dx, dy, mx, my) -> np.ndarray:
+    from .robot_kernel import linear_binning
+    c = linear_binning(X, x0, y0, dx, dy, mx, my)      # the same bits in one C loop (if it builds)
+    if c is not None:
+        return c
+    return _linear_binning_numpy(X, x0, y0, dx, dy, mx, my)
+
+
+def _linear_binning_numpy(X, x0, y0, dx, dy, mx, my) -> np.ndarray:
     fx = (X[:, 0] - x0) / dx - 0.5
     fy = (X[:, 1] - y0) / dy - 0.5
     ix = np.floor(fx)

@@ -1,0 +1,88 @@
+"""The compiled per-robot passes (control.robot_kernel) against the NumPy reference they replace."""
+import math
+
+import numpy as np
+import pytest
+
+from swarmfield.control import FeedbackSettings, KernelDensity, robot_kernel, tracking_velocity
+from swarmfield.control import kde as kde_mod
+from swarmfield.ocp.plan import ReferencePlan
+
+pytestmark = pytest.mark.skipif(not robot_kernel.available(), reason="no C compiler: the NumPy path is used")
+
+DOMAIN = (0.0, 20.0, 0.0, 16.0)
+
+
+def _plan(rng, basis, nx=12, ny=9, I=5, J=4):
+    xc = (np.arange(nx) + 0.5) * 20 / nx
+    yc = (np.arange(ny) + 0.5) * 16 / ny
+    Xc, Yc = np.meshgrid(xc, yc, indexing="ij")
+    cell = (20 / nx) * (16 / ny)
+    ps = []
+    for cx, cy in ((5, 6), (14, 10), (9, 3)):
+        q = np.exp(-((Xc - cx) ** 2 + (Yc - cy) ** 2) / 20) + 0.05
+        ps.append(q / (q.sum() * cell))
+    meta = {} if basis == "sine" else {"basis": basis}
+    return ReferencePlan(domain=np.array(DOMAIN), t=np.array([0.0, 3.5, 7.0]), p=np.stack(ps),
+                         t_intervals=np.array([0.0, 3.5, 7.0]), coef=rng.normal(size=(2, 2, I, J)) * 0.4,
+                         target=ps[-1], meta=meta)
+
+
+def _robots(rng, n):
+    X = np.column_stack([rng.uniform(0, 20, n), rng.uniform(0, 16, n)])
+    X[:4] = [[0.0, 0.0], [20.0, 16.0], [0.0, 7.3], [13.1, 16.0]]        # walls and corners
+    X[4] = [20.0 + 1e-12, 3.0]                                           # within the wall tolerance
+    return X
+
+
+def test_binning_is_bit_for_bit_the_numpy_binning():
+    rng = np.random.default_rng(1)
+    X = kde_mod._inside(_robots(rng, 5000), DOMAIN, "X")
+    for mx, my in ((128, 96), (7, 5)):
+        dx, dy = 20 / mx, 16 / my
+        ref = kde_mod._linear_binning_numpy(X, 0.0, 0.0, dx, dy, mx, my)
+        got = robot_kernel.linear_binning(X, 0.0, 0.0, dx, dy, mx, my)
+        assert got.shape == (mx, my)
+        assert np.array_equal(got, ref)
+    assert abs(got.sum() - 5000) < 1e-8
+
+
+@pytest.mark.parametrize("basis, stir, vmax, t", [("sine", 0.0, 4.0, 1.3), ("sine-cosine", 3.0, 4.0, 4.2),
+                                                  ("sine", 0.0, math.inf, 6.0), ("sine", 1.0, 4.0, 8.0)])
+def test_compiled_tracking_velocity_agrees_with_numpy(monkeypatch, basis, stir, vmax, t):
+    rng = np.random.default_rng(7)
+    plan = _plan(rng, basis)
+    X = _robots(rng, 3000)
+    est = KernelDensity(DOMAIN).fit(X[: 1500] * 0.5 + 2.0)          # a clustered estimate: floor and saturation act
+    s = FeedbackSettings(alpha=1.0, sigma=0.05, p_floor=2.5e-4, v_max=vmax, stir_speed=stir, stir_cells=2)
+    monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "numpy")
+    ref = tracking_velocity(X, plan, t, est, s, (3, -1.0))
+    monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "compiled")
+    got = tracking_velocity(X, plan, t, est, s, (3, -1.0))
+    scale = np.abs(ref).max()
+    assert scale > 0.1
+    # a few ulps: libm's sin/cos and the order of the v_r sums differ from NumPy's
+    assert np.max(np.abs(got - ref)) <= 1e-12 * scale
+    if math.isfinite(vmax):
+        assert np.hypot(got[:, 0], got[:, 1]).max() <= vmax * (1 + 1e-12)
+        assert (np.hypot(ref[:, 0], ref[:, 1]) > 0.99 * vmax).any()       # saturation was exercised
+
+
+def test_compiled_path_defers_to_numpy_for_bad_robots(monkeypatch):
+    rng = np.random.default_rng(3)
+    plan = _plan(rng, "sine")
+    X = _robots(rng, 3000)
+    est = KernelDensity(DOMAIN).fit(X)
+    monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "compiled")
+    bad = X.copy()
+    bad[2000] = [25.0, 3.0]
+    with pytest.raises(ValueError, match="outside the domain"):
+        tracking_velocity(bad, plan, 1.0, est, FeedbackSettings())
+
+
+def test_auto_uses_numpy_below_the_threshold(monkeypatch):
+    monkeypatch.delenv("SWARMFIELD_ROBOT_KERNEL", raising=False)
+    assert not robot_kernel.use_compiled(robot_kernel.MIN_ROBOTS - 1)
+    assert robot_kernel.use_compiled(robot_kernel.MIN_ROBOTS)
+    monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "numpy")
+    assert not robot_kernel.use_compiled(10 ** 6)
