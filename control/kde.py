@@ -209,10 +209,22 @@ class KernelDensity:
 
     def fit(self, X: np.ndarray) -> "DensityEstimate":
         """Estimate the density of the positions ``X`` (n, 2); returns a :class:`DensityEstimate`."""
-        X = _inside(_check_points(X, "X"), self.domain, "X")
-        h = self.bandwidth
-        if h is None:
-            h = max(silverman_bandwidth(X), self.min_bandwidth)
+        from . import robot_kernel
+        prep = None
+        if robot_kernel.use_compiled(np.shape(X)[0] if np.ndim(X) == 2 else 0):
+            prep = robot_kernel.kde_prepare(X, self.domain, _WALL_TOL)   # checks, clip and spread in C
+        if prep is None:
+            X = _inside(_check_points(X, "X"), self.domain, "X")
+            h = self.bandwidth
+            if h is None:
+                h = max(silverman_bandwidth(X), self.min_bandwidth)
+        else:
+            X, sigma_bar = prep
+            h = self.bandwidth
+            if h is None:
+                if not sigma_bar > 0:
+                    silverman_bandwidth(X)                     # raises its message (all points coincide)
+                h = max(sigma_bar * X.shape[0] ** (-1.0 / 6.0), self.min_bandwidth)
         mx, my = self.resolve_bins(h)
         x0, x1, y0, y1 = self.domain
         dx = (x1 - x0) / mx

@@ -36,13 +36,15 @@ import numpy as np
 
 from ..runtime.cbuild import CLibrary
 
-__all__ = ["available", "linear_binning", "tracking_velocity", "MIN_ROBOTS", "use_compiled"]
+__all__ = ["available", "linear_binning", "tracking_velocity", "kde_prepare", "em_step", "MIN_ROBOTS", "use_compiled"]
 
 #: robots from which :func:`control.feedback.tracking_velocity` takes the compiled path ("auto")
 MIN_ROBOTS = 2048
 
 C_SOURCE = r"""
+#define _GNU_SOURCE
 #include <math.h>
+#include <stdlib.h>
 
 /* linear binning of n points onto the bin centres x0 + (j + 1/2) dx: the four corner weights go to four
    arrays (the caller sums them in NumPy's order: c00 + c10 + c01 + c11) */
@@ -65,6 +67,82 @@ void sf_kde_bin(long n, const double *X, double x0, double y0, double dx, double
     }
 }
 
+/* KernelDensity.fit's checks: every point finite and in the domain up to the wall tolerance (else k + 1 for
+   the first bad point k), the clipped copy Xc, and the column means and sums of squared deviations
+   (two passes, eight partial sums per column) for Silverman's bandwidth */
+long sf_kde_prepare(long n, const double *X, double x0, double x1, double y0, double y1, double tx, double ty,
+                    double *Xc, double *stats) {
+    double sx[8] = {0}, sy[8] = {0};
+    for (long k = 0; k < n; k++) {
+        double x = X[2 * k], y = X[2 * k + 1];
+        if (!isfinite(x) || !isfinite(y)) return k + 1;
+        if (x < x0 - tx || x > x1 + tx || y < y0 - ty || y > y1 + ty) return k + 1;
+        x = x < x0 ? x0 : (x > x1 ? x1 : x);
+        y = y < y0 ? y0 : (y > y1 ? y1 : y);
+        Xc[2 * k] = x;
+        Xc[2 * k + 1] = y;
+        sx[k & 7] += x;
+        sy[k & 7] += y;
+    }
+    double mx = 0.0, my = 0.0;
+    for (int l = 0; l < 8; l++) { mx += sx[l]; my += sy[l]; sx[l] = 0.0; sy[l] = 0.0; }
+    mx /= n;
+    my /= n;
+    for (long k = 0; k < n; k++) {
+        double dx = Xc[2 * k] - mx, dy = Xc[2 * k + 1] - my;
+        sx[k & 7] += dx * dx;
+        sy[k & 7] += dy * dy;
+    }
+    double vx = 0.0, vy = 0.0;
+    for (int l = 0; l < 8; l++) { vx += sx[l]; vy += sy[l]; }
+    stats[0] = mx; stats[1] = my; stats[2] = vx; stats[3] = vy;
+    return 0;
+}
+
+/* the speeds |v| of the robots into sp; 1 if one exceeds vlim (the caller then saturates in NumPy) */
+long sf_speeds(long n, const double *V, double vlim, double *sp) {
+    long over = 0;
+    for (long k = 0; k < n; k++) {
+        sp[k] = hypot(V[2 * k], V[2 * k + 1]);
+        over |= sp[k] > vlim;
+    }
+    return over;
+}
+
+/* the Euler--Maruyama sub-step of Simulation.move for working robots in the plain rectangle, with the
+   speeds sp of sf_speeds: path += |v| h, energy += |v|^2 h, Xn = R(X + v h + c Z) with the mirror
+   reflection of sim.dynamics.reflect (numpy.mod's rounding); returns 1 + k if Xn[k] is not finite */
+long sf_em_move(long n, const double *X, const double *V, const double *Z, double h, double c, long noise,
+                double x0, double x1, double y0, double y1, const double *sp, double *path, double *energy,
+                double *Xn, double *speed_sum) {
+    double acc[8] = {0};
+    double lo[2] = {x0, y0}, hi[2] = {x1, y1};
+    for (long k = 0; k < n; k++) {
+        double s = sp[k];
+        acc[k & 7] += s;
+        path[k] = path[k] + s * h;
+        energy[k] = energy[k] + s * s * h;
+        for (int d = 0; d < 2; d++) {
+            double u = X[2 * k + d] + V[2 * k + d] * h;
+            if (noise) u = u + c * Z[2 * k + d];
+            if (!isfinite(u)) return 1 + k;
+            double a = lo[d], b = hi[d];
+            if (u < a || u > b) {
+                double L = b - a, m2 = 2.0 * L;
+                double r = fmod(u - a, m2);             /* numpy.mod: the sign of the divisor */
+                if (r != 0.0) { if ((m2 < 0) != (r < 0)) r += m2; } else r = copysign(0.0, m2);
+                double w = r <= L ? a + r : a + 2.0 * L - r;
+                u = w < a ? a : (w > b ? b : w);
+            }
+            Xn[2 * k + d] = u;
+        }
+    }
+    double tot = 0.0;
+    for (int l = 0; l < 8; l++) tot += acc[l];
+    *speed_sum = tot;
+    return 0;
+}
+
 typedef struct {
     /* domain of the estimate (x0, x1, y0, y1) and the wall tolerance */
     double x0, x1, y0, y1, tx, ty;
@@ -83,139 +161,179 @@ typedef struct {
 
 #define MAXMODES 64
 
-/* R[i-1] = sin(i u) (i = 1..m) by the three-term recurrence; zero outside (0, 1) */
-static void sine_rows(double xi, long m, double *R) {
-    double u = M_PI * xi;
-    R[0] = sin(u);
-    if (m > 1) {
-        double c2 = 2.0 * cos(u);
-        R[1] = c2 * R[0];
-        for (long i = 2; i < m; i++) R[i] = c2 * R[i - 1] - R[i - 2];
-    }
-    if (xi <= 0.0 || xi >= 1.0) for (long i = 0; i < m; i++) R[i] = 0.0;
-}
-
-static void cosine_rows(double xi, long m, double *R) {
-    double u = M_PI * xi;
-    R[0] = 1.0;
-    if (m > 1) {
-        R[1] = cos(u);
-        double c2 = 2.0 * R[1];
-        for (long i = 2; i < m; i++) R[i] = c2 * R[i - 1] - R[i - 2];
-    }
-}
-
-/* v = sum_i X[i] (sum_j a[i, j] Y[j]) */
-static double series(const double *a, long I, long J, const double *Xr, const double *Yr) {
-    double v = 0.0;
-    for (long i = 0; i < I; i++) {
-        double t = 0.0;
-        for (long j = 0; j < J; j++) t += a[i * J + j] * Yr[j];
-        v += Xr[i] * t;
-    }
-    return v;
-}
-
-/* returns 0, or k + 1 for the first robot k that the NumPy path must handle (it raises there) */
+/* returns 0, or k + 1 for the first robot k that the NumPy path must handle (it raises there), or -1 if
+   out of memory.  Robots in blocks of BLK, each quantity computed for the whole block in a loop over the
+   robots (vectorised by the compiler: gathers for the grids, the recurrences and series across robots);
+   every robot sees the same operations in the same order as in the scalar form, so the blocking does not
+   change a bit. */
+#define BLK 64
 long sf_tracking(long n, const double *X, double *V, const Params *q) {
-    double Sx[MAXMODES], Sy[MAXMODES], Cx[MAXMODES], Cy[MAXMODES];
-    for (long k = 0; k < n; k++) {
-        double x = X[2 * k], y = X[2 * k + 1];
-        if (!isfinite(x) || !isfinite(y)) return k + 1;
-        if (x < q->x0 - q->tx || x > q->x1 + q->tx || y < q->y0 - q->ty || y > q->y1 + q->ty) return k + 1;
+    double *w = (double *)malloc(sizeof(double) * BLK * (18 + 4 * MAXMODES));
+    if (!w) return -1;
+    double *ph = w, *phx = w + BLK, *phy = w + 2 * BLK, *pr = w + 3 * BLK, *prx = w + 4 * BLK, *pry = w + 5 * BLK;
+    double *vrx = w + 6 * BLK, *vry = w + 7 * BLK, *sux = w + 8 * BLK, *cux = w + 9 * BLK, *suy = w + 10 * BLK;
+    double *cuy = w + 11 * BLK, *T = w + 12 * BLK, *xi = w + 13 * BLK, *eta = w + 14 * BLK;
+    const double x0 = q->x0, x1 = q->x1, y0 = q->y0, y1 = q->y1, tx = q->tx, ty = q->ty, kdx = q->kdx, kdy = q->kdy;
+    const long mx = q->mx, my = q->my, nx = q->nx, ny = q->ny;
+    const double gx0 = q->gx0, gy0 = q->gy0, gdx = q->gdx, gdy = q->gdy, vx0 = q->vx0, vy0 = q->vy0;
+    const double vbx = q->vbx, vby = q->vby;
+    double *xs = w + 15 * BLK, *ys = w + 16 * BLK;
+    double *Sx = w + 18 * BLK, *Sy = Sx + MAXMODES * BLK, *Cx = Sy + MAXMODES * BLK, *Cy = Cx + MAXMODES * BLK;
+    const double *P = q->P, *PX = q->PX, *PY = q->PY, *PXY = q->PXY, *F = q->F;
+    long I = q->I, J = q->J;
+    for (long k0 = 0; k0 < n; k0 += BLK) {
+        long m = n - k0 < BLK ? n - k0 : BLK;
+        const double *Xb = X + 2 * k0;
+        for (long b = 0; b < m; b++) {
+            double x = Xb[2 * b], y = Xb[2 * b + 1];
+            if (!isfinite(x) || !isfinite(y) || x < x0 - tx || x > x1 + tx
+                || y < y0 - ty || y > y1 + ty) { free(w); return k0 + b + 1; }
+            xs[b] = x;
+            ys[b] = y;
+        }
         /* ---- p_hat and its gradient: bicubic Hermite on the padded grids (DensityEstimate._hermite) */
-        double cx_ = x < q->x0 ? q->x0 : (x > q->x1 ? q->x1 : x);
-        double cy_ = y < q->y0 ? q->y0 : (y > q->y1 ? q->y1 : y);
-        double fx = (cx_ - q->x0) / q->kdx + 0.5;
-        double fy = (cy_ - q->y0) / q->kdy + 0.5;
-        long i = (long)fx, j = (long)fy;
-        if (i < 0) i = 0; if (i > q->mx) i = q->mx;
-        if (j < 0) j = 0; if (j > q->my) j = q->my;
-        double t = fx - i, u = fy - j;
-        long k00 = i * (q->my + 2) + j, k01 = k00 + 1, k10 = k00 + (q->my + 2), k11 = k00 + (q->my + 3);
-        double dx = q->kdx, dy = q->kdy;
-        double t2 = t * t, u2 = u * u, t3 = t2 * t, u3 = u2 * u;
-        double a0 = 2 * t3 - 3 * t2 + 1, a1 = 1 - a0;
-        double b0 = (t3 - 2 * t2 + t) * dx, b1 = (t3 - t2) * dx;
-        double da0 = (6 * t2 - 6 * t) / dx, da1 = -da0;
-        double db0 = 3 * t2 - 4 * t + 1, db1 = 3 * t2 - 2 * t;
-        double e0 = 2 * u3 - 3 * u2 + 1, e1 = 1 - e0;
-        double f0 = (u3 - 2 * u2 + u) * dy, f1 = (u3 - u2) * dy;
-        double de0 = (6 * u2 - 6 * u) / dy, de1 = -de0;
-        double df0 = 3 * u2 - 4 * u + 1, df1 = 3 * u2 - 2 * u;
-        const double *P = q->P, *PX = q->PX, *PY = q->PY, *PXY = q->PXY;
-        double v0 = e0 * P[k00] + e1 * P[k01] + f0 * PY[k00] + f1 * PY[k01];
-        double s0 = e0 * PX[k00] + e1 * PX[k01] + f0 * PXY[k00] + f1 * PXY[k01];
-        double dv0 = de0 * P[k00] + de1 * P[k01] + df0 * PY[k00] + df1 * PY[k01];
-        double ds0 = de0 * PX[k00] + de1 * PX[k01] + df0 * PXY[k00] + df1 * PXY[k01];
-        double v1 = e0 * P[k10] + e1 * P[k11] + f0 * PY[k10] + f1 * PY[k11];
-        double s1 = e0 * PX[k10] + e1 * PX[k11] + f0 * PXY[k10] + f1 * PXY[k11];
-        double dv1 = de0 * P[k10] + de1 * P[k11] + df0 * PY[k10] + df1 * PY[k11];
-        double ds1 = de0 * PX[k10] + de1 * PX[k11] + df0 * PXY[k10] + df1 * PXY[k11];
-        double ph = a0 * v0 + a1 * v1 + b0 * s0 + b1 * s1;
-        double phx = da0 * v0 + da1 * v1 + db0 * s0 + db1 * s1;
-        double phy = a0 * dv0 + a1 * dv1 + b0 * ds0 + b1 * ds1;
-        if (ph <= 0) { ph = 0.0; phx = 0.0; phy = 0.0; }
+        for (long b = 0; b < m; b++) {
+            double x = xs[b], y = ys[b];
+            double cx_ = x < x0 ? x0 : (x > x1 ? x1 : x);
+            double cy_ = y < y0 ? y0 : (y > y1 ? y1 : y);
+            double fx = (cx_ - x0) / kdx + 0.5;
+            double fy = (cy_ - y0) / kdy + 0.5;
+            long i = (long)fx, j = (long)fy;
+            i = i < 0 ? 0 : (i > mx ? mx : i);
+            j = j < 0 ? 0 : (j > my ? my : j);
+            double t = fx - i, u = fy - j;
+            long k00 = i * (my + 2) + j, k01 = k00 + 1, k10 = k00 + (my + 2), k11 = k00 + (my + 3);
+            double dx = kdx, dy = kdy;
+            double t2 = t * t, u2 = u * u, t3 = t2 * t, u3 = u2 * u;
+            double a0 = 2 * t3 - 3 * t2 + 1, a1 = 1 - a0;
+            double b0 = (t3 - 2 * t2 + t) * dx, b1 = (t3 - t2) * dx;
+            double da0 = (6 * t2 - 6 * t) / dx, da1 = -da0;
+            double db0 = 3 * t2 - 4 * t + 1, db1 = 3 * t2 - 2 * t;
+            double e0 = 2 * u3 - 3 * u2 + 1, e1 = 1 - e0;
+            double f0 = (u3 - 2 * u2 + u) * dy, f1 = (u3 - u2) * dy;
+            double de0 = (6 * u2 - 6 * u) / dy, de1 = -de0;
+            double df0 = 3 * u2 - 4 * u + 1, df1 = 3 * u2 - 2 * u;
+            double v0 = e0 * P[k00] + e1 * P[k01] + f0 * PY[k00] + f1 * PY[k01];
+            double s0 = e0 * PX[k00] + e1 * PX[k01] + f0 * PXY[k00] + f1 * PXY[k01];
+            double dv0 = de0 * P[k00] + de1 * P[k01] + df0 * PY[k00] + df1 * PY[k01];
+            double ds0 = de0 * PX[k00] + de1 * PX[k01] + df0 * PXY[k00] + df1 * PXY[k01];
+            double v1 = e0 * P[k10] + e1 * P[k11] + f0 * PY[k10] + f1 * PY[k11];
+            double s1 = e0 * PX[k10] + e1 * PX[k11] + f0 * PXY[k10] + f1 * PXY[k11];
+            double dv1 = de0 * P[k10] + de1 * P[k11] + df0 * PY[k10] + df1 * PY[k11];
+            double ds1 = de0 * PX[k10] + de1 * PX[k11] + df0 * PXY[k10] + df1 * PXY[k11];
+            double p_ = a0 * v0 + a1 * v1 + b0 * s0 + b1 * s1;
+            double gx_ = da0 * v0 + da1 * v1 + db0 * s0 + db1 * s1;
+            double gy_ = a0 * dv0 + a1 * dv1 + b0 * ds0 + b1 * ds1;
+            int neg = p_ <= 0;
+            ph[b] = neg ? 0.0 : p_;
+            phx[b] = neg ? 0.0 : gx_;
+            phy[b] = neg ? 0.0 : gy_;
+        }
         /* ---- p_r and its gradient: bilinear between the cell centres (ReferencePlan._bilinear) */
-        double rx = (x - q->gx0) / q->gdx - 0.5, ry = (y - q->gy0) / q->gdy - 0.5;
-        double gfx = rx < 0.0 ? 0.0 : (rx > q->nx - 1.0 ? q->nx - 1.0 : rx);
-        double gfy = ry < 0.0 ? 0.0 : (ry > q->ny - 1.0 ? q->ny - 1.0 : ry);
-        long gi = (long)floor(gfx), gj = (long)floor(gfy);
-        if (gi > q->nx - 2) gi = q->nx - 2;
-        if (gj > q->ny - 2) gj = q->ny - 2;
-        double sx = gfx - gi, sy = gfy - gj;
-        const double *F = q->F;
-        double f00 = F[gi * q->ny + gj], f10 = F[(gi + 1) * q->ny + gj];
-        double f01 = F[gi * q->ny + gj + 1], f11 = F[(gi + 1) * q->ny + gj + 1];
-        double inx = (rx > 0 && rx < q->nx - 1) ? 1.0 : 0.0, iny = (ry > 0 && ry < q->ny - 1) ? 1.0 : 0.0;
-        double pr = (1 - sx) * (1 - sy) * f00 + sx * (1 - sy) * f10 + (1 - sx) * sy * f01 + sx * sy * f11;
-        double prx = ((1 - sy) * (f10 - f00) + sy * (f11 - f01)) / q->gdx * inx;
-        double pry = ((1 - sx) * (f01 - f00) + sx * (f11 - f10)) / q->gdy * iny;
-        if (pr < 0) return k + 1;
-        /* ---- v_r: the separable series of the interval (ocp.basis.velocity_at) */
-        double vrx = 0.0, vry = 0.0;
+        for (long b = 0; b < m; b++) {
+            double x = xs[b], y = ys[b];
+            double rx = (x - gx0) / gdx - 0.5, ry = (y - gy0) / gdy - 0.5;
+            double gfx = rx < 0.0 ? 0.0 : (rx > nx - 1.0 ? nx - 1.0 : rx);
+            double gfy = ry < 0.0 ? 0.0 : (ry > ny - 1.0 ? ny - 1.0 : ry);
+            long gi = (long)floor(gfx), gj = (long)floor(gfy);
+            gi = gi > nx - 2 ? nx - 2 : gi;
+            gj = gj > ny - 2 ? ny - 2 : gj;
+            double sx = gfx - gi, sy = gfy - gj;
+            double f00 = F[gi * ny + gj], f10 = F[(gi + 1) * ny + gj];
+            double f01 = F[gi * ny + gj + 1], f11 = F[(gi + 1) * ny + gj + 1];
+            double inx = (rx > 0 && rx < nx - 1) ? 1.0 : 0.0, iny = (ry > 0 && ry < ny - 1) ? 1.0 : 0.0;
+            pr[b] = (1 - sx) * (1 - sy) * f00 + sx * (1 - sy) * f10 + (1 - sx) * sy * f01 + sx * sy * f11;
+            prx[b] = ((1 - sy) * (f10 - f00) + sy * (f11 - f01)) / gdx * inx;
+            pry[b] = ((1 - sx) * (f01 - f00) + sx * (f11 - f10)) / gdy * iny;
+        }
+        for (long b = 0; b < m; b++)
+            if (pr[b] < 0) { free(w); return k0 + b + 1; }
+        /* ---- v_r: the separable series of the interval (ocp.basis.velocity_at), across the block */
         if (q->coef) {
-            double xi = (x - q->vx0) / q->vbx, eta = (y - q->vy0) / q->vby;
-            xi = xi < 0.0 ? 0.0 : (xi > 1.0 ? 1.0 : xi);
-            eta = eta < 0.0 ? 0.0 : (eta > 1.0 ? 1.0 : eta);
-            sine_rows(xi, q->I, Sx);
-            sine_rows(eta, q->J, Sy);
-            if (q->basis == 0) {
-                vrx = series(q->coef, q->I, q->J, Sx, Sy);
-                vry = series(q->coef + q->I * q->J, q->I, q->J, Sx, Sy);
-            } else {
-                cosine_rows(xi, q->I, Cx);
-                cosine_rows(eta, q->J, Cy);
-                vrx = series(q->coef, q->I, q->J, Sx, Cy);
-                vry = series(q->coef + q->I * q->J, q->I, q->J, Cx, Sy);
+            for (long b = 0; b < m; b++) {
+                double a = (xs[b] - vx0) / vbx, e = (ys[b] - vy0) / vby;
+                xi[b] = a < 0.0 ? 0.0 : (a > 1.0 ? 1.0 : a);
+                eta[b] = e < 0.0 ? 0.0 : (e > 1.0 ? 1.0 : e);
             }
+            for (long b = 0; b < m; b++) {
+                sincos(M_PI * xi[b], sux + b, cux + b);
+                sincos(M_PI * eta[b], suy + b, cuy + b);
+            }
+            /* sine rows R[i-1] = sin(i u) by sin((i+1)u) = 2 cos(u) sin(iu) - sin((i-1)u) */
+            for (long b = 0; b < m; b++) { Sx[b] = sux[b]; Sy[b] = suy[b]; }
+            if (I > 1) for (long b = 0; b < m; b++) Sx[BLK + b] = (2.0 * cux[b]) * Sx[b];
+            for (long i = 2; i < I; i++)
+                for (long b = 0; b < m; b++) Sx[i * BLK + b] = (2.0 * cux[b]) * Sx[(i - 1) * BLK + b] - Sx[(i - 2) * BLK + b];
+            if (J > 1) for (long b = 0; b < m; b++) Sy[BLK + b] = (2.0 * cuy[b]) * Sy[b];
+            for (long j = 2; j < J; j++)
+                for (long b = 0; b < m; b++) Sy[j * BLK + b] = (2.0 * cuy[b]) * Sy[(j - 1) * BLK + b] - Sy[(j - 2) * BLK + b];
+            for (long b = 0; b < m; b++) {
+                if (xi[b] <= 0.0 || xi[b] >= 1.0) for (long i = 0; i < I; i++) Sx[i * BLK + b] = 0.0;
+                if (eta[b] <= 0.0 || eta[b] >= 1.0) for (long j = 0; j < J; j++) Sy[j * BLK + b] = 0.0;
+            }
+            const double *Rx0 = Sx, *Ry0 = Sy, *Rx1 = Sx, *Ry1 = Sy;
+            if (q->basis == 1) {                /* sine-cosine: v_x = sin x cos y, v_y = cos x sin y */
+                for (long b = 0; b < m; b++) { Cx[b] = 1.0; Cy[b] = 1.0; }
+                if (I > 1) for (long b = 0; b < m; b++) Cx[BLK + b] = cux[b];
+                for (long i = 2; i < I; i++)
+                    for (long b = 0; b < m; b++) Cx[i * BLK + b] = (2.0 * cux[b]) * Cx[(i - 1) * BLK + b] - Cx[(i - 2) * BLK + b];
+                if (J > 1) for (long b = 0; b < m; b++) Cy[BLK + b] = cuy[b];
+                for (long j = 2; j < J; j++)
+                    for (long b = 0; b < m; b++) Cy[j * BLK + b] = (2.0 * cuy[b]) * Cy[(j - 1) * BLK + b] - Cy[(j - 2) * BLK + b];
+                Ry0 = Cy;
+                Rx1 = Cx;
+            }
+            /* v_d = sum_i R_x[i] (sum_j a_d[i, j] R_y[j]), both sums from 0 in index order */
+            for (int d = 0; d < 2; d++) {
+                const double *aT = q->coef + d * I * J, *Rx = d ? Rx1 : Rx0, *Ry = d ? Ry1 : Ry0;
+                double *out = d ? vry : vrx;
+                for (long b = 0; b < m; b++) out[b] = 0.0;
+                for (long i = 0; i < I; i++) {
+                    for (long b = 0; b < m; b++) T[b] = 0.0;
+                    for (long j = 0; j < J; j++) {
+                        double a = aT[j * I + i];
+                        const double *r = Ry + j * BLK;
+                        for (long b = 0; b < m; b++) T[b] += a * r[b];
+                    }
+                    const double *r = Rx + i * BLK;
+                    for (long b = 0; b < m; b++) out[b] += r[b] * T[b];
+                }
+            }
+        } else {
+            for (long b = 0; b < m; b++) { vrx[b] = 0.0; vry[b] = 0.0; }
         }
         /* ---- the law (control.feedback.feedback_velocity) */
-        double nxv = -q->alpha * (phx - prx) + q->sigma * phx + vrx * pr;
-        double nyv = -q->alpha * (phy - pry) + q->sigma * phy + vry * pr;
-        if (q->stir) {           /* control.stirring.stirring_flux */
-            double ax = q->kpi * (x - q->sx0) / q->sbx, ay = q->kpi * (y - q->sy0) / q->sby;
-            double ssx = sin(ax), ssy = sin(ay), ccx = cos(ax), ccy = cos(ay);
-            double phi = ssx * ssy;
-            double dphx = q->kpbx * ccx * ssy, dphy = q->kpby * ssx * ccy;
-            double dpsx = q->sc * (prx * phi + pr * dphx);
-            double dpsy = q->sc * (pry * phi + pr * dphy);
-            nxv = nxv + (-dpsy);
-            nyv = nyv + dpsx;
-        }
-        double den = ph > q->p_floor ? ph : q->p_floor;
-        double vx = nxv / den, vy = nyv / den;
-        if (q->saturate) {
-            double sp = hypot(vx, vy);
-            if (sp > q->v_max) {
-                double r = q->v_max / sp;
-                vx = vx * r;
-                vy = vy * r;
+        for (long b = 0; b < m; b++) {
+            double x = xs[b], y = ys[b];
+            double nxv = -q->alpha * (phx[b] - prx[b]) + q->sigma * phx[b] + vrx[b] * pr[b];
+            double nyv = -q->alpha * (phy[b] - pry[b]) + q->sigma * phy[b] + vry[b] * pr[b];
+            if (q->stir) {           /* control.stirring.stirring_flux */
+                double ax = q->kpi * (x - q->sx0) / q->sbx, ay = q->kpi * (y - q->sy0) / q->sby;
+                double ssx, ssy, ccx, ccy;
+                sincos(ax, &ssx, &ccx);
+                sincos(ay, &ssy, &ccy);
+                double phi = ssx * ssy;
+                double dphx = q->kpbx * ccx * ssy, dphy = q->kpby * ssx * ccy;
+                double dpsx = q->sc * (prx[b] * phi + pr[b] * dphx);
+                double dpsy = q->sc * (pry[b] * phi + pr[b] * dphy);
+                nxv = nxv + (-dpsy);
+                nyv = nyv + dpsx;
             }
+            double den = ph[b] > q->p_floor ? ph[b] : q->p_floor;
+            double vx = nxv / den, vy = nyv / den;
+            if (q->saturate) {
+                double sp = hypot(vx, vy);
+                if (sp > q->v_max) {
+                    double r = q->v_max / sp;
+                    vx = vx * r;
+                    vy = vy * r;
+                }
+            }
+            V[2 * (k0 + b)] = vx;
+            V[2 * (k0 + b) + 1] = vy;
         }
-        V[2 * k] = vx;
-        V[2 * k + 1] = vy;
     }
+    free(w);
     return 0;
 }
 """
@@ -242,6 +360,12 @@ def _declare(lib):
     lib.sf_kde_bin.restype = None
     lib.sf_tracking.argtypes = [L, dp, dp, ctypes.POINTER(_Params)]
     lib.sf_tracking.restype = L
+    lib.sf_kde_prepare.argtypes = [L, dp, D, D, D, D, D, D, dp, dp]
+    lib.sf_kde_prepare.restype = L
+    lib.sf_speeds.argtypes = [L, dp, D, dp]
+    lib.sf_speeds.restype = L
+    lib.sf_em_move.argtypes = [L, dp, dp, dp, D, D, L, D, D, D, D, dp, dp, dp, dp, ctypes.POINTER(D)]
+    lib.sf_em_move.restype = L
 
 
 _SMOKE = r"""
@@ -329,11 +453,11 @@ def tracking_velocity(X: np.ndarray, plan, t: float, est, settings, stir_pattern
         q.coef = None
         q.I = q.J = 1
     else:
-        coef = np.ascontiguousarray(plan.coef[k], dtype=np.float64)
+        coef = np.ascontiguousarray(np.swapaxes(plan.coef[k], 1, 2), dtype=np.float64)   # (2, J, I)
         if coef.shape[1] > 64 or coef.shape[2] > 64:
             return None
         keep.append(coef)
-        q.coef, q.I, q.J = _ptr(coef), coef.shape[1], coef.shape[2]
+        q.coef, q.I, q.J = _ptr(coef), coef.shape[2], coef.shape[1]
     q.basis = 0 if basis == "sine" else 1
     vd = tuple(float(v) for v in plan.domain)
     q.vx0, q.vy0, q.vbx, q.vby = vd[0], vd[2], vd[1] - vd[0], vd[3] - vd[2]
@@ -355,4 +479,48 @@ def tracking_velocity(X: np.ndarray, plan, t: float, est, settings, stir_pattern
     V = np.empty((n, 2))
     rc = lib.sf_tracking(n, X, V, ctypes.byref(q))
     del keep
+    if rc == -1:
+        raise MemoryError("control.robot_kernel: no memory for the work arrays")
     return None if rc != 0 else V
+
+
+def kde_prepare(X, domain, tol):
+    """The checks and clipping of :meth:`control.kde.KernelDensity.fit` and the mean of the two
+    coordinate standard deviations (ddof = 1; Silverman) in two passes: ``(Xc, sigma_bar)``, or None
+    when the NumPy path must run (library unavailable, a bad point: NumPy then raises its message)."""
+    lib = _LIB.lib()
+    X = np.asarray(X)
+    if lib is None or X.dtype != np.float64 or X.ndim != 2 or X.shape[1] != 2 or X.shape[0] < 2:
+        return None
+    X = np.ascontiguousarray(X)
+    n = X.shape[0]
+    x0, x1, y0, y1 = domain
+    Xc = np.empty_like(X)
+    st = np.empty(4)
+    if lib.sf_kde_prepare(n, X, x0, x1, y0, y1, tol * (x1 - x0), tol * (y1 - y0), Xc, st) != 0:
+        return None
+    sd = np.sqrt(st[2:] / (n - 1))
+    return Xc, float(0.5 * (sd[0] + sd[1]))
+
+
+def em_step(X, V, draw, h, c, domain, vlim, path, energy, sp):
+    """One Euler--Maruyama sub-step with reflection at the walls of ``domain`` (x0, x1, y0, y1) for all
+    robots, accumulating ``path`` and ``energy`` in place (``sp``: an n-array of scratch); ``draw()``
+    returns the standard normals Z (n, 2), or None for no noise.  Returns ``(X_new, sum of |v|)``, or None
+    -- before ``draw`` is called and with nothing modified -- if a speed exceeds ``vlim``: the caller
+    then runs its NumPy code."""
+    lib = _LIB.lib()
+    if lib is None:
+        return None
+    n = X.shape[0]
+    if lib.sf_speeds(n, V, float(vlim), sp) != 0:
+        return None
+    Z = draw()
+    Xn = np.empty_like(X)
+    tot = ctypes.c_double(0.0)
+    noise = Z is not None
+    rc = lib.sf_em_move(n, X, V, np.ascontiguousarray(Z) if noise else X, float(h), float(c), int(noise),
+                        *(float(v) for v in domain), sp, path, energy, Xn, ctypes.byref(tot))
+    if rc != 0:          # sim.dynamics.reflect's message (the run ends here)
+        raise ValueError("positions contain non-finite values (NaN or inf); the velocity or step blew up")
+    return Xn, tot.value

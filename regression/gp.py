@@ -307,6 +307,16 @@ class GaussianProcess:
     def _accumulate(self, X: np.ndarray, y: np.ndarray) -> None:
         """Add the points' power-sum features to the per-cell sums (the O(n) part of :meth:`add`)."""
         n = y.shape[0]
+        n_cells = self._mom.shape[0]
+        from .power_sums_kernel import power_sums
+        sums = power_sums(X, y, self._ax, self._ay, n_cells)      # the same bits in one C loop
+        if sums is None:
+            sums = self._power_sums_numpy(X, y)
+        self._mom += sums[:, : _N_POW * _N_POW].reshape(n_cells, _N_POW, _N_POW)
+        self._momy += sums[:, _N_POW * _N_POW:].reshape(n_cells, _N_POW_Y, _N_POW_Y)
+
+    def _power_sums_numpy(self, X: np.ndarray, y: np.ndarray) -> np.ndarray:
+        n = y.shape[0]
         ix, tx = self._ax.locate(X[:, 0])
         iy, ty = self._ay.locate(X[:, 1])
         cell = ix * self._ay.n_cells + iy
@@ -323,9 +333,7 @@ class GaussianProcess:
         # per-cell sums as a (cells x n) 0/1 matrix times the features: O(65 n)
         n_cells = self._mom.shape[0]
         member = sparse.csr_matrix((np.ones(n), (cell, np.arange(n))), shape=(n_cells, n))
-        sums = np.asarray(member @ both)
-        self._mom += sums[:, : _N_POW * _N_POW].reshape(n_cells, _N_POW, _N_POW)
-        self._momy += sums[:, _N_POW * _N_POW:].reshape(n_cells, _N_POW_Y, _N_POW_Y)
+        return np.asarray(member @ both)
 
     # ------------------------------------------------------------------ linear algebra
     def _build_scatter_indices(self) -> None:

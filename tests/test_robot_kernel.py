@@ -86,3 +86,62 @@ def test_auto_uses_numpy_below_the_threshold(monkeypatch):
     assert robot_kernel.use_compiled(robot_kernel.MIN_ROBOTS)
     monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "numpy")
     assert not robot_kernel.use_compiled(10 ** 6)
+
+
+def test_gp_power_sums_are_bit_for_bit_the_numpy_sums(monkeypatch):
+    from swarmfield.regression import GaussianProcess, GPSettings
+    from swarmfield.regression.power_sums_kernel import power_sums
+    rng = np.random.default_rng(5)
+    gp = GaussianProcess(GPSettings(), domain=DOMAIN)
+    X = gp._points(_robots(rng, 4000), "X")
+    y = rng.normal(size=4000)
+    ref = gp._power_sums_numpy(X, y)
+    got = power_sums(X, y, gp._ax, gp._ay, gp._mom.shape[0])
+    assert np.array_equal(got, ref)
+    # and the posterior of a GP fed through either path is the same
+    monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "numpy")
+    g1 = GaussianProcess(GPSettings(), domain=DOMAIN)
+    g1.add(X, y)
+    monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "auto")
+    g2 = GaussianProcess(GPSettings(), domain=DOMAIN)
+    g2.add(X, y)
+    assert np.array_equal(g1._mom, g2._mom) and np.array_equal(g1._momy, g2._momy)
+
+
+def test_compiled_kde_fit_agrees_with_numpy(monkeypatch):
+    rng = np.random.default_rng(11)
+    X = _robots(rng, 5000) * [0.3, 0.5] + [3.0, 2.0]
+    X[7] = [20.0 + 1e-12, 15.99]
+    kde = KernelDensity(DOMAIN)
+    monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "numpy")
+    ref = kde.fit(X)
+    monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "compiled")
+    got = kde.fit(X)
+    assert got.bins == ref.bins and abs(got.bandwidth - ref.bandwidth) <= 1e-13 * ref.bandwidth
+    assert np.max(np.abs(got.values - ref.values)) <= 1e-12 * ref.values.max()
+    with pytest.raises(ValueError, match="outside the domain"):
+        kde.fit(X + [0.0, 10.0])
+    with pytest.raises(ValueError, match="non-finite"):
+        kde.fit(np.where(np.arange(5000)[:, None] == 3, np.nan, X))
+
+
+@pytest.mark.parametrize("sigma", [0.05, 0.0])
+def test_compiled_euler_maruyama_substep_agrees_with_numpy(sigma):
+    from swarmfield.sim.dynamics import euler_maruyama_step
+    rng = np.random.default_rng(2)
+    n, h = 4000, 0.1
+    X = _robots(rng, n)
+    V = rng.normal(size=(n, 2)) * 30.0                # many robots leave the domain: reflection acts
+    sp_ref = np.hypot(V[:, 0], V[:, 1])
+    ref = euler_maruyama_step(X, V, h, sigma, np.random.default_rng(9), DOMAIN)
+    path, energy = np.ones(n), np.zeros(n)
+    r2 = np.random.default_rng(9)
+    got, tot = robot_kernel.em_step(X, V, lambda: r2.standard_normal(X.shape) if sigma > 0 else None, h,
+                                    math.sqrt(2.0 * sigma * h), DOMAIN, np.inf, path, energy, np.empty(n))
+    assert np.array_equal(got, ref)
+    assert np.array_equal(path, 1.0 + sp_ref * h) and np.array_equal(energy, 0.0 + sp_ref * sp_ref * h)
+    assert abs(tot - sp_ref.sum()) <= 1e-12 * sp_ref.sum()
+    # a speed above the limit: declined before drawing, nothing modified
+    drawn = []
+    assert robot_kernel.em_step(X, V, lambda: drawn.append(1), h, 0.1, DOMAIN, 1.0, path, energy, np.empty(n)) is None
+    assert not drawn and np.array_equal(path, 1.0 + sp_ref * h)
