@@ -161,6 +161,42 @@ typedef struct {
 
 #define MAXMODES 64
 
+/* sin u and cos u for u in [0, pi] (the argument of the basis), branch free so that a loop over robots
+   vectorises: x = min(u, pi - u) in [0, pi/2], Taylor series in x^2 to degree 23 / 22 (truncation error
+   < 1e-20), cos u = +-cos x.  Within a few ulps of libm (tests: the velocity within 1e-12 of NumPy's). */
+static inline void sincos_0pi(double u, double *s, double *c) {
+    double r = M_PI - u;
+    int flip = r < u;
+    double x = flip ? r : u;
+    double z = x * x;
+    double ps = -1.0 / 25852016738884976640000.0;      /* -1/23! */
+    ps = ps * z + 1.0 / 51090942171709440000.0;        /* 1/21! */
+    ps = ps * z - 1.0 / 121645100408832000.0;          /* 1/19! */
+    ps = ps * z + 1.0 / 355687428096000.0;             /* 1/17! */
+    ps = ps * z - 1.0 / 1307674368000.0;               /* 1/15! */
+    ps = ps * z + 1.0 / 6227020800.0;                  /* 1/13! */
+    ps = ps * z - 1.0 / 39916800.0;                    /* 1/11! */
+    ps = ps * z + 1.0 / 362880.0;                      /* 1/9! */
+    ps = ps * z - 1.0 / 5040.0;                        /* 1/7! */
+    ps = ps * z + 1.0 / 120.0;                         /* 1/5! */
+    ps = ps * z - 1.0 / 6.0;                           /* 1/3! */
+    double sn = x + x * (z * ps);
+    double pc = 1.0 / 1124000727777607680000.0;        /* 1/22! */
+    pc = pc * z - 1.0 / 2432902008176640000.0;         /* 1/20! */
+    pc = pc * z + 1.0 / 6402373705728000.0;            /* 1/18! */
+    pc = pc * z - 1.0 / 20922789888000.0;              /* 1/16! */
+    pc = pc * z + 1.0 / 87178291200.0;                 /* 1/14! */
+    pc = pc * z - 1.0 / 479001600.0;                   /* 1/12! */
+    pc = pc * z + 1.0 / 3628800.0;                     /* 1/10! */
+    pc = pc * z - 1.0 / 40320.0;                       /* 1/8! */
+    pc = pc * z + 1.0 / 720.0;                         /* 1/6! */
+    pc = pc * z - 1.0 / 24.0;                          /* 1/4! */
+    pc = pc * z + 0.5;                                 /* 1/2! */
+    double cs = 1.0 - z * pc;
+    *s = sn;
+    *c = flip ? -cs : cs;
+}
+
 /* returns 0, or k + 1 for the first robot k that the NumPy path must handle (it raises there), or -1 if
    out of memory.  Robots in blocks of BLK, each quantity computed for the whole block in a loop over the
    robots (vectorised by the compiler: gathers for the grids, the recurrences and series across robots);
@@ -176,7 +212,7 @@ long sf_tracking(long n, const double *X, double *V, const Params *q) {
     const double x0 = q->x0, x1 = q->x1, y0 = q->y0, y1 = q->y1, tx = q->tx, ty = q->ty, kdx = q->kdx, kdy = q->kdy;
     const long mx = q->mx, my = q->my, nx = q->nx, ny = q->ny;
     const double gx0 = q->gx0, gy0 = q->gy0, gdx = q->gdx, gdy = q->gdy, vx0 = q->vx0, vy0 = q->vy0;
-    const double vbx = q->vbx, vby = q->vby;
+    const double vbx = q->vbx, vby = q->vby, vlim2 = q->v_max * q->v_max * (1.0 - 1e-12);
     double *xs = w + 15 * BLK, *ys = w + 16 * BLK;
     double *Sx = w + 18 * BLK, *Sy = Sx + MAXMODES * BLK, *Cx = Sy + MAXMODES * BLK, *Cy = Cx + MAXMODES * BLK;
     const double *P = q->P, *PX = q->PX, *PY = q->PY, *PXY = q->PXY, *F = q->F;
@@ -256,8 +292,8 @@ long sf_tracking(long n, const double *X, double *V, const Params *q) {
                 eta[b] = e < 0.0 ? 0.0 : (e > 1.0 ? 1.0 : e);
             }
             for (long b = 0; b < m; b++) {
-                sincos(M_PI * xi[b], sux + b, cux + b);
-                sincos(M_PI * eta[b], suy + b, cuy + b);
+                sincos_0pi(M_PI * xi[b], sux + b, cux + b);
+                sincos_0pi(M_PI * eta[b], suy + b, cuy + b);
             }
             /* sine rows R[i-1] = sin(i u) by sin((i+1)u) = 2 cos(u) sin(iu) - sin((i-1)u) */
             for (long b = 0; b < m; b++) { Sx[b] = sux[b]; Sy[b] = suy[b]; }
@@ -321,7 +357,9 @@ long sf_tracking(long n, const double *X, double *V, const Params *q) {
             }
             double den = ph[b] > q->p_floor ? ph[b] : q->p_floor;
             double vx = nxv / den, vy = nyv / den;
-            if (q->saturate) {
+            /* |v| <= v_max for sure below (1 - 1e-12) v_max^2 in the squares: hypot only near or above it
+               (the same decision, so the same bits) */
+            if (q->saturate && vx * vx + vy * vy > vlim2) {
                 double sp = hypot(vx, vy);
                 if (sp > q->v_max) {
                     double r = q->v_max / sp;
