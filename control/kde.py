@@ -312,7 +312,11 @@ def _linear_binning_numpy(X, x0, y0, dx, dy, mx, my) -> np.ndarray:
 
 def _pad_reflect(f: np.ndarray, odd_x: bool, odd_y: bool) -> np.ndarray:
     """Add one ghost layer on each side: the mirror value across the wall (negated if odd)."""
-    g = np.pad(f, 1, mode="edge")
+    mx, my = f.shape                 # np.pad(f, 1, mode="edge") by slicing (np.pad's overhead is ~0.1 ms)
+    g = np.empty((mx + 2, my + 2), dtype=f.dtype)
+    g[1:-1, 1:-1] = f
+    g[0, 1:-1], g[-1, 1:-1] = f[0], f[-1]
+    g[:, 0], g[:, -1] = g[:, 1], g[:, -2]
     if odd_x:
         g[0, :] *= -1
         g[-1, :] *= -1

@@ -145,3 +145,17 @@ def test_compiled_euler_maruyama_substep_agrees_with_numpy(sigma):
     drawn = []
     assert robot_kernel.em_step(X, V, lambda: drawn.append(1), h, 0.1, DOMAIN, 1.0, path, energy, np.empty(n)) is None
     assert not drawn and np.array_equal(path, 1.0 + sp_ref * h)
+
+
+def test_pad_reflect_is_numpys_edge_pad_with_odd_ghosts():
+    f = np.random.default_rng(0).normal(size=(5, 4))
+    for ox in (False, True):
+        for oy in (False, True):
+            g = np.pad(f, 1, mode="edge")
+            if ox:
+                g[0, :] *= -1
+                g[-1, :] *= -1
+            if oy:
+                g[:, 0] *= -1
+                g[:, -1] *= -1
+            assert np.array_equal(kde_mod._pad_reflect(f, ox, oy), g)
