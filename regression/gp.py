@@ -81,7 +81,8 @@ s_f^2 / s_n^2 = 100 they reach ~3e-2); ``tests/test_regression.py`` states the a
 tolerances.
 
 Cost (2-core AVX-512 machine, single-threaded OpenBLAS, M = 1849, 1,600 query points):
-``add`` of 10,000 points ~6 ms; the closed-loop step ``add`` of 100 points + ``predict`` ~18 ms
+``add`` of 10,000 points ~6 ms (~1 ms with the compiled power sums of
+:mod:`regression.power_sums_kernel`, the same bits; 10^6 points ~45 ms); the closed-loop step ``add`` of 100 points + ``predict`` ~18 ms
 (Woodbury update; ~10 ms for 10 points, ~60 ms for 462 = M/4; it was ~270 ms when every step
 refactorised); a step that refactorises (e.g. 10,000 new points, or 1e6 accumulated) ~0.24 s
 whatever the number of observations; ``predict`` without new data ~4 ms. Multi-threaded

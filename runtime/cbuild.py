@@ -8,7 +8,7 @@ the CPU can be identified -- the CPU; the fresh library is smoke-tested in a chi
 instruction the CPU lacks kills the child, not the caller) and moved into place atomically, so
 concurrent processes never load half a file.  :class:`CLibrary` loads lazily and remembers a failure:
 ``lib()`` is the ``ctypes.CDLL`` or None, ``error`` says why, ``warn_fallback()`` prints one line on
-stderr once per process.  Nothing here is needed to install the package: without a compiler the
+stderr once per process.  ``SWARMFIELD_NO_CKERNELS=1`` disables them (NumPy everywhere, no message).  Nothing here is needed to install the package: without a compiler the
 callers use their NumPy code.
 """
 from __future__ import annotations
@@ -77,6 +77,7 @@ class CLibrary:
             return self._lib
         if os.environ.get("SWARMFIELD_NO_CKERNELS", "0") not in ("", "0"):
             self.error = "disabled by SWARMFIELD_NO_CKERNELS"
+            CLibrary._warned_any = True            # asked for: no message
             return None
         try:
             self._lib = self._build()
@@ -87,11 +88,14 @@ class CLibrary:
     def available(self) -> bool:
         return self.lib() is not None
 
+    _warned_any = False
+
     def warn_fallback(self) -> None:
-        """One line on stderr, once per process, when the library is not available."""
-        if not self._warned and self.error is not None:
-            self._warned = True
-            print(f"swarmfield: compiled {self.what} unavailable ({self.error}); using NumPy (slower)", file=sys.stderr)
+        """One line on stderr, once per process (for all libraries), when the library is not available."""
+        if not CLibrary._warned_any and self.error is not None:
+            CLibrary._warned_any = True
+            print(f"swarmfield: compiled {self.what} unavailable ({self.error}); using NumPy (slower; "
+                  "set SWARMFIELD_NO_CKERNELS=1 to silence)", file=sys.stderr)
 
     def _smoke_ok(self, path) -> bool:
         try:

@@ -417,7 +417,12 @@ class Simulation:
 
     def move(self) -> None:
         """Δt of eq. "Langevin equation" in ``substeps`` Euler--Maruyama steps (as dynamics.advance),
-        lost robots frozen, the controller's velocity saturated at its speed limit."""
+        lost robots frozen, the controller's velocity saturated at its speed limit.
+
+        From :data:`control.robot_kernel.MIN_ROBOTS` working robots in a domain without obstacles, a
+        sub-step whose velocities are within the limit (the feedback laws saturate already) is one
+        compiled pass (:func:`control.robot_kernel.em_step`: the same noise draws and bits for the
+        positions, path and energy; the mean speed summed in another order)."""
         s, ctrl, alive, h = self.settings, self.controller, self.alive, self.h
         X, t, speed = self.X, self.t, 0.0
         vmax = ctrl.v_max

@@ -159,3 +159,26 @@ def test_pad_reflect_is_numpys_edge_pad_with_odd_ghosts():
                 g[:, 0] *= -1
                 g[:, -1] *= -1
             assert np.array_equal(kde_mod._pad_reflect(f, ox, oy), g)
+
+
+def test_without_compiled_kernels_the_numpy_path_runs_with_one_line_on_stderr(tmp_path):
+    import subprocess
+    import sys
+    code = (
+        "import numpy as np, os\n"
+        "from swarmfield.runtime import cbuild\n"
+        "from swarmfield.control import robot_kernel, KernelDensity, FeedbackSettings, tracking_velocity\n"
+        "from swarmfield.regression import GaussianProcess\n"
+        "os.environ.pop('SWARMFIELD_NO_CKERNELS')\n"
+        "robot_kernel._LIB.error = 'no C compiler found (test)'\n"
+        "from swarmfield.regression import power_sums_kernel as p; p._LIB.error = 'no C compiler found (test)'\n"
+        "rng = np.random.default_rng(0); X = rng.uniform(0, 20, (3000, 2))\n"
+        "est = KernelDensity((0, 20, 0, 20)).fit(X)\n"
+        "assert not robot_kernel.use_compiled(3000)\n"
+        "g = GaussianProcess(); g.add(X, np.sin(X[:, 0])); g.add(X, np.sin(X[:, 0]))\n"
+        "print(est.bandwidth)\n")
+    env = dict(__import__("os").environ, SWARMFIELD_NO_CKERNELS="0", SWARMFIELD_CACHE=str(tmp_path))
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert res.returncode == 0, res.stderr
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "unavailable (no C compiler found (test))" in lines[0], res.stderr
