@@ -42,9 +42,11 @@ __all__ = ["available", "linear_binning", "tracking_velocity", "kde_prepare", "e
 MIN_ROBOTS = 2048
 
 C_SOURCE = r"""
-#define _GNU_SOURCE
 #include <math.h>
 #include <stdlib.h>
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
 
 /* linear binning of n points onto the bin centres x0 + (j + 1/2) dx: the four corner weights go to four
    arrays (the caller sums them in NumPy's order: c00 + c10 + c01 + c11) */
@@ -345,9 +347,7 @@ long sf_tracking(long n, const double *X, double *V, const Params *q) {
             double nyv = -q->alpha * (phy[b] - pry[b]) + q->sigma * phy[b] + vry[b] * pr[b];
             if (q->stir) {           /* control.stirring.stirring_flux */
                 double ax = q->kpi * (x - q->sx0) / q->sbx, ay = q->kpi * (y - q->sy0) / q->sby;
-                double ssx, ssy, ccx, ccy;
-                sincos(ax, &ssx, &ccx);
-                sincos(ay, &ssy, &ccy);
+                double ssx = sin(ax), ssy = sin(ay), ccx = cos(ax), ccy = cos(ay);
                 double phi = ssx * ssy;
                 double dphx = q->kpbx * ccx * ssy, dphy = q->kpby * ssx * ccy;
                 double dpsx = q->sc * (prx[b] * phi + pr[b] * dphx);
