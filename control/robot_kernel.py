@@ -49,9 +49,13 @@ C_SOURCE = r"""
 #endif
 
 /* linear binning of n points onto the bin centres x0 + (j + 1/2) dx: the four corner weights go to four
-   arrays (the caller sums them in NumPy's order: c00 + c10 + c01 + c11) */
-void sf_kde_bin(long n, const double *X, double x0, double y0, double dx, double dy, long mx, long my,
-                double *c00, double *c10, double *c01, double *c11) {
+   arrays, summed at the end in NumPy's order ((c00 + c10) + c01) + c11 into out; -1 if out of memory */
+long sf_kde_bin(long n, const double *X, double x0, double y0, double dx, double dy, long mx, long my,
+                double *out) {
+    long size = mx * my;
+    double *c00 = (double *)calloc(4 * (size_t)size, sizeof(double));
+    if (!c00) return -1;
+    double *c10 = c00 + size, *c01 = c10 + size, *c11 = c01 + size;
     for (long k = 0; k < n; k++) {
         double fx = (X[2 * k] - x0) / dx - 0.5;
         double fy = (X[2 * k + 1] - y0) / dy - 0.5;
@@ -67,6 +71,9 @@ void sf_kde_bin(long n, const double *X, double x0, double y0, double dx, double
         c01[i0 * my + j1] += (1 - sx) * sy;
         c11[i1 * my + j1] += sx * sy;
     }
+    for (long k = 0; k < size; k++) out[k] = ((c00[k] + c10[k]) + c01[k]) + c11[k];
+    free(c00);
+    return 0;
 }
 
 /* KernelDensity.fit's checks: every point finite and in the domain up to the wall tolerance (else k + 1 for
@@ -394,8 +401,8 @@ class _Params(ctypes.Structure):
 def _declare(lib):
     dp = np.ctypeslib.ndpointer(dtype=np.float64, flags="C_CONTIGUOUS")
     L, D = ctypes.c_long, ctypes.c_double
-    lib.sf_kde_bin.argtypes = [L, dp, D, D, D, D, L, L, dp, dp, dp, dp]
-    lib.sf_kde_bin.restype = None
+    lib.sf_kde_bin.argtypes = [L, dp, D, D, D, D, L, L, dp]
+    lib.sf_kde_bin.restype = L
     lib.sf_tracking.argtypes = [L, dp, dp, ctypes.POINTER(_Params)]
     lib.sf_tracking.restype = L
     lib.sf_kde_prepare.argtypes = [L, dp, D, D, D, D, D, D, dp, dp]
@@ -411,9 +418,9 @@ import ctypes, sys
 lib = ctypes.CDLL(sys.argv[1])
 D, L = ctypes.c_double, ctypes.c_long
 X = (D * 4)(1.0, 1.0, 2.5, 3.5)
-c = [(D * 16)() for _ in range(4)]
-lib.sf_kde_bin(L(2), X, D(0.0), D(0.0), D(1.0), D(1.0), L(4), L(4), *c)
-assert abs(sum(sum(a) for a in c) - 2.0) < 1e-12
+c = (D * 16)()
+assert lib.sf_kde_bin(L(2), X, D(0.0), D(0.0), D(1.0), D(1.0), L(4), L(4), c) == 0
+assert abs(sum(c) - 2.0) < 1e-12
 """
 
 _LIB = CLibrary("robots", C_SOURCE, _declare, _SMOKE, "per-robot kernel (control.robot_kernel)")
@@ -446,13 +453,10 @@ def linear_binning(X, x0, y0, dx, dy, mx, my):
     if lib is None:
         return None
     X = np.ascontiguousarray(X, dtype=np.float64)
-    size = int(mx) * int(my)
-    c = np.zeros((4, size))
-    lib.sf_kde_bin(X.shape[0], X, float(x0), float(y0), float(dx), float(dy), int(mx), int(my), c[0], c[1], c[2], c[3])
-    out = c[0] + c[1]
-    out += c[2]
-    out += c[3]
-    return out.reshape(int(mx), int(my))
+    out = np.empty((int(mx), int(my)))
+    if lib.sf_kde_bin(X.shape[0], X, float(x0), float(y0), float(dx), float(dy), int(mx), int(my), out) != 0:
+        return None
+    return out
 
 
 def _ptr(a: np.ndarray) -> int:
