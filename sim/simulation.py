@@ -431,7 +431,7 @@ class Simulation:
         for i in range(s.substeps):
             v = np.asarray(ctrl.velocity(t + i * h, X, alive), dtype=float)
             if fast and v.shape == X.shape and alive.all():
-                # the same sub-step in one compiled pass (control.robot_kernel.em_step; a few ulps)
+                # the same sub-step in one compiled pass (control.robot_kernel.em_step: the same bits)
                 out = self._compiled_substep(X, v, h, ctrl.sigma, vmax)
                 if out is not None:
                     X, sp_sum = out
