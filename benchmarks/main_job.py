@@ -54,6 +54,9 @@ outputs.write_summary(res, out)
 T["tables"] = time.perf_counter() - t; C["tables"] = time.process_time() - c
 from swarmfield.sim import figures as fig
 t = time.perf_counter(); c = time.process_time()
+if LEAN:
+    from swarmfield.runtime.plotting import lean_import   # as simulate-swarm does (issue 21)
+    lean_import()
 fig.write_figures(res, __import__("pathlib").Path(out))
 T["figures"] = time.perf_counter() - t; C["figures"] = time.process_time() - c
 t = time.perf_counter(); c = time.process_time()
@@ -66,7 +69,7 @@ print(json.dumps(T))
 """
 
 
-def one(preset, threads):
+def one(preset, threads, lean=True):
     env = dict(os.environ, MPLBACKEND="Agg")
     env_threads = threads is not None
     if env_threads:
@@ -75,7 +78,7 @@ def one(preset, threads):
         for v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
             env.pop(v, None)
     with tempfile.TemporaryDirectory() as out:
-        code = CHILD.replace("PRESET", repr(preset)).replace("OUT", repr(out)).replace("ENV_THREADS",
+        code = CHILD.replace("LEAN", repr(lean)).replace("PRESET", repr(preset)).replace("OUT", repr(out)).replace("ENV_THREADS",
                                                                                           repr(env_threads))
         t0 = time.perf_counter()
         proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
@@ -92,9 +95,12 @@ def main():
     ap.add_argument("--preset", default="paper")
     ap.add_argument("--threads", type=int, default=None)
     ap.add_argument("--repeats", type=int, default=1)
+    ap.add_argument("--full-import", action="store_true",
+                    help="import matplotlib with its docstring tables (as before issue 21; the command now uses "
+                         "runtime.plotting.lean_import)")
     a = ap.parse_args()
     for _ in range(a.repeats):
-        T = one(a.preset, a.threads)
+        T = one(a.preset, a.threads, lean=not a.full_import)
         main_job = T["imports"] + T["planner_build"] + T["simulation"] + T["tables"] + T["figures"]
         print(f"preset {a.preset}, threads {a.threads or 'command default'}: process {T['process']:.2f} s; "
               + ", ".join(f"{k} {T[k]:.2f} s" for k in ("imports", "planner_build", "simulation", "tables",

@@ -1,7 +1,7 @@
 """Benchmark: one measurement step of the closed loop *with* regression, at 1,000 ... 1,000,000 robots.
 
     python benchmarks/measurement_step.py [--robots 1000 10000 100000 1000000] [--periods 3]
-                                          [--every 1 8 auto] [--controller feedback]
+                                          [--every 1 8 auto] [--controller feedback] [--kernels numpy auto]
                                           [--configs default coarse-gp coarse-gp+hold]
                                           [--domains rectangle harbour floor lake]
 
@@ -128,6 +128,9 @@ def main():
     ap.add_argument("--controller", default="feedback")
     ap.add_argument("--configs", nargs="+", default=["default"], choices=list(CONFIGS))
     ap.add_argument("--domains", nargs="+", default=["rectangle"], help="rectangle | harbour | floor | lake | FILE")
+    ap.add_argument("--kernels", nargs="+", default=["auto"], choices=["auto", "numpy", "compiled"],
+                    help="SWARMFIELD_ROBOT_KERNEL of the case: numpy = the NumPy per-robot passes (before issue 21 "
+                         "item 4), auto = the compiled ones from control.robot_kernel.MIN_ROBOTS robots on")
     ap.add_argument("--one", help=argparse.SUPPRESS)      # internal: run one case, print JSON
     args = ap.parse_args()
     if args.one:
@@ -138,23 +141,23 @@ def main():
                OMP_NUM_THREADS=os.environ.get("OMP_NUM_THREADS", "1"))
     print(f"{args.periods} periods per run, controller {args.controller}; times per measurement step, planner excluded")
     print()
-    print("| robots | domain | configuration | metrics_every | rows | CPU step [ms] | CPU regression [ms] "
-          "| wall step [ms] | peak RSS [MiB] | final RMSE |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
-    for n in args.robots:
-        for config in args.configs:
-            for every in args.every:
-                for dom in args.domains:
-                    case = json.dumps([n, config, every, dom])
-                    out = subprocess.run([sys.executable, __file__, "--one", case, "--periods", str(args.periods),
-                                          "--controller", args.controller], env=env, capture_output=True, text=True)
-                    if out.returncode != 0:
-                        print(f"| {n:,} | {dom} | {config} | {every} | failed: {out.stderr.strip().splitlines()[-1]} |")
-                        continue
-                    r = json.loads(out.stdout.strip().splitlines()[-1])
-                    print(f"| {n:,} | {dom} | {config} | {every} | {r['rows']} | {1e3 * r['cpu']:.0f} "
-                          f"| {1e3 * r['cpu_regression']:.0f} | {1e3 * r['wall']:.0f} | {r['peak_mib']:.0f} "
-                          f"| {r['rmse']:.4f} |", flush=True)
+    print("| robots | domain | configuration | metrics_every | per-robot passes | rows | CPU step [ms] "
+          "| CPU regression [ms] | wall step [ms] | peak RSS [MiB] | final RMSE |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    cases = [(n, c, e, d, k) for n in args.robots for c in args.configs for e in args.every for d in args.domains
+             for k in args.kernels]
+    for n, config, every, dom, kern in cases:
+        env["SWARMFIELD_ROBOT_KERNEL"] = kern
+        case = json.dumps([n, config, every, dom])
+        out = subprocess.run([sys.executable, __file__, "--one", case, "--periods", str(args.periods),
+                              "--controller", args.controller], env=env, capture_output=True, text=True)
+        if out.returncode != 0:
+            print(f"| {n:,} | {dom} | {config} | {every} | {kern} | failed: {out.stderr.strip().splitlines()[-1]} |")
+            continue
+        r = json.loads(out.stdout.strip().splitlines()[-1])
+        print(f"| {n:,} | {dom} | {config} | {every} | {kern} | {r['rows']} | {1e3 * r['cpu']:.0f} "
+              f"| {1e3 * r['cpu_regression']:.0f} | {1e3 * r['wall']:.0f} | {r['peak_mib']:.0f} "
+              f"| {r['rmse']:.6g} |", flush=True)
 
 
 if __name__ == "__main__":

@@ -230,6 +230,9 @@ def _run_locked(args, argv, config, field, planner, folder) -> int:
     try:
         def writing(name):
             print(f"{PROG}: writing {name} ...", file=sys.stderr, flush=True)
+        if result.rows and (args.gif or not args.no_figures):
+            from ..runtime.plotting import lean_import
+            lean_import()                        # this process draws and exits: no docstring tables
         files = write_outputs(result, stage, figures=not args.no_figures, gif=args.gif,
                               progress=None if args.quiet else writing,
                               extra={"command": [PROG] + [str(a) for a in (sys.argv[1:] if argv is None else argv)],

@@ -7,10 +7,16 @@
   with a density floor and speed saturation (see that module for what they do to the
   stability results).
 
-NumPy/SciPy only; the reference (p_r, v_r) comes from :class:`ocp.plan.ReferencePlan`.
+* :mod:`control.robot_kernel` -- the per-robot work of a feedback sub-step (KDE binning, p_hat, p_r,
+  v_r, the law, the Euler--Maruyama step) in compiled C loops for large swarms, with the NumPy code
+  as the reference and the fallback.
+
+NumPy/SciPy (and the system C compiler when present); the reference (p_r, v_r) comes from
+:class:`ocp.plan.ReferencePlan`.
 """
 from .feedback import FeedbackSettings, feedback_velocity, saturate, tracking_velocity
 from .kde import DensityEstimate, KernelDensity, silverman_bandwidth
+from . import robot_kernel
 
 __all__ = ["KernelDensity", "DensityEstimate", "silverman_bandwidth",
            "FeedbackSettings", "feedback_velocity", "tracking_velocity", "saturate"]

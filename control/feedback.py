@@ -167,6 +167,11 @@ def tracking_velocity(X, plan, t: float, est, settings: FeedbackSettings, stir_p
     :class:`control.kde.DensityEstimate` on the same domain.  With ``settings.stir_speed > 0`` the
     stirring flux of :mod:`control.stirring` with ``stir_pattern = (k, sense)`` (default
     ``(settings.stir_cells, 1)``) is added.
+
+    From :data:`control.robot_kernel.MIN_ROBOTS` robots on (without obstacle masks) all of this runs
+    as one compiled pass over the robots (:func:`control.robot_kernel.tracking_velocity`, ~5x faster
+    at 10^6 robots, the same values to ~1e-15 relative); below it, or without a C compiler, the
+    NumPy code here.
     """
     X = np.asarray(X, dtype=float)
     if X.ndim != 2 or X.shape[1] != 2:
@@ -180,6 +185,11 @@ def tracking_velocity(X, plan, t: float, est, settings: FeedbackSettings, stir_p
     if plan_dom.shape != (4,) or not np.allclose(plan_dom, est.domain, rtol=1e-12, atol=1e-12):
         raise ValueError(f"plan domain {tuple(plan_dom)} differs from the density estimate's domain {tuple(est.domain)}")
     n = X.shape[0]
+    from . import robot_kernel
+    if robot_kernel.use_compiled(n):      # one C pass over the robots (control.robot_kernel; a few ulps)
+        v = robot_kernel.tracking_velocity(X, plan, t, est, settings, stir_pattern, plan_dom)
+        if v is not None:
+            return v
     if n <= _BLOCK:
         return _tracking_block(X, plan, t, est, settings, stir_pattern, plan_dom)
     # robots in blocks: every operation is per robot, so the bits are those of one pass, but the

@@ -46,7 +46,7 @@ import warnings
 
 import numpy as np
 
-from ..control import KernelDensity, tracking_velocity
+from ..control import KernelDensity, robot_kernel, tracking_velocity
 from ..regression import GaussianProcess, reachable_target_density, target_density
 from ..regression.hyper import refit_online
 
@@ -172,6 +172,7 @@ class Simulation:
         self.alive = np.ones(n, bool)
         self.path_length = np.zeros(n)
         self.energy = np.zeros(n)
+        self._sp_scratch = None       # |v| of the robots (compiled sub-step, control.robot_kernel)
         self.result.path_length, self.result.energy, self.result.alive = self.path_length, self.energy, self.alive
         self.h = s.dt / s.substeps           # Euler--Maruyama sub-step
         self.t, self.step_index, self.period_index = 0.0, 0, 0
@@ -442,12 +443,26 @@ class Simulation:
 
     def move(self) -> None:
         """Δt of eq. "Langevin equation" in ``substeps`` Euler--Maruyama steps (as dynamics.advance),
-        lost robots frozen, the controller's velocity saturated at its speed limit."""
+        lost robots frozen, the controller's velocity saturated at its speed limit.
+
+        From :data:`control.robot_kernel.MIN_ROBOTS` working robots in a domain without obstacles, a
+        sub-step whose velocities are within the limit (the feedback laws saturate already) is one
+        compiled pass (:func:`control.robot_kernel.em_step`: the same noise draws and bits for the
+        positions, path and energy; the mean speed summed in another order)."""
         s, ctrl, alive, h = self.settings, self.controller, self.alive, self.h
         X, t, speed = self.X, self.t, 0.0
         vmax = ctrl.v_max
+        fast = (robot_kernel.use_compiled(X.shape[0]) and not hasattr(self.motion_domain, "move")
+                and X.dtype == np.float64 and X.flags.c_contiguous)
         for i in range(s.substeps):
             v = np.asarray(ctrl.velocity(t + i * h, X, alive), dtype=float)
+            if fast and v.shape == X.shape and alive.all():
+                # the same sub-step in one compiled pass (control.robot_kernel.em_step: the same bits)
+                out = self._compiled_substep(X, v, h, ctrl.sigma, vmax)
+                if out is not None:
+                    X, sp_sum = out
+                    speed += sp_sum / X.shape[0]
+                    continue
             if not alive.all():
                 v = np.where(alive[:, None], v, 0.0)
             sp = np.hypot(v[:, 0], v[:, 1])
@@ -464,6 +479,17 @@ class Simulation:
                 Xn[~alive] = X[~alive]
             X = Xn
         self.X, self.speed = X, speed / s.substeps
+
+    def _compiled_substep(self, X, v, h, sigma, vmax):
+        if self._sp_scratch is None or self._sp_scratch.shape[0] != X.shape[0]:
+            self._sp_scratch = np.empty(X.shape[0])
+        if not (h > 0 and math.isfinite(h)) or not (sigma >= 0 and math.isfinite(sigma)):
+            return None
+        def draw():                                  # the stream of euler_maruyama_step
+            return self.rng.standard_normal(X.shape) if sigma > 0 else None
+        return robot_kernel.em_step(X, np.ascontiguousarray(v), draw, h, math.sqrt(2.0 * sigma * h),
+                                    self.motion_domain, vmax * (1 + 1e-9), self.path_length, self.energy,
+                                    self._sp_scratch)
 
     def context(self):
         """What the controller is given (:class:`sim.controllers.Context`)."""
