@@ -46,6 +46,10 @@ PRESETS: dict[str, dict] = {
             # plan for the variance the stop rule judges by (with sim.stop_rule = "robust": V and l at
             # l_c = min(l, prior l); with "relative" the same as "gp")
             "information_scale": "stop-rule",
+            # plan the reference at 5 m/s for robots of 3 m/s (planner.v_max, the baselines' speed, and
+            # feedback.v_max stay 3): the planned density runs ahead of the swarm's front, where the law
+            # saturates and the front robots sweep at full speed (docs/design/receding-horizon.md)
+            "reference_speed": 5.0,
         },
         "feedback": {
             # the robots' speed limit of the baselines (planner.v_max), not the paper's 4 m/s
@@ -69,7 +73,10 @@ PRESETS: dict[str, dict] = {
         # scale, so that a length scale learned in a smooth corner cannot call the field mapped
         # (docs/results/stop-rule.md: 6 of 60 runs stopped before the travel-time limit under
         # "relative", 0 of 60 under "robust"); every controller of a comparison is judged by it
-        "sim": {"stop_rule": "robust", "eta_relative": 0.05},
+        # replan_every 2 (issue 20): re-plan every 2 measurement steps (T/4) on a receding horizon T from the
+        # current p̂ and GP variance, so that a hole the swarm's paths left is planned for at once instead of
+        # at the next period start (docs/design/receding-horizon.md, docs/results/tuned-preset.md)
+        "sim": {"stop_rule": "robust", "eta_relative": 0.05, "replan_every": 2},
     },
 }
 
