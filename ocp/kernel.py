@@ -174,7 +174,8 @@ static void slopes_p(int nx, int ny, const double *restrict mx, const double *re
    F = v+ (p_L + s_L / 2) - v- (p_R - s_R / 2); fb: nx + 1 scratch, gprev: nx scratch */
 static void euler_muscl(int nx, int ny, double rx, double ry, const double *restrict xp, const double *restrict xm,
                         const double *restrict yp, const double *restrict ym, const double *restrict p, const double *restrict sx, const double *restrict sy,
-                        double *restrict q, double *restrict fb, double *restrict gprev) {
+                        const double *restrict avg, double *restrict q, double *restrict fb,
+                        double *restrict gprev) {
     int mx = nx - 1;
     for (int i = 0; i < nx; i++) gprev[i] = 0.0;
     fb[0] = 0.0;
@@ -194,6 +195,10 @@ static void euler_muscl(int nx, int ny, double rx, double ry, const double *rest
             }
         } else {
             for (int i = 0; i < nx; i++) qc[i] = qc[i] - ry * (0.0 - gprev[i]);
+        }
+        if (avg) {                     /* Heun's average q = p / 2 + E(p1) / 2, while the row is in cache */
+            const double *ac = avg + (long)nx * j;
+            for (int i = 0; i < nx; i++) qc[i] = 0.5 * ac[i] + 0.5 * qc[i];
         }
     }
 }
@@ -291,14 +296,16 @@ static void euler_muscl_adj(int nx, int ny, double rx, double ry, const double *
     }
 }
 
-/* MUSCL + SSP-RK2 (Heun): q = p / 2 + E(E(p)) / 2; traj as sf_forward */
+/* MUSCL + SSP-RK2 (Heun): q = p / 2 + E(E(p)) / 2; traj as sf_forward; stage (N*nsub * nx*ny, or NULL):
+   the first stage E(p) of every sub-step, kept for sf_adjoint_muscl (which otherwise recomputes it) */
 int sf_forward_muscl(int nx, int ny, int N, int nsub, double rx, double ry, double eps, const double *mx,
-                     const double *my, const double *vx, const double *vy, const double *p0, double *traj) {
+                     const double *my, const double *vx, const double *vy, const double *p0, double *traj,
+                     double *stage) {
     long n = (long)nx * ny, nfx = (long)(nx - 1) * ny, nfy = (long)nx * (ny - 1);
-    double *buf = (double *)malloc(sizeof(double) * (4 * nfx + 4 * nfy + 4 * n + 3 * nx + 2));
+    double *buf = (double *)malloc(sizeof(double) * (4 * nfx + 4 * nfy + 3 * n + 3 * nx + 2));
     if (!buf) return 1;
     double *xp = buf, *xm = xp + nfx, *yp = xm + nfx, *ym = yp + nfy;
-    double *sx = ym + nfy, *sy = sx + n, *p1 = sy + n, *p2 = p1 + n, *fb = p2 + n, *gprev = fb + nx + 1;
+    double *sx = ym + nfy, *sy = sx + n, *p1s = sy + n, *fb = p1s + n, *gprev = fb + nx + 1;
     memcpy(traj, p0, sizeof(double) * n);
     for (int l = 0; l < N; l++) {
         split(nfx, vx + nfx * l, eps * eps, mx, xp, xm);
@@ -307,27 +314,28 @@ int sf_forward_muscl(int nx, int ny, int N, int nsub, double rx, double ry, doub
             long k = (long)l * nsub + s;
             const double *p = traj + n * k;
             double *q = traj + n * (k + 1);
+            double *p1 = stage ? stage + n * k : p1s;
             slopes_p(nx, ny, mx, my, p, sx, sy);
-            euler_muscl(nx, ny, rx, ry, xp, xm, yp, ym, p, sx, sy, p1, fb, gprev);
+            euler_muscl(nx, ny, rx, ry, xp, xm, yp, ym, p, sx, sy, NULL, p1, fb, gprev);
             slopes_p(nx, ny, mx, my, p1, sx, sy);
-            euler_muscl(nx, ny, rx, ry, xp, xm, yp, ym, p1, sx, sy, p2, fb, gprev);
-            for (long c = 0; c < n; c++) q[c] = 0.5 * p[c] + 0.5 * p2[c];
+            euler_muscl(nx, ny, rx, ry, xp, xm, yp, ym, p1, sx, sy, p, q, fb, gprev);
         }
     }
     free(buf);
     return 0;
 }
 
-/* adjoint of sf_forward_muscl (arguments as sf_adjoint); the first stage p1 = E(p) is recomputed per sub-step */
+/* adjoint of sf_forward_muscl (arguments as sf_adjoint); stage: the first stages stored by the forward pass
+   at this trajectory, or NULL: then p1 = E(p) is recomputed per sub-step */
 int sf_adjoint_muscl(int nx, int ny, int N, int nsub, double rx, double ry, double eps, const double *mx,
                      const double *my, const double *vx, const double *vy, const double *traj, const double *lsnap,
-                     double *gvx, double *gvy, double *gp0) {
+                     double *gvx, double *gvy, double *gp0, const double *stage) {
     long n = (long)nx * ny, nfx = (long)(nx - 1) * ny, nfy = (long)nx * (ny - 1);
     double *buf = (double *)malloc(sizeof(double) * (6 * nfx + 6 * nfy + 11 * n + 7 * nx + 7));
     if (!buf) return 1;
     double *xp = buf, *xm = xp + nfx, *yp = xm + nfx, *ym = yp + nfy;
     double *axp = ym + nfy, *axm = axp + nfx, *ayp = axm + nfx, *aym = ayp + nfy;
-    double *lam = aym + nfy, *tmp = lam + n, *p1 = tmp + n, *l2 = p1 + n, *l1 = l2 + n, *lsy = l1 + n;
+    double *lam = aym + nfy, *tmp = lam + n, *p1s = tmp + n, *l2 = p1s + n, *l1 = l2 + n, *lsy = l1 + n;
     double *sx0 = lsy + n, *sy0 = sx0 + n, *sx1 = sy0 + n, *sy1 = sx1 + n;
     double *A = sy1 + n, *B = A + nx + 1, *L = B + nx + 1, *D = L + nx + 1, *WA = D + nx + 1, *WB = WA + nx + 1;
     double *gprev = WB + nx + 1;
@@ -340,8 +348,9 @@ int sf_adjoint_muscl(int nx, int ny, int N, int nsub, double rx, double ry, doub
         for (int s = nsub - 1; s >= 0; s--) {
             long k = (long)l * nsub + s;
             const double *p = traj + n * k;
+            const double *p1 = stage ? stage + n * k : p1s;
             slopes_p(nx, ny, mx, my, p, sx0, sy0);
-            euler_muscl(nx, ny, rx, ry, xp, xm, yp, ym, p, sx0, sy0, p1, A, gprev);
+            if (!stage) euler_muscl(nx, ny, rx, ry, xp, xm, yp, ym, p, sx0, sy0, NULL, p1s, A, gprev);
             slopes_p(nx, ny, mx, my, p1, sx1, sy1);
             for (long c = 0; c < n; c++) l2[c] = 0.5 * lam[c];
             euler_muscl_adj(nx, ny, rx, ry, mx, my, xp, xm, yp, ym, p1, sx1, sy1, l2, l1, axp, axm, ayp, aym,
@@ -461,10 +470,10 @@ import ctypes, sys
 lib = ctypes.CDLL(sys.argv[1])
 n, D = 4, ctypes.c_double
 arr = lambda k, v=0.5: (ctypes.c_double * k)(*([v] * k))
-for name in ("sf_forward", "sf_forward_muscl"):
+for name, extra in (("sf_forward", ()), ("sf_forward_muscl", (None,))):
     traj = arr(3 * n * n)
     rc = getattr(lib, name)(n, n, 1, 2, D(0.1), D(0.1), D(0.02), arr(12, 1.0), arr(12, 1.0), arr(12, 0.3),
-                            arr(12, -0.2), arr(n * n, 1.0), traj)
+                            arr(12, -0.2), arr(n * n, 1.0), traj, *extra)
     assert rc == 0 and abs(sum(traj[2 * n * n:]) - n * n) < 1e-9
 """
 
@@ -520,9 +529,10 @@ def _load():
         lib.sf_forward.restype = i
         lib.sf_adjoint.argtypes = [i, i, i, i, d, d, d, dp, dp, dp, dp, dp, dp, dp, dp, dp]
         lib.sf_adjoint.restype = i
-        lib.sf_forward_muscl.argtypes = lib.sf_forward.argtypes
+        vp = ctypes.c_void_p                        # the optional first-stage buffer (None = NULL)
+        lib.sf_forward_muscl.argtypes = lib.sf_forward.argtypes + [vp]
         lib.sf_forward_muscl.restype = i
-        lib.sf_adjoint_muscl.argtypes = lib.sf_adjoint.argtypes
+        lib.sf_adjoint_muscl.argtypes = lib.sf_adjoint.argtypes + [vp]
         lib.sf_adjoint_muscl.restype = i
         _LIB = lib
     except Exception as exc:                           # noqa: BLE001 - any failure means: use the fallback
@@ -594,9 +604,18 @@ class TransportKernel:
             raise ValueError(f"out must be a C-contiguous float64 array of shape {shape}")
         traj = out
         if self.backend == "compiled":
-            fwd = _LIB.sf_forward_muscl if self.scheme == "muscl" else _LIB.sf_forward
-            if fwd(self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, self.mask_x, self.mask_y,
-                   vx, vy, p0, traj):
+            args = (self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, self.mask_x, self.mask_y,
+                    vx, vy, p0, traj)
+            if self.scheme == "muscl":
+                stage = self._stage_buffer()
+                self._stage_of = None
+                rc = _LIB.sf_forward_muscl(*args, None if stage is None else stage.ctypes.data)
+                if stage is not None and not rc:
+                    # the first stages belong to this trajectory at these velocities (checked by adjoint)
+                    self._stage_of = (traj, vx.copy(), vy.copy(), traj[0].copy(), traj[-1].copy())
+            else:
+                rc = _LIB.sf_forward(*args)
+            if rc:
                 raise MemoryError("transport kernel: out of memory")
             return traj
         traj[0] = p0
@@ -617,9 +636,14 @@ class TransportKernel:
         gp0 = np.empty(self.n_cell)
         if self.backend == "compiled":
             traj = np.ascontiguousarray(traj, dtype=float)
-            adj = _LIB.sf_adjoint_muscl if self.scheme == "muscl" else _LIB.sf_adjoint
-            if adj(self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, self.mask_x, self.mask_y,
-                   vx, vy, traj, lsnap, gvx, gvy, gp0):
+            args = (self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, self.mask_x, self.mask_y,
+                    vx, vy, traj, lsnap, gvx, gvy, gp0)
+            if self.scheme == "muscl":
+                stage = self._stage if self._stage_matches(vx, vy, traj) else None
+                rc = _LIB.sf_adjoint_muscl(*args, None if stage is None else stage.ctypes.data)
+            else:
+                rc = _LIB.sf_adjoint(*args)
+            if rc:
                 raise MemoryError("transport kernel: out of memory")
             return gvx, gvy, gp0
         lam = lsnap[self.N].copy()
@@ -634,6 +658,26 @@ class TransportKernel:
             lam = lam + lsnap[l]
         gp0[:] = lam
         return gvx, gvy, gp0
+
+    #: MUSCL: the forward pass keeps the first Heun stage of every sub-step for the adjoint (which would
+    #: otherwise recompute it: one Euler stage per sub-step) when that buffer stays below this many bytes
+    MAX_STAGE_BYTES = 256 * 2 ** 20
+
+    def _stage_buffer(self):
+        if not hasattr(self, "_stage"):
+            size = self.N * self.n_sub * self.n_cell
+            self._stage = np.empty((self.N * self.n_sub, self.n_cell)) if 8 * size <= self.MAX_STAGE_BYTES else None
+            self._stage_of = None
+        return self._stage
+
+    def _stage_matches(self, vx, vy, traj) -> bool:
+        """True when the stored first stages were computed by the last forward pass into ``traj`` at (vx, vy)
+        (same array object, same velocities, same first and last rows); else the adjoint recomputes them."""
+        key = getattr(self, "_stage_of", None)
+        if key is None or key[0] is not traj:
+            return False
+        return (np.array_equal(key[1], vx) and np.array_equal(key[2], vy) and np.array_equal(key[3], traj[0])
+                and np.array_equal(key[4], traj[-1]))
 
     def snapshots(self, traj) -> np.ndarray:
         """The interval-boundary densities (N+1, n_cell) of a trajectory."""

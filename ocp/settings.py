@@ -186,9 +186,17 @@ class PlannerSettings:
     #: Hessian of the formulation: "auto" (single shooting: ``ipopt.hessian_approximation``; multiple
     #: shooting and direct transcription: the exact sparse Hessian), "exact" or "limited-memory"
     formulation_hessian: str = "auto"
+    #: initial guess of a solve without a warm-start plan (ocp.coarse, docs/design/planner-speed.md): "zero" (the
+    #: zero velocity, default: the paper's) or "coarse": first solve the same problem on a grid of half the cells
+    #: per side (obstacle mask coarsened: a coarse cell is free iff all the fine cells it covers are), and start
+    #: from its velocity coefficients (grid-independent); single shooting, IPOPT, objective "symmetric-kl" only
+    #: (anything else, or a grid below 2 x COARSE_MIN_CELLS cells per side, starts from zero)
+    cold_start: str = "zero"
 
     def __post_init__(self):
         _check_formulation(self)
+        if self.cold_start not in ("zero", "coarse"):
+            raise ValueError(f"planner.cold_start must be 'zero' or 'coarse', got {self.cold_start!r}")
         from .objectives import OBJECTIVES
         if self.objective not in OBJECTIVES:
             raise ValueError(f"planner.objective must be one of {', '.join(repr(o) for o in OBJECTIVES)}, "
