@@ -203,6 +203,63 @@ static void euler_muscl(int nx, int ny, double rx, double ry, const double *rest
     }
 }
 
+/* one row of limited slopes (the expressions of slopes_p, so the values are the same bit for bit) */
+static inline void slope_row_x(int nx, const double *restrict m, const double *restrict pc, double *restrict s) {
+    s[0] = 0.0;
+    s[nx - 1] = 0.0;
+    for (int i = 1; i < nx - 1; i++) s[i] = minmod((pc[i] - pc[i - 1]) * m[i - 1], (pc[i + 1] - pc[i]) * m[i]);
+}
+
+static inline void slope_row_y(int nx, int ny, int j, const double *restrict my, const double *restrict p,
+                               double *restrict s) {
+    if (j <= 0 || j >= ny - 1) {
+        for (int i = 0; i < nx; i++) s[i] = 0.0;
+        return;
+    }
+    const double *pd = p + (long)nx * (j - 1), *pc = pd + nx, *pu = pc + nx;
+    const double *md = my + (long)nx * (j - 1), *mu = md + nx;
+    for (int i = 0; i < nx; i++) s[i] = minmod((pc[i] - pd[i]) * md[i], (pu[i] - pc[i]) * mu[i]);
+}
+
+/* euler_muscl with the slopes computed row by row on the fly (no full slope arrays written and read back):
+   the forward pass's stage; sr, t0, t1: nx scratch each */
+static void euler_muscl_fused(int nx, int ny, double rx, double ry, const double *restrict mxk,
+                              const double *restrict myk, const double *restrict xp, const double *restrict xm,
+                              const double *restrict yp, const double *restrict ym, const double *restrict p,
+                              const double *restrict avg, double *restrict q, double *restrict fb,
+                              double *restrict gprev, double *restrict sr, double *t0, double *t1) {
+    int mx = nx - 1;
+    double *tc = t0, *tn = t1;
+    for (int i = 0; i < nx; i++) gprev[i] = 0.0;
+    fb[0] = 0.0;
+    fb[nx] = 0.0;
+    slope_row_y(nx, ny, 0, myk, p, tc);
+    for (int j = 0; j < ny; j++) {
+        const double *pc = p + (long)nx * j;
+        double *qc = q + (long)nx * j;
+        const double *a = xp + (long)mx * j, *b = xm + (long)mx * j;
+        slope_row_x(nx, mxk + (long)mx * j, pc, sr);
+        for (int i = 0; i < mx; i++) fb[i + 1] = a[i] * (pc[i] + 0.5 * sr[i]) - b[i] * (pc[i + 1] - 0.5 * sr[i + 1]);
+        for (int i = 0; i < nx; i++) qc[i] = pc[i] - rx * (fb[i + 1] - fb[i]);
+        if (j < ny - 1) {
+            slope_row_y(nx, ny, j + 1, myk, p, tn);
+            const double *pn = pc + nx, *c = yp + (long)nx * j, *d = ym + (long)nx * j;
+            for (int i = 0; i < nx; i++) {
+                double gu = c[i] * (pc[i] + 0.5 * tc[i]) - d[i] * (pn[i] - 0.5 * tn[i]);
+                qc[i] = qc[i] - ry * (gu - gprev[i]);
+                gprev[i] = gu;
+            }
+            double *t = tc; tc = tn; tn = t;
+        } else {
+            for (int i = 0; i < nx; i++) qc[i] = qc[i] - ry * (0.0 - gprev[i]);
+        }
+        if (avg) {
+            const double *ac = avg + (long)nx * j;
+            for (int i = 0; i < nx; i++) qc[i] = 0.5 * ac[i] + 0.5 * qc[i];
+        }
+    }
+}
+
 static inline double pick_left(double a, double b) {   /* minmod(a, b) took a (same signs, |a| < |b|) */
     double same = (double)(a > 0.0) * (double)(b > 0.0) + (double)(a < 0.0) * (double)(b < 0.0);
     return same * (double)(fabs(a) < fabs(b));
@@ -302,10 +359,10 @@ int sf_forward_muscl(int nx, int ny, int N, int nsub, double rx, double ry, doub
                      const double *my, const double *vx, const double *vy, const double *p0, double *traj,
                      double *stage) {
     long n = (long)nx * ny, nfx = (long)(nx - 1) * ny, nfy = (long)nx * (ny - 1);
-    double *buf = (double *)malloc(sizeof(double) * (4 * nfx + 4 * nfy + 3 * n + 3 * nx + 2));
+    double *buf = (double *)malloc(sizeof(double) * (4 * nfx + 4 * nfy + n + 5 * nx + 1));
     if (!buf) return 1;
     double *xp = buf, *xm = xp + nfx, *yp = xm + nfx, *ym = yp + nfy;
-    double *sx = ym + nfy, *sy = sx + n, *p1s = sy + n, *fb = p1s + n, *gprev = fb + nx + 1;
+    double *p1s = ym + nfy, *fb = p1s + n, *gprev = fb + nx + 1, *sr = gprev + nx, *t0 = sr + nx, *t1 = t0 + nx;
     memcpy(traj, p0, sizeof(double) * n);
     for (int l = 0; l < N; l++) {
         split(nfx, vx + nfx * l, eps * eps, mx, xp, xm);
@@ -315,10 +372,8 @@ int sf_forward_muscl(int nx, int ny, int N, int nsub, double rx, double ry, doub
             const double *p = traj + n * k;
             double *q = traj + n * (k + 1);
             double *p1 = stage ? stage + n * k : p1s;
-            slopes_p(nx, ny, mx, my, p, sx, sy);
-            euler_muscl(nx, ny, rx, ry, xp, xm, yp, ym, p, sx, sy, NULL, p1, fb, gprev);
-            slopes_p(nx, ny, mx, my, p1, sx, sy);
-            euler_muscl(nx, ny, rx, ry, xp, xm, yp, ym, p1, sx, sy, p, q, fb, gprev);
+            euler_muscl_fused(nx, ny, rx, ry, mx, my, xp, xm, yp, ym, p, NULL, p1, fb, gprev, sr, t0, t1);
+            euler_muscl_fused(nx, ny, rx, ry, mx, my, xp, xm, yp, ym, p1, p, q, fb, gprev, sr, t0, t1);
         }
     }
     free(buf);

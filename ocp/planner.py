@@ -106,15 +106,16 @@ class ReferencePlanner:
             if shape is not None:
                 fc = coarsen_free(self.free, shape)
                 if fc is None or fc.any():
-                    self._coarse = ReferencePlanner(dataclasses.replace(s, nx=shape[0], ny=shape[1], cold_start="zero"),
-                                                    free=fc)
+                    # the first-order scheme there (cheaper; its optimum is only the starting point of this solve)
+                    self._coarse = ReferencePlanner(dataclasses.replace(s, nx=shape[0], ny=shape[1], cold_start="zero",
+                                                                        scheme="upwind"), free=fc)
         self.build_time = time.perf_counter() - t0
         self._grg = None
         self._info, self._info_meta = None, None
 
     def _coarse_applies(self) -> bool:
         s = self.settings
-        return (s.cold_start == "coarse" and s.method == "ipopt" and s.objective == "symmetric-kl"
+        return (s.resolved_cold_start == "coarse" and s.method == "ipopt" and s.objective == "symmetric-kl"
                 and isinstance(self.formulation, SingleShooting))
 
     def _coarse_coefficients(self, p0: np.ndarray, target: np.ndarray):

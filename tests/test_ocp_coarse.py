@@ -132,3 +132,20 @@ def test_muscl_adjoint_with_stored_stage_equals_recomputed(masked):
     assert kern2._stage is None and np.array_equal(t3, traj2)
     for a, b in zip(kern2.adjoint(VX, VY, t3, lam), stored):
         assert np.array_equal(a, b)
+
+
+def test_auto_cold_start_is_coarse_for_muscl_only():
+    assert PlannerSettings().cold_start == "auto" and PlannerSettings().resolved_cold_start == "zero"
+    assert PlannerSettings(scheme="muscl").resolved_cold_start == "coarse"
+    assert PlannerSettings(scheme="muscl", cold_start="zero").resolved_cold_start == "zero"
+    up = ReferencePlanner(PlannerSettings(**SMALL))
+    assert up._coarse is None                                   # the paper's default: a zero cold start
+    mu = ReferencePlanner(PlannerSettings(**SMALL, scheme="muscl"))
+    assert mu._coarse is not None and mu._coarse.settings.scheme == "upwind"      # coarse level: first order
+    assert mu._coarse.grid.shape == (8, 8)
+    g = mu.grid
+    plan = mu.solve(bump(g, 2.5, 2.5, 1.2), bump(g, 8.0, 5.0, 1.2))
+    assert plan.meta["solver"]["cold_start"]["used"]
+    ref = ReferencePlanner(PlannerSettings(**SMALL, scheme="muscl", cold_start="zero")).solve(
+        bump(g, 2.5, 2.5, 1.2), bump(g, 8.0, 5.0, 1.2))
+    assert plan.meta["objective"] == pytest.approx(ref.meta["objective"], rel=2e-3)
