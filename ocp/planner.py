@@ -102,7 +102,7 @@ class ReferencePlanner:
             # the coarse planner of cold_start = "coarse" (ocp.coarse): built with this one, same settings on half
             # the cells per side (a cold start of its own from zero), its mask coarsened conservatively
             from .coarse import coarse_shape, coarsen_free
-            shape = coarse_shape(s.nx, s.ny)
+            shape = coarse_shape(s.nx, s.ny, s.n_modes_x, s.n_modes_y)
             if shape is not None:
                 fc = coarsen_free(self.free, shape)
                 if fc is None or fc.any():
@@ -123,8 +123,8 @@ class ReferencePlanner:
         target (before the floors: the coarse planner applies them), or (None, reason) when there is none."""
         from .coarse import coarse_problem
         if self._coarse is None:
-            return None, {"used": False, "reason": "no coarse grid (too small, or no free coarse cell)"}
-        cp = coarse_problem(self.grid, self.free, p0, target)
+            return None, {"used": False, "reason": "no coarse grid (fewer than 2 cells per half-wave of the highest mode, or no free coarse cell)"}
+        cp = coarse_problem(self.grid, self.free, p0, target, self.settings.n_modes_x, self.settings.n_modes_y)
         if cp is None:
             return None, {"used": False, "reason": "no mass on the coarse free cells"}
         shape, _, p0c, tc = cp

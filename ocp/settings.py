@@ -191,8 +191,8 @@ class PlannerSettings:
     #: the cells per side (obstacle mask coarsened: a coarse cell is free iff all the fine cells it covers are)
     #: and start from its velocity coefficients (grid-independent), or "auto" (default): "coarse" for
     #: scheme = "muscl" (measured 0.7-0.8x the MUSCL solve time, same optimum), "zero" otherwise (the paper's
-    #: preset unchanged).  Single shooting, IPOPT, objective "symmetric-kl" only (anything else, or a grid below
-    #: 2 x COARSE_MIN_CELLS cells per side, starts from zero)
+    #: preset unchanged).  Single shooting, IPOPT, objective "symmetric-kl" only (anything else, or a coarse grid
+    #: with fewer than max(8, 2 x modes) cells per side, ocp.coarse.coarse_shape, starts from zero)
     cold_start: str = "auto"
 
     def __post_init__(self):

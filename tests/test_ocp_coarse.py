@@ -149,3 +149,11 @@ def test_auto_cold_start_is_coarse_for_muscl_only():
     ref = ReferencePlanner(PlannerSettings(**SMALL, scheme="muscl", cold_start="zero")).solve(
         bump(g, 2.5, 2.5, 1.2), bump(g, 8.0, 5.0, 1.2))
     assert plan.meta["objective"] == pytest.approx(ref.meta["objective"], rel=2e-3)
+
+
+def test_coarse_grid_must_resolve_the_modes():
+    from swarmfield.ocp.coarse import coarse_shape
+    assert coarse_shape(40, 40, 8, 8) == (20, 20) and coarse_shape(30, 40, 8, 8) is None
+    assert coarse_shape(16, 16, 3, 3) == (8, 8) and coarse_shape(14, 16) is None
+    pl = ReferencePlanner(PlannerSettings(**{**SMALL, "n_modes_x": 5}, scheme="muscl"))
+    assert pl._coarse is None                           # 8 coarse cells < 2 x 5: zero start
