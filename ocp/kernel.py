@@ -326,30 +326,32 @@ static void euler_muscl_adj(int nx, int ny, double rx, double ry, const double *
             L[i + 1] = 0.5 * (A[i + 1] + B[i]) * WB[i] + 0.5 * (A[i + 2] + B[i + 1]) * WA[i + 1];
         for (int i = 0; i < nx; i++) oc[i] += L[i] - L[i + 1];
     }
-    /* y slopes: adjoint of the differences d_{j+1/2} = lsy_j wb_j + lsy_{j+1} wa_{j+1} (rows 1 .. ny-2) */
+    /* y slopes: adjoint of the differences d_{j+1/2} = lsy_j wb_j + lsy_{j+1} wa_{j+1} (rows 1 .. ny-2); both picks
+       of a row come from one evaluation of its two differences (the right pick kept for the next iteration) */
+    double *PR = WB, *PL = WA, *PRn = D;
+    for (int i = 0; i < nx; i++) PR[i] = 0.0;                  /* row 0: zero slope */
     for (int j = 0; j < ny - 1; j++) {
         long c0 = (long)nx * j;
         const double *sc = lsy + c0, *sn = sc + nx, *pc = p + c0, *pn = pc + nx, *m = myk + c0;
         double *oc = out + c0, *on = oc + nx;
-        if (j >= 1) {
-            const double *pd = pc - nx, *md = m - nx;
-            for (int i = 0; i < nx; i++)
-                WB[i] = pick_right((pc[i] - pd[i]) * md[i], (pn[i] - pc[i]) * m[i]);
-        } else {
-            for (int i = 0; i < nx; i++) WB[i] = 0.0;
-        }
         if (j + 1 <= ny - 2) {
             const double *pu = pn + nx, *mu = m + nx;
-            for (int i = 0; i < nx; i++)
-                WA[i] = pick_left((pn[i] - pc[i]) * m[i], (pu[i] - pn[i]) * mu[i]);
+            for (int i = 0; i < nx; i++) {
+                double a = (pn[i] - pc[i]) * m[i], b = (pu[i] - pn[i]) * mu[i];
+                double same = (double)(a > 0.0) * (double)(b > 0.0) + (double)(a < 0.0) * (double)(b < 0.0);
+                double left = same * (double)(fabs(a) < fabs(b));
+                PL[i] = left;
+                PRn[i] = same - left;
+            }
         } else {
-            for (int i = 0; i < nx; i++) WA[i] = 0.0;
+            for (int i = 0; i < nx; i++) { PL[i] = 0.0; PRn[i] = 0.0; }
         }
         for (int i = 0; i < nx; i++) {
-            double ld = sc[i] * WB[i] + sn[i] * WA[i];
+            double ld = sc[i] * PR[i] + sn[i] * PL[i];
             on[i] += ld;
             oc[i] -= ld;
         }
+        double *t = PR; PR = PRn; PRn = t;
     }
 }
 

@@ -157,3 +157,16 @@ def test_coarse_grid_must_resolve_the_modes():
     assert coarse_shape(16, 16, 3, 3) == (8, 8) and coarse_shape(14, 16) is None
     pl = ReferencePlanner(PlannerSettings(**{**SMALL, "n_modes_x": 5}, scheme="muscl"))
     assert pl._coarse is None                           # 8 coarse cells < 2 x 5: zero start
+
+
+def test_plan_reference_cold_start_flag(tmp_path, capsys):
+    from swarmfield.cli.plan_reference import main
+    from swarmfield.ocp.plan import ReferencePlan
+    out = tmp_path / "plan.npz"
+    code = main(["--nx", "16", "--ny", "16", "--intervals", "3", "--modes", "3", "3", "--cold-start", "coarse",
+                 "--out", str(out)])
+    assert code == 0, capsys.readouterr().err
+    plan = ReferencePlan.load(out)
+    assert plan.meta["settings"]["cold_start"] == "coarse" and plan.meta["solver"]["cold_start"]["used"]
+    assert main(["--cold-start", "warm", "--out", str(tmp_path / "x.npz")]) == 2
+    assert not (tmp_path / "x.npz").exists()
