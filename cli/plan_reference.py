@@ -61,7 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--cold-start", choices=["auto", "zero", "coarse"],
                    help="initial guess without a warm start: zero velocity, coarse (first solve with the first-order "
                         "scheme on half the cells per side and start from its coefficients), or auto (default: coarse "
-                        "for --scheme muscl, zero otherwise)")
+                        "for --scheme muscl without obstacles, zero otherwise)")
     g.add_argument("--formulation", choices=["single-shooting", "multiple-shooting", "direct-transcription"],
                    help="NLP formulation: single-shooting (default; the density eliminated by the transport), "
                         "multiple-shooting (densities at the interval boundaries as variables) or direct-transcription "

@@ -190,8 +190,8 @@ class PlannerSettings:
     #: zero velocity: the paper's), "coarse": first solve the problem with the first-order scheme on a grid of half
     #: the cells per side (obstacle mask coarsened: a coarse cell is free iff all the fine cells it covers are)
     #: and start from its velocity coefficients (grid-independent), or "auto" (default): "coarse" for
-    #: scheme = "muscl" (measured 0.7-0.8x the MUSCL solve time, same optimum), "zero" otherwise (the paper's
-    #: preset unchanged).  Single shooting, IPOPT, objective "symmetric-kl" only (anything else, or a coarse grid
+    #: scheme = "muscl" on the empty rectangle (measured 0.6-0.8x the MUSCL solve time, same optimum), "zero"
+    #: otherwise (the paper's preset unchanged; with obstacles the gain was mixed).  Single shooting, IPOPT, objective "symmetric-kl" only (anything else, or a coarse grid
     #: with fewer than max(8, 2 x modes) cells per side, ocp.coarse.coarse_shape, starts from zero)
     cold_start: str = "auto"
 
@@ -272,7 +272,8 @@ class PlannerSettings:
 
     @property
     def resolved_cold_start(self) -> str:
-        """``cold_start`` with "auto" resolved: "coarse" for the MUSCL scheme, else "zero"."""
+        """``cold_start`` with "auto" resolved: "coarse" for the MUSCL scheme, else "zero" (the planner also
+        resolves "auto" to "zero" on a domain with obstacles)."""
         if self.cold_start == "auto":
             return "coarse" if self.scheme == "muscl" else "zero"
         return self.cold_start

@@ -170,3 +170,9 @@ def test_plan_reference_cold_start_flag(tmp_path, capsys):
     assert plan.meta["settings"]["cold_start"] == "coarse" and plan.meta["solver"]["cold_start"]["used"]
     assert main(["--cold-start", "warm", "--out", str(tmp_path / "x.npz")]) == 2
     assert not (tmp_path / "x.npz").exists()
+
+
+def test_auto_cold_start_is_zero_with_obstacles():
+    free = wall_mask()
+    assert ReferencePlanner(PlannerSettings(**SMALL, scheme="muscl"), free=free)._coarse is None
+    assert ReferencePlanner(PlannerSettings(**SMALL, scheme="muscl", cold_start="coarse"), free=free)._coarse is not None
