@@ -316,15 +316,18 @@ static void euler_muscl_adj(int nx, int ny, double rx, double ry, const double *
             am[i] -= g * (pc[i + 1] - 0.5 * sc[i + 1]);
             D[i] = (pc[i + 1] - pc[i]) * m[i];
         }
-        for (int i = 0; i < nx; i++) oc[i] += A[i + 1] - B[i];
         for (int i = 1; i < fx; i++) {           /* cells 1 .. nx-2: which difference their slope took */
-            WA[i] = pick_left(D[i - 1], D[i]);
-            WB[i] = pick_right(D[i - 1], D[i]);
+            double da = D[i - 1], db = D[i];     /* pick_left and pick_right from one evaluation */
+            double same = (double)(da > 0.0) * (double)(db > 0.0) + (double)(da < 0.0) * (double)(db < 0.0);
+            double left = same * (double)(fabs(da) < fabs(db));
+            WA[i] = left;
+            WB[i] = same - left;
         }
         /* slope adjoints lsx_i = (A_{i+1} + B_i) / 2 -> adjoint L of the differences d_{i+1/2} */
         for (int i = 0; i < fx; i++)
             L[i + 1] = 0.5 * (A[i + 1] + B[i]) * WB[i] + 0.5 * (A[i + 2] + B[i + 1]) * WA[i + 1];
-        for (int i = 0; i < nx; i++) oc[i] += L[i] - L[i + 1];
+        /* face terms, then the difference terms (the same two roundings as two separate passes) */
+        for (int i = 0; i < nx; i++) oc[i] = (oc[i] + (A[i + 1] - B[i])) + (L[i] - L[i + 1]);
     }
     /* y slopes: adjoint of the differences d_{j+1/2} = lsy_j wb_j + lsy_{j+1} wa_{j+1} (rows 1 .. ny-2); both picks
        of a row come from one evaluation of its two differences (the right pick kept for the next iteration) */
