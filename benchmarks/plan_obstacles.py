@@ -1,14 +1,16 @@
 """Benchmark: the paper's first planning step with obstacles (issue 19, item 9) against the empty rectangle.
 
-    python benchmarks/plan_obstacles.py [--repeat 3] [--grids 40] [--transports auto] [--scheme upwind] [--kernel]
+    python benchmarks/plan_obstacles.py [--repeat 3] [--grids 40] [--transports auto] [--scheme upwind]
+        [--cold-starts zero,coarse] [--kernel]
 
 The domains (``--layouts``): the paper's [0, 20]^2 with "rooms": a wall at 9 <= x <= 10 (a door at
 12 <= y <= 15) and two blocks, [13, 17] x [3, 8] and [2, 6.5] x [12, 16] (14 % of the cells blocked at
 40 x 40), or "pillars": 21 pillars of 1 m x 3 m on a 4 m lattice (16 %); a cell is blocked when its
 centre is inside an obstacle.  Start: robots uniform on [0, 7]^2 (free), as in the paper; target: the GP
 variance of their first measurements (sim.scenario.first_step_target), zeroed on blocked cells and
-renormalised.  Prints per grid and transport the cold solve's time (min over ``--repeat``; CPU time of
-this single-threaded process, steadier than wall time on a shared machine, and wall time), iterations,
+renormalised.  Prints per grid, transport and ``--cold-starts`` value (planner.cold_start: zero, coarse) the
+cold solve's time (median over ``--repeat``; CPU time of this single-threaded process, steadier than wall time
+on a shared machine, and wall time; the coarse solve of cold_start = coarse included), iterations,
 CPU ms per iteration, objective, and the time ratios masked / empty (issue 19's goal: <= 1.2 at 40 x 40).
 """
 from __future__ import annotations
@@ -18,6 +20,7 @@ import time
 
 import numpy as np
 
+from swarmfield.ocp.grid import Grid
 from swarmfield.ocp.planner import ReferencePlanner
 from swarmfield.sim.scenario import box_density, first_step_target
 from swarmfield.ocp.settings import PlannerSettings
@@ -85,6 +88,8 @@ def main():
     ap.add_argument("--transports", default="auto")
     ap.add_argument("--scheme", default="upwind")
     ap.add_argument("--layouts", default="rooms,pillars", help=f"comma-separated, of {', '.join(LAYOUTS)}")
+    ap.add_argument("--cold-starts", default="zero",
+                    help="comma-separated planner.cold_start values: zero (default), coarse (coarse-to-fine)")
     ap.add_argument("--kernel", action="store_true",
                     help="also time the compiled kernel alone (forward + adjoint, min of 15) with and without the mask")
     args = ap.parse_args()
@@ -94,34 +99,47 @@ def main():
         return
     for n in [int(v) for v in args.grids.split(",") if v]:
         for tr in args.transports.split(","):
-            s = PlannerSettings(nx=n, ny=n, transport=tr, scheme=args.scheme)
             res = {}
-            for label in ("empty", *args.layouts.split(",")):
-                probe = ReferencePlanner(s)
-                g = probe.grid
-                free = obstacle_mask(g, label) if label != "empty" else None
-                planner = ReferencePlanner(s, free=free) if free is not None else probe
-                p0 = box_density(g)
-                target, _ = first_step_target(g, seed=0)
-                if free is not None:
-                    p0, target = masked(p0, free), masked(target, free)
-                cpu, wall = [], []
-                for _ in range(args.repeat):
-                    t0, c0 = time.perf_counter(), time.process_time()
-                    plan = planner.solve(p0, target)
-                    cpu.append(time.process_time() - c0)
-                    wall.append(time.perf_counter() - t0)
-                sv = plan.meta["solver"]
-                it = max(sv["iterations"], 1)
-                res[label] = (min(cpu), min(wall), min(cpu) / it)
-                blocked = 0.0 if free is None else 1 - free.mean()
-                print(f"{n}x{n} {plan.meta['transport']:>8s} {args.scheme:6s} {label:8s} blocked {100 * blocked:4.1f} %  "
-                      f"cpu {min(cpu):7.3f} s  wall {min(wall):7.3f} s (min of {args.repeat})  {sv['iterations']:4d} it  "
-                      f"{min(cpu) / it * 1e3:6.2f} ms/it  objective {plan.meta['objective']:9.4f}  {sv['status']}",
-                      flush=True)
-            for label in args.layouts.split(","):
-                c, w, i = (a / b for a, b in zip(res[label], res["empty"]))
-                print(f"{n}x{n} {tr}: {label} / empty: cpu {c:.2f}, wall {w:.2f}, per iteration {i:.2f}", flush=True)
+            for cs in args.cold_starts.split(","):
+                s = PlannerSettings(nx=n, ny=n, transport=tr, scheme=args.scheme, cold_start=cs)
+                for label in ("empty", *args.layouts.split(",")):
+                    g = Grid(s.domain, n, n)
+                    free = obstacle_mask(g, label) if label != "empty" else None
+                    planner = ReferencePlanner(s, free=free)
+                    p0 = box_density(g)
+                    target, _ = first_step_target(g, seed=0)
+                    if free is not None:
+                        p0, target = masked(p0, free), masked(target, free)
+                    cpu, wall = [], []
+                    for _ in range(args.repeat):
+                        t0, c0 = time.perf_counter(), time.process_time()
+                        plan = planner.solve(p0, target)
+                        cpu.append(time.process_time() - c0)
+                        wall.append(time.perf_counter() - t0)
+                    sv = plan.meta["solver"]
+                    it = max(sv["iterations"], 1)
+                    c, w = float(np.median(cpu)), float(np.median(wall))
+                    res[(cs, label)] = (c, w, c / it)
+                    blocked = 0.0 if free is None else 1 - free.mean()
+                    coarse = sv.get("cold_start")
+                    extra = (f"  coarse {coarse['grid'][0]}x{coarse['grid'][1]}: {coarse['iterations']} it "
+                             f"{coarse['cpu_time_s']:.3f} s" if coarse and coarse.get("used") else "")
+                    print(f"{n}x{n} {plan.meta['transport']:>8s} {args.scheme:6s} {cs:6s} {label:8s} blocked "
+                          f"{100 * blocked:4.1f} %  cpu {c:7.3f} s  wall {w:7.3f} s (median of {args.repeat}, cpu "
+                          f"min {min(cpu):.3f})  {sv['iterations']:4d} it  {c / it * 1e3:6.2f} ms/it  objective "
+                          f"{plan.meta['objective']:9.4f}  {sv['status']}{extra}", flush=True)
+                for label in args.layouts.split(","):
+                    c, w, i = (a / b for a, b in zip(res[(cs, label)], res[(cs, "empty")]))
+                    print(f"{n}x{n} {tr} {cs}: {label} / empty ({cs}): cpu {c:.2f}, wall {w:.2f}", flush=True)
+                    if cs != "zero" and ("zero", "empty") in res:
+                        print(f"{n}x{n} {tr} {cs}: {label} / empty (zero start): cpu "
+                              f"{res[(cs, label)][0] / res[('zero', 'empty')][0]:.2f}", flush=True)
+            if "zero" in args.cold_starts.split(","):
+                for cs in args.cold_starts.split(","):
+                    if cs != "zero":
+                        for label in ("empty", *args.layouts.split(",")):
+                            print(f"{n}x{n} {tr}: {label}: {cs} / zero start: cpu "
+                                  f"{res[(cs, label)][0] / res[('zero', label)][0]:.2f}", flush=True)
 
 
 if __name__ == "__main__":

@@ -58,6 +58,10 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--scheme", choices=["upwind", "muscl"],
                    help="finite-volume scheme: upwind (first-order donor cell, the paper's, default) or muscl "
                         "(second order: minmod MUSCL with SSP-RK2, 1.5x the sub-steps)")
+    g.add_argument("--cold-start", choices=["auto", "zero", "coarse"],
+                   help="initial guess without a warm start: zero velocity, coarse (first solve with the first-order "
+                        "scheme on half the cells per side and start from its coefficients), or auto (default: coarse "
+                        "for --scheme muscl without obstacles, zero otherwise)")
     g.add_argument("--formulation", choices=["single-shooting", "multiple-shooting", "direct-transcription"],
                    help="NLP formulation: single-shooting (default; the density eliminated by the transport), "
                         "multiple-shooting (densities at the interval boundaries as variables) or direct-transcription "
@@ -103,7 +107,7 @@ def resolve_settings(args) -> PlannerSettings:
              "target_floor": args.target_floor, "transport": args.transport,
              "basis": getattr(args, "basis", None), "speed_limit": getattr(args, "speed_limit", None),
              "method": getattr(args, "method", None), "scheme": getattr(args, "scheme", None),
-             "formulation": getattr(args, "formulation", None),
+             "formulation": getattr(args, "formulation", None), "cold_start": getattr(args, "cold_start", None),
              "formulation_hessian": getattr(args, "formulation_hessian", None)}
     if args.modes is not None:
         flags["n_modes_x"], flags["n_modes_y"] = args.modes

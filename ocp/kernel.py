@@ -174,7 +174,8 @@ static void slopes_p(int nx, int ny, const double *restrict mx, const double *re
    F = v+ (p_L + s_L / 2) - v- (p_R - s_R / 2); fb: nx + 1 scratch, gprev: nx scratch */
 static void euler_muscl(int nx, int ny, double rx, double ry, const double *restrict xp, const double *restrict xm,
                         const double *restrict yp, const double *restrict ym, const double *restrict p, const double *restrict sx, const double *restrict sy,
-                        double *restrict q, double *restrict fb, double *restrict gprev) {
+                        const double *restrict avg, double *restrict q, double *restrict fb,
+                        double *restrict gprev) {
     int mx = nx - 1;
     for (int i = 0; i < nx; i++) gprev[i] = 0.0;
     fb[0] = 0.0;
@@ -194,6 +195,67 @@ static void euler_muscl(int nx, int ny, double rx, double ry, const double *rest
             }
         } else {
             for (int i = 0; i < nx; i++) qc[i] = qc[i] - ry * (0.0 - gprev[i]);
+        }
+        if (avg) {                     /* Heun's average q = p / 2 + E(p1) / 2, while the row is in cache */
+            const double *ac = avg + (long)nx * j;
+            for (int i = 0; i < nx; i++) qc[i] = 0.5 * ac[i] + 0.5 * qc[i];
+        }
+    }
+}
+
+/* one row of limited slopes (the expressions of slopes_p, so the values are the same bit for bit) */
+static inline void slope_row_x(int nx, const double *restrict m, const double *restrict pc, double *restrict s) {
+    s[0] = 0.0;
+    s[nx - 1] = 0.0;
+    for (int i = 1; i < nx - 1; i++) s[i] = minmod((pc[i] - pc[i - 1]) * m[i - 1], (pc[i + 1] - pc[i]) * m[i]);
+}
+
+static inline void slope_row_y(int nx, int ny, int j, const double *restrict my, const double *restrict p,
+                               double *restrict s) {
+    if (j <= 0 || j >= ny - 1) {
+        for (int i = 0; i < nx; i++) s[i] = 0.0;
+        return;
+    }
+    const double *pd = p + (long)nx * (j - 1), *pc = pd + nx, *pu = pc + nx;
+    const double *md = my + (long)nx * (j - 1), *mu = md + nx;
+    for (int i = 0; i < nx; i++) s[i] = minmod((pc[i] - pd[i]) * md[i], (pu[i] - pc[i]) * mu[i]);
+}
+
+/* euler_muscl with the slopes computed row by row on the fly (no full slope arrays written and read back):
+   the forward pass's stage; sr, t0, t1: nx scratch each */
+static void euler_muscl_fused(int nx, int ny, double rx, double ry, const double *restrict mxk,
+                              const double *restrict myk, const double *restrict xp, const double *restrict xm,
+                              const double *restrict yp, const double *restrict ym, const double *restrict p,
+                              const double *restrict avg, double *restrict q, double *restrict fb,
+                              double *restrict gprev, double *restrict sr, double *t0, double *t1) {
+    int mx = nx - 1;
+    double *tc = t0, *tn = t1;
+    for (int i = 0; i < nx; i++) gprev[i] = 0.0;
+    fb[0] = 0.0;
+    fb[nx] = 0.0;
+    slope_row_y(nx, ny, 0, myk, p, tc);
+    for (int j = 0; j < ny; j++) {
+        const double *pc = p + (long)nx * j;
+        double *qc = q + (long)nx * j;
+        const double *a = xp + (long)mx * j, *b = xm + (long)mx * j;
+        slope_row_x(nx, mxk + (long)mx * j, pc, sr);
+        for (int i = 0; i < mx; i++) fb[i + 1] = a[i] * (pc[i] + 0.5 * sr[i]) - b[i] * (pc[i + 1] - 0.5 * sr[i + 1]);
+        for (int i = 0; i < nx; i++) qc[i] = pc[i] - rx * (fb[i + 1] - fb[i]);
+        if (j < ny - 1) {
+            slope_row_y(nx, ny, j + 1, myk, p, tn);
+            const double *pn = pc + nx, *c = yp + (long)nx * j, *d = ym + (long)nx * j;
+            for (int i = 0; i < nx; i++) {
+                double gu = c[i] * (pc[i] + 0.5 * tc[i]) - d[i] * (pn[i] - 0.5 * tn[i]);
+                qc[i] = qc[i] - ry * (gu - gprev[i]);
+                gprev[i] = gu;
+            }
+            double *t = tc; tc = tn; tn = t;
+        } else {
+            for (int i = 0; i < nx; i++) qc[i] = qc[i] - ry * (0.0 - gprev[i]);
+        }
+        if (avg) {
+            const double *ac = avg + (long)nx * j;
+            for (int i = 0; i < nx; i++) qc[i] = 0.5 * ac[i] + 0.5 * qc[i];
         }
     }
 }
@@ -254,51 +316,58 @@ static void euler_muscl_adj(int nx, int ny, double rx, double ry, const double *
             am[i] -= g * (pc[i + 1] - 0.5 * sc[i + 1]);
             D[i] = (pc[i + 1] - pc[i]) * m[i];
         }
-        for (int i = 0; i < nx; i++) oc[i] += A[i + 1] - B[i];
         for (int i = 1; i < fx; i++) {           /* cells 1 .. nx-2: which difference their slope took */
-            WA[i] = pick_left(D[i - 1], D[i]);
-            WB[i] = pick_right(D[i - 1], D[i]);
+            double da = D[i - 1], db = D[i];     /* pick_left and pick_right from one evaluation */
+            double same = (double)(da > 0.0) * (double)(db > 0.0) + (double)(da < 0.0) * (double)(db < 0.0);
+            double left = same * (double)(fabs(da) < fabs(db));
+            WA[i] = left;
+            WB[i] = same - left;
         }
         /* slope adjoints lsx_i = (A_{i+1} + B_i) / 2 -> adjoint L of the differences d_{i+1/2} */
         for (int i = 0; i < fx; i++)
             L[i + 1] = 0.5 * (A[i + 1] + B[i]) * WB[i] + 0.5 * (A[i + 2] + B[i + 1]) * WA[i + 1];
-        for (int i = 0; i < nx; i++) oc[i] += L[i] - L[i + 1];
+        /* face terms, then the difference terms (the same two roundings as two separate passes) */
+        for (int i = 0; i < nx; i++) oc[i] = (oc[i] + (A[i + 1] - B[i])) + (L[i] - L[i + 1]);
     }
-    /* y slopes: adjoint of the differences d_{j+1/2} = lsy_j wb_j + lsy_{j+1} wa_{j+1} (rows 1 .. ny-2) */
+    /* y slopes: adjoint of the differences d_{j+1/2} = lsy_j wb_j + lsy_{j+1} wa_{j+1} (rows 1 .. ny-2); both picks
+       of a row come from one evaluation of its two differences (the right pick kept for the next iteration) */
+    double *PR = WB, *PL = WA, *PRn = D;
+    for (int i = 0; i < nx; i++) PR[i] = 0.0;                  /* row 0: zero slope */
     for (int j = 0; j < ny - 1; j++) {
         long c0 = (long)nx * j;
         const double *sc = lsy + c0, *sn = sc + nx, *pc = p + c0, *pn = pc + nx, *m = myk + c0;
         double *oc = out + c0, *on = oc + nx;
-        if (j >= 1) {
-            const double *pd = pc - nx, *md = m - nx;
-            for (int i = 0; i < nx; i++)
-                WB[i] = pick_right((pc[i] - pd[i]) * md[i], (pn[i] - pc[i]) * m[i]);
-        } else {
-            for (int i = 0; i < nx; i++) WB[i] = 0.0;
-        }
         if (j + 1 <= ny - 2) {
             const double *pu = pn + nx, *mu = m + nx;
-            for (int i = 0; i < nx; i++)
-                WA[i] = pick_left((pn[i] - pc[i]) * m[i], (pu[i] - pn[i]) * mu[i]);
+            for (int i = 0; i < nx; i++) {
+                double a = (pn[i] - pc[i]) * m[i], b = (pu[i] - pn[i]) * mu[i];
+                double same = (double)(a > 0.0) * (double)(b > 0.0) + (double)(a < 0.0) * (double)(b < 0.0);
+                double left = same * (double)(fabs(a) < fabs(b));
+                PL[i] = left;
+                PRn[i] = same - left;
+            }
         } else {
-            for (int i = 0; i < nx; i++) WA[i] = 0.0;
+            for (int i = 0; i < nx; i++) { PL[i] = 0.0; PRn[i] = 0.0; }
         }
         for (int i = 0; i < nx; i++) {
-            double ld = sc[i] * WB[i] + sn[i] * WA[i];
+            double ld = sc[i] * PR[i] + sn[i] * PL[i];
             on[i] += ld;
             oc[i] -= ld;
         }
+        double *t = PR; PR = PRn; PRn = t;
     }
 }
 
-/* MUSCL + SSP-RK2 (Heun): q = p / 2 + E(E(p)) / 2; traj as sf_forward */
+/* MUSCL + SSP-RK2 (Heun): q = p / 2 + E(E(p)) / 2; traj as sf_forward; stage (N*nsub * nx*ny, or NULL):
+   the first stage E(p) of every sub-step, kept for sf_adjoint_muscl (which otherwise recomputes it) */
 int sf_forward_muscl(int nx, int ny, int N, int nsub, double rx, double ry, double eps, const double *mx,
-                     const double *my, const double *vx, const double *vy, const double *p0, double *traj) {
+                     const double *my, const double *vx, const double *vy, const double *p0, double *traj,
+                     double *stage) {
     long n = (long)nx * ny, nfx = (long)(nx - 1) * ny, nfy = (long)nx * (ny - 1);
-    double *buf = (double *)malloc(sizeof(double) * (4 * nfx + 4 * nfy + 4 * n + 3 * nx + 2));
+    double *buf = (double *)malloc(sizeof(double) * (4 * nfx + 4 * nfy + n + 5 * nx + 1));
     if (!buf) return 1;
     double *xp = buf, *xm = xp + nfx, *yp = xm + nfx, *ym = yp + nfy;
-    double *sx = ym + nfy, *sy = sx + n, *p1 = sy + n, *p2 = p1 + n, *fb = p2 + n, *gprev = fb + nx + 1;
+    double *p1s = ym + nfy, *fb = p1s + n, *gprev = fb + nx + 1, *sr = gprev + nx, *t0 = sr + nx, *t1 = t0 + nx;
     memcpy(traj, p0, sizeof(double) * n);
     for (int l = 0; l < N; l++) {
         split(nfx, vx + nfx * l, eps * eps, mx, xp, xm);
@@ -307,27 +376,26 @@ int sf_forward_muscl(int nx, int ny, int N, int nsub, double rx, double ry, doub
             long k = (long)l * nsub + s;
             const double *p = traj + n * k;
             double *q = traj + n * (k + 1);
-            slopes_p(nx, ny, mx, my, p, sx, sy);
-            euler_muscl(nx, ny, rx, ry, xp, xm, yp, ym, p, sx, sy, p1, fb, gprev);
-            slopes_p(nx, ny, mx, my, p1, sx, sy);
-            euler_muscl(nx, ny, rx, ry, xp, xm, yp, ym, p1, sx, sy, p2, fb, gprev);
-            for (long c = 0; c < n; c++) q[c] = 0.5 * p[c] + 0.5 * p2[c];
+            double *p1 = stage ? stage + n * k : p1s;
+            euler_muscl_fused(nx, ny, rx, ry, mx, my, xp, xm, yp, ym, p, NULL, p1, fb, gprev, sr, t0, t1);
+            euler_muscl_fused(nx, ny, rx, ry, mx, my, xp, xm, yp, ym, p1, p, q, fb, gprev, sr, t0, t1);
         }
     }
     free(buf);
     return 0;
 }
 
-/* adjoint of sf_forward_muscl (arguments as sf_adjoint); the first stage p1 = E(p) is recomputed per sub-step */
+/* adjoint of sf_forward_muscl (arguments as sf_adjoint); stage: the first stages stored by the forward pass
+   at this trajectory, or NULL: then p1 = E(p) is recomputed per sub-step */
 int sf_adjoint_muscl(int nx, int ny, int N, int nsub, double rx, double ry, double eps, const double *mx,
                      const double *my, const double *vx, const double *vy, const double *traj, const double *lsnap,
-                     double *gvx, double *gvy, double *gp0) {
+                     double *gvx, double *gvy, double *gp0, const double *stage) {
     long n = (long)nx * ny, nfx = (long)(nx - 1) * ny, nfy = (long)nx * (ny - 1);
     double *buf = (double *)malloc(sizeof(double) * (6 * nfx + 6 * nfy + 11 * n + 7 * nx + 7));
     if (!buf) return 1;
     double *xp = buf, *xm = xp + nfx, *yp = xm + nfx, *ym = yp + nfy;
     double *axp = ym + nfy, *axm = axp + nfx, *ayp = axm + nfx, *aym = ayp + nfy;
-    double *lam = aym + nfy, *tmp = lam + n, *p1 = tmp + n, *l2 = p1 + n, *l1 = l2 + n, *lsy = l1 + n;
+    double *lam = aym + nfy, *tmp = lam + n, *p1s = tmp + n, *l2 = p1s + n, *l1 = l2 + n, *lsy = l1 + n;
     double *sx0 = lsy + n, *sy0 = sx0 + n, *sx1 = sy0 + n, *sy1 = sx1 + n;
     double *A = sy1 + n, *B = A + nx + 1, *L = B + nx + 1, *D = L + nx + 1, *WA = D + nx + 1, *WB = WA + nx + 1;
     double *gprev = WB + nx + 1;
@@ -340,8 +408,9 @@ int sf_adjoint_muscl(int nx, int ny, int N, int nsub, double rx, double ry, doub
         for (int s = nsub - 1; s >= 0; s--) {
             long k = (long)l * nsub + s;
             const double *p = traj + n * k;
+            const double *p1 = stage ? stage + n * k : p1s;
             slopes_p(nx, ny, mx, my, p, sx0, sy0);
-            euler_muscl(nx, ny, rx, ry, xp, xm, yp, ym, p, sx0, sy0, p1, A, gprev);
+            if (!stage) euler_muscl(nx, ny, rx, ry, xp, xm, yp, ym, p, sx0, sy0, NULL, p1s, A, gprev);
             slopes_p(nx, ny, mx, my, p1, sx1, sy1);
             for (long c = 0; c < n; c++) l2[c] = 0.5 * lam[c];
             euler_muscl_adj(nx, ny, rx, ry, mx, my, xp, xm, yp, ym, p1, sx1, sy1, l2, l1, axp, axm, ayp, aym,
@@ -461,10 +530,10 @@ import ctypes, sys
 lib = ctypes.CDLL(sys.argv[1])
 n, D = 4, ctypes.c_double
 arr = lambda k, v=0.5: (ctypes.c_double * k)(*([v] * k))
-for name in ("sf_forward", "sf_forward_muscl"):
+for name, extra in (("sf_forward", ()), ("sf_forward_muscl", (None,))):
     traj = arr(3 * n * n)
     rc = getattr(lib, name)(n, n, 1, 2, D(0.1), D(0.1), D(0.02), arr(12, 1.0), arr(12, 1.0), arr(12, 0.3),
-                            arr(12, -0.2), arr(n * n, 1.0), traj)
+                            arr(12, -0.2), arr(n * n, 1.0), traj, *extra)
     assert rc == 0 and abs(sum(traj[2 * n * n:]) - n * n) < 1e-9
 """
 
@@ -520,9 +589,10 @@ def _load():
         lib.sf_forward.restype = i
         lib.sf_adjoint.argtypes = [i, i, i, i, d, d, d, dp, dp, dp, dp, dp, dp, dp, dp, dp]
         lib.sf_adjoint.restype = i
-        lib.sf_forward_muscl.argtypes = lib.sf_forward.argtypes
+        vp = ctypes.c_void_p                        # the optional first-stage buffer (None = NULL)
+        lib.sf_forward_muscl.argtypes = lib.sf_forward.argtypes + [vp]
         lib.sf_forward_muscl.restype = i
-        lib.sf_adjoint_muscl.argtypes = lib.sf_adjoint.argtypes
+        lib.sf_adjoint_muscl.argtypes = lib.sf_adjoint.argtypes + [vp]
         lib.sf_adjoint_muscl.restype = i
         _LIB = lib
     except Exception as exc:                           # noqa: BLE001 - any failure means: use the fallback
@@ -594,9 +664,18 @@ class TransportKernel:
             raise ValueError(f"out must be a C-contiguous float64 array of shape {shape}")
         traj = out
         if self.backend == "compiled":
-            fwd = _LIB.sf_forward_muscl if self.scheme == "muscl" else _LIB.sf_forward
-            if fwd(self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, self.mask_x, self.mask_y,
-                   vx, vy, p0, traj):
+            args = (self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, self.mask_x, self.mask_y,
+                    vx, vy, p0, traj)
+            if self.scheme == "muscl":
+                stage = self._stage_buffer()
+                self._stage_of = None
+                rc = _LIB.sf_forward_muscl(*args, None if stage is None else stage.ctypes.data)
+                if stage is not None and not rc:
+                    # the first stages belong to this trajectory at these velocities (checked by adjoint)
+                    self._stage_of = (traj, vx.copy(), vy.copy(), traj[0].copy(), traj[-1].copy())
+            else:
+                rc = _LIB.sf_forward(*args)
+            if rc:
                 raise MemoryError("transport kernel: out of memory")
             return traj
         traj[0] = p0
@@ -617,9 +696,14 @@ class TransportKernel:
         gp0 = np.empty(self.n_cell)
         if self.backend == "compiled":
             traj = np.ascontiguousarray(traj, dtype=float)
-            adj = _LIB.sf_adjoint_muscl if self.scheme == "muscl" else _LIB.sf_adjoint
-            if adj(self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, self.mask_x, self.mask_y,
-                   vx, vy, traj, lsnap, gvx, gvy, gp0):
+            args = (self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, self.mask_x, self.mask_y,
+                    vx, vy, traj, lsnap, gvx, gvy, gp0)
+            if self.scheme == "muscl":
+                stage = self._stage if self._stage_matches(vx, vy, traj) else None
+                rc = _LIB.sf_adjoint_muscl(*args, None if stage is None else stage.ctypes.data)
+            else:
+                rc = _LIB.sf_adjoint(*args)
+            if rc:
                 raise MemoryError("transport kernel: out of memory")
             return gvx, gvy, gp0
         lam = lsnap[self.N].copy()
@@ -634,6 +718,26 @@ class TransportKernel:
             lam = lam + lsnap[l]
         gp0[:] = lam
         return gvx, gvy, gp0
+
+    #: MUSCL: the forward pass keeps the first Heun stage of every sub-step for the adjoint (which would
+    #: otherwise recompute it: one Euler stage per sub-step) when that buffer stays below this many bytes
+    MAX_STAGE_BYTES = 256 * 2 ** 20
+
+    def _stage_buffer(self):
+        if not hasattr(self, "_stage"):
+            size = self.N * self.n_sub * self.n_cell
+            self._stage = np.empty((self.N * self.n_sub, self.n_cell)) if 8 * size <= self.MAX_STAGE_BYTES else None
+            self._stage_of = None
+        return self._stage
+
+    def _stage_matches(self, vx, vy, traj) -> bool:
+        """True when the stored first stages were computed by the last forward pass into ``traj`` at (vx, vy)
+        (same array object, same velocities, same first and last rows); else the adjoint recomputes them."""
+        key = getattr(self, "_stage_of", None)
+        if key is None or key[0] is not traj:
+            return False
+        return (np.array_equal(key[1], vx) and np.array_equal(key[2], vy) and np.array_equal(key[3], traj[0])
+                and np.array_equal(key[4], traj[-1]))
 
     def snapshots(self, traj) -> np.ndarray:
         """The interval-boundary densities (N+1, n_cell) of a trajectory."""

@@ -100,9 +100,52 @@ class ReferencePlanner:
         except RuntimeError as exc:
             reason = re.sub(r"^.*?\.cpp:\d+:\s*", "", str(exc).strip().splitlines()[-1])
             raise ValueError(f"IPOPT rejected the options: {reason}") from None
+        self._coarse = None
+        if self._coarse_applies():
+            # the coarse planner of cold_start = "coarse" (ocp.coarse): built with this one, same settings on half
+            # the cells per side (a cold start of its own from zero), its mask coarsened conservatively
+            from .coarse import coarse_shape, coarsen_free
+            shape = coarse_shape(s.nx, s.ny, s.n_modes_x, s.n_modes_y)
+            if shape is not None:
+                fc = coarsen_free(self.free, shape)
+                if fc is None or fc.any():
+                    # the first-order scheme there (cheaper; its optimum is only the starting point of this solve)
+                    self._coarse = ReferencePlanner(dataclasses.replace(s, nx=shape[0], ny=shape[1], cold_start="zero",
+                                                                        scheme="upwind"), free=fc)
         self.build_time = time.perf_counter() - t0
         self._grg = None
         self._info, self._info_meta = None, None
+
+    def _coarse_applies(self) -> bool:
+        s = self.settings
+        mode = s.resolved_cold_start
+        if s.cold_start == "auto" and self.problem.free is not None:
+            mode = "zero"        # obstacles: measured mixed (MUSCL rooms 0.83x, pillars 1.22x): an option there
+        return (mode == "coarse" and s.method == "ipopt" and s.objective == "symmetric-kl"
+                and isinstance(self.formulation, SingleShooting))
+
+    def _coarse_coefficients(self, p0: np.ndarray, target: np.ndarray):
+        """(coefficients, summary) of the coarse solve of ``cold_start = "coarse"`` for the normalised fine p0 and
+        target (before the floors: the coarse planner applies them), or (None, reason) when there is none."""
+        from .coarse import coarse_problem
+        if self._coarse is None:
+            return None, {"used": False, "reason": "no coarse grid (fewer than 2 cells per half-wave of the highest mode, or no free coarse cell)"}
+        cp = coarse_problem(self.grid, self.free, p0, target, self.settings.n_modes_x, self.settings.n_modes_y)
+        if cp is None:
+            return None, {"used": False, "reason": "no mass on the coarse free cells"}
+        shape, _, p0c, tc = cp
+        c0 = time.process_time()
+        try:
+            plan = self._coarse.solve(p0c, tc, method="ipopt")
+        except PlannerError as exc:
+            return None, {"used": False, "reason": f"coarse solve failed: {exc}"}
+        sv = plan.meta["solver"]
+        coef = np.zeros((self.problem.N, 2, self.problem.I, self.problem.J))
+        c = np.asarray(plan.coef)                # fewer modes on the coarse level: the higher ones start at 0
+        coef[:, :, : c.shape[2], : c.shape[3]] = c[:, :, : coef.shape[2], : coef.shape[3]]
+        return coef, {"used": True, "grid": list(shape), "iterations": sv["iterations"],
+                                       "status": sv["status"], "objective": plan.meta["objective"],
+                                       "cpu_time_s": time.process_time() - c0}
 
     @property
     def grid(self) -> Grid:
@@ -169,6 +212,7 @@ class ReferencePlanner:
                              f"{self.settings.speed_limit!r}: use method 'ipopt'")
         g, P, s = self.grid, self.problem, self.settings
         p0 = normalize_free(g, p0, self.free, "initial density")
+        p0_raw = p0
         p0 = floor_free(g, p0, s.initial_floor, self.free)
         target = normalize_free(g, target, self.free, "target density")
         t0 = real_scalar(t0, "plan start time t0")
@@ -186,6 +230,11 @@ class ReferencePlanner:
         self._info, self._info_meta = info, (information.meta() if info is not None else None)
 
         coef0 = self.initial_coefficients(warm_start, t0)
+        coarse_summary = None
+        if warm_start is None and method == "ipopt" and self._coarse_applies():
+            coarse_coef, coarse_summary = self._coarse_coefficients(p0_raw, target)
+            if coarse_coef is not None:
+                coef0 = coarse_coef
         # scale the initial guess into the admissible set, then start strictly interior
         bound = np.abs(coef0).reshape(P.N, -1).sum(axis=1)
         scale = np.minimum(1.0, 0.9 * s.v_max / np.maximum(bound, 1e-300))
@@ -219,6 +268,8 @@ class ReferencePlanner:
             raise PlannerError(f"IPOPT failed: {status} (is linear solver {s.ipopt.linear_solver!r} available? "
                                "the HSL solvers need ipopt.extra.hsllib)", _stats_summary(stats, wall))
         summary = _stats_summary(stats, wall)
+        if coarse_summary is not None:
+            summary["cold_start"] = coarse_summary
         summary["formulation"] = F.name
         summary["hessian"] = nlp.hessian
         if not isinstance(F, SingleShooting):
