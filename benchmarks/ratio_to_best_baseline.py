@@ -4,7 +4,7 @@ lawnmower's and greedy's, and its RMSE at 2T ÷ the lawnmower's (docs/results/tu
     python benchmarks/ratio_to_best_baseline.py BASELINES [LABEL=FEEDBACK[:SCALE] ...]
 
 ``BASELINES`` is a compare-controllers folder (or its runs.csv) with lawnmower and greedy runs (and
-feedback runs: the first column); every ``LABEL=FEEDBACK`` another folder whose feedback runs are
+its feedback runs, if any: the first column); every ``LABEL=FEEDBACK`` another folder whose feedback runs are
 compared with the same baselines (same fields, seeds, losses and swarm sizes).  ``:SCALE`` multiplies
 that sweep's times (a sweep run with another period T).  Folders of a sweep still running are read
 from their finished ``runs/*.json``.  A time is the first recorded one with sup V <= threshold ("inf":
@@ -67,7 +67,8 @@ def main(argv=None) -> int:
           " | ".join(f"{n}: T ÷ best (RMSE 2T ÷ lawnmower)" for n, _ in cols) + " |")
     print("|---|---|---|---|---|---|" + "---|" * len(cols))
     ratios = defaultdict(list)
-    for key in sorted(k for k in base if k[0] == "feedback"):
+    keys = {k for _, data in cols for k in data if k[0] == "feedback"}
+    for key in sorted(keys):
         _, field, seed, loss, robots = key
         lw = base.get(("lawnmower", field, seed, loss, robots), (math.nan, math.nan))
         gr = base.get(("greedy", field, seed, loss, robots), (math.inf, math.nan))
