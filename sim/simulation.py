@@ -394,12 +394,17 @@ class Simulation:
         gs = self.gp.settings
         var, ell = self.var, gs.length_scale
         rule = self.stop_rule
-        if getattr(self.config.planner, "information_scale", "gp") == "stop-rule" and self.free is None \
-                and hasattr(rule, "check_variance"):
-            # plan for the variance the stop rule judges by (sim.stopping.RobustThreshold: l_c <= l)
+        if getattr(self.config.planner, "information_scale", "gp") == "stop-rule" and hasattr(rule, "check_variance"):
+            # plan for the variance the stop rule judges by (sim.stopping.RobustThreshold: l_c <= l), given on
+            # the points the rule is bound to: every cell centre, or the free ones with obstacles
             vc = rule.check_variance(self.gp)
             if vc is not None:
-                var, ell = np.maximum(var, np.asarray(vc).reshape(self.grid.shape)), rule.check_scale(self.gp)
+                vc_grid = np.zeros(self.grid.shape)
+                if self.free is None:
+                    vc_grid[:] = np.asarray(vc).reshape(self.grid.shape)
+                else:
+                    vc_grid[self.free] = vc
+                var, ell = np.maximum(var, vc_grid), rule.check_scale(self.gp)
         return {"information": InformationInputs(var, int(self.alive.sum()), self.settings.dt,
                                                  gs.noise_variance, ell)}
 

@@ -448,3 +448,26 @@ def test_move_mirrors_at_obstacle_faces_and_walls():
     assert np.array_equal(Z[4], Y[4])
     assert dom.contains(Z).all()
     assert np.allclose(Z[1], [4.2, 9.9], atol=1e-7)       # y mirrored at y = 10
+
+
+def test_stop_rule_scale_reaches_the_information_objective_with_obstacles():
+    """planner.information_scale = "stop-rule" with obstacles: the objective plans for the robust rule's
+    variance (at l_c, given on the free cell centres) scattered onto the grid; blocked cells stay 0."""
+    from swarmfield.sim.config import config_from_dict
+    from swarmfield.sim.simulation import Simulation
+    cfg = config_from_dict({"sim": {"controller": "diffusion", "max_periods": 1, "robots": 40, "stop_rule": "robust"},
+                            "gp": {"learn_hyperparameters": True, "length_scale": 1.5, "inducing_spacing": 1.0},
+                            "planner": {"objective": "information", "information_scale": "stop-rule"},
+                            "domain": {"source": "floor"}})
+    sim = Simulation(cfg)
+    sim.start()
+    sim.gp.set_hyperparameters(sim.gp.settings.signal_variance, 3.0 * sim.gp.settings.length_scale)
+    sim.mean, sim.var = sim.predict()
+    info = sim.information_inputs()["information"]
+    rule = sim.stop_rule
+    vc = rule.check_variance(sim.gp)
+    assert vc is not None and info.length_scale == pytest.approx(rule.check_scale(sim.gp))
+    expect = np.zeros(sim.grid.shape)
+    expect[sim.free] = np.maximum(sim.var[sim.free], vc)
+    np.testing.assert_allclose(info.variance, expect, rtol=1e-12)
+    assert np.all(info.variance[~sim.free] == 0) and info.variance.sum() > sim.var.sum()
