@@ -24,7 +24,7 @@ interior x-faces ((nx-1)*ny), vy[i + nx j] on the interior y-faces (nx*(ny-1)).
 Backends:
 
 * ``"compiled"``: one fused C loop per sub-step, compiled once with the system C compiler (``cc``,
-  or ``$CC``; ``-march=native`` first where the CPU is identified, :data:`NATIVE_FLAGS`) into a per-user
+  or ``$CC``; ``-march=native`` first where the CPU is identified; :mod:`runtime.cbuild`) into a per-user
   cache folder keyed by a hash of the source, the flags (and the CPU), loaded with
   ctypes;  :func:`compiled_available` says whether that worked (else one line on stderr and the
   planner falls back to the CasADi graph);
@@ -36,17 +36,11 @@ derivative (another Callback that runs the adjoint), so the NLP stays posed in C
 from __future__ import annotations
 
 import ctypes
-import hashlib
-import os
-import platform
-import shutil
-import subprocess
 import sys
-import sysconfig
-import tempfile
-from pathlib import Path
 
 import numpy as np
+
+from ..runtime.cbuild import CLibrary, cache_dir  # noqa: F401 - cache_dir: where the library is cached
 
 C_SOURCE = r"""
 #include <math.h>
@@ -483,48 +477,6 @@ int sf_adjoint(int nx, int ny, int N, int nsub, double rx, double ry, double eps
 }
 """
 
-#: -fno-trapping-math / -fno-math-errno let gcc vectorise the branch-free minmod and selection loops; neither
-#: changes a result (no reassociation, no contraction: every operation is rounded as written)
-CFLAGS = ("-O3", "-fPIC", "-shared", "-fno-fast-math", "-fno-trapping-math", "-fno-math-errno", "-ffp-contract=off")
-#: tried first, where the CPU can be identified (the library is then cached per CPU model and flags): wider
-#: vectors, measured 25-30 % faster MUSCL solves; results are bit for bit those of the generic build (no
-#: contraction, no reassociation).  Set SWARMFIELD_KERNEL_NATIVE=0 to build the generic library only.
-NATIVE_FLAGS = ("-march=native",)
-
-
-def _cpu_id() -> str | None:
-    """Model and feature flags of this CPU (Linux /proc/cpuinfo), None elsewhere (no -march=native then)."""
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as fh:
-            lines = fh.read().splitlines()
-    except OSError:
-        return None
-    keep = [ln.split(":", 1)[1].strip() for ln in lines
-            if ln.split(":", 1)[0].strip() in ("model name", "flags", "Features", "CPU part", "CPU implementer")]
-    return "|".join(dict.fromkeys(keep)) or None
-
-_LIB = None
-_LIB_ERROR: str | None = None
-_WARNED = False
-
-
-def cache_dir() -> Path:
-    """Per-user cache folder of the compiled kernel ($SWARMFIELD_CACHE, else $XDG_CACHE_HOME or ~/.cache)."""
-    env = os.environ.get("SWARMFIELD_CACHE")
-    if env:
-        return Path(env)
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "swarmfield"
-
-
-def _compiler() -> str | None:
-    cc = os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc"
-    exe = cc.split()[0] if cc else "cc"
-    if shutil.which(exe):
-        return exe
-    return shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
-
-
 _SMOKE = r"""
 import ctypes, sys
 lib = ctypes.CDLL(sys.argv[1])
@@ -538,66 +490,31 @@ for name, extra in (("sf_forward", ()), ("sf_forward_muscl", (None,))):
 """
 
 
-def _smoke_test(lib_path) -> bool:
-    """Run the freshly built library in a child process (an instruction the CPU lacks kills the child, not us)."""
-    try:
-        res = subprocess.run([sys.executable, "-c", _SMOKE, str(lib_path)], capture_output=True, timeout=60)
-    except (OSError, subprocess.SubprocessError):
-        return False
-    return res.returncode == 0
+def _declare(lib) -> None:
+    """ctypes signatures of the kernel's entry points."""
+    dp = np.ctypeslib.ndpointer(dtype=np.float64, flags="C_CONTIGUOUS")
+    i, d = ctypes.c_int, ctypes.c_double
+    lib.sf_forward.argtypes = [i, i, i, i, d, d, d, dp, dp, dp, dp, dp, dp]
+    lib.sf_forward.restype = i
+    lib.sf_adjoint.argtypes = [i, i, i, i, d, d, d, dp, dp, dp, dp, dp, dp, dp, dp, dp]
+    lib.sf_adjoint.restype = i
+    vp = ctypes.c_void_p                        # the optional first-stage buffer (None = NULL)
+    lib.sf_forward_muscl.argtypes = lib.sf_forward.argtypes + [vp]
+    lib.sf_forward_muscl.restype = i
+    lib.sf_adjoint_muscl.argtypes = lib.sf_adjoint.argtypes + [vp]
+    lib.sf_adjoint_muscl.restype = i
+
+
+#: the compiled library (runtime.cbuild: system cc, -O3 without contraction or reassociation, -march=native
+#: first where the CPU is identified -- measured 25-30 % faster MUSCL solves, bit for bit the generic build's
+#: results --, a per-user cache keyed by source, flags and CPU, a smoke test in a child process)
+_LIBRARY = CLibrary("transport", C_SOURCE, _declare, _SMOKE, "transport kernel")
+_WARNED = False
 
 
 def _load():
-    """Compile (once per source hash) and load the C kernel; returns the ctypes library or None."""
-    global _LIB, _LIB_ERROR
-    if _LIB is not None or _LIB_ERROR is not None:
-        return _LIB
-    try:
-        cc = _compiler()
-        if cc is None:
-            raise RuntimeError("no C compiler found (cc, gcc, clang or $CC)")
-        cpu = _cpu_id() if os.environ.get("SWARMFIELD_KERNEL_NATIVE", "1") != "0" else None
-        attempts = ([CFLAGS + NATIVE_FLAGS] if cpu else []) + [CFLAGS]
-        key = hashlib.sha256((C_SOURCE + " ".join(CFLAGS) + platform.machine() + sys.platform
-                              + (" native " + cpu if cpu else "")).encode()).hexdigest()[:16]
-        folder = cache_dir()
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-            if not os.access(folder, os.W_OK):
-                raise PermissionError(str(folder))
-        except OSError:                                # read-only home: a per-user temporary folder
-            folder = Path(tempfile.gettempdir()) / f"swarmfield-{os.getuid() if hasattr(os, 'getuid') else 'user'}"
-            folder.mkdir(parents=True, exist_ok=True)
-        lib_path = folder / f"transport_{key}.so"
-        if not lib_path.exists():
-            with tempfile.TemporaryDirectory(dir=folder) as tmp:
-                src = Path(tmp) / "transport.c"
-                src.write_text(C_SOURCE)
-                out = Path(tmp) / "transport.so"
-                for flags in attempts:              # native first (if any), the generic build if that fails
-                    res = subprocess.run([cc, *flags, str(src), "-o", str(out), "-lm"], capture_output=True,
-                                         text=True, timeout=120)
-                    if res.returncode == 0 and (flags is attempts[-1] or _smoke_test(out)):
-                        break
-                if res.returncode != 0:
-                    raise RuntimeError(f"{cc} failed: {(res.stderr or res.stdout).strip().splitlines()[-1:]}")
-                os.replace(out, lib_path)             # atomic: concurrent processes never see half a file
-        lib = ctypes.CDLL(str(lib_path))
-        dp = np.ctypeslib.ndpointer(dtype=np.float64, flags="C_CONTIGUOUS")
-        i, d = ctypes.c_int, ctypes.c_double
-        lib.sf_forward.argtypes = [i, i, i, i, d, d, d, dp, dp, dp, dp, dp, dp]
-        lib.sf_forward.restype = i
-        lib.sf_adjoint.argtypes = [i, i, i, i, d, d, d, dp, dp, dp, dp, dp, dp, dp, dp, dp]
-        lib.sf_adjoint.restype = i
-        vp = ctypes.c_void_p                        # the optional first-stage buffer (None = NULL)
-        lib.sf_forward_muscl.argtypes = lib.sf_forward.argtypes + [vp]
-        lib.sf_forward_muscl.restype = i
-        lib.sf_adjoint_muscl.argtypes = lib.sf_adjoint.argtypes + [vp]
-        lib.sf_adjoint_muscl.restype = i
-        _LIB = lib
-    except Exception as exc:                           # noqa: BLE001 - any failure means: use the fallback
-        _LIB_ERROR = str(exc) or type(exc).__name__
-    return _LIB
+    """The loaded kernel library, or None (compiled once per source hash; a failure is remembered)."""
+    return _LIBRARY.lib()
 
 
 def compiled_available() -> bool:
@@ -607,7 +524,7 @@ def compiled_available() -> bool:
 
 def compile_error() -> str | None:
     _load()
-    return _LIB_ERROR
+    return _LIBRARY.error
 
 
 def warn_fallback():
@@ -669,12 +586,12 @@ class TransportKernel:
             if self.scheme == "muscl":
                 stage = self._stage_buffer()
                 self._stage_of = None
-                rc = _LIB.sf_forward_muscl(*args, None if stage is None else stage.ctypes.data)
+                rc = _load().sf_forward_muscl(*args, None if stage is None else stage.ctypes.data)
                 if stage is not None and not rc:
                     # the first stages belong to this trajectory at these velocities (checked by adjoint)
                     self._stage_of = (traj, vx.copy(), vy.copy(), traj[0].copy(), traj[-1].copy())
             else:
-                rc = _LIB.sf_forward(*args)
+                rc = _load().sf_forward(*args)
             if rc:
                 raise MemoryError("transport kernel: out of memory")
             return traj
@@ -700,9 +617,9 @@ class TransportKernel:
                     vx, vy, traj, lsnap, gvx, gvy, gp0)
             if self.scheme == "muscl":
                 stage = self._stage if self._stage_matches(vx, vy, traj) else None
-                rc = _LIB.sf_adjoint_muscl(*args, None if stage is None else stage.ctypes.data)
+                rc = _load().sf_adjoint_muscl(*args, None if stage is None else stage.ctypes.data)
             else:
-                rc = _LIB.sf_adjoint(*args)
+                rc = _load().sf_adjoint(*args)
             if rc:
                 raise MemoryError("transport kernel: out of memory")
             return gvx, gvy, gp0

@@ -131,14 +131,20 @@ def test_auto_uses_casadi_for_exact_hessian_and_rejects_kernel_with_it():
         PlannerSettings(transport="fortran")
 
 
+def _fresh_library(monkeypatch):
+    """A kernel library object that has not tried to build yet (runtime.cbuild.CLibrary)."""
+    lib = K._LIBRARY
+    monkeypatch.setattr(K, "_LIBRARY", type(lib)(lib.name, lib.source, lib.declare, lib.smoke, lib.what))
+
+
 def test_no_compiler_falls_back_to_casadi_with_one_line(monkeypatch, tmp_path, capsys):
-    monkeypatch.setattr(K, "_LIB", None)
-    monkeypatch.setattr(K, "_LIB_ERROR", None)
+    import sysconfig
+    _fresh_library(monkeypatch)
     monkeypatch.setattr(K, "_WARNED", False)
     monkeypatch.setenv("SWARMFIELD_CACHE", str(tmp_path / "cache"))
     monkeypatch.setenv("PATH", str(tmp_path))            # no cc, gcc or clang on it
     monkeypatch.delenv("CC", raising=False)
-    monkeypatch.setattr(K.sysconfig, "get_config_var", lambda name: None)
+    monkeypatch.setattr(sysconfig, "get_config_var", lambda name: None)
     assert not K.compiled_available()
     assert "no C compiler" in K.compile_error()
     P = TransportProblem(PlannerSettings(**SMALL))
@@ -153,8 +159,7 @@ def test_no_compiler_falls_back_to_casadi_with_one_line(monkeypatch, tmp_path, c
 
 @needs_cc
 def test_compiles_into_cache_keyed_by_source(monkeypatch, tmp_path):
-    monkeypatch.setattr(K, "_LIB", None)
-    monkeypatch.setattr(K, "_LIB_ERROR", None)
+    _fresh_library(monkeypatch)
     monkeypatch.setenv("SWARMFIELD_CACHE", str(tmp_path))
     assert K.compiled_available()
     libs = list(tmp_path.glob("transport_*.so"))
