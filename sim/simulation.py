@@ -226,8 +226,8 @@ class Simulation:
         self._notify("planned")
         for j in range(1, self.settings.steps_per_period + 1):
             self.measurement_step(j)
-            if self.replan_due(j) and not self.replan_within_period():
-                return self.stop("planner_failed")
+            if self.replan_due(j):
+                self.replan_within_period()
         self.period_index += 1
         self._notify("period")
         return True
@@ -260,17 +260,18 @@ class Simulation:
         k = self.settings.replan_every
         return bool(k) and self.controller.needs_plan and j % k == 0 and j < self.settings.steps_per_period
 
-    def replan_within_period(self) -> bool:
+    def replan_within_period(self) -> None:
         """Re-plan [t, t + T] from the current p̂ and posterior (receding horizon); the controller keeps
-        its period state (``Controller.replanned``).  Nothing to plan for (V <= eta): the plan stays."""
+        its period state (``Controller.replanned``).  Nothing to plan for (V <= eta), or a failed solve
+        (recorded in ``result.replans``): the plan in force stays, it covers the rest of the period."""
         self.p_hat = self._p_hat_grid()
         p_f = self.target()
         if p_f is None:
-            return True
+            return
         if not self.replan(p_f, None):
-            return False
+            self.result.error = None          # not the run's end: the period's plan goes on
+            return
         self.controller.replanned(self.context())
-        return True
 
     def posterior_due(self, j: int, n_new: int) -> bool:
         """Whether measurement step ``j`` of the period (1 .. T/Δt) computes the posterior and a

@@ -523,3 +523,23 @@ def test_receding_horizon_replans_inside_the_period_from_the_current_state():
     assert summary_dict(res)["periods_run"] == 2
     with pytest.raises(ValueError, match="replan_every"):
         small_config(replan_every=-1)
+
+
+def test_a_failed_receding_replan_keeps_the_periods_plan():
+    """A re-plan inside a period that fails is recorded, and the run goes on with the plan in force."""
+    from swarmfield.ocp import PlannerError
+    from swarmfield.sim.simulation import Simulation
+    sim = Simulation(small_config(replan_every=2, max_periods=1, period=1.75, dt=0.4375))
+    solve, calls = sim.planner.solve, []
+
+    def flaky(*args, **kwargs):
+        calls.append(kwargs.get("t0"))
+        if len(calls) == 2:
+            raise PlannerError("injected failure")
+        return solve(*args, **kwargs)
+
+    sim.planner.solve = flaky
+    res = sim.run()
+    assert [r["success"] for r in res.replans] == [True, False]
+    assert res.stop_reason == "max_time" and res.error is None
+    assert sim.plan.t_start == 0.0                    # the period's plan stayed in force
