@@ -113,6 +113,8 @@ AXES = {
     "v_max": (_pos_float, "speed limit"),
     "solver": (_choice("ipopt", "grg"), "ipopt or grg"),
     "formulation": (_choice(*FORMULATIONS), "NLP formulation (ocp.formulations)"),
+    "formulation_hessian": (_choice("auto", "exact", "limited-memory"),
+                            "Hessian of the formulation (auto: exact for multiple shooting / direct transcription)"),
     "transport": (_choice(*TRANSPORTS), "transport kernel"),
     "hessian": (_choice("limited-memory", "exact"), "IPOPT Hessian approximation"),
     "tol": (_pos_float, "IPOPT tol"),
@@ -192,7 +194,7 @@ def _settings_for(base: PlannerSettings, combo: dict) -> PlannerSettings:
             kw["n_intervals"] = v
         elif axis == "modes":
             kw.update(n_modes_x=v, n_modes_y=v)
-        elif axis in ("horizon", "w_f", "w_p", "w_v", "v_max", "transport", "formulation"):
+        elif axis in ("horizon", "w_f", "w_p", "w_v", "v_max", "transport", "formulation", "formulation_hessian"):
             kw[axis] = v
         elif axis == "hessian":
             ip["hessian_approximation"] = v
