@@ -10,7 +10,7 @@ same problem (the planner's ``warm_start``); single shooting's warm row is the r
 
     python benchmarks/formulation_optimum.py --grid 10 [--cpu-limit 900] [--wall-limit 1800]
         [--forms single-shooting multiple-shooting direct-transcription] [--limits l1 norm]
-        [--bases sine sine-cosine] [--starts cold warm] [--json out.json]
+        [--bases sine sine-cosine] [--starts cold warm] [--hessian auto|exact|limited-memory] [--json out.json]
 
 Columns: objective, its relative difference to the cold single-shooting optimum of the same
 (limit, basis), IPOPT iterations, CPU seconds of the build and of the solve (``time.process_time``)
@@ -31,7 +31,7 @@ import time
 FORMS = ("single-shooting", "multiple-shooting", "direct-transcription")
 
 
-def one(grid: int, form: str, limit: str, basis: str, start: str, cpu_limit: float) -> dict:
+def one(grid: int, form: str, limit: str, basis: str, start: str, cpu_limit: float, hessian: str = "auto") -> dict:
     """One solve in this process; returns the row."""
     import numpy as np
 
@@ -46,13 +46,14 @@ def one(grid: int, form: str, limit: str, basis: str, start: str, cpu_limit: flo
     g = Grid(PlannerSettings(**base).domain, grid, grid)
     p0 = box_density(g)
     target, _ = first_step_target(g)
-    row = {"grid": grid, "formulation": form, "limit": limit, "basis": basis, "start": start}
+    row = {"grid": grid, "formulation": form, "limit": limit, "basis": basis, "start": start, "hessian": hessian}
     warm = None
     if start == "warm":
         warm = ReferencePlanner(PlannerSettings(**base)).solve(p0, target)
         row["warm_from"] = warm.meta["objective"]
     c0 = time.process_time()
-    planner = ReferencePlanner(PlannerSettings(**base, formulation=form))
+    hess = "auto" if form == "single-shooting" else hessian
+    planner = ReferencePlanner(PlannerSettings(**base, formulation=form, formulation_hessian=hess))
     row["build_cpu_s"] = time.process_time() - c0
     row.update(planner.formulation.sizes(planner.solver))
     c1 = time.process_time()
@@ -67,7 +68,7 @@ def one(grid: int, form: str, limit: str, basis: str, start: str, cpu_limit: flo
     sv = plan.meta["solver"]
     s = planner.settings
     resim = simulate(plan.p[0], plan.coef, g, s.interval, s.substeps, s.upwind_smoothing, s.basis)
-    row.update(status=sv["status"], iterations=sv["iterations"], objective=plan.meta["objective"],
+    row.update(status=sv["status"], iterations=sv["iterations"], hessian=sv["hessian"], objective=plan.meta["objective"],
                ipopt_cpu_s=sv.get("t_proc_total"),
                derivatives_cpu_s=sum(sv.get(f"t_proc_nlp_{k}", 0.0) for k in ("f", "grad_f", "g", "jac_g", "hess_l")),
                dynamics_residual=sv.get("dynamics_residual", 0.0), mu_strategy=sv.get("mu_strategy"),
@@ -78,7 +79,7 @@ def one(grid: int, form: str, limit: str, basis: str, start: str, cpu_limit: flo
 def child(args) -> dict:
     """Run :func:`one` in a fresh interpreter under the wall-clock limit; peak RSS of that child."""
     cmd = [sys.executable, __file__, "--one", json.dumps([args.grid, args.form, args.limit, args.basis, args.start,
-                                                           args.cpu_limit])]
+                                                           args.cpu_limit, args.hessian])]
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
     t = time.perf_counter()
     try:
@@ -96,7 +97,7 @@ def child(args) -> dict:
 def table(rows) -> str:
     ref = {(r["limit"], r["basis"]): r.get("objective") for r in rows
            if r["formulation"] == "single-shooting" and r["start"] == "cold"}
-    head = ("| formulation | limit | basis | start | objective | vs SS cold | iterations | build CPU [s] | "
+    head = ("| formulation | Hessian | limit | basis | start | objective | vs SS cold | iterations | build CPU [s] | "
             "solve CPU [s] | of which derivatives | dyn. residual | re-sim error | peak RSS [MB] | status |")
     out = [head, "|---" * (head.count("|") - 1) + "|"]
     for r in rows:
@@ -104,7 +105,7 @@ def table(rows) -> str:
         r0 = ref.get((r["limit"], r["basis"]))
         rel = f"{100 * (obj - r0) / r0:+.3f} %" if obj is not None and r0 else ""
         f = lambda k, fmt: (fmt % r[k]) if r.get(k) is not None else ""      # noqa: E731
-        out.append(f"| {r['formulation']} | {r['limit']} | {r['basis']} | {r['start']} | {f('objective', '%.4f')} | "
+        out.append(f"| {r['formulation']} | {r.get('hessian', '')} | {r['limit']} | {r['basis']} | {r['start']} | {f('objective', '%.4f')} | "
                    f"{rel} | {r.get('iterations', '')} | {f('build_cpu_s', '%.1f')} | {f('solve_cpu_s', '%.1f')} | "
                    f"{f('derivatives_cpu_s', '%.1f')} | {f('dynamics_residual', '%.1e')} | {f('resim_error', '%.1e')} | "
                    f"{f('peak_rss_mb', '%.0f')} | {r.get('status', '')} |")
@@ -121,6 +122,8 @@ def main(argv=None) -> int:
     ap.add_argument("--starts", nargs="+", default=["cold", "warm"], choices=["cold", "warm"])
     ap.add_argument("--cpu-limit", type=float, default=900.0, help="IPOPT max_cpu_time per solve [s]")
     ap.add_argument("--wall-limit", type=float, default=1800.0, help="kill a child after this wall time [s]")
+    ap.add_argument("--hessian", default="auto", choices=["auto", "exact", "limited-memory"],
+                    help="Hessian of multiple shooting / direct transcription (auto: exact)")
     ap.add_argument("--json", default=None, help="append the rows (JSON lines) to this file")
     args = ap.parse_args(argv)
     if args.one:
