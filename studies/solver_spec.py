@@ -312,6 +312,7 @@ def run_planner_task(task: dict) -> list[dict]:
                iterations=-1, status="", success=False, error="", objective=nan,
                J_terminal=nan, J_running=nan, J_effort=nan, kl_final=nan, t_f_s=0.0, t_grad_s=0.0, t_hess_s=0.0)
     rss0 = _rss_mb()
+    c1 = None
     try:
         grid = Grid(s.domain, s.nx, s.ny)
         p0 = box_density(grid)
@@ -356,7 +357,10 @@ def run_planner_task(task: dict) -> list[dict]:
     except Exception as exc:                    # noqa: BLE001 -- recorded, the sweep goes on
         st = getattr(exc, "stats", {}) or {}
         row.update(error=f"{type(exc).__name__}: {exc}"[:300], status=str(st.get("status", "error")),
-                   iterations=st.get("iterations", -1), solve_s=st.get("wall_time_s", nan))
+                   iterations=st.get("iterations", -1), solve_s=st.get("wall_time_s", nan),
+                   ipopt_cpu_s=st.get("t_proc_total", nan))
+        if c1 is not None:                      # a failed solve: the CPU time it used
+            row["solve_cpu_s"] = time.process_time() - c1
     rss1 = _rss_mb()
     row.update(peak_rss_mb=rss1, rss_growth_mb=rss1 - rss0)
     return [row]
