@@ -220,8 +220,7 @@ class _StateFormulation(Formulation):
         # METIS ordering: ~5x faster factorisations of these KKT systems than its automatic choice
         # (measured at 10 x 10; docs/results/formulations.md)
         # bound_relax_factor 0: IPOPT's default relaxes the bounds p >= 0 of the snapshot densities by 1e-8,
-        # and log(p + log_eps) with log_eps = 1e-12 is then NaN ("evaluation error", cut-back steps; at
-        # 40 x 40 a failed restoration in the first iteration)
+        # and log(p + log_eps) with log_eps = 1e-12 is then NaN ("evaluation error", cut-back steps)
         return {"jac_d_constant": "yes", "mumps_pivot_order": 5, "bound_relax_factor": 0.0}
 
     #: the adaptive barrier update instead of the planner's monotone mu from 1e-7 (tuned for L-BFGS on
