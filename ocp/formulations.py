@@ -221,7 +221,10 @@ class _StateFormulation(Formulation):
         # (measured at 10 x 10; docs/results/formulations.md)
         # bound_relax_factor 0: IPOPT's default relaxes the bounds p >= 0 of the snapshot densities by 1e-8,
         # and log(p + log_eps) with log_eps = 1e-12 is then NaN ("evaluation error", cut-back steps)
-        return {"jac_d_constant": "yes", "mumps_pivot_order": 5, "bound_relax_factor": 0.0}
+        # mumps_mem_percent 100 (IPOPT's default 1000 reserves 11x MUMPS's estimate): at 40 x 40 direct
+        # transcription asked for 4,036 MB and failed to allocate it (Restoration_Failed in iteration 1);
+        # with 100 it factorised at ~4.3 GB peak RSS (IPOPT enlarges the workspace itself if too small)
+        return {"jac_d_constant": "yes", "mumps_pivot_order": 5, "bound_relax_factor": 0.0, "mumps_mem_percent": 100}
 
     #: the adaptive barrier update instead of the planner's monotone mu from 1e-7 (tuned for L-BFGS on
     #: single shooting): with the exact Hessian it cut direct transcription at 10 x 10 from 171 to 53

@@ -114,7 +114,11 @@ def test_formulation_prefers_adaptive_mu_unless_set():
     from swarmfield.ocp.settings import IpoptSettings
     assert ReferencePlanner(PlannerSettings(**TINY), formulation="direct-transcription").ipopt_options[
         "mu_strategy"] == "adaptive"
-    assert ReferencePlanner(PlannerSettings(**TINY)).ipopt_options["mu_strategy"] == "monotone"
+    ss = ReferencePlanner(PlannerSettings(**TINY)).ipopt_options
+    assert ss["mu_strategy"] == "monotone" and "bound_relax_factor" not in ss
+    dt = ReferencePlanner(PlannerSettings(**TINY), formulation="direct-transcription").ipopt_options
+    # the snapshot densities enter log(p + 1e-12): no relaxation of their bound p >= 0
+    assert dt["bound_relax_factor"] == 0.0 and dt["mumps_mem_percent"] == 100
     explicit = PlannerSettings(**TINY, ipopt=IpoptSettings(extra={"mu_strategy": "monotone"}))
     assert ReferencePlanner(explicit, formulation="multiple-shooting").ipopt_options["mu_strategy"] == "monotone"
 
