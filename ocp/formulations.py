@@ -56,6 +56,9 @@ class NLP:
     ubg: np.ndarray
     hessian: str
     ipopt_options: dict = field(default_factory=dict)
+    #: IPOPT options the formulation prefers over the *defaults* of :class:`ocp.settings.IpoptSettings`
+    #: (applied only where the settings keep the default value; an explicit setting wins)
+    ipopt_preferred: dict = field(default_factory=dict)
     #: rows of g that are the formulation's equality constraints (dynamics / lifts), for residual checks
     dynamics_rows: slice = field(default_factory=lambda: slice(0, 0))
 
@@ -216,7 +219,17 @@ class _StateFormulation(Formulation):
         # the speed-limit rows (inequalities) stay linear; the dynamics (equalities) do not.  MUMPS with
         # METIS ordering: ~5x faster factorisations of these KKT systems than its automatic choice
         # (measured at 10 x 10; docs/results/formulations.md)
-        return {"jac_d_constant": "yes", "mumps_pivot_order": 5}
+        # bound_relax_factor 0: IPOPT's default relaxes the bounds p >= 0 of the snapshot densities by 1e-8,
+        # and log(p + log_eps) with log_eps = 1e-12 is then NaN ("evaluation error", cut-back steps)
+        # mumps_mem_percent 100 (IPOPT's default 1000 reserves 11x MUMPS's estimate): at 40 x 40 direct
+        # transcription asked for 4,036 MB and failed to allocate it (Restoration_Failed in iteration 1);
+        # with 100 it factorised at ~4.3 GB peak RSS (IPOPT enlarges the workspace itself if too small)
+        return {"jac_d_constant": "yes", "mumps_pivot_order": 5, "bound_relax_factor": 0.0, "mumps_mem_percent": 100}
+
+    #: the adaptive barrier update instead of the planner's monotone mu from 1e-7 (tuned for L-BFGS on
+    #: single shooting): with the exact Hessian it cut direct transcription at 10 x 10 from 171 to 53
+    #: iterations and multiple shooting from 182 to 141 (docs/results/formulations.md)
+    PREFERRED = {"mu_strategy": "adaptive"}
 
 
 class MultipleShooting(_StateFormulation):
@@ -225,12 +238,12 @@ class MultipleShooting(_StateFormulation):
     (the CasADi MX graph of matrix operations), evaluated for all intervals at once with ``map``.
 
     ``parallelization``: CasADi's ``map`` mode ("serial", "thread"; "openmp" runs serially in the
-    PyPI build).  ``expand``: SX expansion of the interval function (off: at 10 x 10 it took 7x the
-    build time for no faster solve)."""
+    PyPI build).  ``expand``: SX expansion of the interval function (on: CasADi's exact Hessian of
+    the mapped MX graph took 514 s to build at 10 x 10, the expanded one 73 s CPU)."""
 
     name = "multiple-shooting"
 
-    def __init__(self, hessian: str = "auto", parallelization: str = "serial", expand: bool = False):
+    def __init__(self, hessian: str = "auto", parallelization: str = "serial", expand: bool = True):
         super().__init__(hessian)
         self.parallelization = parallelization
         self.expand = expand
@@ -266,7 +279,7 @@ class MultipleShooting(_StateFormulation):
             np.concatenate([lbx, np.zeros(nc * N)]),          # densities >= 0 (the log in the KL)
             np.concatenate([ubx, np.full(nc * N, np.inf)]),
             np.concatenate([lbg, np.zeros(nc * N)]), np.concatenate([ubg, np.zeros(nc * N)]),
-            self._resolved_hessian("exact"), self._ipopt_options(None),
+            self._resolved_hessian("exact"), self._ipopt_options(None), dict(self.PREFERRED),
             dynamics_rows=slice(n_speed, n_speed + nc * N))
         return self.nlp
 
@@ -287,9 +300,10 @@ class DirectTranscription(_StateFormulation):
 
     name = "direct-transcription"
 
-    def __init__(self, hessian: str = "auto", parallelization: str = "serial"):
+    def __init__(self, hessian: str = "auto", parallelization: str = "serial", merge: bool = True):
         super().__init__(hessian)
         self.parallelization = parallelization
+        self.merge = merge
 
     def step_function(self, problem):
         """One explicit donor-cell sub-step p -> p - dt div(v p) (:func:`ocp.transport.upwind_step`)
@@ -330,31 +344,42 @@ class DirectTranscription(_StateFormulation):
         interval = step.map("fv_interval", "serial", n_sub, [1, 2], [])
         horizon = interval.map(N, self.parallelization)
 
-        from .speedlimit import face_matrix
-        M = face_matrix(problem.basis, N).tocoo()
-        Msp = ca.DM.triplet(M.row.tolist(), M.col.tolist(), ca.DM(M.data), M.shape[0], M.shape[1])
-
+        # the velocity lift, separable and sparse: W_l = A_l S_y^T, V_l = S_x W_l (two thin linear stages,
+        # I+1 and 2J+1 non-zeros a row, instead of the 2IJ of V_l = M a_l; docs/design/formulations.md)
+        Lw, Lv = lift_matrices(problem.basis, N)
+        nw = Lw.shape[0]
+        W = ca.MX.sym("W", nw)
+        # a = a+ - a- formed once, as variables (split form): the lift then hangs on the m = 2IJ
+        # coefficients of an interval instead of their 2m split halves (the KKT fronts of an interval
+        # all carry these: half the width)
+        merged = self.merge and problem.settings.speed_limit_form == "split"
+        if merged:
+            ad = ca.MX.sym("a", problem.n_coef)
+            lift_a, a_in = [ad - a], ad
+        else:
+            ad, lift_a, a_in = ca.MX(0, 1), [], a
         V = ca.MX.sym("V", nfx + nfy, N)               # column l: [vx_l; vy_l] (column-major faces)
         S = ca.MX.sym("P", nc, K)                      # density after sub-step k = 1..K
         prev = ca.horzcat(p0, S[:, : K - 1]) if K > 1 else p0
         dyn = ca.vec(S - horizon(prev, V[:nfx, :], V[nfx:, :]))
-        lift = ca.vec(V) - ca.mtimes(Msp, a)
+        lift = ca.vertcat(*lift_a, W - ca.mtimes(_dm(Lw), a_in), ca.vec(V) - ca.mtimes(_dm(Lv), W))
         cols = list(range(n_sub - 1, K, n_sub))        # t_1 .. t_N
         Pk = ca.horzcat(p0, S[:, cols])
         f = self._snapshot_cost(problem, Pk, q, lq) + energy
-        x = ca.vertcat(xc, ca.vec(V), ca.vec(S))
+        x = ca.vertcat(xc, ad, W, ca.vec(V), ca.vec(S))
         nv = (nfx + nfy) * N
+        nl = int(ad.numel()) + nw + nv
         lb_state = np.full((nc, K), -np.inf)
         lb_state[:, cols] = 0.0                        # the snapshots enter the log of the KL
         n_speed = int(g_speed.numel())
-        self._n_v = nv
+        self._n_v, self._n_w, self._merged = nv, nw, merged
         self.nlp = NLP(
             {"x": x, "p": par, "f": f, "g": ca.vertcat(g_speed, lift, dyn)},
-            np.concatenate([lbx, np.full(nv, -np.inf), lb_state.ravel(order="F")]),
-            np.concatenate([ubx, np.full(nv + nc * K, np.inf)]),
-            np.concatenate([lbg, np.zeros(nv + nc * K)]), np.concatenate([ubg, np.zeros(nv + nc * K)]),
-            self._resolved_hessian("exact"), self._ipopt_options(None),
-            dynamics_rows=slice(n_speed, n_speed + nv + nc * K))
+            np.concatenate([lbx, np.full(nl, -np.inf), lb_state.ravel(order="F")]),
+            np.concatenate([ubx, np.full(nl + nc * K, np.inf)]),
+            np.concatenate([lbg, np.zeros(nl + nc * K)]), np.concatenate([ubg, np.zeros(nl + nc * K)]),
+            self._resolved_hessian("exact"), self._ipopt_options(None), dict(self.PREFERRED),
+            dynamics_rows=slice(n_speed, n_speed + nl + nc * K))
         return self.nlp
 
     def initial_point(self, coef0, p0) -> np.ndarray:
@@ -365,8 +390,42 @@ class DirectTranscription(_StateFormulation):
         coef = P.vector_to_coef(a)
         VX, VY = P.face_velocities(coef)
         V = np.concatenate([np.concatenate([vx, vy]) for vx, vy in zip(VX, VY)])
+        Lw, _ = lift_matrices(P.basis, P.N)
         traj = P.trajectory(p0, coef)[1:]
-        return np.concatenate([xc, V, np.concatenate([s.ravel(order="F") for s in traj])])
+        am = a if self._merged else a[:0]
+        return np.concatenate([xc, am, Lw @ a, V, np.concatenate([s.ravel(order="F") for s in traj])])
+
+
+def _dm(M) -> ca.DM:
+    """A scipy sparse matrix as a CasADi sparse DM."""
+    M = M.tocoo()
+    return ca.DM.triplet(M.row.tolist(), M.col.tolist(), ca.DM(M.data), M.shape[0], M.shape[1])
+
+
+def lift_matrices(basis, n_intervals: int):
+    """Sparse (Lw, Lv) with W = Lw a and V = Lv W = M a (:func:`ocp.speedlimit.face_matrix`): the
+    separable velocity lift in two stages.  Per interval l, with a_l = (A_x, A_y) (I x J each),
+
+        W_x = A_x S_y,cell^T (I x ny),  W_y = A_y S_y,face^T (I x ny-1)        (J non-zeros a row)
+        v_x = S_x,face W_x   (nx-1 x ny), v_y = S_x,cell W_y   (nx x ny-1)    (I non-zeros a row)
+
+    W_l is stored as [vec_F W_x; vec_F W_y], V_l as [vec_F v_x; vec_F v_y] (the layout of the face
+    velocities of direct transcription); a in the layout of ``TransportProblem.coef_to_vector``
+    (a[l, d, i, j] at ((2 l + d) I + i) J + j)."""
+    import scipy.sparse as sp
+    I, J = basis.Sx_face.shape[1], basis.Sy_cell.shape[1]
+    # vec_F(A T^T) = (T ⊗ 1_I) vec_F(A); vec_F index i + I j of A -> C index i J + j
+    perm = np.array([i * J + j for j in range(J) for i in range(I)])
+    w_blocks, v_blocks = [], []
+    for S, T in ((basis.Sx_face, basis.Sy_cell), (basis.Sx_cell, basis.Sy_face)):
+        K = sp.kron(sp.csr_matrix(T), sp.identity(I), format="csc")     # (I ny_d, I J), columns in F order
+        inv = np.empty_like(perm)
+        inv[perm] = np.arange(perm.size)
+        w_blocks.append(K[:, inv].tocsr())                                 # columns in C order
+        v_blocks.append(sp.kron(sp.identity(T.shape[0]), sp.csr_matrix(S), format="csr"))   # vec_F(S W)
+    Lw = sp.block_diag([w_blocks[d] for _ in range(n_intervals) for d in range(2)], format="csr")
+    Lv = sp.block_diag([v_blocks[d] for _ in range(n_intervals) for d in range(2)], format="csr")
+    return Lw, Lv
 
 
 #: settings name -> formulation class

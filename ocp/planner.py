@@ -27,7 +27,7 @@ from .mask import floor_free, normalize_free
 from .plan import ReferencePlan
 from .formulations import Formulation, SingleShooting, resolve_formulation
 from .problem import TransportProblem
-from .settings import PlannerSettings, to_dict
+from .settings import IpoptSettings, PlannerSettings, to_dict
 
 SUCCESS = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 
@@ -95,6 +95,12 @@ class ReferencePlanner:
                 ipopt.setdefault("limited_memory_aug_solver", self.settings.ipopt.limited_memory_aug_solver)
         for key, value in self.nlp.ipopt_options.items():
             ipopt.setdefault(key, value)
+        defaults = IpoptSettings()
+        for key, value in self.nlp.ipopt_preferred.items():
+            # the formulation's preference replaces a *default* setting only (an explicit one wins)
+            if key not in self.settings.ipopt.extra and getattr(self.settings.ipopt, key, None) == getattr(defaults, key, None):
+                ipopt[key] = value
+        self.ipopt_options = ipopt
         try:
             self.solver = ca.nlpsol("reference_density", "ipopt", self.nlp.nlp, opts)
         except RuntimeError as exc:
@@ -272,6 +278,7 @@ class ReferencePlanner:
             summary["cold_start"] = coarse_summary
         summary["formulation"] = F.name
         summary["hessian"] = nlp.hessian
+        summary["mu_strategy"] = self.ipopt_options.get("mu_strategy")
         if not isinstance(F, SingleShooting):
             # max |continuity / step / lift residual| at the returned point (the plan is re-simulated anyway)
             summary["dynamics_residual"] = F.residual(x, par)
@@ -394,9 +401,10 @@ def _stats_summary(stats: dict, wall: float) -> dict:
         "wall_time_s": wall,
     }
     for key in ("nlp_f", "nlp_grad_f", "nlp_g", "nlp_jac_g", "nlp_hess_l", "total"):
-        t = stats.get(f"t_wall_{key}")
-        if t is not None:
-            out[f"t_wall_{key}"] = float(t)
+        for clock in ("wall", "proc"):            # IPOPT's own timers: wall clock and process CPU time
+            t = stats.get(f"t_{clock}_{key}")
+            if t is not None:
+                out[f"t_{clock}_{key}"] = float(t)
         n = stats.get(f"n_call_{key}")
         if n is not None:
             out[f"n_call_{key}"] = int(n)

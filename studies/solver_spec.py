@@ -113,11 +113,15 @@ AXES = {
     "v_max": (_pos_float, "speed limit"),
     "solver": (_choice("ipopt", "grg"), "ipopt or grg"),
     "formulation": (_choice(*FORMULATIONS), "NLP formulation (ocp.formulations)"),
+    "formulation_hessian": (_choice("auto", "exact", "limited-memory"),
+                            "Hessian of the formulation (auto: exact for multiple shooting / direct transcription)"),
     "transport": (_choice(*TRANSPORTS), "transport kernel"),
     "hessian": (_choice("limited-memory", "exact"), "IPOPT Hessian approximation"),
     "tol": (_pos_float, "IPOPT tol"),
     "mu_strategy": (_choice("monotone", "adaptive"), "IPOPT mu strategy"),
     "linear_solver": (str, "IPOPT linear solver"),
+    "max_cpu_time": (_pos_float, "IPOPT max_cpu_time [s]: a run that does not finish in this CPU time stops "
+                                 "(status Maximum_CpuTime_Exceeded; the per-run time limit of a sweep)"),
     "warm_start": (_bool, "start from the plan towards another sample's target (seed + 1000)"),
     "seeds": (_nonneg_int, "scenario seeds"),
 }
@@ -190,12 +194,14 @@ def _settings_for(base: PlannerSettings, combo: dict) -> PlannerSettings:
             kw["n_intervals"] = v
         elif axis == "modes":
             kw.update(n_modes_x=v, n_modes_y=v)
-        elif axis in ("horizon", "w_f", "w_p", "w_v", "v_max", "transport", "formulation"):
+        elif axis in ("horizon", "w_f", "w_p", "w_v", "v_max", "transport", "formulation", "formulation_hessian"):
             kw[axis] = v
         elif axis == "hessian":
             ip["hessian_approximation"] = v
         elif axis in ("tol", "mu_strategy", "linear_solver"):
             ip[axis] = v
+        elif axis == "max_cpu_time":
+            ip["extra"] = {**base.ipopt.extra, **ip.get("extra", {}), "max_cpu_time": float(v)}
     return rep(base, **kw, ipopt=rep(base.ipopt, **ip))
 
 
@@ -269,8 +275,8 @@ def preset_tasks(name: str, base: PlannerSettings | None = None, quick: bool = F
 
 
 COLUMNS = ["study", "case", "method", "formulation", "transport", "kernel", "nx", "ny", "n_intervals", "n_modes", "horizon", "w_f", "w_p",
-           "w_v", "v_max", "hessian", "tol", "mu_strategy", "linear_solver", "warm_start", "seed", "build_s",
-           "solve_s", "solve_cpu_s", "iterations", "n_x", "n_g", "jac_nnz", "hess_nnz", "status", "success", "error", "objective", "J_terminal", "J_running",
+           "w_v", "v_max", "hessian", "tol", "mu_strategy", "linear_solver", "max_cpu_time", "warm_start", "seed", "build_s",
+           "build_cpu_s", "solve_s", "solve_cpu_s", "ipopt_cpu_s", "derivatives_cpu_s", "iterations", "n_x", "n_g", "jac_nnz", "hess_nnz", "status", "success", "error", "objective", "J_terminal", "J_running",
            "J_effort", "kl_final", "t_f_s", "t_grad_s", "t_hess_s", "peak_rss_mb", "peak_rss_scope", "rss_growth_mb",
            "settings"]
 
@@ -297,20 +303,24 @@ def run_planner_task(task: dict) -> list[dict]:
            "nx": s.nx, "ny": s.ny, "n_intervals": s.n_intervals, "n_modes": s.n_modes_x, "horizon": s.horizon,
            "w_f": s.w_f, "w_p": s.w_p, "w_v": s.w_v, "v_max": s.v_max,
            "hessian": s.ipopt.hessian_approximation, "tol": s.ipopt.tol, "mu_strategy": s.ipopt.mu_strategy,
-           "linear_solver": s.ipopt.linear_solver, "warm_start": task["warm_start"], "seed": task["seed"],
+           "linear_solver": s.ipopt.linear_solver, "max_cpu_time": s.ipopt.extra.get("max_cpu_time", math.inf),
+           "warm_start": task["warm_start"], "seed": task["seed"],
            "settings": json.dumps(task["settings"], sort_keys=True, default=str)}
     nan = math.nan
-    row.update(kernel="", build_s=nan, solve_s=nan, solve_cpu_s=nan, n_x=-1, n_g=-1, jac_nnz=-1, hess_nnz=-1,
+    row.update(kernel="", build_s=nan, build_cpu_s=nan, solve_s=nan, solve_cpu_s=nan, ipopt_cpu_s=nan,
+               derivatives_cpu_s=nan, n_x=-1, n_g=-1, jac_nnz=-1, hess_nnz=-1,
                iterations=-1, status="", success=False, error="", objective=nan,
                J_terminal=nan, J_running=nan, J_effort=nan, kl_final=nan, t_f_s=0.0, t_grad_s=0.0, t_hess_s=0.0)
     rss0 = _rss_mb()
+    c1 = None
     try:
         grid = Grid(s.domain, s.nx, s.ny)
         p0 = box_density(grid)
         target, _ = first_step_target(grid, seed=task["seed"])
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         planner = ReferencePlanner(s)
         row["build_s"] = time.perf_counter() - t0
+        row["build_cpu_s"] = time.process_time() - c0
         if task["method"] == "ipopt":
             row.update(planner.formulation.sizes(planner.solver))
         warm = None
@@ -333,7 +343,13 @@ def run_planner_task(task: dict) -> list[dict]:
                    kernel=sv.get("kernel", m.get("transport", "")),
                    # IPOPT's time in the objective, its gradient and the Hessian of the Lagrangian
                    t_f_s=sv.get("t_wall_nlp_f", 0.0), t_grad_s=sv.get("t_wall_nlp_grad_f", 0.0),
-                   t_hess_s=sv.get("t_wall_nlp_hess_l", 0.0))
+                   t_hess_s=sv.get("t_wall_nlp_hess_l", 0.0),
+                   mu_strategy=sv.get("mu_strategy", row["mu_strategy"]),
+                   # IPOPT's own process-CPU timers: the whole solve, and the part in the NLP's functions
+                   # and derivatives (the rest is IPOPT's linear algebra, MUMPS)
+                   ipopt_cpu_s=sv.get("t_proc_total", nan),
+                   derivatives_cpu_s=sum(sv.get(f"t_proc_nlp_{k}", 0.0)
+                                         for k in ("f", "grad_f", "g", "jac_g", "hess_l")))
         terms = m.get("objective_terms", {}) or {}
         for k_row, k_meta in (("J_terminal", "terminal"), ("J_running", "running"), ("J_effort", "energy")):
             if k_meta in terms:
@@ -341,7 +357,10 @@ def run_planner_task(task: dict) -> list[dict]:
     except Exception as exc:                    # noqa: BLE001 -- recorded, the sweep goes on
         st = getattr(exc, "stats", {}) or {}
         row.update(error=f"{type(exc).__name__}: {exc}"[:300], status=str(st.get("status", "error")),
-                   iterations=st.get("iterations", -1), solve_s=st.get("wall_time_s", nan))
+                   iterations=st.get("iterations", -1), solve_s=st.get("wall_time_s", nan),
+                   ipopt_cpu_s=st.get("t_proc_total", nan))
+        if c1 is not None:                      # a failed solve: the CPU time it used
+            row["solve_cpu_s"] = time.process_time() - c1
     rss1 = _rss_mb()
     row.update(peak_rss_mb=rss1, rss_growth_mb=rss1 - rss0)
     return [row]

@@ -92,6 +92,37 @@ def test_initial_points_are_feasible_and_coefficients_round_trip():
         assert float(f(x0, P.parameters(p0, q))) == pytest.approx(float(f_ss(xc, P.parameters(p0, q))), rel=1e-12)
 
 
+@pytest.mark.parametrize("basis", ["sine", "sine-cosine"])
+def test_separable_lift_is_the_face_matrix(basis):
+    """The two thin stages W = Lw a, V = Lv W of direct transcription give the face velocities of the
+    dense lift M a (ocp.speedlimit.face_matrix) and of the basis itself, with far fewer non-zeros."""
+    from swarmfield.ocp.formulations import lift_matrices
+    from swarmfield.ocp.problem import TransportProblem
+    from swarmfield.ocp.speedlimit import face_matrix
+    P = TransportProblem(PlannerSettings(nx=20, ny=16, n_intervals=3, n_modes_x=5, n_modes_y=4, basis=basis))
+    Lw, Lv = lift_matrices(P.basis, P.N)
+    M = face_matrix(P.basis, P.N)
+    a = np.random.default_rng(2).standard_normal(P.n_coef)
+    np.testing.assert_allclose(Lv @ (Lw @ a), M @ a, rtol=1e-12, atol=1e-12)
+    VX, VY = P.face_velocities(P.vector_to_coef(a))
+    np.testing.assert_allclose(Lv @ (Lw @ a), np.concatenate([np.concatenate([x, y]) for x, y in zip(VX, VY)]),
+                               atol=1e-12)
+    assert Lw.nnz + Lv.nnz < 0.35 * M.nnz          # (I + J) / (I J) of it, plus the thin W stage
+
+
+def test_formulation_prefers_adaptive_mu_unless_set():
+    from swarmfield.ocp.settings import IpoptSettings
+    assert ReferencePlanner(PlannerSettings(**TINY), formulation="direct-transcription").ipopt_options[
+        "mu_strategy"] == "adaptive"
+    ss = ReferencePlanner(PlannerSettings(**TINY)).ipopt_options
+    assert ss["mu_strategy"] == "monotone" and "bound_relax_factor" not in ss
+    dt = ReferencePlanner(PlannerSettings(**TINY), formulation="direct-transcription").ipopt_options
+    # the snapshot densities enter log(p + 1e-12): no relaxation of their bound p >= 0
+    assert dt["bound_relax_factor"] == 0.0 and dt["mumps_mem_percent"] == 100
+    explicit = PlannerSettings(**TINY, ipopt=IpoptSettings(extra={"mu_strategy": "monotone"}))
+    assert ReferencePlanner(explicit, formulation="multiple-shooting").ipopt_options["mu_strategy"] == "monotone"
+
+
 def test_direct_transcription_step_is_the_upwind_step():
     s = PlannerSettings(**TINY)
     pl = ReferencePlanner(s, formulation="direct-transcription")
@@ -112,10 +143,13 @@ def test_sizes_are_counted_and_grow_with_the_state():
     assert sizes["single-shooting"]["hess_nnz"] == 2 * n_coef * (2 * n_coef + 1) // 2
     assert sizes["multiple-shooting"]["n_x"] == 2 * n_coef + nc * s.n_intervals
     assert sizes["multiple-shooting"]["n_g"] == s.n_intervals + nc * s.n_intervals
-    assert sizes["direct-transcription"]["n_x"] == 2 * n_coef + nv + nc * K
-    assert sizes["direct-transcription"]["n_g"] == s.n_intervals + nv + nc * K
-    # direct transcription: a handful of Jacobian non-zeros per state (stencil, faces, identity)
-    assert sizes["direct-transcription"]["jac_nnz"] < 16 * nc * K + nv * (s.n_modes_x * s.n_modes_y + 1) + 4 * n_coef
+    # direct transcription: a+, a-, the merged a, the separable lift W (I x (2 ny - 1) per interval), V, states
+    nw = s.n_intervals * s.n_modes_x * (2 * s.ny - 1)
+    assert sizes["direct-transcription"]["n_x"] == 3 * n_coef + nw + nv + nc * K
+    assert sizes["direct-transcription"]["n_g"] == s.n_intervals + n_coef + nw + nv + nc * K
+    # a handful of Jacobian non-zeros per state (stencil, faces, identity) and per lift row (I + 1, J + 1, 3)
+    assert sizes["direct-transcription"]["jac_nnz"] <= (10 * nc * K + nv * (s.n_modes_x + 1) + nw * (s.n_modes_y + 1)
+                                                       + 3 * n_coef + 2 * n_coef)
     assert all(v > 0 for sz in sizes.values() for v in sz.values())
 
 
