@@ -4,8 +4,11 @@ Several tests send real SIGINT/SIGTERM to this process or to sweeps it starts, a
 ignores and blocks SIGINT while its fork server starts (studies.pool).  A SIGINT disposition or a
 blocked signal mask left behind by one test (or by a library a test drives, such as Dask) is
 inherited by every later test and by every process they start, and turns the signal tests into
-failures of the wrong test.  Each test therefore starts with the disposition and mask of the
-session's start; a test that leaves them changed is named in a warning.
+failures of the wrong test.  The same happens when the whole suite is started from a background job
+of a non-interactive shell (``cmd &``, ``nohup``), which starts it with SIGINT ignored.  Each test
+therefore starts with the disposition and mask of an interactive Python process (SIGINT: Python's
+``default_int_handler``, SIGTERM: the default action, nothing blocked); a test that leaves them changed
+is named in a warning.
 """
 import signal
 import threading
@@ -13,13 +16,12 @@ import warnings
 
 import pytest
 
-_SIGNALS = (signal.SIGINT, signal.SIGTERM)
-_START = {s: signal.getsignal(s) for s in _SIGNALS}
-_START_MASK = signal.pthread_sigmask(signal.SIG_BLOCK, []) if hasattr(signal, "pthread_sigmask") else None
+_START = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: signal.SIG_DFL}
+_START_MASK = set() if hasattr(signal, "pthread_sigmask") else None
 
 
 def _restore() -> list:
-    """Put the session's start state back; the names of what was changed."""
+    """Put the interactive start state back; the names of what was changed."""
     changed = []
     for s, handler in _START.items():
         if signal.getsignal(s) is not handler:
@@ -27,7 +29,7 @@ def _restore() -> list:
             signal.signal(s, handler)
     if _START_MASK is not None:
         mask = signal.pthread_sigmask(signal.SIG_BLOCK, [])
-        if mask != _START_MASK:
+        if set(mask) != _START_MASK:
             changed.append(f"signal mask {sorted(signal.Signals(m).name for m in mask)}")
             signal.pthread_sigmask(signal.SIG_SETMASK, _START_MASK)
     return changed
