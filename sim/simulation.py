@@ -263,8 +263,8 @@ class Simulation:
     def replan_within_period(self) -> None:
         """Re-plan [t, t + T] from the current p̂ and posterior (receding horizon); the controller keeps
         its period state (``Controller.replanned``).  Nothing to plan for (V <= eta), or a failed solve
-        (recorded in ``result.replans``): the plan in force stays, it covers the rest of the period."""
-        self.p_hat = self._p_hat_grid()
+        (recorded in ``result.replans``): the plan in force stays, it covers the rest of the period.
+        p̂ and V are the step's own: :meth:`posterior_due` is true at every step that re-plans."""
         p_f = self.target()
         if p_f is None:
             return
@@ -400,10 +400,10 @@ class Simulation:
             # the points the rule is bound to: every cell centre, or the free ones with obstacles
             vc = rule.check_variance(self.gp)
             if vc is not None:
-                vc_grid = np.zeros(self.grid.shape)
                 if self.free is None:
-                    vc_grid[:] = np.asarray(vc).reshape(self.grid.shape)
+                    vc_grid = np.asarray(vc).reshape(self.grid.shape)
                 else:
+                    vc_grid = np.zeros(self.grid.shape)
                     vc_grid[self.free] = vc
                 var, ell = np.maximum(var, vc_grid), rule.check_scale(self.gp)
         return {"information": InformationInputs(var, int(self.alive.sum()), self.settings.dt,
