@@ -3,40 +3,26 @@ lawnmower's and greedy's, and its RMSE at 2T ÷ the lawnmower's (docs/results/tu
 
     python benchmarks/ratio_to_best_baseline.py BASELINES [LABEL=FEEDBACK[:SCALE] ...]
 
-``BASELINES`` is a compare-controllers folder (or its runs.csv) with lawnmower and greedy runs (and
+``BASELINES`` is a compare-controllers folder (its finished runs/*.json) or its runs.csv with lawnmower and greedy runs (and
 its feedback runs, if any: the first column); every ``LABEL=FEEDBACK`` another folder whose feedback runs are
 compared with the same baselines (same fields, seeds, losses and swarm sizes).  ``:SCALE`` multiplies
-that sweep's times (a sweep run with another period T).  Folders of a sweep still running are read
-from their finished ``runs/*.json``.  A time is the first recorded one with sup V <= threshold ("inf":
+that sweep's times (a sweep run with another period T).  A time is the first recorded one with sup V <= threshold ("inf":
 never); the last line gives the mean and the largest ratio of each column.
 """
 from __future__ import annotations
 
-import csv
-import json
 import math
 import statistics
 import sys
 from collections import defaultdict
-from pathlib import Path
 
-
-def _rows(path: Path):
-    if path.is_dir():
-        if (path / "runs.csv").exists():
-            path = path / "runs.csv"
-        else:
-            for f in sorted((path / "runs").glob("*.json")):
-                yield from json.loads(f.read_text())["rows"]
-            return
-    with open(path) as fh:
-        yield from csv.DictReader(fh)
+from tuned_ablation_table import read_runs      # runs.csv, or the finished runs/*.json of a sweep folder
 
 
 def load(path, scale: float = 1.0) -> dict:
     """(controller, field, seed, loss, robots) -> (time to threshold [T], RMSE at 2T)."""
     runs = defaultdict(list)
-    for r in _rows(Path(path)):
+    for r in read_runs(path):
         runs[(r["controller"], r["field"], str(r["seed"]), float(r["robot_loss"]), int(r["robots"]))].append(r)
     out = {}
     for key, rows in runs.items():

@@ -19,21 +19,24 @@ from collections import defaultdict
 import numpy as np
 
 
-def _rows(path):
-    """Rows of ``OUT/runs.csv``, or of the finished runs ``OUT/runs/*.json`` of a sweep still running."""
+def read_runs(path):
+    """Rows of ``OUT/runs.csv`` (a file, or a sweep folder that has one: the finished sweep's own tasks),
+    else of the finished runs ``OUT/runs/*.json`` of a sweep still running."""
     from pathlib import Path
     path = Path(path)
     if path.is_dir():
-        for f in sorted((path / "runs").glob("*.json")):
-            yield from json.loads(f.read_text())["rows"]
-        return
+        if not (path / "runs.csv").exists():
+            for f in sorted((path / "runs").glob("*.json")):
+                yield from json.loads(f.read_text())["rows"]
+            return
+        path = path / "runs.csv"
     with open(path) as fh:
         yield from csv.DictReader(fh)
 
 
 def load(path):
     runs = defaultdict(list)
-    for r in _rows(path):
+    for r in read_runs(path):
         key = (r["controller"], r["field"], str(r["robot_loss"]), str(r["robots"]), int(r["seed"]))
         runs[key].append(r)
     out = {}
