@@ -152,3 +152,22 @@ def test_plan_reference_cli_supplies_the_default_scenario(tmp_path, capsys):
     m = ReferencePlan.load(out).meta
     assert m["objective_kind"] == "information" and m["information"]["robots"] == 100
     assert m["information"]["phi"][-1] < m["information"]["phi"][0] == pytest.approx(1.0)
+
+
+def test_objective_scaled_by_the_weight_unless_set():
+    """IPOPT's tolerances are absolute: the information objective (weight x a ratio of variances) is scaled
+    by 1 / weight, the same optimum as the unscaled problem (within its tolerance), and an explicit
+    ipopt.extra.obj_scaling_factor wins; the KL objective is not scaled."""
+    from swarmfield.ocp.settings import IpoptSettings
+    s = _small(transport="numpy", information_weight=40.0)
+    pl = ReferencePlanner(s)
+    assert pl.ipopt_options["obj_scaling_factor"] == pytest.approx(1 / 40.0)
+    explicit = ReferencePlanner(_small(transport="numpy", information_weight=40.0,
+                                       ipopt=IpoptSettings(extra={"obj_scaling_factor": 1.0})))
+    assert explicit.ipopt_options["obj_scaling_factor"] == 1.0
+    assert "obj_scaling_factor" not in ReferencePlanner(_small(objective="symmetric-kl")).ipopt_options
+    g = pl.grid
+    p0, pf = _bump(g, 2.0, 2.0, 1.0), _bump(g, 6.0, 4.0, 1.5)
+    a = pl.solve(p0, pf, information=_inputs(g)).meta["objective"]
+    b = explicit.solve(p0, pf, information=_inputs(g)).meta["objective"]
+    assert a == pytest.approx(b, rel=5e-3)
