@@ -51,8 +51,18 @@ resolution: typically the planner's free cells) makes the estimate one of the fr
 reflected KDE above is computed as before, then scaled by 1 / (its mass over the free bins), so that
 p_hat integrates to 1 over the free space (the mass that the smoothing carried into obstacles is
 renormalised, as the wall reflection keeps it inside the rectangle); :meth:`DensityEstimate.on_grid`
-is exactly zero in blocked cells and sums to 1 over the free ones.  The kernel itself does not
-reflect at obstacle boundaries (no closed form): near a thin wall robots on both sides see each other.
+is exactly zero in blocked cells and sums to 1 over the free ones.  That kernel does not reflect at
+obstacle boundaries (no closed form): near a thin wall robots on both sides see each other.
+
+``obstacle_kernel = "reflect"`` (``kde.obstacles`` in the configs) uses the heat kernel of the free space
+instead, the obstacles' analogue of the wall reflection: the binned density (the mass of a bin inside an
+obstacle moved to the nearest free bin) flows by explicit five-point steps with zero flux through every
+face of a blocked bin and through the walls, for the time that gives variance h^2 - dx^2/6 per axis.  No
+mass crosses an obstacle, n . grad p_hat = 0 on its faces, and without obstacles it is the Gaussian KDE
+above to the binning's accuracy (0.6 % of the peak in values, 2 % in gradients at the rule's resolution;
+``tests/test_domain.py``).  It runs at the resolution rule's own bin count (dx = h / bins_per_bandwidth)
+and costs about (L / h)^4 steps x cells: 3 ms a fit at h = 1 m on the paper's domain (2 ms for the
+renormalised KDE), 9 ms at h = 0.5 m, 28 ms at h = 0.3 m.
 
 Cost for n = 1e5 robots on the default 128 x 128 bins: fit about 12 ms (half of it the binning),
 evaluate at 1e5 points about 15 ms (2-core test machine).  The linear binning runs in C
@@ -68,7 +78,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import fft as sfft
 
-__all__ = ["KernelDensity", "DensityEstimate", "silverman_bandwidth", "resample_mask"]
+__all__ = ["KernelDensity", "DensityEstimate", "silverman_bandwidth", "resample_mask", "OBSTACLE_KERNELS"]
+
+#: ``KernelDensity(obstacle_kernel=...)``: renormalise the reflected KDE over the free space, or diffuse on it
+OBSTACLE_KERNELS = ("renormalise", "reflect")
 
 #: Points this far outside the domain (relative to its size) are clipped onto the wall, not rejected.
 _WALL_TOL = 1e-9
@@ -150,11 +163,19 @@ class KernelDensity:
         Upper limit per axis for the automatic raise; a bandwidth needing more bins is an error.
     free : bool array (fx, fy) or None
         Free space of the domain (x first, True = free) at any resolution; see the module docstring.
+    obstacle_kernel : "renormalise" or "reflect"
+        With ``free``: the reflected KDE renormalised over the free space (default), or the heat kernel of
+        the free space itself, which reflects at obstacles too (module docstring, "Obstacles").
     """
 
     def __init__(self, domain=(0.0, 20.0, 0.0, 20.0), bandwidth: float | None = None, bins=(128, 128),
-                 *, bins_per_bandwidth: float = 4.0, max_bins: int = 2048, free=None):
+                 *, bins_per_bandwidth: float = 4.0, max_bins: int = 2048, free=None,
+                 obstacle_kernel: str = "renormalise"):
         self.domain = _check_domain(domain)
+        if obstacle_kernel not in OBSTACLE_KERNELS:
+            raise ValueError(f"obstacle_kernel must be one of {', '.join(OBSTACLE_KERNELS)}, got {obstacle_kernel!r}")
+        self.obstacle_kernel = obstacle_kernel
+        self._heat: dict = {}
         if free is not None:
             free = np.asarray(free)
             if free.ndim != 2 or free.dtype != bool or min(free.shape) < 1:
@@ -195,11 +216,13 @@ class KernelDensity:
         x0, x1, y0, y1 = self.domain
         return self.bins_per_bandwidth * max(x1 - x0, y1 - y0) / self.max_bins
 
-    def resolve_bins(self, h: float) -> tuple[int, int]:
-        """Bin counts used for bandwidth h: the requested ones, raised until width <= h / bins_per_bandwidth."""
+    def resolve_bins(self, h: float, minimum=None) -> tuple[int, int]:
+        """Bin counts used for bandwidth h: the requested ones (or ``minimum``), raised until width <= h /
+        bins_per_bandwidth."""
         x0, x1, y0, y1 = self.domain
         out = []
-        for b, length, axis in ((self.bins[0], x1 - x0, "x"), (self.bins[1], y1 - y0, "y")):
+        bins = self.bins if minimum is None else minimum
+        for b, length, axis in ((bins[0], x1 - x0, "x"), (bins[1], y1 - y0, "y")):
             need = math.ceil(self.bins_per_bandwidth * length / h - 1e-9)
             if need > b:
                 b = sfft.next_fast_len(need, real=True)
@@ -228,7 +251,9 @@ class KernelDensity:
                 if not sigma_bar > 0:
                     silverman_bandwidth(X)                     # raises its message (all points coincide)
                 h = max(sigma_bar * X.shape[0] ** (-1.0 / 6.0), self.min_bandwidth)
-        mx, my = self.resolve_bins(h)
+        reflect = self.free is not None and self.obstacle_kernel == "reflect"
+        # the free-space heat flow costs ~(bins / h)^4 steps x cells: it runs at the rule's own resolution
+        mx, my = self.resolve_bins(h, minimum=(2, 2) if reflect else None)
         x0, x1, y0, y1 = self.domain
         dx = (x1 - x0) / mx
         dy = (y1 - y0) / my
@@ -238,12 +263,16 @@ class KernelDensity:
         counts = _linear_binning(X, x0, y0, dx, dy, mx, my)
         dens = counts / (n * dx * dy)
 
+        hx2 = h * h - dx * dx / 6.0
+        hy2 = h * h - dy * dy / 6.0
+        if reflect:
+            p, px, py, pxy = self._free_heat(dens, mx, my, dx, dy, hx2, hy2)
+            return DensityEstimate(self.domain, float(h), (mx, my), n, p, px, py, pxy, self.free)
+
         # 2./3. Neumann heat kernel in the DCT-II domain, derivatives via DST
         a = sfft.dctn(dens, type=2)
         wx = np.pi * np.arange(mx) / (x1 - x0)
         wy = np.pi * np.arange(my) / (y1 - y0)
-        hx2 = h * h - dx * dx / 6.0
-        hy2 = h * h - dy * dy / 6.0
         a *= np.exp(-0.5 * hx2 * wx * wx)[:, None]
         a *= np.exp(-0.5 * hy2 * wy * wy)[None, :]
         p = sfft.idctn(a, type=2)
@@ -264,6 +293,49 @@ class KernelDensity:
                 scale = 1.0 / mass
                 p, px, py, pxy = p * scale, px * scale, py * scale, pxy * scale
         return DensityEstimate(self.domain, float(h), (mx, my), n, p, px, py, pxy, self.free)
+
+    def _free_heat(self, dens, mx, my, dx, dy, hx2, hy2):
+        """p, dp/dx, dp/dy, d2p/dxdy on the bin centres: the heat flow of the free bins (zero flux through
+        every face of a blocked bin and through the outer walls) for variance (hx2, hy2), by explicit
+        five-point steps; the binned mass of blocked bins is first moved to the nearest free bin.  Each step
+        is a lazy random walk of variance 2 D ds per axis, so the steps together add exactly hx2 and hy2
+        (the binning's dx^2/6 is in h^2 already, as on the DCT path).  Blocked bins then take the value of
+        their nearest free bin (zero normal derivative at the obstacle) and the derivatives are central
+        differences, so the Hermite interpolant of :class:`DensityEstimate` is C^1 as before."""
+        key = (mx, my)
+        if key not in self._heat:
+            from scipy.ndimage import distance_transform_edt
+            m = self.mask(mx, my)
+            _, (ix, iy) = distance_transform_edt(~m, return_indices=True)    # nearest free bin of every bin
+            self._heat[key] = (m, ix, iy, (m[:-1, :] & m[1:, :]).astype(float), (m[:, :-1] & m[:, 1:]).astype(float))
+        m, ix, iy, open_x, open_y = self._heat[key]
+        p = np.zeros_like(dens)
+        np.add.at(p, (ix[~m], iy[~m]), dens[~m])           # mass of blocked bins to their nearest free bin
+        p[m] += dens[m]
+        # stability and positivity of the explicit steps: ds (hx2 / dx^2 + hy2 / dy^2) <= 1
+        rate = hx2 / (dx * dx) + hy2 / (dy * dy)
+        steps = max(1, math.ceil(rate / 0.95))
+        rx = 0.5 * hx2 / (dx * dx) / steps
+        ry = 0.5 * hy2 / (dy * dy) / steps
+        cx, cy = rx * open_x, ry * open_y
+        fx, fy = np.empty_like(cx), np.empty_like(cy)
+        for _ in range(steps):
+            np.subtract(p[1:, :], p[:-1, :], out=fx)
+            fx *= cx
+            np.subtract(p[:, 1:], p[:, :-1], out=fy)
+            fy *= cy
+            p[:-1, :] += fx
+            p[1:, :] -= fx
+            p[:, :-1] += fy
+            p[:, 1:] -= fy
+        p = p[ix, iy]                                      # blocked bins: the nearest free value
+        mass = float(p[m].sum()) * dx * dy
+        if mass > 0:
+            p /= mass
+        px = np.gradient(p, dx, axis=0)
+        py = np.gradient(p, dy, axis=1)
+        pxy = np.gradient(px, dy, axis=1)
+        return p, px, py, pxy
 
     def mask(self, nx: int, ny: int) -> np.ndarray:
         """``free`` resampled to an nx x ny cell grid of the domain (cell centre lookup), cached."""

@@ -53,6 +53,7 @@ from pathlib import Path
 
 from ..runtime.validation import MAX_MAGNITUDE
 from ..control import FeedbackSettings
+from ..control.kde import OBSTACLE_KERNELS
 from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict
 from ..regression import GPSettings
 from .domain import DomainSettings
@@ -307,11 +308,15 @@ class KDESettings:
                between (1, default: every sub-step, the continuous-time law; ``sim.substeps``: once
                per measurement step, ~8x fewer KDE fits for large swarms); always refitted at a
                measurement
+    obstacles  with obstacles: "renormalise" (default: the wall-reflected KDE, its mass in obstacles
+               renormalised over the free space; kernels reach across thin walls) or "reflect" (the heat
+               kernel of the free space: no mass crosses an obstacle; ``control.kde``, "Obstacles")
     """
 
     bandwidth: float | None = None
     bins: tuple = (128, 128)
     hold_substeps: int = 1
+    obstacles: str = "renormalise"
 
     def __post_init__(self):
         if self.bandwidth is not None:
@@ -329,6 +334,8 @@ class KDESettings:
         h = self.hold_substeps
         if isinstance(h, bool) or not isinstance(h, int) or not 1 <= h <= 1000:
             raise ValueError(f"kde.hold_substeps must be an integer in [1, 1000], got {h!r}")
+        if self.obstacles not in OBSTACLE_KERNELS:
+            raise ValueError(f"kde.obstacles must be one of {', '.join(OBSTACLE_KERNELS)}, got {self.obstacles!r}")
 
 
 @dataclass(frozen=True)

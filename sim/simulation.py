@@ -162,7 +162,8 @@ class Simulation:
         self.rng = np.random.default_rng(s.seed)
         self.gp = GaussianProcess(config.gp, domain=s.domain)
         self.estimate = LatestEstimate(KernelDensity(domain=s.domain, bandwidth=config.kde.bandwidth,
-                                                     bins=config.kde.bins, free=self.free), config.kde.hold_substeps)
+                                                     bins=config.kde.bins, free=self.free,
+                                                     obstacle_kernel=config.kde.obstacles), config.kde.hold_substeps)
         self.result = SimulationResult(config=config, field=self.field, grid=grid, f_true=f_true)
         self.result.free = self.free
         self.result.region = self.region
