@@ -1,4 +1,8 @@
-"""Figures of a reference plan: snapshots of p_r with v_r arrows, and the target p_f."""
+"""Figures of a reference plan: snapshots of p_r with v_r arrows, and the target p_f.
+
+With obstacles (``plan.free``) the blocked cells are drawn grey on every map and the arrows are the
+velocity the robots are given (:meth:`ReferencePlan.velocity`: faded normally at obstacle faces), none in
+blocked cells."""
 from __future__ import annotations
 
 import numpy as np
@@ -30,12 +34,25 @@ def make_plan_figure(plan: ReferencePlan, n_snapshots: int = 4, arrows: int = 12
     for ax, t in zip(axes, times):
         im = ax.imshow(plan.density_grid(t).T, origin="lower", extent=g.domain, vmin=0, vmax=vmax, cmap="viridis")
         k = plan.interval_index(min(t, np.nextafter(plan.t_end, -np.inf)))
-        v = velocity_on_grid(plan.coef[k], g.domain, xa, ya, plan.basis)
         XA, YA = np.meshgrid(xa, ya, indexing="ij")
-        ax.quiver(XA, YA, v[0], v[1], color="w", angles="xy")
+        if plan.free is None:
+            v = velocity_on_grid(plan.coef[k], g.domain, xa, ya, plan.basis)
+        else:
+            pts = np.column_stack([XA.ravel(), YA.ravel()])
+            ci = np.minimum(((pts[:, 0] - x0) / g.dx).astype(int), g.nx - 1)
+            cj = np.minimum(((pts[:, 1] - y0) / g.dy).astype(int), g.ny - 1)
+            vel = plan.velocity(plan.t_intervals[k], pts) * plan.free[ci, cj][:, None]
+            v = (vel[:, 0].reshape(XA.shape), vel[:, 1].reshape(XA.shape))
+        ax.quiver(XA, YA, v[0], v[1], color="w", angles="xy", zorder=3)
         ax.set_title(f"p_r, v_r at t = {t:.2f} s", y=1.0, fontsize=10)
     axes[-1].imshow(plan.target.T, origin="lower", extent=g.domain, vmin=0, vmax=vmax, cmap="viridis")
     axes[-1].set_title("target p_f", y=1.0, fontsize=10)
+    if plan.free is not None:          # blocked cells in grey over every map
+        rgba = np.zeros(plan.free.shape + (4,))
+        rgba[~plan.free] = (0.55, 0.55, 0.55, 1.0)
+        for ax in axes:
+            ax.imshow(np.transpose(rgba, (1, 0, 2)), origin="lower", extent=g.domain, interpolation="nearest",
+                      zorder=2)
     for k, ax in enumerate(axes):
         ax.set_xticks(ticks_x), ax.set_xlabel("x [m]")
         if k == 0:

@@ -219,7 +219,37 @@ class ReferencePlan:
         k = self.interval_index(real_scalar(t, "time t"))
         if k is None:
             return np.zeros_like(pts)
-        return velocity_at(self.coef[k], tuple(self.domain), pts, self.basis)
+        v = velocity_at(self.coef[k], tuple(self.domain), pts, self.basis)
+        if self.free is not None:
+            v = self._fade_at_obstacles(pts, v)
+        return v
+
+    def _fade_at_obstacles(self, pts: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """v_r with its normal component faded to zero at every face between a free and a blocked cell.
+
+        The planner puts zero flux through those faces (as the sine basis does at the outer walls), so the
+        series' value there is free and can point into a wall; robots driven by it pile up against the wall.
+        In a free cell the x component is multiplied by (1 - s) o_left + s o_right (s in [0, 1] the position
+        across the cell, o = 0 for a face towards a blocked cell, else 1), likewise y: the normal velocity
+        vanishes at the obstacle's face and is the series' value one cell away, continuous across open faces.
+        Points in blocked cells keep the series."""
+        g = self.grid
+        fr = self.free
+        fx = (pts[:, 0] - g.domain[0]) / g.dx
+        fy = (pts[:, 1] - g.domain[2]) / g.dy
+        ci = np.clip(np.floor(fx).astype(int), 0, g.nx - 1)
+        cj = np.clip(np.floor(fy).astype(int), 0, g.ny - 1)
+        sx = np.clip(fx - ci, 0.0, 1.0)
+        sy = np.clip(fy - cj, 0.0, 1.0)
+        here = fr[ci, cj]
+        left = np.where(ci > 0, fr[np.maximum(ci - 1, 0), cj], True) | ~here
+        right = np.where(ci < g.nx - 1, fr[np.minimum(ci + 1, g.nx - 1), cj], True) | ~here
+        down = np.where(cj > 0, fr[ci, np.maximum(cj - 1, 0)], True) | ~here
+        up = np.where(cj < g.ny - 1, fr[ci, np.minimum(cj + 1, g.ny - 1)], True) | ~here
+        out = np.array(v, dtype=float, copy=True)
+        out[:, 0] *= (1.0 - sx) * left + sx * right
+        out[:, 1] *= (1.0 - sy) * down + sy * up
+        return out
 
     # ------------------------------------------------------------------ I/O
     def save(self, path) -> Path:

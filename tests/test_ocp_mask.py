@@ -343,6 +343,35 @@ def test_masked_plan_file_round_trip_and_evaluation(door_plan, tmp_path):
                       target=plan.target, meta=plan.meta, free=free)
 
 
+def test_reference_velocity_fades_normally_at_obstacle_faces():
+    """With a mask, v_r's component normal to a face between a free and a blocked cell goes linearly to 0 at that
+    face across the free cell (the planner's zero flux there), the tangential component and cells away from
+    obstacles keep the series; without a mask v_r is the series."""
+    g = Grid((0.0, 10.0, 0.0, 8.0), 10, 8)
+    free = np.ones(g.shape, bool)
+    free[5, 2:6] = False                       # a wall: cells x in [5, 6], y in [2, 6]
+    rng = np.random.default_rng(1)
+    coef = rng.standard_normal((1, 2, 3, 3))
+    p = np.where(free, 1.0, 0.0)[None].repeat(2, axis=0)
+    p /= p[0].sum() * g.dx * g.dy
+    kw = dict(domain=np.array(g.domain), t=np.array([0.0, 1.0]), p=p, t_intervals=np.array([0.0, 1.0]), coef=coef,
+              target=p[0], meta={})
+    masked, plain = ReferencePlan(**kw, free=free), ReferencePlan(**kw)
+    ys = np.linspace(2.05, 5.95, 7)
+    for x, s in ((4.0, 0.0), (4.25, 0.25), (4.75, 0.75), (4.999, 0.999)):     # the free cell left of the wall
+        pts = np.column_stack([np.full_like(ys, x), ys])
+        v, v0 = masked.velocity(0.5, pts), plain.velocity(0.5, pts)
+        np.testing.assert_allclose(v[:, 0], (1 - s) * v0[:, 0], rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(v[:, 1], v0[:, 1], rtol=1e-12)
+    right = np.column_stack([np.full_like(ys, 6.5), ys])                     # right of the wall: s = 0.5
+    np.testing.assert_allclose(masked.velocity(0.5, right)[:, 0], 0.5 * plain.velocity(0.5, right)[:, 0], rtol=1e-12)
+    far = rng.uniform([0.0, 0.0], [3.9, 8.0], (50, 2))
+    np.testing.assert_array_equal(masked.velocity(0.5, far), plain.velocity(0.5, far))
+    # continuous across an open face: the cell left of the faded one at its right face
+    a, b = np.array([[3.999999, 3.0]]), np.array([[4.000001, 3.0]])
+    np.testing.assert_allclose(masked.velocity(0.5, a), masked.velocity(0.5, b), rtol=1e-5)
+
+
 def test_old_plans_without_free_still_load(tmp_path):
     g = Grid((0.0, 6.0, 0.0, 5.0), 6, 5)
     p = np.full((3, 6, 5), 1.0 / g.area)
@@ -379,3 +408,23 @@ def test_masked_grg_reaches_the_ipopt_optimum(door_plan):
     assert grg.meta["solver"]["success"] and grg.meta["method"] == "grg"
     assert grg.meta["objective"] == pytest.approx(plan.meta["objective"], rel=1e-4)
     assert np.all(grg.p[:, ~free] == 0)
+
+
+def test_plan_figure_shows_the_obstacles(door_plan):
+    """Every map of the plan figure carries the grey overlay of the blocked cells; no arrow sits in one."""
+    from swarmfield.ocp.figures import make_plan_figure
+    pl, plan, free = door_plan
+    fig = make_plan_figure(plan, n_snapshots=3, arrows=15)
+    maps = [a for a in fig.axes if a.images]
+    assert len(maps) == 4
+    for ax in maps:
+        overlay = ax.images[-1].get_array()
+        assert overlay.shape == free.T.shape + (4,)
+        np.testing.assert_array_equal(overlay[..., 3] > 0, ~free.T)
+    g = pl.grid
+    for q in (c for a in maps for c in a.collections if type(c).__name__ == "Quiver"):
+        xy = q.get_offsets()
+        ci = np.minimum((xy[:, 0] / g.dx).astype(int), g.nx - 1)
+        cj = np.minimum((xy[:, 1] / g.dy).astype(int), g.ny - 1)
+        assert np.all(q.U[~free[ci, cj]] == 0) and np.all(q.V[~free[ci, cj]] == 0)
+        assert np.any(q.U[free[ci, cj]] != 0)
