@@ -170,7 +170,8 @@ def domain_problem(args, grid, p0, target):
             ids = np.unique(lab[classified & (p0 > 1e-3 * p0.max())])
             free = np.isin(lab, ids[ids > 0])
     except ValueError as exc:
-        raise InputError(str(exc)) from None
+        # plan-reference takes the domain from [planner] domain (its configuration has no [sim] table)
+        raise InputError(str(exc).replace("set [sim] domain", "set [planner] domain")) from None
     if not free.any():
         raise InputError(f"domain {dom.name}: the initial density has no mass on a free cell")
     lost = classified & ~free

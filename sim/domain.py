@@ -19,7 +19,7 @@ What the rest of the toolkit gets from a Domain:
                        equation") reflected at obstacle boundaries and walls (mirror reflection, as
                        :func:`sim.dynamics.reflect` does at the walls); robots never enter an obstacle.
 ``sample(n, box, rng)``  n positions uniform on ``box`` intersected with the free space.
-``reachable_cells(grid, box)``  the free cells connected (through faces) to the start box.
+``reachable_cells(grid, box)``  the free cells connected (through faces) to the start box (and reached by the robots).
 
 The classification rule
 -----------------------
@@ -246,7 +246,7 @@ class Domain:
         segs = []
         for poly in shapely.get_parts(geom):
             for ring in [poly.exterior, *poly.interiors]:
-                c = np.asarray(ring.coords)
+                c = np.asarray(ring.coords)[:, :2]         # x, y (a GeoJSON position may carry z)
                 segs.append(np.column_stack([c[:-1], c[1:]]))
         edges = np.vstack(segs + [_walls(ext)])
         return cls(extent=ext, state=state, edges=edges, geometry=geom, name=name)
@@ -341,14 +341,35 @@ class Domain:
         nx, ny = _grid_shape(grid_or_shape, self.extent)
         return self.cell_free_fraction(nx, ny) >= min_free_fraction * (1 - 1e-12)
 
+    def reachable_pixels(self, start_box) -> np.ndarray:
+        """(Nx, Ny) bool: free pixels of the fine raster connected through pixel faces to a free pixel that
+        overlaps ``start_box``: the free space the robots can reach (they move at this resolution)."""
+        from scipy import ndimage
+        fine = self.free_pixels
+        x0, x1, y0, y1 = self.extent
+        Nx, Ny = fine.shape
+        bx0, bx1, by0, by1 = start_box
+        xs, ys = np.linspace(x0, x1, Nx + 1), np.linspace(y0, y1, Ny + 1)
+        inx = (xs[1:] > bx0) & (xs[:-1] < bx1)
+        iny = (ys[1:] > by0) & (ys[:-1] < by1)
+        lab, _ = ndimage.label(fine)
+        ids = np.unique(lab[np.ix_(inx, iny)])
+        return np.isin(lab, ids[ids > 0])
+
     def reachable_cells(self, free: np.ndarray, start_box) -> np.ndarray:
-        """Free cells (of the (nx, ny) mask ``free``) connected through cell faces to a free cell that
-        overlaps ``start_box``: the part of the planner's free space the swarm can reach."""
+        """Free cells (of the (nx, ny) mask ``free``) the swarm can reach from ``start_box``: most of the cell's
+        free area is reachable at the map's own resolution (a wall thinner than a cell still closes a room;
+        :meth:`reachable_pixels`), and the cell is connected through cell faces to a free cell that overlaps
+        the start box (the planner moves mass through faces)."""
         from scipy import ndimage
         free = np.asarray(free, bool)
         nx, ny = free.shape
         x0, x1, y0, y1 = self.extent
         bx0, bx1, by0, by1 = start_box
+        if not self.is_rectangle:
+            reach = cell_fractions(self.reachable_pixels(start_box), self.extent, nx, ny)
+            total = cell_fractions(self.free_pixels, self.extent, nx, ny)
+            free = free & (reach >= 0.5 * total) & (reach > 0)
         xs, ys = np.linspace(x0, x1, nx + 1), np.linspace(y0, y1, ny + 1)
         inx = (xs[1:] > bx0) & (xs[:-1] < bx1)
         iny = (ys[1:] > by0) & (ys[:-1] < by1)
@@ -794,16 +815,30 @@ def _image_to_free(a: np.ndarray, nodata=None, what="image") -> np.ndarray:
 
 def _load_npz(path: Path, sim_extent):
     try:
-        with np.load(path, allow_pickle=False) as z:
+        z = np.load(path, allow_pickle=False)
+    except (OSError, EOFError, ValueError) as exc:   # ValueError: pickled data, e.g. a text file
+        raise ValueError(f"domain file {path} is not a mask (.npz): not a NumPy archive "
+                         f"({exc.__class__.__name__})") from None
+    if not isinstance(z, np.lib.npyio.NpzFile):      # a single .npy array under an .npz name
+        raise ValueError(f"domain file {path} is not a mask (.npz): it holds a single array, not an archive with "
+                         "'free' and 'extent'")
+    try:
+        with z:
             if "free" not in z.files:
                 raise ValueError(f"domain file {path} is not a mask: no array 'free' (found {', '.join(z.files) or 'none'})")
             free = np.asarray(z["free"])
             ext = z["extent"] if "extent" in z.files else sim_extent
-    except (OSError, EOFError) as exc:
-        raise ValueError(f"domain file {path} is not a mask (.npz): {exc}") from None
+    except (OSError, EOFError, ValueError) as exc:
+        if str(exc).startswith("domain file"):
+            raise
+        raise ValueError(f"domain file {path} is not a mask (.npz): {exc.__class__.__name__}") from None
     if ext is None:
         raise ValueError(f"domain file {path} has no 'extent' and no simulation domain was given")
-    return Domain.from_raster(free, np.asarray(ext, float).ravel(), name=path.stem)
+    try:
+        ext = np.asarray(ext, float).ravel()
+    except (TypeError, ValueError):
+        raise ValueError(f"domain file {path}: 'extent' must be four numbers [x0, x1, y0, y1], got {np.asarray(ext).tolist()!r}") from None
+    return Domain.from_raster(free, ext, name=path.stem)
 
 
 def _load_png(path: Path, sim_extent):

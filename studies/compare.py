@@ -61,9 +61,12 @@ def run_task(task: dict) -> list[dict]:
 
     from ..sim.stopping import make_stop_rule
 
+    import warnings
     cfg = config_from_dict(task["config"])
     # the configuration's own stop rule, recorded at every measurement; the run itself never stops at it
-    res = run_simulation(cfg, stop_rule=make_stop_rule(cfg.sim, stops=False))
+    with warnings.catch_warnings():    # unreachable free space: said once by make_tasks, not by every run
+        warnings.filterwarnings("ignore", message=".*cannot be reached", category=UserWarning)
+        res = run_simulation(cfg, stop_rule=make_stop_rule(cfg.sim, stops=False))
     T = cfg.sim.period
     label = {k: task[k] for k in ("preset", "controller", "field", "seed", "robot_loss", "robots")}
     if "domain" in task:
@@ -190,9 +193,11 @@ def _reachable_cells(cfg):
         import warnings
         from ..ocp import Grid
         from ..sim.simulation import resolve_domain
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)      # the run itself warns about unreachable space
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always", UserWarning)
             _FREE_CACHE[key] = resolve_domain(cfg, Grid(cfg.planner.domain, cfg.planner.nx, cfg.planner.ny))[1]
+        for w in seen:                 # once per domain here, as one line; the runs themselves stay quiet
+            print(f"{PROG}: warning: {w.message}", file=sys.stderr)
     return _FREE_CACHE[key]
 
 

@@ -346,6 +346,35 @@ def test_unreachable_free_space_is_excluded_with_a_warning(tmp_path):
         run_simulation(bad)
 
 
+def test_a_room_closed_by_a_wall_thinner_than_a_cell_is_unreachable(tmp_path):
+    """Reachability at the map's own resolution: a 0.2 m wall (less than half a 0.5 m planner cell) leaves
+    every planner cell free, but the robots cannot cross it; the room is excluded, the rest is kept."""
+    n = 400
+    X, Y = np.meshgrid((np.arange(n) + 0.5) * 0.05, (np.arange(n) + 0.5) * 0.05, indexing="ij")
+    ring = (np.abs(X - 15.0) < 3.1) & (np.abs(Y - 15.0) < 3.1) & ~((np.abs(X - 15.0) < 2.9) & (np.abs(Y - 15.0) < 2.9))
+    d = Domain.from_raster(~ring, EXT, name="thin")
+    free = d.free_cells((40, 40))
+    assert free.all()                                           # the wall is invisible at the planner's cells
+    reach = d.reachable_cells(free, (0.0, 7.0, 0.0, 7.0))
+    assert not reach[26:34, 26:34].any() and reach[:22, :].all() and reach[:, :22].all()
+    assert 140 <= (~reach).sum() <= 150                         # the room's 5.8 m x 5.8 m and half its wall's cells
+    np.savez(tmp_path / "thin.npz", free=~ring, extent=np.array(EXT))
+    from swarmfield.sim.simulation import Simulation
+    with pytest.warns(UserWarning, match="cannot be reached"):
+        sim = Simulation(_cfg("diffusion", source=str(tmp_path / "thin.npz"), max_periods=1))
+    assert np.array_equal(sim.free, reach)
+
+
+def test_geojson_positions_with_z_load(tmp_path):
+    pytest.importorskip("shapely")
+    ring = [[0, 0, 5], [20, 0, 5], [20, 20, 5], [0, 20, 5], [0, 0, 5]]
+    hole = [[10, 10, 5], [12, 10, 5], [12, 12, 5], [10, 12, 5], [10, 10, 5]]
+    (tmp_path / "z.geojson").write_text(json.dumps({"type": "Polygon", "coordinates": [ring, hole]}))
+    d = load_domain(tmp_path / "z.geojson", EXT)
+    assert d.free_area == pytest.approx(396.0)
+    assert not d.contains([[11.0, 11.0]])[0] and d.contains([[5.0, 5.0]])[0]
+
+
 def test_domain_table_round_trips_through_toml(tmp_path):
     from swarmfield.sim.config import load_config, to_toml
     cfg = _cfg("greedy", source="harbour")
@@ -371,7 +400,12 @@ def _bad_files(tmp_path):
     blocked_start = np.ones((40, 40), bool)
     blocked_start[4:6, 4:6] = False
     np.savez(tmp_path / "rock.npz", free=blocked_start, extent=np.array(EXT))
-    return {"allblocked.npz": "no free cell", "small.npz": "does not match the simulation domain",
+    np.save(tmp_path / "single.npy", np.ones((10, 10), bool))
+    (tmp_path / "single.npy").rename(tmp_path / "single.npz")                  # an .npy under an .npz name
+    (tmp_path / "text.npz").write_text("free = 1")
+    np.savez(tmp_path / "strext.npz", free=np.ones((10, 10), bool), extent=np.array(["a", "b", "c", "d"]))
+    return {"single.npz": "is not a mask .* single array", "text.npz": "is not a mask .* not a NumPy archive",
+            "strext.npz": "'extent' must be four numbers","allblocked.npz": "no free cell", "small.npz": "does not match the simulation domain",
             "nofree.npz": "is not a mask", "black.png": "no free cell", "fake.png": "is not an image",
             "map.txt": "is not a mask, image or polygon file", "point.geojson": "is not a Polygon",
             "broken.geojson": "is not GeoJSON", "rock.npz": "start box .* is not free",
