@@ -810,6 +810,11 @@ def _image_to_free(a: np.ndarray, nodata=None, what="image") -> np.ndarray:
     if alpha is not None:
         free &= alpha >= LIGHT * full
     free &= ~nod
+    if not free.any():
+        finite = val[np.isfinite(val)]
+        seen = f"its pixels range from {finite.min():g} to {finite.max():g}" if finite.size else "no finite pixel"
+        raise ValueError(f"{what}: no free cell: a pixel is free when its colour is at least {LIGHT * full:g} "
+                         f"(half of the full scale {full:g} of {a.dtype}) and it is opaque and not nodata; {seen}")
     return free[::-1, :].T.copy()
 
 
