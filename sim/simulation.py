@@ -158,6 +158,12 @@ class Simulation:
         f_true = self.field(self.centers).reshape(grid.shape)
         if not np.all(np.isfinite(f_true)):
             raise ValueError("the field has non-finite values on the grid")
+        if np.ptp(f_true) <= 1e-6 * max(1.0, float(np.abs(f_true).max())):
+            # e.g. an analytic field (defined for the paper's [0, 20]^2) on a map in UTM coordinates
+            warnings.warn(f"the field {self.field.describe().get('name', '')!r} is constant on sim.domain "
+                          f"{list(s.domain)} (range {np.ptp(f_true):.3g}): the built-in fields are defined around "
+                          "the paper's [0, 20]^2; give a field file on this domain (--field FILE)", UserWarning,
+                          stacklevel=2)
 
         self.rng = np.random.default_rng(s.seed)
         self.gp = GaussianProcess(config.gp, domain=s.domain)

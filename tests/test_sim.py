@@ -543,3 +543,18 @@ def test_a_failed_receding_replan_keeps_the_periods_plan():
     assert [r["success"] for r in res.replans] == [True, False]
     assert res.stop_reason == "max_time" and res.error is None
     assert sim.plan.t_start == 0.0                    # the period's plan stayed in force
+
+
+def test_a_field_constant_on_the_domain_is_warned_about():
+    """The built-in fields are defined around the paper's [0, 20]^2: on a map in projected coordinates the sinc
+    field is flat to 1e-7, which the run says (and the paper's domain does not)."""
+    import warnings as _w
+    from swarmfield.sim.config import config_from_dict
+    from swarmfield.sim.simulation import Simulation
+    far = config_from_dict({"sim": {"domain": [5e5, 5e5 + 20, 4e6, 4e6 + 20], "start_box": [5e5, 5e5 + 7, 4e6, 4e6 + 7],
+                                    "controller": "diffusion", "max_periods": 1, "robots": 20}})
+    with pytest.warns(UserWarning, match="constant on sim.domain"):
+        Simulation(far)
+    with _w.catch_warnings():
+        _w.simplefilter("error", UserWarning)
+        Simulation(config_from_dict({"sim": {"controller": "diffusion", "max_periods": 1, "robots": 20}}))
