@@ -168,7 +168,7 @@ def tracking_velocity(X, plan, t: float, est, settings: FeedbackSettings, stir_p
     stirring flux of :mod:`control.stirring` with ``stir_pattern = (k, sense)`` (default
     ``(settings.stir_cells, 1)``) is added.
 
-    From :data:`control.robot_kernel.MIN_ROBOTS` robots on (without obstacle masks) all of this runs
+    From :data:`control.robot_kernel.MIN_ROBOTS` robots on (with or without obstacles) all of this runs
     as one compiled pass over the robots (:func:`control.robot_kernel.tracking_velocity`, ~5x faster
     at 10^6 robots, the same values to ~1e-15 relative); below it, or without a C compiler, the
     NumPy code here.

@@ -14,7 +14,7 @@ Two functions, both checked against the NumPy reference in ``tests/test_robot_ke
   NumPy result, so it is used at any number of robots.
 * :func:`tracking_velocity` -- p_hat, grad p_hat (:meth:`control.kde.DensityEstimate.evaluate`),
   p_r, grad p_r (``ReferencePlan.density_and_gradient``), v_r (``ReferencePlan.velocity``, either
-  basis), the stirring flux (:func:`control.stirring.stirring_flux`) and
+  basis; with an obstacle mask p_r over the free corners and v_r faded at obstacle faces), the stirring flux (:func:`control.stirring.stirring_flux`) and
   eq. "density feedback law using estimation" with floor and saturation
   (:func:`control.feedback.feedback_velocity`), per robot, written operation by operation as the
   NumPy code (no contraction or reassociation).  The one difference is the rounding of ``sin`` /
@@ -166,6 +166,9 @@ typedef struct {
     double alpha, sigma, p_floor, v_max; long saturate;
     /* stirring: c, k pi / bx, k pi / by, k pi, stirring domain origin and sides (c == 0: none) */
     long stir; double sc, kpbx, kpby, kpi, sx0, sy0, sbx, sby;
+    /* obstacles: the plan's free cells (nx, ny) as 0/1 bytes, NULL without a mask
+       (ReferencePlan._bilinear_free and ReferencePlan._fade_at_obstacles) */
+    const unsigned char *fr;
 } Params;
 
 #define MAXMODES 64
@@ -225,6 +228,7 @@ long sf_tracking(long n, const double *X, double *V, const Params *q) {
     double *xs = w + 15 * BLK, *ys = w + 16 * BLK;
     double *Sx = w + 18 * BLK, *Sy = Sx + MAXMODES * BLK, *Cx = Sy + MAXMODES * BLK, *Cy = Cx + MAXMODES * BLK;
     const double *P = q->P, *PX = q->PX, *PY = q->PY, *PXY = q->PXY, *F = q->F;
+    const unsigned char *fr = q->fr;
     long I = q->I, J = q->J;
     for (long k0 = 0; k0 < n; k0 += BLK) {
         long m = n - k0 < BLK ? n - k0 : BLK;
@@ -287,6 +291,26 @@ long sf_tracking(long n, const double *X, double *V, const Params *q) {
             double f00 = F[gi * ny + gj], f10 = F[(gi + 1) * ny + gj];
             double f01 = F[gi * ny + gj + 1], f11 = F[(gi + 1) * ny + gj + 1];
             double inx = (rx > 0 && rx < nx - 1) ? 1.0 : 0.0, iny = (ry > 0 && ry < ny - 1) ? 1.0 : 0.0;
+            if (fr) {       /* over the free corners, weights renormalised; 0 in a blocked cell */
+                double m00 = fr[gi * ny + gj], m10 = fr[(gi + 1) * ny + gj];
+                double m01 = fr[gi * ny + gj + 1], m11 = fr[(gi + 1) * ny + gj + 1];
+                double w00 = (1 - sx) * (1 - sy), w10 = sx * (1 - sy), w01 = (1 - sx) * sy, w11 = sx * sy;
+                double num = 0.0 + w00 * m00 * f00 + w10 * m10 * f10 + w01 * m01 * f01 + w11 * m11 * f11;
+                double den = 0.0 + w00 * m00 + w10 * m10 + w01 * m01 + w11 * m11;
+                long ci = (long)floor((x - gx0) / gdx), cj = (long)floor((y - gy0) / gdy);
+                ci = ci < 0 ? 0 : (ci > nx - 1 ? nx - 1 : ci);
+                cj = cj < 0 ? 0 : (cj > ny - 1 ? ny - 1 : cj);
+                int inside = fr[ci * ny + cj] && den > 0;
+                double safe = inside ? den : 1.0;
+                double dnx = 0.0 + (-(1 - sy)) * m00 * f00 + (1 - sy) * m10 * f10 + (-sy) * m01 * f01 + sy * m11 * f11;
+                double ddx = 0.0 + (-(1 - sy)) * m00 + (1 - sy) * m10 + (-sy) * m01 + sy * m11;
+                double dny = 0.0 + (-(1 - sx)) * m00 * f00 + (-sx) * m10 * f10 + (1 - sx) * m01 * f01 + sx * m11 * f11;
+                double ddy = 0.0 + (-(1 - sx)) * m00 + (-sx) * m10 + (1 - sx) * m01 + sx * m11;
+                pr[b] = inside ? num / safe : 0.0;
+                prx[b] = (inside ? (dnx * safe - num * ddx) / (safe * safe) : 0.0) / gdx * inx;
+                pry[b] = (inside ? (dny * safe - num * ddy) / (safe * safe) : 0.0) / gdy * iny;
+                continue;
+            }
             pr[b] = (1 - sx) * (1 - sy) * f00 + sx * (1 - sy) * f10 + (1 - sx) * sy * f01 + sx * sy * f11;
             prx[b] = ((1 - sy) * (f10 - f00) + sy * (f11 - f01)) / gdx * inx;
             pry[b] = ((1 - sx) * (f01 - f00) + sx * (f11 - f10)) / gdy * iny;
@@ -344,6 +368,24 @@ long sf_tracking(long n, const double *X, double *V, const Params *q) {
                     for (long b = 0; b < m; b++) out[b] += r[b] * T[b];
                 }
             }
+            if (fr) {       /* the normal component faded to 0 at faces towards blocked cells */
+                for (long b = 0; b < m; b++) {
+                    double fx = (xs[b] - gx0) / gdx, fy = (ys[b] - gy0) / gdy;
+                    long ci = (long)floor(fx), cj = (long)floor(fy);
+                    ci = ci < 0 ? 0 : (ci > nx - 1 ? nx - 1 : ci);
+                    cj = cj < 0 ? 0 : (cj > ny - 1 ? ny - 1 : cj);
+                    double sx = fx - ci, sy = fy - cj;
+                    sx = sx < 0.0 ? 0.0 : (sx > 1.0 ? 1.0 : sx);
+                    sy = sy < 0.0 ? 0.0 : (sy > 1.0 ? 1.0 : sy);
+                    int here = fr[ci * ny + cj];
+                    double lo = (ci > 0 ? fr[(ci - 1) * ny + cj] : 1) || !here;
+                    double hi = (ci < nx - 1 ? fr[(ci + 1) * ny + cj] : 1) || !here;
+                    double dn = (cj > 0 ? fr[ci * ny + cj - 1] : 1) || !here;
+                    double up = (cj < ny - 1 ? fr[ci * ny + cj + 1] : 1) || !here;
+                    vrx[b] = vrx[b] * ((1.0 - sx) * lo + sx * hi);
+                    vry[b] = vry[b] * ((1.0 - sy) * dn + sy * up);
+                }
+            }
         } else {
             for (long b = 0; b < m; b++) { vrx[b] = 0.0; vry[b] = 0.0; }
         }
@@ -395,7 +437,8 @@ class _Params(ctypes.Structure):
                 + [(n, ctypes.c_double) for n in ("vx0", "vy0", "vbx", "vby")]
                 + [(n, ctypes.c_double) for n in ("alpha", "sigma", "p_floor", "v_max")]
                 + [("saturate", ctypes.c_long), ("stir", ctypes.c_long)]
-                + [(n, ctypes.c_double) for n in ("sc", "kpbx", "kpby", "kpi", "sx0", "sy0", "sbx", "sby")])
+                + [(n, ctypes.c_double) for n in ("sc", "kpbx", "kpby", "kpi", "sx0", "sy0", "sbx", "sby")]
+                + [("fr", ctypes.c_void_p)])
 
 
 def _declare(lib):
@@ -465,10 +508,10 @@ def _ptr(a: np.ndarray) -> int:
 
 def tracking_velocity(X: np.ndarray, plan, t: float, est, settings, stir_pattern, plan_dom):
     """The feedback velocity (n, 2) of :func:`control.feedback.tracking_velocity` in one C pass over the
-    robots, or None if this case is not covered (obstacle masks, an unknown basis, a bad robot or a
+    robots, or None if this case is not covered (an unknown basis, a bad robot or a
     negative p_r: the caller then runs the NumPy path, which raises where it must)."""
     lib = _LIB.lib()
-    if lib is None or getattr(plan, "free", None) is not None or getattr(est, "free", None) is not None:
+    if lib is None:
         return None
     basis = getattr(plan, "basis", "sine")
     if basis not in ("sine", "sine-cosine"):
@@ -490,6 +533,13 @@ def tracking_velocity(X: np.ndarray, plan, t: float, est, settings, stir_pattern
     keep.append(F)
     q.nx, q.ny, q.F = g.nx, g.ny, _ptr(F)
     q.gx0, q.gy0, q.gdx, q.gdy = g.domain[0], g.domain[2], g.dx, g.dy
+    q.fr = None
+    if getattr(plan, "free", None) is not None:
+        if g.nx < 2 or g.ny < 2:
+            return None
+        fr = np.ascontiguousarray(plan.free, dtype=np.uint8)
+        keep.append(fr)
+        q.fr = _ptr(fr)
     k = plan.interval_index(float(t))
     if k is None:
         q.coef = None
