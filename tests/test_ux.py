@@ -170,6 +170,9 @@ def test_panels_figure_content(result):
     assert len(quivers) == sum(sn.velocity is not None for sn in panel_snapshots(result))
     assert [a.get_xlabel() for a in grid[-ncol:]] == ["x [m]"] * ncol
     assert all(a.get_ylabel().endswith("y [m]") for a in grid[::ncol])
+    # the labelled axes are drawn; the inner panels' empty axes are not (drawing time)
+    assert all(a.xaxis.get_visible() for a in grid[-ncol:]) and all(a.yaxis.get_visible() for a in grid[::ncol])
+    assert not any(a.xaxis.get_visible() for a in grid[:-ncol]) and not any(a.yaxis.get_visible() for a in grid[1:ncol])
     assert all(a.get_title().startswith("t = ") for a in grid[:ncol])
     assert "[1/m²]" in bars[0].get_ylabel() and "[m/s]" in bars[3].get_ylabel()
     assert fig.get_suptitle()
