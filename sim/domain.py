@@ -842,7 +842,8 @@ def _load_npz(path: Path, sim_extent):
     try:
         ext = np.asarray(ext, float).ravel()
     except (TypeError, ValueError):
-        raise ValueError(f"domain file {path}: 'extent' must be four numbers [x0, x1, y0, y1], got {np.asarray(ext).tolist()!r}") from None
+        raise ValueError(f"domain file {path}: 'extent' must be four numbers [x0, x1, y0, y1], "
+                         f"got {np.asarray(ext).tolist()!r}") from None
     return Domain.from_raster(free, ext, name=path.stem)
 
 
