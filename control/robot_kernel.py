@@ -21,7 +21,8 @@ Two functions, both checked against the NumPy reference in ``tests/test_robot_ke
   difference is the rounding of ``sin`` / ``cos`` (libm here, NumPy's SIMD versions there) and the
   summation order of the v_r series (BLAS there), so it agrees to a few ulps, not bit for bit;
   :func:`control.feedback.tracking_velocity` therefore uses it only from :data:`MIN_ROBOTS` robots on
-  (the paper's 100-robot runs keep their bits).  ``SWARMFIELD_ROBOT_KERNEL = numpy | compiled | auto`` overrides the choice (tests).
+  (the paper's 100-robot runs keep their bits).  ``SWARMFIELD_ROBOT_KERNEL = numpy | compiled |
+  auto`` overrides the choice (tests).
 
 Anything unusual (a robot outside the domain or not finite, a negative p_r) makes the C function
 return an error and the caller rerun the NumPy code, which raises its usual message.
