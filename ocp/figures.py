@@ -39,8 +39,7 @@ def make_plan_figure(plan: ReferencePlan, n_snapshots: int = 4, arrows: int = 12
             v = velocity_on_grid(plan.coef[k], g.domain, xa, ya, plan.basis)
         else:
             pts = np.column_stack([XA.ravel(), YA.ravel()])
-            ci = np.minimum(((pts[:, 0] - x0) / g.dx).astype(int), g.nx - 1)
-            cj = np.minimum(((pts[:, 1] - y0) / g.dy).astype(int), g.ny - 1)
+            ci, cj, _, _ = plan.cells(pts)
             vel = plan.velocity(plan.t_intervals[k], pts) * plan.free[ci, cj][:, None]
             v = (vel[:, 0].reshape(XA.shape), vel[:, 1].reshape(XA.shape))
         ax.quiver(XA, YA, v[0], v[1], color="w", angles="xy", zorder=3)

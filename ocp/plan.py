@@ -185,8 +185,7 @@ class ReferencePlan:
         den = sum(wk * mk for wk, mk in zip(w, m))
         # the cell holding the point: blocked -> 0; free -> it is a corner of the stencil with weight > 0
         # (or the point sits on a face, where the renormalised value is that of the free side)
-        ci = np.clip(np.floor((pts[:, 0] - g.domain[0]) / g.dx).astype(int), 0, g.nx - 1)
-        cj = np.clip(np.floor((pts[:, 1] - g.domain[2]) / g.dy).astype(int), 0, g.ny - 1)
+        ci, cj, _, _ = self.cells(pts)
         inside = fr[ci, cj] & (den > 0)
         safe = np.where(inside, den, 1.0)
         val = np.where(inside, num / safe, 0.0)
@@ -198,6 +197,17 @@ class ReferencePlan:
             dden = sum(d * mk for d, mk in zip(dw, m))
             out.append(np.where(inside, (dnum * safe - num * dden) / (safe * safe), 0.0) / step * ok)
         return val, np.column_stack(out)
+
+    def cells(self, points: np.ndarray):
+        """(ci, cj, sx, sy) of points (n, 2): the grid cell holding each point (clipped to the grid) and the
+        point's position across it, in [0, 1] per axis."""
+        g = self.grid
+        pts = points_array(points)
+        fx = (pts[:, 0] - g.domain[0]) / g.dx
+        fy = (pts[:, 1] - g.domain[2]) / g.dy
+        ci = np.clip(np.floor(fx).astype(int), 0, g.nx - 1)
+        cj = np.clip(np.floor(fy).astype(int), 0, g.ny - 1)
+        return ci, cj, np.clip(fx - ci, 0.0, 1.0), np.clip(fy - cj, 0.0, 1.0)
 
     def density(self, t: float, points: np.ndarray) -> np.ndarray:
         """p_r(t, x) at points (n, 2) -> (n,)."""
@@ -235,12 +245,7 @@ class ReferencePlan:
         Points in blocked cells keep the series."""
         g = self.grid
         fr = self.free
-        fx = (pts[:, 0] - g.domain[0]) / g.dx
-        fy = (pts[:, 1] - g.domain[2]) / g.dy
-        ci = np.clip(np.floor(fx).astype(int), 0, g.nx - 1)
-        cj = np.clip(np.floor(fy).astype(int), 0, g.ny - 1)
-        sx = np.clip(fx - ci, 0.0, 1.0)
-        sy = np.clip(fy - cj, 0.0, 1.0)
+        ci, cj, sx, sy = self.cells(pts)
         here = fr[ci, cj]
         left = np.where(ci > 0, fr[np.maximum(ci - 1, 0), cj], True) | ~here
         right = np.where(ci < g.nx - 1, fr[np.minimum(ci + 1, g.nx - 1), cj], True) | ~here

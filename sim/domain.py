@@ -132,6 +132,21 @@ def cell_fractions(free_pixels: np.ndarray, extent, nx: int, ny: int) -> np.ndar
     return area / (((x1 - x0) / nx) * ((y1 - y0) / ny))
 
 
+def _connected_to_box(mask: np.ndarray, extent, box) -> np.ndarray:
+    """The True entries of ``mask`` (a raster of ``extent``) connected through faces (4-connectivity) to a True
+    entry whose area overlaps ``box`` = (x0, x1, y0, y1)."""
+    from scipy import ndimage
+    x0, x1, y0, y1 = extent
+    nx, ny = mask.shape
+    bx0, bx1, by0, by1 = box
+    xs, ys = np.linspace(x0, x1, nx + 1), np.linspace(y0, y1, ny + 1)
+    inx = (xs[1:] > bx0) & (xs[:-1] < bx1)
+    iny = (ys[1:] > by0) & (ys[:-1] < by1)
+    lab, _ = ndimage.label(mask)
+    ids = np.unique(lab[np.ix_(inx, iny)])
+    return np.isin(lab, ids[ids > 0])
+
+
 def _merged_faces(free: np.ndarray, extent) -> np.ndarray:
     """Pixel faces between a free and a blocked pixel, merged into maximal straight runs: (E, 4)."""
     x0, x1, y0, y1 = extent
@@ -344,39 +359,21 @@ class Domain:
     def reachable_pixels(self, start_box) -> np.ndarray:
         """(Nx, Ny) bool: free pixels of the fine raster connected through pixel faces to a free pixel that
         overlaps ``start_box``: the free space the robots can reach (they move at this resolution)."""
-        from scipy import ndimage
-        fine = self.free_pixels
-        x0, x1, y0, y1 = self.extent
-        Nx, Ny = fine.shape
-        bx0, bx1, by0, by1 = start_box
-        xs, ys = np.linspace(x0, x1, Nx + 1), np.linspace(y0, y1, Ny + 1)
-        inx = (xs[1:] > bx0) & (xs[:-1] < bx1)
-        iny = (ys[1:] > by0) & (ys[:-1] < by1)
-        lab, _ = ndimage.label(fine)
-        ids = np.unique(lab[np.ix_(inx, iny)])
-        return np.isin(lab, ids[ids > 0])
+        return _connected_to_box(self.free_pixels, self.extent, start_box)
 
     def reachable_cells(self, free: np.ndarray, start_box) -> np.ndarray:
         """Free cells (of the (nx, ny) mask ``free``) the swarm can reach from ``start_box``: most of the cell's
         free area is reachable at the map's own resolution (a wall thinner than a cell still closes a room;
         :meth:`reachable_pixels`), and the cell is connected through cell faces to a free cell that overlaps
         the start box (the planner moves mass through faces)."""
-        from scipy import ndimage
         free = np.asarray(free, bool)
         nx, ny = free.shape
-        x0, x1, y0, y1 = self.extent
-        bx0, bx1, by0, by1 = start_box
         if not self.is_rectangle:
-            reach = cell_fractions(self.reachable_pixels(start_box), self.extent, nx, ny)
-            total = cell_fractions(self.free_pixels, self.extent, nx, ny)
+            fine = self.free_pixels
+            reach = cell_fractions(_connected_to_box(fine, self.extent, start_box), self.extent, nx, ny)
+            total = cell_fractions(fine, self.extent, nx, ny)
             free = free & (reach >= 0.5 * total) & (reach > 0)
-        xs, ys = np.linspace(x0, x1, nx + 1), np.linspace(y0, y1, ny + 1)
-        inx = (xs[1:] > bx0) & (xs[:-1] < bx1)
-        iny = (ys[1:] > by0) & (ys[:-1] < by1)
-        seed = free & inx[:, None] & iny[None, :]
-        lab, _ = ndimage.label(free)           # 4-connectivity: cells that share a face
-        ids = np.unique(lab[seed])
-        return np.isin(lab, ids[ids > 0])
+        return _connected_to_box(free, self.extent, start_box)
 
     def box_is_free(self, box) -> bool:
         """True iff the whole box lies in the free space (checked at the fine raster, exact for polygons)."""
