@@ -60,6 +60,10 @@ class FeedbackSettings:
     stir_speed : speed u [m/s] of the density-preserving stirring flux J added to the numerator
             (:mod:`control.stirring`; beyond the paper, issue 10); 0 (default) is the paper's law.
     stir_cells : number k of stirring cells per axis (k and k + 1 alternate between periods).
+    transport_rate : rate beta [1/s] of the global mass-transport flux beta grad psi added to the
+            numerator (:mod:`control.poisson_flux`; beyond the paper): with it the error decays as
+            dPhi/dt = div(alpha grad Phi) - beta Phi, through doors and around obstacles; 0 (default)
+            is the paper's law.
     """
 
     alpha: float = 1.0
@@ -68,18 +72,19 @@ class FeedbackSettings:
     v_max: float = 4.0
     stir_speed: float = 0.0
     stir_cells: int = 2
+    transport_rate: float = 0.0
 
     def __post_init__(self):
         k = self.stir_cells
         if isinstance(k, bool) or not isinstance(k, (int, np.integer, float)) or k != int(k) or not 1 <= k <= 64:
             raise ValueError(f"feedback.stir_cells must be an integer in [1, 64], got {k!r}")
         object.__setattr__(self, "stir_cells", int(k))
-        for name in ("alpha", "sigma", "p_floor", "v_max", "stir_speed"):
+        for name in ("alpha", "sigma", "p_floor", "v_max", "stir_speed", "transport_rate"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)):
                 raise ValueError(f"feedback.{name} must be a number, got {v!r}")
             object.__setattr__(self, name, float(v))
-        for name in ("alpha", "sigma", "p_floor", "stir_speed"):
+        for name in ("alpha", "sigma", "p_floor", "stir_speed", "transport_rate"):
             if getattr(self, name) > MAX_MAGNITUDE:
                 raise ValueError(f"feedback.{name} must be <= {MAX_MAGNITUDE:g}, got {getattr(self, name)}")
         if not (math.isfinite(self.alpha) and self.alpha > 0):
@@ -90,6 +95,8 @@ class FeedbackSettings:
             raise ValueError(f"feedback.p_floor must be finite and > 0, got {self.p_floor}")
         if not (math.isfinite(self.stir_speed) and self.stir_speed >= 0):
             raise ValueError(f"feedback.stir_speed must be finite and >= 0, got {self.stir_speed}")
+        if not (math.isfinite(self.transport_rate) and self.transport_rate >= 0):
+            raise ValueError(f"feedback.transport_rate must be finite and >= 0, got {self.transport_rate}")
         if not (self.v_max > 0) or math.isnan(self.v_max):
             raise ValueError(f"feedback.v_max must be > 0 (inf allowed), got {self.v_max}")
 
@@ -166,7 +173,9 @@ def tracking_velocity(X, plan, t: float, est, settings: FeedbackSettings, stir_p
     :func:`feedback_velocity`.  ``plan`` is an :class:`ocp.plan.ReferencePlan`; ``est`` a
     :class:`control.kde.DensityEstimate` on the same domain.  With ``settings.stir_speed > 0`` the
     stirring flux of :mod:`control.stirring` with ``stir_pattern = (k, sense)`` (default
-    ``(settings.stir_cells, 1)``) is added.
+    ``(settings.stir_cells, 1)``) is added; with ``settings.transport_rate > 0`` the global transport
+    flux of :mod:`control.poisson_flux` (on the plan's grid and free cells, from p_hat at the cell
+    centres and p_r(t)) too.
 
     From :data:`control.robot_kernel.MIN_ROBOTS` robots on (with or without obstacles) all of this runs
     as one compiled pass over the robots (:func:`control.robot_kernel.tracking_velocity`, ~5x faster
@@ -185,26 +194,49 @@ def tracking_velocity(X, plan, t: float, est, settings: FeedbackSettings, stir_p
     if plan_dom.shape != (4,) or not np.allclose(plan_dom, est.domain, rtol=1e-12, atol=1e-12):
         raise ValueError(f"plan domain {tuple(plan_dom)} differs from the density estimate's domain {tuple(est.domain)}")
     n = X.shape[0]
-    from . import robot_kernel
-    if robot_kernel.use_compiled(n):      # one C pass over the robots (control.robot_kernel; a few ulps)
-        v = robot_kernel.tracking_velocity(X, plan, t, est, settings, stir_pattern, plan_dom)
-        if v is not None:
-            return v
+    transport = None
+    if settings.transport_rate > 0:       # (the compiled pass has no transport flux: NumPy below)
+        transport = _transport_faces(plan, t, est, settings.transport_rate)
+    else:
+        from . import robot_kernel
+        if robot_kernel.use_compiled(n):      # one C pass over the robots (control.robot_kernel; a few ulps)
+            v = robot_kernel.tracking_velocity(X, plan, t, est, settings, stir_pattern, plan_dom)
+            if v is not None:
+                return v
     if n <= _BLOCK:
-        return _tracking_block(X, plan, t, est, settings, stir_pattern, plan_dom)
+        return _tracking_block(X, plan, t, est, settings, stir_pattern, plan_dom, transport)
     # robots in blocks: every operation is per robot, so the bits are those of one pass, but the
     # temporaries (~30 arrays of n numbers) stay in cache for large swarms
     v = np.empty((n, 2))
     for s in range(0, n, _BLOCK):
-        v[s:s + _BLOCK] = _tracking_block(X[s:s + _BLOCK], plan, t, est, settings, stir_pattern, plan_dom)
+        v[s:s + _BLOCK] = _tracking_block(X[s:s + _BLOCK], plan, t, est, settings, stir_pattern, plan_dom, transport)
     return v
+
+
+#: PoissonFlux factorisations by (domain, nx, ny, free mask): one per grid and map in a run
+_POISSON_CACHE: dict = {}
+
+
+def _transport_faces(plan, t, est, rate):
+    """(PoissonFlux, face fluxes) of the transport term for the plan's grid at time t."""
+    from .poisson_flux import PoissonFlux
+    g = plan.grid
+    free = plan.free
+    key = (tuple(g.domain), g.nx, g.ny, None if free is None else np.asarray(free, dtype=bool).tobytes())
+    solver = _POISSON_CACHE.get(key)
+    if solver is None:
+        if len(_POISSON_CACHE) >= 8:
+            _POISSON_CACHE.clear()
+        solver = _POISSON_CACHE[key] = PoissonFlux(g, free)
+    error = est.on_grid(g.nx, g.ny) - plan.density_grid(t)
+    return solver, solver.faces(error, rate)
 
 
 #: robots per block in :func:`tracking_velocity`
 _BLOCK = 16384
 
 
-def _tracking_block(X, plan, t, est, settings, stir_pattern, plan_dom):
+def _tracking_block(X, plan, t, est, settings, stir_pattern, plan_dom, transport=None):
     p_hat, grad_p_hat = est.evaluate(X)          # also rejects robots outside the domain
     p_r, grad_p_r = plan.density_and_gradient(t, X)
     v_r = plan.velocity(t, X)
@@ -213,4 +245,8 @@ def _tracking_block(X, plan, t, est, settings, stir_pattern, plan_dom):
         from .stirring import stirring_flux
         k, sense = stir_pattern if stir_pattern is not None else (settings.stir_cells, 1.0)
         flux = stirring_flux(X, p_r, grad_p_r, plan_dom, settings.stir_speed, k, sense)
+    if transport is not None:
+        solver, faces = transport
+        extra = solver.at(X, faces)
+        flux = extra if flux is None else flux + extra
     return feedback_velocity(p_hat, grad_p_hat, p_r, grad_p_r, v_r, settings, flux)
