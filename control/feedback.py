@@ -195,14 +195,13 @@ def tracking_velocity(X, plan, t: float, est, settings: FeedbackSettings, stir_p
         raise ValueError(f"plan domain {tuple(plan_dom)} differs from the density estimate's domain {tuple(est.domain)}")
     n = X.shape[0]
     transport = None
-    if settings.transport_rate > 0:       # (the compiled pass has no transport flux: NumPy below)
+    if settings.transport_rate > 0:       # face fluxes once per call (one Poisson solve), all robots
         transport = _transport_faces(plan, t, est, settings.transport_rate)
-    else:
-        from . import robot_kernel
-        if robot_kernel.use_compiled(n):      # one C pass over the robots (control.robot_kernel; a few ulps)
-            v = robot_kernel.tracking_velocity(X, plan, t, est, settings, stir_pattern, plan_dom)
-            if v is not None:
-                return v
+    from . import robot_kernel
+    if robot_kernel.use_compiled(n):      # one C pass over the robots (control.robot_kernel; a few ulps)
+        v = robot_kernel.tracking_velocity(X, plan, t, est, settings, stir_pattern, plan_dom, transport)
+        if v is not None:
+            return v
     if n <= _BLOCK:
         return _tracking_block(X, plan, t, est, settings, stir_pattern, plan_dom, transport)
     # robots in blocks: every operation is per robot, so the bits are those of one pass, but the

@@ -170,6 +170,8 @@ typedef struct {
     /* obstacles: the plan's free cells (nx, ny) as 0/1 bytes, NULL without a mask
        (ReferencePlan._bilinear_free and ReferencePlan._fade_at_obstacles) */
     const unsigned char *fr;
+    /* global transport flux (control.poisson_flux): face fluxes (nx + 1, ny) and (nx, ny + 1), NULL: none */
+    const double *TFX, *TFY;
 } Params;
 
 #define MAXMODES 64
@@ -395,6 +397,20 @@ long sf_tracking(long n, const double *X, double *V, const Params *q) {
             double x = xs[b], y = ys[b];
             double nxv = -q->alpha * (phx[b] - prx[b]) + q->sigma * phx[b] + vrx[b] * pr[b];
             double nyv = -q->alpha * (phy[b] - pry[b]) + q->sigma * phy[b] + vry[b] * pr[b];
+            double ex = 0.0, ey = 0.0;
+            if (q->TFX) {            /* control.poisson_flux.PoissonFlux.at: staggered interpolation, 0 if blocked */
+                double ux = (x - gx0) / gdx, uy = (y - gy0) / gdy;
+                long ci = (long)floor(ux), cj = (long)floor(uy);
+                ci = ci < 0 ? 0 : (ci > nx - 1 ? nx - 1 : ci);
+                cj = cj < 0 ? 0 : (cj > ny - 1 ? ny - 1 : cj);
+                double sx = ux - ci, sy = uy - cj;
+                sx = sx < 0.0 ? 0.0 : (sx > 1.0 ? 1.0 : sx);
+                sy = sy < 0.0 ? 0.0 : (sy > 1.0 ? 1.0 : sy);
+                if (!fr || fr[ci * ny + cj]) {
+                    ex = (1.0 - sx) * q->TFX[ci * ny + cj] + sx * q->TFX[(ci + 1) * ny + cj];
+                    ey = (1.0 - sy) * q->TFY[ci * (ny + 1) + cj] + sy * q->TFY[ci * (ny + 1) + cj + 1];
+                }
+            }
             if (q->stir) {           /* control.stirring.stirring_flux */
                 double ax = q->kpi * (x - q->sx0) / q->sbx, ay = q->kpi * (y - q->sy0) / q->sby;
                 double ssx = sin(ax), ssy = sin(ay), ccx = cos(ax), ccy = cos(ay);
@@ -402,8 +418,16 @@ long sf_tracking(long n, const double *X, double *V, const Params *q) {
                 double dphx = q->kpbx * ccx * ssy, dphy = q->kpby * ssx * ccy;
                 double dpsx = q->sc * (prx[b] * phi + pr[b] * dphx);
                 double dpsy = q->sc * (pry[b] * phi + pr[b] * dphy);
-                nxv = nxv + (-dpsy);
-                nyv = nyv + dpsx;
+                if (q->TFX) {        /* NumPy: num + (J + F) */
+                    nxv = nxv + ((-dpsy) + ex);
+                    nyv = nyv + (dpsx + ey);
+                } else {
+                    nxv = nxv + (-dpsy);
+                    nyv = nyv + dpsx;
+                }
+            } else if (q->TFX) {
+                nxv = nxv + ex;
+                nyv = nyv + ey;
             }
             double den = ph[b] > q->p_floor ? ph[b] : q->p_floor;
             double vx = nxv / den, vy = nyv / den;
@@ -439,7 +463,7 @@ class _Params(ctypes.Structure):
                 + [(n, ctypes.c_double) for n in ("alpha", "sigma", "p_floor", "v_max")]
                 + [("saturate", ctypes.c_long), ("stir", ctypes.c_long)]
                 + [(n, ctypes.c_double) for n in ("sc", "kpbx", "kpby", "kpi", "sx0", "sy0", "sbx", "sby")]
-                + [("fr", ctypes.c_void_p)])
+                + [("fr", ctypes.c_void_p), ("TFX", ctypes.c_void_p), ("TFY", ctypes.c_void_p)])
 
 
 def _declare(lib):
@@ -507,10 +531,11 @@ def _ptr(a: np.ndarray) -> int:
     return a.ctypes.data
 
 
-def tracking_velocity(X: np.ndarray, plan, t: float, est, settings, stir_pattern, plan_dom):
+def tracking_velocity(X: np.ndarray, plan, t: float, est, settings, stir_pattern, plan_dom, transport=None):
     """The feedback velocity (n, 2) of :func:`control.feedback.tracking_velocity` in one C pass over the
     robots, or None if this case is not covered (an unknown basis, a bad robot or a
-    negative p_r: the caller then runs the NumPy path, which raises where it must)."""
+    negative p_r: the caller then runs the NumPy path, which raises where it must).  ``transport``:
+    ``(PoissonFlux, (Fx, Fy))`` of the global transport term on the plan's grid, or None."""
     lib = _LIB.lib()
     if lib is None:
         return None
@@ -535,6 +560,13 @@ def tracking_velocity(X: np.ndarray, plan, t: float, est, settings, stir_pattern
     q.nx, q.ny, q.F = g.nx, g.ny, _ptr(F)
     q.gx0, q.gy0, q.gdx, q.gdy = g.domain[0], g.domain[2], g.dx, g.dy
     q.fr = None
+    q.TFX = q.TFY = None
+    if transport is not None:
+        tfx, tfy = (np.ascontiguousarray(a, dtype=np.float64) for a in transport[1])
+        if tfx.shape != (g.nx + 1, g.ny) or tfy.shape != (g.nx, g.ny + 1):
+            return None
+        keep += [tfx, tfy]
+        q.TFX, q.TFY = _ptr(tfx), _ptr(tfy)
     if getattr(plan, "free", None) is not None:
         if g.nx < 2 or g.ny < 2:
             return None

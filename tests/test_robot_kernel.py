@@ -58,14 +58,17 @@ def test_binning_is_bit_for_bit_the_numpy_binning():
     assert abs(got.sum() - 5000) < 1e-8
 
 
-@pytest.mark.parametrize("basis, stir, vmax, t", [("sine", 0.0, 4.0, 1.3), ("sine-cosine", 3.0, 4.0, 4.2),
-                                                  ("sine", 0.0, math.inf, 6.0), ("sine", 1.0, 4.0, 8.0)])
-def test_compiled_tracking_velocity_agrees_with_numpy(monkeypatch, basis, stir, vmax, t):
+@pytest.mark.parametrize("basis, stir, vmax, t, beta", [("sine", 0.0, 4.0, 1.3, 0.0), ("sine-cosine", 3.0, 4.0, 4.2, 0.0),
+                                                        ("sine", 0.0, math.inf, 6.0, 0.0), ("sine", 1.0, 4.0, 8.0, 0.0),
+                                                        ("sine", 0.0, math.inf, 1.3, 2.0),
+                                                        ("sine-cosine", 3.0, 4.0, 4.2, 2.0)])
+def test_compiled_tracking_velocity_agrees_with_numpy(monkeypatch, basis, stir, vmax, t, beta):
     rng = np.random.default_rng(7)
     plan = _plan(rng, basis)
     X = _robots(rng, 3000)
     est = KernelDensity(DOMAIN).fit(X[: 1500] * 0.5 + 2.0)          # a clustered estimate: floor and saturation act
-    s = FeedbackSettings(alpha=1.0, sigma=0.05, p_floor=2.5e-4, v_max=vmax, stir_speed=stir, stir_cells=2)
+    s = FeedbackSettings(alpha=1.0, sigma=0.05, p_floor=2.5e-4, v_max=vmax, stir_speed=stir, stir_cells=2,
+                         transport_rate=beta)
     monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "numpy")
     ref = tracking_velocity(X, plan, t, est, s, (3, -1.0))
     monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "compiled")
@@ -79,15 +82,18 @@ def test_compiled_tracking_velocity_agrees_with_numpy(monkeypatch, basis, stir, 
         assert (np.hypot(ref[:, 0], ref[:, 1]) > 0.99 * vmax).any()       # saturation was exercised
 
 
-@pytest.mark.parametrize("basis, stir", [("sine", 0.0), ("sine-cosine", 3.0)])
-def test_compiled_tracking_velocity_with_obstacles_agrees_with_numpy(monkeypatch, basis, stir):
+@pytest.mark.parametrize("basis, stir, beta", [("sine", 0.0, 0.0), ("sine-cosine", 3.0, 0.0), ("sine", 0.0, 3.0),
+                                              ("sine-cosine", 3.0, 3.0)])
+def test_compiled_tracking_velocity_with_obstacles_agrees_with_numpy(monkeypatch, basis, stir, beta):
     """With a plan mask: p_r over the free corners (0 in blocked cells), v_r faded at obstacle faces, the
-    renormalised and the reflecting KDE -- the compiled pass against the NumPy one."""
+    renormalised and the reflecting KDE, the transport flux (beta > 0) -- the compiled pass against the
+    NumPy one."""
     rng = np.random.default_rng(11)
     free = _walls()
     plan = _plan(rng, basis, free=free)
     X = _robots(rng, 3000)
-    s = FeedbackSettings(alpha=1.0, sigma=0.05, p_floor=2.5e-4, v_max=4.0, stir_speed=stir, stir_cells=2)
+    s = FeedbackSettings(alpha=1.0, sigma=0.05, p_floor=2.5e-4, v_max=4.0, stir_speed=stir, stir_cells=2,
+                         transport_rate=beta)
     for kernel in ("renormalise", "reflect"):
         est = KernelDensity(DOMAIN, bandwidth=1.0, free=free, obstacle_kernel=kernel).fit(X[: 1500] * 0.5 + 2.0)
         monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "numpy")
@@ -95,8 +101,15 @@ def test_compiled_tracking_velocity_with_obstacles_agrees_with_numpy(monkeypatch
         monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "compiled")
         got = tracking_velocity(X, plan, 1.3, est, s, (3, -1.0))
         assert np.max(np.abs(got - ref)) <= 1e-12 * np.abs(ref).max(), kernel
-    # the compiled pass did run (not the NumPy fallback): its v_r differs from NumPy's in the last bits
-    assert robot_kernel.tracking_velocity(X, plan, 1.3, est, s, (3, -1.0), np.array(DOMAIN)) is not None
+    # the compiled pass did run (not the NumPy fallback), with the transport flux when it is on
+    from swarmfield.control.feedback import _transport_faces
+    transport = _transport_faces(plan, 1.3, est, beta) if beta > 0 else None
+    direct = robot_kernel.tracking_velocity(X, plan, 1.3, est, s, (3, -1.0), np.array(DOMAIN), transport)
+    assert direct is not None
+    assert np.max(np.abs(direct - ref)) <= 1e-12 * np.abs(ref).max()
+    if beta > 0:       # and the flux changed the velocity
+        plain = robot_kernel.tracking_velocity(X, plan, 1.3, est, s, (3, -1.0), np.array(DOMAIN))
+        assert np.max(np.abs(plain - direct)) > 1e-3 * np.abs(ref).max()
 
 
 def test_compiled_path_defers_to_numpy_for_bad_robots(monkeypatch):
