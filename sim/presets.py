@@ -59,6 +59,12 @@ PRESETS: dict[str, dict] = {
             # density-preserving stirring (control.stirring): the robots keep sweeping inside p_r
             "stir_speed": 3.0,
             "stir_cells": 3,
+            # the global transport flux beta grad psi, Delta psi = p_hat - p_r over the free space
+            # (control.poisson_flux): the error decays at the rate beta = 3/s on top of the diffusion, through
+            # doors and around obstacles (docs/results/domains.md: the floor 2.88 -> 2.12 T, the harbour
+            # 1.75 -> 1.38 T; never -> 2.1-2.5 T on an office map it was not tuned on; the held-out fields on
+            # the empty rectangle equal or one step faster)
+            "transport_rate": 3.0,
         },
         # a fixed KDE bandwidth of 1 m (Silverman's rule gives ~2-3 m once the swarm has spread):
         # the law resolves gaps of the robots' own size.  With obstacles the heat kernel of the free
