@@ -6,7 +6,7 @@
 
 One row per (label, controller): for every field, the median over seeds of the time to the run's own
 threshold (periods T; "never" counted as infinity, shown as ">3" for 3 periods) and the median RMSE at
-2T, and the per-seed times in brackets.
+2T, and the per-seed times in brackets.  Runs on a map (``--domains``) are columns "MAP FIELD".
 """
 from __future__ import annotations
 
@@ -37,7 +37,9 @@ def read_runs(path):
 def load(path):
     runs = defaultdict(list)
     for r in read_runs(path):
-        key = (r["controller"], r["field"], str(r["robot_loss"]), str(r["robots"]), int(r["seed"]))
+        place = r.get("domain") or ""
+        field = r["field"] if place in ("", "rectangle") else f"{place} {r['field']}"      # maps: "floor sinc"
+        key = (r["controller"], field, str(r["robot_loss"]), str(r["robots"]), int(r["seed"]))
         runs[key].append(r)
     out = {}
     for key, rows in runs.items():
@@ -56,6 +58,8 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("inputs", nargs="+", metavar="LABEL=RUNS_CSV")
     p.add_argument("--controllers", nargs="+", default=None)
+    p.add_argument("--plot", metavar="PNG", default=None,
+                   help="also draw the median times to the threshold as grouped bars (one group per column)")
     a = p.parse_args(argv)
     table = []
     fields = []
@@ -88,6 +92,48 @@ def main(argv=None):
             cells.append(f"{fmt_t(med, horizon)} [{' '.join(fmt_t(t, horizon) for t in ts)}]")
             cells.append(f"{np.median([v[1] for _, v in its]):.4f}")
         print(f"| {label} | {ctrl} | {loss} | {robots} | " + " | ".join(cells) + " |")
+    if a.plot:
+        plot(table, fields, a.plot)
+
+
+def plot(table, fields, path):
+    """Grouped bars: per column (map and field) the median time to the threshold of every (label, controller)
+    row; runs that never reached it are drawn to the run's horizon, hatched."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    rows = [(f"{label}: {ctrl}" if ctrl == "feedback" else ctrl, items) for label, ctrl, _, _, items in table]
+    seen, uniq = set(), []
+    for name, items in rows:             # the baselines appear once (the first label that has them)
+        if name not in seen:
+            seen.add(name)
+            uniq.append((name, items))
+    width = 0.8 / len(uniq)
+    fig, ax = plt.subplots(figsize=(max(6.0, 1.3 * len(fields) + 2), 3.6))
+    for k, (name, items) in enumerate(uniq):
+        xs, hs, never = [], [], []
+        for i, f in enumerate(fields):
+            ts = [v for ff, _, v in items if ff == f]
+            if not ts:
+                continue
+            med = float(np.median([v[0] for v in ts]))
+            horizon = max(v[2] for v in ts)
+            xs.append(i + (k - (len(uniq) - 1) / 2) * width)
+            hs.append(min(med, horizon))
+            never.append(math.isinf(med))
+        bars = ax.bar(xs, hs, width, label=name)
+        for b, nv in zip(bars, never):
+            if nv:
+                b.set_hatch("//")
+                b.set_alpha(0.5)
+    ax.set_xticks(range(len(fields)))
+    ax.set_xticklabels(fields, rotation=20, ha="right")
+    ax.set_ylabel("time to the threshold [T]\n(median over seeds; hatched: not reached)")
+    ax.legend(fontsize=8, ncol=4, loc="lower center", bbox_to_anchor=(0.5, 1.0), frameon=False)
+    ax.grid(axis="y", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
 
 
 if __name__ == "__main__":
