@@ -176,6 +176,21 @@ typedef struct {
 
 #define MAXMODES 64
 
+/* the plan cell (ci, cj) holding (x, y), clipped to the grid, and the position (sx, sy) in [0, 1]^2 across it
+   (ReferencePlan.cells and PoissonFlux.at) */
+static inline void plan_cell(double x, double y, double gx0, double gy0, double gdx, double gdy, long nx, long ny,
+                             long *ci, long *cj, double *sx, double *sy) {
+    double fx = (x - gx0) / gdx, fy = (y - gy0) / gdy;
+    long i = (long)floor(fx), j = (long)floor(fy);
+    i = i < 0 ? 0 : (i > nx - 1 ? nx - 1 : i);
+    j = j < 0 ? 0 : (j > ny - 1 ? ny - 1 : j);
+    double u = fx - i, v = fy - j;
+    *sx = u < 0.0 ? 0.0 : (u > 1.0 ? 1.0 : u);
+    *sy = v < 0.0 ? 0.0 : (v > 1.0 ? 1.0 : v);
+    *ci = i;
+    *cj = j;
+}
+
 /* sin u and cos u for u in [0, pi] (the argument of the basis), branch free so that a loop over robots
    vectorises: x = min(u, pi - u) in [0, pi/2], Taylor series in x^2 to degree 23 / 22 (truncation error
    < 1e-20), cos u = +-cos x.  Within a few ulps of libm (tests: the velocity within 1e-12 of NumPy's). */
@@ -373,13 +388,9 @@ long sf_tracking(long n, const double *X, double *V, const Params *q) {
             }
             if (fr) {       /* the normal component faded to 0 at faces towards blocked cells */
                 for (long b = 0; b < m; b++) {
-                    double fx = (xs[b] - gx0) / gdx, fy = (ys[b] - gy0) / gdy;
-                    long ci = (long)floor(fx), cj = (long)floor(fy);
-                    ci = ci < 0 ? 0 : (ci > nx - 1 ? nx - 1 : ci);
-                    cj = cj < 0 ? 0 : (cj > ny - 1 ? ny - 1 : cj);
-                    double sx = fx - ci, sy = fy - cj;
-                    sx = sx < 0.0 ? 0.0 : (sx > 1.0 ? 1.0 : sx);
-                    sy = sy < 0.0 ? 0.0 : (sy > 1.0 ? 1.0 : sy);
+                    long ci, cj;
+                    double sx, sy;
+                    plan_cell(xs[b], ys[b], gx0, gy0, gdx, gdy, nx, ny, &ci, &cj, &sx, &sy);
                     int here = fr[ci * ny + cj];
                     double lo = (ci > 0 ? fr[(ci - 1) * ny + cj] : 1) || !here;
                     double hi = (ci < nx - 1 ? fr[(ci + 1) * ny + cj] : 1) || !here;
@@ -399,13 +410,9 @@ long sf_tracking(long n, const double *X, double *V, const Params *q) {
             double nyv = -q->alpha * (phy[b] - pry[b]) + q->sigma * phy[b] + vry[b] * pr[b];
             double ex = 0.0, ey = 0.0;
             if (q->TFX) {            /* control.poisson_flux.PoissonFlux.at: staggered interpolation, 0 if blocked */
-                double ux = (x - gx0) / gdx, uy = (y - gy0) / gdy;
-                long ci = (long)floor(ux), cj = (long)floor(uy);
-                ci = ci < 0 ? 0 : (ci > nx - 1 ? nx - 1 : ci);
-                cj = cj < 0 ? 0 : (cj > ny - 1 ? ny - 1 : cj);
-                double sx = ux - ci, sy = uy - cj;
-                sx = sx < 0.0 ? 0.0 : (sx > 1.0 ? 1.0 : sx);
-                sy = sy < 0.0 ? 0.0 : (sy > 1.0 ? 1.0 : sy);
+                long ci, cj;
+                double sx, sy;
+                plan_cell(x, y, gx0, gy0, gdx, gdy, nx, ny, &ci, &cj, &sx, &sy);
                 if (!fr || fr[ci * ny + cj]) {
                     ex = (1.0 - sx) * q->TFX[ci * ny + cj] + sx * q->TFX[(ci + 1) * ny + cj];
                     ey = (1.0 - sy) * q->TFY[ci * (ny + 1) + cj] + sy * q->TFY[ci * (ny + 1) + cj + 1];
