@@ -25,6 +25,7 @@ plan's grid, p_hat normalised to unit mass there.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -88,7 +89,7 @@ def track_reference(plan, X0: np.ndarray, settings: FeedbackSettings, *, sigma: 
     if not (math.isfinite(t_end) and t_end > 0 and math.isfinite(dt) and dt > 0):
         raise ValueError(f"t_end and dt must be finite and > 0, got t_end={t_end}, dt={dt}")
     sigma = settings.sigma if sigma is None else float(sigma)
-    law = settings if compensate_sigma else FeedbackSettings(settings.alpha, 0.0, settings.p_floor, settings.v_max)
+    law = settings if compensate_sigma else dataclasses.replace(settings, sigma=0.0)
     domain = tuple(float(v) for v in plan.domain)
     estimate = LatestEstimate(kde or KernelDensity(domain))      # one fit per position array
     velocity = controller_velocity(controller, plan, law, estimate)
