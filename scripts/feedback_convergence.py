@@ -2,7 +2,7 @@
 
     python scripts/feedback_convergence.py --out docs/figures
 
-Four experiments with :func:`sim.tracking.track_reference` (robots with Langevin dynamics and
+Five experiments with :func:`sim.tracking.track_reference` (robots with Langevin dynamics and
 reflecting walls under eq. "density feedback law using estimation", KDE refitted 5 times per 0.25 s):
 
 1. gain: a stationary reference (half uniform, half a Gaussian bump) on [0, 10]^2, 2000 robots
@@ -12,7 +12,9 @@ reflecting walls under eq. "density feedback law using estimation", KDE refitted
    "ISS"; mean over 20-30 s) against the KDE error of as many independent samples of p_r;
 3. sigma compensation: sigma = 0.5 with and without the term grad(sigma p_hat)/p_hat, and open loop;
 4. a planned, moving reference: the paper's first planning step (p_r, v_r from the planner),
-   100 and 2000 robots uniform on [0, 7]^2, feedback against open loop (v = v_r).
+   100 and 2000 robots uniform on [0, 7]^2, feedback against open loop (v = v_r);
+5. the transport flux (``feedback.transport_rate`` beta = 0.3, 0.6, 1.2, alpha = 1, the reference of 1.):
+   observed decay rate over 0.5-3 s against alpha pi^2 / L^2 + beta (control.poisson_flux).
 
 Writes ``feedback_convergence.csv`` (case, t, error, mean_speed) and ``feedback_convergence.png``.
 """
@@ -83,6 +85,14 @@ def main():
         r = run(label, plan, 2000, start, FeedbackSettings(alpha=1.0, sigma=0.5), T_END, **kw)
         notes.append(f"{label}: error at 30 s {r.error[-1]:.4f}")
 
+    betas = (0.3, 0.6, 1.2)                 # the transport flux (control.poisson_flux): rate alpha pi^2/L^2 + beta
+    for beta in betas:
+        r = run(f"alpha=1, beta={beta:g}, n=2000", plan, 2000, start,
+                FeedbackSettings(alpha=1.0, sigma=0.1, transport_rate=beta), 6.0)
+        rate, theory = decay_rate(r.t, r.error, 0.5, 3.0), heat_rate(BOX, 1.0) + beta
+        notes.append(f"alpha = 1, beta = {beta:g}: decay rate {rate:.4f}/s on [0.5, 3] s, "
+                     f"alpha pi^2/L^2 + beta = {theory:.4f}/s (ratio {rate / theory:.2f})")
+
     from swarmfield.ocp import PlannerSettings, ReferencePlanner
     from swarmfield.sim.scenario import box_density, first_step_target
     planner = ReferencePlanner(PlannerSettings())
@@ -114,7 +124,7 @@ def plot(runs, floors, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 4, figsize=(19, 4.3))
+    fig, axes = plt.subplots(1, 5, figsize=(23.5, 4.3))
     ax = axes[0]
     for alpha, c in zip((0.5, 1.0, 2.0), ("tab:blue", "tab:orange", "tab:green")):
         r = runs[f"alpha={alpha:g}, n=2000"]
@@ -146,6 +156,17 @@ def plot(runs, floors, path):
             r = runs[f"planned, n={n}, {ctl}"]
             ax.plot(r.t, r.error, ls, color=c, label=f"n = {n}, {ctl}")
     ax.set_title("planned reference (paper's first step)")
+    ax = axes[4]
+    r = runs["alpha=1, n=2000"]
+    ax.semilogy(r.t, r.error, color="tab:orange", label="β = 0 (the paper's law)")
+    for beta, c in zip((0.3, 0.6, 1.2), ("tab:cyan", "tab:blue", "tab:purple")):
+        r = runs[f"alpha=1, beta={beta:g}, n=2000"]
+        ax.semilogy(r.t, r.error, color=c, label=f"β = {beta:g}")
+        tt = np.linspace(0.0, 6.0, 30)
+        ax.semilogy(tt, r.error[0] * np.exp(-(heat_rate(BOX, 1.0) + beta) * tt), "--", color=c, lw=1)
+    ax.set_xlim(0, 6)
+    ax.set_ylim(1e-3, 0.4)
+    ax.set_title("transport flux, α = 1: e$^{-(απ^2/L^2 + β) t}$ (dashed)")
     for ax in axes:
         ax.set_xlabel("t [s]")
         ax.legend(fontsize=8)
