@@ -99,9 +99,10 @@ class PoissonFlux:
 
     def potential(self, error: np.ndarray) -> np.ndarray:
         """psi (nx, ny) with L psi = e - mean_component(e) on the free cells (0 on blocked cells)."""
-        e = np.where(self.free, np.asarray(error, dtype=float), 0.0)
+        e = np.asarray(error, dtype=float)
         if e.shape != self.free.shape:
             raise ValueError(f"error has shape {e.shape}, expected {self.free.shape}")
+        e = np.where(self.free, e, 0.0)
         means = np.bincount(self._labels.ravel(), weights=e.ravel(), minlength=self._n_comp + 1)
         means /= np.maximum(self._sizes, 1.0)
         means[0] = 0.0                                        # label 0: blocked cells
