@@ -462,6 +462,24 @@ def test_feedback_with_obstacles_end_to_end(kernel):
 
 
 @needs_mask_planner
+def test_transport_flux_tracks_the_plan_closer_on_a_floor_and_keeps_robots_out_of_walls():
+    """feedback.transport_rate (control.poisson_flux) in the closed loop on the floor: the same plan,
+    a smaller tracking error ||p_hat - p_r|| at every measurement, and no robot inside an obstacle."""
+    from swarmfield.sim.config import config_from_dict
+    from swarmfield.sim.simulation import Simulation
+    errors = {}
+    for beta in (0.0, 3.0):
+        cfg = config_from_dict({"sim": {"controller": "feedback", "max_periods": 1, "gamma": 0.0, "robots": 60,
+                                        "substeps": 4}, "domain": {"source": "floor"},
+                                "feedback": {"transport_rate": beta}})
+        res = Simulation(cfg).run()
+        assert res.region.contains(np.concatenate(res.positions)).all()
+        errors[beta] = np.array([r["tracking_error"] for r in res.rows[1:]])
+    assert np.all(errors[3.0] < errors[0.0]), errors
+    assert errors[3.0].mean() < 0.85 * errors[0.0].mean()
+
+
+@needs_mask_planner
 def test_plan_reference_with_a_domain(tmp_path, capsys):
     from swarmfield.cli.plan_reference import main
     from swarmfield.ocp import ReferencePlan
