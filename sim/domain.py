@@ -375,6 +375,48 @@ class Domain:
             free = free & (reach >= 0.5 * total) & (reach > 0)
         return _connected_to_box(free, self.extent, start_box)
 
+    def walled_faces(self, free: np.ndarray) -> int:
+        """Number of places where a wall at the map's own resolution divides free planner cells of ``free``
+        (nx, ny) that the planner treats as connected: faces between two free cells where, within the two
+        cells, no connected piece of free pixels holds a quarter of each cell's free pixels, and free cells
+        whose own free pixels fall into two pieces of at least a quarter each.  The planner (and the
+        feedback's transport term) move mass through such a face or cell, the robots cannot: a wall
+        thinner than a planner cell that leaves the cells mostly free."""
+        free = np.asarray(free, bool)
+        nx, ny = free.shape
+        if self.is_rectangle:
+            return 0
+        from scipy import ndimage
+        fine = self.free_pixels
+        Nx, Ny = fine.shape
+        bx = np.round(np.linspace(0, Nx, nx + 1)).astype(int)      # pixel bounds of the cells
+        by = np.round(np.linspace(0, Ny, ny + 1)).astype(int)
+        count = 0
+        for axis in (0, 1):
+            a_free = free[:-1, :] & free[1:, :] if axis == 0 else free[:, :-1] & free[:, 1:]
+            for i, j in zip(*np.nonzero(a_free)):
+                i2, j2 = (i + 1, j) if axis == 0 else (i, j + 1)
+                block = fine[bx[i]:bx[i2 + 1], by[j]:by[j2 + 1]]
+                lab, n = ndimage.label(block)
+                if n <= 1:
+                    continue
+                if axis == 0:
+                    cut = bx[i + 1] - bx[i]
+                    la, lb = lab[:cut], lab[cut:]
+                else:
+                    cut = by[j + 1] - by[j]
+                    la, lb = lab[:, :cut], lab[:, cut:]
+                ca = np.bincount(la.ravel(), minlength=n + 1)[1:]
+                cb = np.bincount(lb.ravel(), minlength=n + 1)[1:]
+                if not np.any((ca >= 0.25 * max(ca.sum(), 1)) & (cb >= 0.25 * max(cb.sum(), 1))):
+                    count += 1
+        for i, j in zip(*np.nonzero(free)):                       # cells split by a wall inside them
+            lab, n = ndimage.label(fine[bx[i]:bx[i + 1], by[j]:by[j + 1]])
+            if n > 1:
+                sizes = np.bincount(lab.ravel(), minlength=n + 1)[1:]
+                count += int(np.sum(sizes >= 0.25 * sizes.sum()) >= 2)
+        return count
+
     def box_is_free(self, box) -> bool:
         """True iff the whole box lies in the free space (checked at the fine raster, exact for polygons)."""
         bx0, bx1, by0, by1 = box

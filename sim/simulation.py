@@ -546,6 +546,13 @@ def resolve_domain(config: RunConfig, grid, domain=None):
         if ds.unreachable == "refuse":
             raise ValueError(msg + " (domain.unreachable = \"refuse\")")
         warnings.warn(msg + "; it is excluded from the planner, sup V, RMSE and the target", UserWarning, stacklevel=3)
+    walled = region.walled_faces(reach)
+    if walled:
+        warnings.warn(f"domain {region.name}: a wall thinner than a planner cell ({grid.dx:g} x {grid.dy:g} m) "
+                      f"divides free planner cells at {walled} faces or cells; the planner and the feedback's "
+                      "transport term move mass through it and the robots cannot follow: refine the planner grid "
+                      "([planner] nx, ny; cells at most twice as wide as the wall) or draw the walls at least a "
+                      "cell thick", UserWarning, stacklevel=3)
     return region, reach
 
 

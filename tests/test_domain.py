@@ -555,3 +555,26 @@ def test_stop_rule_scale_reaches_the_information_objective_with_obstacles():
     expect[sim.free] = np.maximum(sim.var[sim.free], vc)
     np.testing.assert_allclose(info.variance, expect, rtol=1e-12)
     assert np.all(info.variance[~sim.free] == 0) and info.variance.sum() > sim.var.sum()
+
+
+@pytest.mark.parametrize("wall", [(9.95, 10.05), (9.7, 9.8)])
+def test_a_wall_thinner_than_a_planner_cell_is_warned_about(tmp_path, wall):
+    """A 0.1 m wall with a door above it, on a cell face or inside a cell column: the planner's cells stay free
+    on both sides, so the run warns (sim.domain.Domain.walled_faces); thick walls and open maps do not."""
+    from swarmfield.ocp import Grid
+    from swarmfield.sim.simulation import resolve_domain
+    n = 400
+    xc = (np.arange(n) + 0.5) * 20 / n
+    X, Y = np.meshgrid(xc, xc, indexing="ij")
+    free = ~((X > wall[0]) & (X < wall[1]) & (Y < 15))
+    np.savez(tmp_path / "thin.npz", free=free, extent=np.array(EXT))
+    grid = Grid(EXT, 40, 40)
+    with pytest.warns(UserWarning, match=r"a wall thinner than a planner cell .* divides free planner cells at 30 "):
+        region, reach = resolve_domain(_cfg("diffusion", source=str(tmp_path / "thin.npz")), grid)
+    assert reach.all()                          # the planner sees no obstacle at all
+    for name in ("floor", "harbour", "lake"):
+        d = BUILTIN_DOMAINS[name]()
+        assert d.walled_faces(d.free_cells((40, 40))) == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        resolve_domain(_cfg("diffusion", source="floor"), grid)
