@@ -179,6 +179,11 @@ def domain_problem(args, grid, p0, target):
         print(f"{PROG}: warning: domain {dom.name}: {lost.sum() * grid.cell_area:g} m^2 of free space "
               f"({int(lost.sum())} cells) cannot be reached from the initial density; it is excluded",
               file=sys.stderr)
+    walled = dom.walled_faces(free)
+    if walled:
+        print(f"{PROG}: warning: domain {dom.name}: a wall thinner than a planner cell divides free cells at "
+              f"{walled} faces or cells; the plan moves mass through it (refine the grid: cells at most twice "
+              "as wide as the wall)", file=sys.stderr)
     out = []
     for arr, name in ((p0, "initial density"), (target, "target density")):
         a = np.where(free, arr, 0.0)

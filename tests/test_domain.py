@@ -578,3 +578,16 @@ def test_a_wall_thinner_than_a_planner_cell_is_warned_about(tmp_path, wall):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         resolve_domain(_cfg("diffusion", source="floor"), grid)
+
+
+@needs_mask_planner
+def test_plan_reference_warns_about_a_thin_wall(tmp_path, capsys):
+    from swarmfield.cli.plan_reference import main
+    n = 400
+    xc = (np.arange(n) + 0.5) * 20 / n
+    X, Y = np.meshgrid(xc, xc, indexing="ij")
+    np.savez(tmp_path / "thin.npz", free=~((X > 9.95) & (X < 10.05) & (Y < 15)), extent=np.array(EXT))
+    code = main(["--domain", str(tmp_path / "thin.npz"), "--out", str(tmp_path / "plan.npz"), "--intervals", "4",
+                 "--modes", "4", "4", "--max-iter", "60"])
+    err = capsys.readouterr().err
+    assert code in (0, 1) and "a wall thinner than a planner cell divides free cells at 30 faces" in err
