@@ -96,6 +96,11 @@ def main(argv=None):
         plot(table, fields, a.plot)
 
 
+#: the same colour for a series in every figure (labels not listed take matplotlib's cycle)
+FIXED_COLORS = {"greedy": "tab:orange", "lawnmower": "tab:green", "previous: feedback": "tab:blue",
+                "transport: feedback": "tab:red", "released: feedback": "tab:purple"}
+
+
 def plot(table, fields, path):
     """Grouped bars: per column (map and field) the median time to the threshold of every (label, controller)
     row; runs that never reached it are drawn to the run's horizon, hatched."""
@@ -109,7 +114,7 @@ def plot(table, fields, path):
             seen.add(name)
             uniq.append((name, items))
     width = 0.8 / len(uniq)
-    fig, ax = plt.subplots(figsize=(max(6.0, 1.3 * len(fields) + 2), 3.6))
+    fig, ax = plt.subplots(figsize=(max(8.5, 1.3 * len(fields) + 2), 3.8))
     for k, (name, items) in enumerate(uniq):
         xs, hs, never = [], [], []
         for i, f in enumerate(fields):
@@ -121,7 +126,8 @@ def plot(table, fields, path):
             xs.append(i + (k - (len(uniq) - 1) / 2) * width)
             hs.append(min(med, horizon))
             never.append(math.isinf(med))
-        bars = ax.bar(xs, hs, width, label=name)
+        color = FIXED_COLORS.get(name.split(": ")[-1] if name.split(": ")[-1] != "feedback" else name)
+        bars = ax.bar(xs, hs, width, label=name, color=color)
         for b, nv in zip(bars, never):
             if nv:
                 b.set_hatch("//")
