@@ -28,7 +28,11 @@ default; ``[domain] min_free_fraction`` in a configuration).  The fraction is ex
 it is the overlap area of the pixels with the cell, for polygons the area of the intersection.  At
 0.5 a cell is free when most of it is free, so the planner's free area equals the true free area
 up to half a cell along each boundary; a door or channel narrower than two planner cells may close
-at that resolution (the robots still pass it: they move at the geometry's resolution).
+at that resolution (the robots still pass it: they move at the geometry's resolution).  Below a
+fraction of 0.5 a cell also has to be in one piece: a cell whose free pixels a wall cuts into two
+pieces of a quarter or more each stays blocked, so a low ``min_free_fraction`` keeps the cells around
+small obstacles (trees, posts) without opening walls to the planner.  :meth:`Domain.walled_faces`
+counts the places where a wall thinner than a cell still divides free cells (warned about by the runs).
 
 Reflection at obstacles
 -----------------------
@@ -130,6 +134,17 @@ def cell_fractions(free_pixels: np.ndarray, extent, nx: int, ny: int) -> np.ndar
     Ay = _overlap_matrix(np.linspace(y0, y1, ny + 1), np.linspace(y0, y1, Ny + 1))
     area = Ax @ free_pixels.astype(float) @ Ay.T
     return area / (((x1 - x0) / nx) * ((y1 - y0) / ny))
+
+
+def _split(block: np.ndarray) -> bool:
+    """True if the free pixels of ``block`` (a cell's pixels) fall into two or more face-connected pieces of
+    at least a quarter of them each: a wall cuts the cell."""
+    from scipy import ndimage
+    lab, n = ndimage.label(block)
+    if n < 2:
+        return False
+    sizes = np.bincount(lab.ravel(), minlength=n + 1)[1:]
+    return int(np.sum(sizes >= 0.25 * sizes.sum())) >= 2
 
 
 def _connected_to_box(mask: np.ndarray, extent, box) -> np.ndarray:
@@ -354,7 +369,23 @@ class Domain:
         """(nx, ny) bool: planner cells whose free-area fraction is >= ``min_free_fraction`` (the rule of
         the module docstring).  ``grid_or_shape``: an ``ocp.Grid`` (its domain must be the extent) or (nx, ny)."""
         nx, ny = _grid_shape(grid_or_shape, self.extent)
-        return self.cell_free_fraction(nx, ny) >= min_free_fraction * (1 - 1e-12)
+        frac = self.cell_free_fraction(nx, ny)
+        free = frac >= min_free_fraction * (1 - 1e-12)
+        low = free & (frac < 0.5)
+        if low.any() and not self.is_rectangle:
+            # below half free, a cell counts only if a wall does not cut its free part in two (so that a low
+            # min_free_fraction keeps the cells around small obstacles without opening walls to the planner)
+            fine = self.free_pixels
+            bx, by = self._pixel_bounds(nx, ny)
+            for i, j in zip(*np.nonzero(low)):
+                if _split(fine[bx[i]:bx[i + 1], by[j]:by[j + 1]]):
+                    free[i, j] = False
+        return free
+
+    def _pixel_bounds(self, nx: int, ny: int):
+        """Pixel index bounds (nx + 1,), (ny + 1,) of the cells of an nx x ny grid of the extent."""
+        Nx, Ny = self.state.shape
+        return (np.round(np.linspace(0, Nx, nx + 1)).astype(int), np.round(np.linspace(0, Ny, ny + 1)).astype(int))
 
     def reachable_pixels(self, start_box) -> np.ndarray:
         """(Nx, Ny) bool: free pixels of the fine raster connected through pixel faces to a free pixel that
@@ -388,9 +419,7 @@ class Domain:
             return 0
         from scipy import ndimage
         fine = self.free_pixels
-        Nx, Ny = fine.shape
-        bx = np.round(np.linspace(0, Nx, nx + 1)).astype(int)      # pixel bounds of the cells
-        by = np.round(np.linspace(0, Ny, ny + 1)).astype(int)
+        bx, by = self._pixel_bounds(nx, ny)
         count = 0
         for axis in (0, 1):
             a_free = free[:-1, :] & free[1:, :] if axis == 0 else free[:, :-1] & free[:, 1:]
@@ -411,10 +440,7 @@ class Domain:
                 if not np.any((ca >= 0.25 * max(ca.sum(), 1)) & (cb >= 0.25 * max(cb.sum(), 1))):
                     count += 1
         for i, j in zip(*np.nonzero(free)):                       # cells split by a wall inside them
-            lab, n = ndimage.label(fine[bx[i]:bx[i + 1], by[j]:by[j + 1]])
-            if n > 1:
-                sizes = np.bincount(lab.ravel(), minlength=n + 1)[1:]
-                count += int(np.sum(sizes >= 0.25 * sizes.sum()) >= 2)
+            count += int(_split(fine[bx[i]:bx[i + 1], by[j]:by[j + 1]]))
         return count
 
     def box_is_free(self, box) -> bool:

@@ -591,3 +591,23 @@ def test_plan_reference_warns_about_a_thin_wall(tmp_path, capsys):
                  "--modes", "4", "4", "--max-iter", "60"])
     err = capsys.readouterr().err
     assert code in (0, 1) and "a wall thinner than a planner cell divides free cells at 30 faces" in err
+
+
+def test_a_low_free_fraction_keeps_cells_around_small_obstacles_but_not_cells_cut_by_a_wall():
+    """min_free_fraction below 0.5: a cell mostly covered by a round obstacle becomes free, a cell cut in two
+    by a 0.3 m wall (40 % free, in two pieces) stays blocked; at the default 0.5 nothing changes."""
+    n = 400
+    xc = (np.arange(n) + 0.5) * 20 / n
+    X, Y = np.meshgrid(xc, xc, indexing="ij")
+    free = ~((X > 9.6) & (X < 9.9) & (Y < 15))                 # a 0.3 m wall inside the cell column [9.5, 10]
+    free &= (X - 15.45) ** 2 + (Y - 5.45) ** 2 > 0.4 ** 2      # a post covering most of cell (30, 10)
+    d = Domain.from_raster(free, EXT, name="posts", start_box=(0, 7, 0, 7))
+    frac = d.cell_free_fraction(40, 40)
+    assert 0.05 < frac[30, 10] < 0.5 and 0.05 < frac[19, 5] < 0.5
+    default = d.free_cells((40, 40))
+    assert not default[30, 10] and not default[19, 5]
+    low = d.free_cells((40, 40), 0.05)
+    assert low[30, 10]                                          # around the post: one piece, free
+    assert not low[19, 5] and not low[19, :30].any()            # cut by the wall: blocked along it
+    assert np.array_equal(low & (frac >= 0.5), default)
+    assert d.walled_faces(low) == 0
