@@ -126,8 +126,7 @@ def plot(table, fields, path):
             xs.append(i + (k - (len(uniq) - 1) / 2) * width)
             hs.append(min(med, horizon))
             never.append(math.isinf(med))
-        color = FIXED_COLORS.get(name.split(": ")[-1] if name.split(": ")[-1] != "feedback" else name)
-        bars = ax.bar(xs, hs, width, label=name, color=color)
+        bars = ax.bar(xs, hs, width, label=name, color=FIXED_COLORS.get(name))
         for b, nv in zip(bars, never):
             if nv:
                 b.set_hatch("//")

@@ -79,7 +79,6 @@ class PoissonFlux:
         self._sizes = np.bincount(labels.ravel(), minlength=n_comp + 1).astype(float)
         idx = -np.ones((nx, ny), dtype=np.int64)
         idx[free] = np.arange(int(free.sum()))
-        self._idx = idx
         m = int(free.sum())
         rows, cols, vals = [], [], []
         for open_, shift, h in ((self.open_x, (1, 0), grid.dx), (self.open_y, (0, 1), grid.dy)):

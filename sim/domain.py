@@ -139,12 +139,29 @@ def cell_fractions(free_pixels: np.ndarray, extent, nx: int, ny: int) -> np.ndar
 def _split(block: np.ndarray) -> bool:
     """True if the free pixels of ``block`` (a cell's pixels) fall into two or more face-connected pieces of
     at least a quarter of them each: a wall cuts the cell."""
+    if block.all():                      # most cells: nothing to label
+        return False
     from scipy import ndimage
     lab, n = ndimage.label(block)
     if n < 2:
         return False
     sizes = np.bincount(lab.ravel(), minlength=n + 1)[1:]
     return int(np.sum(sizes >= 0.25 * sizes.sum())) >= 2
+
+
+def _divided(block: np.ndarray, cut: int) -> bool:
+    """True if a wall divides the two cells ``block[:cut]`` and ``block[cut:]`` (their pixels, the face between
+    them across the first axis): no face-connected piece of free pixels holds a quarter of each cell's free
+    pixels."""
+    if block.all():
+        return False
+    from scipy import ndimage
+    lab, n = ndimage.label(block)
+    if n <= 1:
+        return False
+    ca = np.bincount(lab[:cut].ravel(), minlength=n + 1)[1:]
+    cb = np.bincount(lab[cut:].ravel(), minlength=n + 1)[1:]
+    return not np.any((ca >= 0.25 * max(ca.sum(), 1)) & (cb >= 0.25 * max(cb.sum(), 1)))
 
 
 def _connected_to_box(mask: np.ndarray, extent, box) -> np.ndarray:
@@ -414,33 +431,17 @@ class Domain:
         feedback's transport term) move mass through such a face or cell, the robots cannot: a wall
         thinner than a planner cell that leaves the cells mostly free."""
         free = np.asarray(free, bool)
-        nx, ny = free.shape
         if self.is_rectangle:
             return 0
-        from scipy import ndimage
         fine = self.free_pixels
-        bx, by = self._pixel_bounds(nx, ny)
+        bx, by = self._pixel_bounds(*free.shape)
         count = 0
-        for axis in (0, 1):
-            a_free = free[:-1, :] & free[1:, :] if axis == 0 else free[:, :-1] & free[:, 1:]
-            for i, j in zip(*np.nonzero(a_free)):
-                i2, j2 = (i + 1, j) if axis == 0 else (i, j + 1)
-                block = fine[bx[i]:bx[i2 + 1], by[j]:by[j2 + 1]]
-                lab, n = ndimage.label(block)
-                if n <= 1:
-                    continue
-                if axis == 0:
-                    cut = bx[i + 1] - bx[i]
-                    la, lb = lab[:cut], lab[cut:]
-                else:
-                    cut = by[j + 1] - by[j]
-                    la, lb = lab[:, :cut], lab[:, cut:]
-                ca = np.bincount(la.ravel(), minlength=n + 1)[1:]
-                cb = np.bincount(lb.ravel(), minlength=n + 1)[1:]
-                if not np.any((ca >= 0.25 * max(ca.sum(), 1)) & (cb >= 0.25 * max(cb.sum(), 1))):
-                    count += 1
+        # faces between free cells along x; along y they are the x faces of the transposed rasters
+        for cells, pixels, (b0, b1) in ((free, fine, (bx, by)), (free.T, fine.T, (by, bx))):
+            for i, j in zip(*np.nonzero(cells[:-1] & cells[1:])):
+                count += _divided(pixels[b0[i]:b0[i + 2], b1[j]:b1[j + 1]], b0[i + 1] - b0[i])
         for i, j in zip(*np.nonzero(free)):                       # cells split by a wall inside them
-            count += int(_split(fine[bx[i]:bx[i + 1], by[j]:by[j + 1]]))
+            count += _split(fine[bx[i]:bx[i + 1], by[j]:by[j + 1]])
         return count
 
     def box_is_free(self, box) -> bool:
