@@ -17,8 +17,10 @@ A step is what ``sim.loop.run_simulation`` does between two measurements: Δt of
 ``substeps`` sub-steps (controller velocity + KDE refit each), the measurement, the KDE of the new
 positions, adding the measurements to the GP and -- when a metrics row is due -- the GP posterior
 (f̄, V on the 40 x 40 grid) and the metrics.  The run is the paper scenario (seed 0) with n robots and
-``max_periods`` periods; the time per step is (wall time - planner time) / steps, so the planner
-(once per period, independent of n) is left out, and the regression share is reported.
+``max_periods`` periods (fewer if V falls below η everywhere first: the steps actually taken count); the
+time per step is (time - planner time) / steps from the end of the start to the end of the run, so the
+planner (once per period, independent of n) and the start are left out, and the regression share is
+reported.
 
 Three settings of ``sim.metrics_every`` can be timed:
 
@@ -84,16 +86,18 @@ def step_time(n: int, every, periods: int, controller: str, config: str = "defau
                   "allow_long_run": True}
     cfg = config_from_dict(doc)
     cpu = {"planner": 0.0, "regression": 0.0}
+    wall = {"planner": 0.0, "regression": 0.0}
 
     def timed(owner, name, key):
         f = getattr(owner, name)
 
         def wrapper(*a, **k):
-            c0 = time.process_time()
+            c0, w0 = time.process_time(), time.perf_counter()
             try:
                 return f(*a, **k)
             finally:
                 cpu[key] += time.process_time() - c0
+                wall[key] += time.perf_counter() - w0
         setattr(owner, name, wrapper)
 
     from swarmfield.ocp import ReferencePlanner
@@ -104,19 +108,21 @@ def step_time(n: int, every, periods: int, controller: str, config: str = "defau
     class Clock(Recorder):                 # CPU and wall time from the end of the start to the end
         def start(self, sim):
             self.c0, self.w0, self.r0, self.p0 = time.process_time(), time.perf_counter(), cpu["regression"], cpu["planner"]
+            self.pw0 = wall["planner"]
 
         def finish(self, sim):
             self.c1, self.w1, self.r1, self.p1 = time.process_time(), time.perf_counter(), cpu["regression"], cpu["planner"]
+            self.pw1 = wall["planner"]
+            self.steps = sim.step_index        # the run may stop before max_periods (V below eta everywhere)
 
     clock = Clock()
     res = run_simulation(cfg, recorders=[clock])
-    steps = periods * cfg.sim.steps_per_period
-    tm = res.timings
+    steps = clock.steps
     planner_cpu = clock.p1 - clock.p0
-    return {"wall": (res.wall_time - tm["planner"]) / steps,
+    return {"wall": (clock.w1 - clock.w0 - (clock.pw1 - clock.pw0)) / steps,
             "cpu": (clock.c1 - clock.c0 - planner_cpu) / steps,
             "cpu_regression": (clock.r1 - clock.r0) / steps,
-            "rmse": res.rows[-1]["rmse"], "rows": len(res.rows),
+            "rmse": res.rows[-1]["rmse"], "rows": len(res.rows), "steps": steps,
             "peak_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
 
 
@@ -141,9 +147,9 @@ def main():
                OMP_NUM_THREADS=os.environ.get("OMP_NUM_THREADS", "1"))
     print(f"{args.periods} periods per run, controller {args.controller}; times per measurement step, planner excluded")
     print()
-    print("| robots | domain | configuration | metrics_every | per-robot passes | rows | CPU step [ms] "
+    print("| robots | domain | configuration | metrics_every | per-robot passes | steps | rows | CPU step [ms] "
           "| CPU regression [ms] | wall step [ms] | peak RSS [MiB] | final RMSE |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     cases = [(n, c, e, d, k) for n in args.robots for c in args.configs for e in args.every for d in args.domains
              for k in args.kernels]
     for n, config, every, dom, kern in cases:
@@ -155,7 +161,7 @@ def main():
             print(f"| {n:,} | {dom} | {config} | {every} | {kern} | failed: {out.stderr.strip().splitlines()[-1]} |")
             continue
         r = json.loads(out.stdout.strip().splitlines()[-1])
-        print(f"| {n:,} | {dom} | {config} | {every} | {kern} | {r['rows']} | {1e3 * r['cpu']:.0f} "
+        print(f"| {n:,} | {dom} | {config} | {every} | {kern} | {r['steps']} | {r['rows']} | {1e3 * r['cpu']:.0f} "
               f"| {1e3 * r['cpu_regression']:.0f} | {1e3 * r['wall']:.0f} | {r['peak_mib']:.0f} "
               f"| {r['rmse']:.6g} |", flush=True)
 

@@ -93,6 +93,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import threading
 
 import numpy as np
 from scipy import sparse
@@ -125,6 +126,26 @@ class _Covariance:
 
 _MIRROR_BLOCK = 64
 _TRIU = {}
+_WORK = threading.local()
+
+
+def _work_arrays(m: int) -> list:
+    """This thread's four M x M work arrays of the O(M^3) path (None where one must be allocated).
+
+    Roles: [0] B = I + s_f^2 S A S, factorised and inverted in place; [1], [2] the temporaries of
+    :meth:`GaussianProcess._sandwich`; [3] the new Sigma, which the GP then keeps, giving its old Sigma
+    to the pool in exchange.  They are reused by every factorisation (and every GP) of the thread,
+    because fresh arrays of M^2 doubles are page-faulted in on first touch: at M = 1849 (27 MB each)
+    the six fresh arrays of a factorisation cost as much CPU as the Cholesky factorisation itself
+    (measured: 0.38 s -> 0.25 s a factorisation, ``benchmarks/measurement_step.py``).  The pool holds
+    4 M^2 doubles (109 MB at M = 1849) for the life of the thread."""
+    pool = getattr(_WORK, "arrays", None)
+    if pool is None or pool[0] is None or pool[0].shape != (m, m):
+        pool = _WORK.arrays = [None, None, None, None]
+    for k in range(4):
+        if pool[k] is None:
+            pool[k] = np.empty((m, m))
+    return pool
 
 
 def _mirror_lower(a: np.ndarray) -> None:
@@ -206,6 +227,8 @@ class GaussianProcess:
         self._sum_y2 = 0.0
         self._version = 0
         self._assembled = None     # (key, A, b) for the current data, noise and mean
+        self._a_buffer = None      # A's storage, reused (its non-zero pattern never changes)
+        self._a_scatter = None     # (positions of A's non-zeros, index of each local entry among them)
         self._cov = None           # _Covariance: Sigma for some data version and hyperparameters
         self._mu = None            # (key, mu) with key (version, hyperparameters, prior mean)
         # positions added since the data version of self._cov (since no data while it is None),
@@ -363,7 +386,15 @@ class GaussianProcess:
         pc = PRODUCT_COEF.reshape(16, _N_POW)                    # [(p, r), a]
         u = self._mom @ pc.T                                     # [cell, a, (q, s)]
         z = pc @ u                                               # [cell, (p, r), (q, s)]
-        a = np.bincount(self._idx_a, weights=z.reshape(-1) / sn2, minlength=m * m).reshape(m, m)
+        if self._a_scatter is None:
+            # A's 49 M non-zeros (node pairs within 3 nodes on both axes), found once; each assembly sums
+            # the cells' local entries onto them and writes them into the same zero-filled M x M array
+            pos = np.flatnonzero(np.bincount(self._idx_a, minlength=m * m))
+            self._a_scatter = (pos, np.searchsorted(pos, self._idx_a))
+            self._a_buffer = np.zeros((m, m))
+        pos, inv = self._a_scatter
+        a = self._a_buffer
+        a.reshape(-1)[pos] = np.bincount(inv, weights=z.reshape(-1), minlength=pos.size) / sn2
         b = self._assemble_b(mean)
         self._assembled = (key, a, b)
         return a, b
@@ -379,8 +410,10 @@ class GaussianProcess:
         """(sx (x) sy) @ z for z of shape (M, K), without forming the Kronecker product."""
         return self._kron_apply(sx, sy, np.ascontiguousarray(z))
 
-    def _sandwich(self, sx: np.ndarray, sy: np.ndarray, a: np.ndarray) -> np.ndarray:
-        """S a S for S = sx (x) sy (symmetric) and symmetric a, in O(M^2 (gx + gy)) flops.
+    def _sandwich(self, sx: np.ndarray, sy: np.ndarray, a: np.ndarray, out: np.ndarray,
+                  work: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+        """S a S for S = sx (x) sy (symmetric) and symmetric a, in O(M^2 (gx + gy)) flops, into ``out``
+        (``work``: two M x M temporaries; none of the four arrays may overlap).
 
         S a S = S (S a)^T because a and S are symmetric, so only the *left* product is needed,
         twice: with a as the tensor a[i, j, c] (row node (i, j), column c), sx acts on i (one
@@ -393,23 +426,34 @@ class GaussianProcess:
         """
         if not a.flags.c_contiguous and a.flags.f_contiguous:
             a = a.T                                              # same matrix (symmetric), C-ordered
-        b = self._kron_apply(sx, sy, a)                         # S a
-        return self._kron_apply(sx, sy, np.ascontiguousarray(b.T))   # S (S a)^T = S a S
+        w1, w2 = work
+        self._kron_apply(sx, sy, a, out=w2, work=w1)            # S a
+        np.copyto(w1, w2.T)
+        return self._kron_apply(sx, sy, w1, out=out, work=w2)   # S (S a)^T = S a S
 
     @staticmethod
-    def _kron_apply(sx: np.ndarray, sy: np.ndarray, z: np.ndarray) -> np.ndarray:
-        """(sx (x) sy) @ z for a C-contiguous z of shape (M, K)."""
+    def _kron_apply(sx: np.ndarray, sy: np.ndarray, z: np.ndarray, out: np.ndarray | None = None,
+                    work: np.ndarray | None = None) -> np.ndarray:
+        """(sx (x) sy) @ z for a C-contiguous z of shape (M, K) (into ``out``, with the temporary ``work``,
+        both C-contiguous (M, K), if given)."""
         gx, gy = sx.shape[0], sy.shape[0]
         k = z.shape[1]
-        t = (sx @ z.reshape(gx, gy * k)).reshape(gx, gy, k)     # sx on i
-        return np.matmul(sy, t).reshape(gx * gy, k)            # sy on j
+        if out is None:
+            t = (sx @ z.reshape(gx, gy * k)).reshape(gx, gy, k)     # sx on i
+            return np.matmul(sy, t).reshape(gx * gy, k)            # sy on j
+        t = work.reshape(gx, gy, k)
+        np.matmul(sx, z.reshape(gx, gy * k), out=work.reshape(gx, gy * k))
+        np.matmul(sy, t, out=out.reshape(gx, gy, k))
+        return out
 
     def _factorize(self, signal_variance: float, length_scale: float, a: np.ndarray):
         """Cholesky factor of B = I + s_f^2 S A S and the unit prior factors."""
         kcx, sx = self._ax.prior_factor(length_scale)
         kcy, sy = self._ay.prior_factor(length_scale)
-        bmat = signal_variance * self._sandwich(sx, sy, a)
-        bmat[np.diag_indices_from(bmat)] += 1.0
+        work = _work_arrays(self._n_nodes)
+        bmat = self._sandwich(sx, sy, a, out=work[0], work=(work[1], work[2]))
+        bmat *= signal_variance
+        bmat.reshape(-1)[:: self._n_nodes + 1] += 1.0
         # bmat.T is the Fortran-ordered view of bmat, whose upper triangle is bmat's lower one:
         # LAPACK factorises it in place (passing the C-ordered bmat would make f2py copy the
         # M x M array first). U = L^T with the lower factor L of B, so U.T is L in C order.
@@ -451,8 +495,9 @@ class GaussianProcess:
             cov.n_updates += 1
             self.n_woodbury_updates += 1
         else:
-            # release the old M x M matrix before allocating; if this fails, the next call
+            # the old Sigma goes to the work arrays (below); if this fails, the next call
             # refactorises again (no pending list: it would have to hold all data)
+            old = None if cov is None else cov.sigma
             self._cov = None
             self._pending, self._pending_n = None, 0
             a, _ = self._assemble(self.prior_mean)
@@ -463,8 +508,11 @@ class GaussianProcess:
                 raise np.linalg.LinAlgError(f"inverse of I + S A S failed (info={info})")
             binv = binv_f.T                  # C order; dpotri filled its lower triangle only
             _mirror_lower(binv)
-            sigma = self._sandwich(sx, sy, binv)
+            work = _work_arrays(self._n_nodes)
+            sigma = self._sandwich(sx, sy, binv, out=work[3], work=(work[1], work[2]))
             sigma *= s2
+            # this GP keeps the new Sigma; its old one (same shape, no longer referenced) becomes a work array
+            work[3] = old if old is not None and old.shape == sigma.shape and old.flags.c_contiguous else None
             cov = _Covariance(hyper, self._version, sigma, kcx, kcy, 0)
             self.n_factorizations += 1
         self._cov = cov

@@ -284,6 +284,32 @@ def test_large_batch_refactorises():
     np.testing.assert_allclose(v, ref_v, rtol=1e-12, atol=0)
 
 
+def test_factorisations_of_several_gps_share_work_arrays_without_aliasing():
+    """The O(M^3) path reuses this thread's work arrays and recycles a GP's old Sigma into them: the
+    posterior a GP keeps must survive other GPs' factorisations (same M, and another M in between)."""
+    rng = np.random.default_rng(16)
+    pts = cell_centres((0.0, 10.0, 0.0, 10.0), 12, 12)
+    batches = [rng.uniform(0.0, 10.0, (200, 2)) for _ in range(3)]   # > M/4 = 42: refactorisations
+    gps = [GaussianProcess(COARSE, (0.0, 10.0, 0.0, 10.0)) for _ in range(2)]
+    other = GaussianProcess(PAPER, (0.0, 10.0, 0.0, 10.0))          # another M: the pool is rebuilt
+    before = []
+    for i, gp in enumerate(gps):
+        gp.add(batches[i], field(batches[i]) + i)
+        before.append(gp.predict(pts))
+    other.add(batches[2], field(batches[2]))
+    other.predict(pts)
+    gps[0].add(batches[2], field(batches[2]))
+    after0 = gps[0].predict(pts)                                    # refactorises, recycles its old Sigma
+    assert gps[0].n_factorizations == 2
+    np.testing.assert_array_equal(gps[1].predict(pts), before[1])   # untouched by the others' work
+    for gp, data, offset in ((gps[0], [batches[0], batches[2]], 0.0), (gps[1], [batches[1]], 1.0)):
+        ref = GaussianProcess(COARSE, (0.0, 10.0, 0.0, 10.0))
+        X = np.vstack(data)
+        ref.add(X, field(X) + offset)
+        np.testing.assert_allclose(gp.predict(pts), ref.predict(pts), rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(after0, gps[0].predict(pts), rtol=0, atol=0)
+
+
 def test_hyperparameter_change_after_woodbury_updates_is_exact():
     rng = np.random.default_rng(15)
     gp = GaussianProcess(COARSE)
