@@ -394,7 +394,7 @@ class GaussianProcess:
             self._a_buffer = np.zeros((m, m))
         pos, inv = self._a_scatter
         a = self._a_buffer
-        a.reshape(-1)[pos] = np.bincount(inv, weights=z.reshape(-1), minlength=pos.size) / sn2
+        a.reshape(-1)[pos] = np.bincount(inv, weights=z.reshape(-1) / sn2, minlength=pos.size)   # as before: same bits
         b = self._assemble_b(mean)
         self._assembled = (key, a, b)
         return a, b
