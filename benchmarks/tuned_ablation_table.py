@@ -107,12 +107,22 @@ def plot(table, fields, path):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    rows = [(f"{label}: {ctrl}" if ctrl == "feedback" else ctrl, items) for label, ctrl, _, _, items in table]
+    # a baseline appears once if every label ran it on the same cells with the same results, else once per
+    # label ("label: greedy"), e.g. when the labels differ in [domain] min_free_fraction, which moves the cells
+    # every metric is taken over
+    by_ctrl = defaultdict(list)
+    for label, ctrl, _, _, items in table:
+        by_ctrl[ctrl].append(sorted(items))
+    rows = [(f"{label}: {ctrl}" if ctrl == "feedback" or any(v != by_ctrl[ctrl][0] for v in by_ctrl[ctrl]) else ctrl,
+             items) for label, ctrl, _, _, items in table]
     seen, uniq = set(), []
-    for name, items in rows:             # the baselines appear once (the first label that has them)
+    for name, items in rows:
         if name not in seen:
             seen.add(name)
             uniq.append((name, items))
+    spare = iter([c for c in ("tab:brown", "tab:pink", "tab:olive", "tab:cyan", "tab:gray", "tab:blue", "tab:red",
+                              "tab:purple") if c not in FIXED_COLORS.values()] + [None] * len(uniq))
+    colors = {name: FIXED_COLORS.get(name) or next(spare) for name, _ in uniq}
     width = 0.8 / len(uniq)
     fig, ax = plt.subplots(figsize=(max(8.5, 1.3 * len(fields) + 2), 3.8))
     for k, (name, items) in enumerate(uniq):
@@ -126,7 +136,7 @@ def plot(table, fields, path):
             xs.append(i + (k - (len(uniq) - 1) / 2) * width)
             hs.append(min(med, horizon))
             never.append(math.isinf(med))
-        bars = ax.bar(xs, hs, width, label=name, color=FIXED_COLORS.get(name))
+        bars = ax.bar(xs, hs, width, label=name, color=colors[name])
         for b, nv in zip(bars, never):
             if nv:
                 b.set_hatch("//")
@@ -134,10 +144,11 @@ def plot(table, fields, path):
     ax.set_xticks(range(len(fields)))
     ax.set_xticklabels(fields, rotation=20, ha="right")
     ax.set_ylabel("time to the threshold [T]\n(median over seeds; hatched: not reached)")
-    ax.legend(fontsize=8, ncol=4, loc="lower center", bbox_to_anchor=(0.5, 1.0), frameon=False)
+    ax.legend(fontsize=8, ncol=min(4, max(1, 100 // max(len(n) for n, _ in uniq))), loc="lower center",
+              bbox_to_anchor=(0.5, 1.0), frameon=False)
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    fig.savefig(path, dpi=120, bbox_inches="tight")   # the legend above the axes stays whole
     plt.close(fig)
 
 
