@@ -130,7 +130,7 @@ _WORK = threading.local()
 
 
 def _work_arrays(m: int) -> list:
-    """This thread's four M x M work arrays of the O(M^3) path (None where one must be allocated).
+    """This thread's four M x M work arrays of the O(M^3) path (a slot a GP emptied is refilled here).
 
     Roles: [0] B = I + s_f^2 S A S, factorised and inverted in place; [1], [2] the temporaries of
     :meth:`GaussianProcess._sandwich`; [3] the new Sigma, which the GP then keeps, giving its old Sigma
