@@ -122,3 +122,16 @@ def test_compare_controllers_sweeps_presets(tmp_path, capsys):
                                                                for c in ("feedback", "lawnmower")}
     table = (out / "summary.md").read_text()
     assert "| tuned | feedback |" in table and "| paper | lawnmower |" in table
+
+
+def test_a_domain_given_with_the_tuned_preset_keeps_its_free_fraction():
+    """[domain] source from a file or --domain is laid over the preset key by key: the tuned preset's
+    min_free_fraction (0.05) stays unless it is given too."""
+    from swarmfield.cli.simulate_swarm import with_domain
+    tuned = PRESETS["tuned"]["domain"]["min_free_fraction"]
+    cfg = config_from_dict({"domain": {"source": "lake"}}, preset="tuned")
+    assert (cfg.domain.source, cfg.domain.min_free_fraction) == ("lake", tuned)
+    assert with_domain(RunConfig.from_preset("tuned"), "harbour").domain.min_free_fraction == tuned
+    assert config_from_dict({"domain": {"source": "lake", "min_free_fraction": 0.5}},
+                            preset="tuned").domain.min_free_fraction == 0.5
+    assert RunConfig.default().domain.min_free_fraction == 0.5
