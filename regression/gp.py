@@ -127,6 +127,8 @@ class _Covariance:
 _MIRROR_BLOCK = 64
 _TRIU = {}
 _WORK = threading.local()
+#: sizes M whose work arrays a thread keeps (least recently used dropped first)
+_WORK_SIZES = 2
 
 
 def _work_arrays(m: int) -> list:
@@ -138,10 +140,16 @@ def _work_arrays(m: int) -> list:
     because fresh arrays of M^2 doubles are page-faulted in on first touch: at M = 1849 (27 MB each)
     the six fresh arrays of a factorisation cost as much CPU as the Cholesky factorisation itself
     (measured: 0.38 s -> 0.25 s a factorisation, ``benchmarks/measurement_step.py``).  The pool holds
-    4 M^2 doubles (109 MB at M = 1849) for the life of the thread."""
-    pool = getattr(_WORK, "arrays", None)
-    if pool is None or pool[0] is None or pool[0].shape != (m, m):
-        pool = _WORK.arrays = [None, None, None, None]
+    4 M^2 doubles (109 MB at M = 1849) for the life of the thread, for each of the last
+    :data:`_WORK_SIZES` sizes M used (the online hyperparameter refit works on a coarser grid,
+    :mod:`regression.hyper`, between the factorisations of the run's GP)."""
+    pools = getattr(_WORK, "pools", None)
+    if pools is None:
+        pools = _WORK.pools = {}
+    pool = pools.pop(m, None) or [None, None, None, None]
+    pools[m] = pool                                  # most recently used last
+    while len(pools) > _WORK_SIZES:
+        del pools[next(iter(pools))]
     for k in range(4):
         if pool[k] is None:
             pool[k] = np.empty((m, m))
