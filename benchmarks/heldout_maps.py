@@ -1,4 +1,5 @@
-"""Write three maps that no setting was tuned on, as .npz masks (docs/results/domains.md, "The transport flux").
+"""Write four maps that no setting was tuned on, as .npz masks (docs/results/domains.md, "The transport flux",
+"The free fraction").
 
     python benchmarks/heldout_maps.py OUTDIR
 
@@ -7,6 +8,8 @@
     orchard  round trees of radius 0.9 m on a 4 m grid, none in the start box's corner
     ushape   a wall from the bottom edge up to y = 15.5 at x = 10 (the swarm goes round it) and a
              short wall on the right
+    boulders 28 round rocks of radius 0.4-1.2 m at random places (seed 99), none in the start box's
+             corner; drawn after the free fraction was measured on the others, as a blind check
 
 Each file holds ``free`` (400 x 400 pixels of 0.05 m on [0, 20]^2, x first, True = free) and ``extent``;
 pass it as ``--domain OUTDIR/office.npz`` (``--domains`` on compare-controllers).  Free start box [0, 7]^2.
@@ -47,7 +50,17 @@ def maps() -> dict:
                 continue                      # the start box [0, 7]^2 stays free
             orchard &= (X - cx) ** 2 + (Y - cy) ** 2 > 0.9 ** 2
     ushape = _blocks([(9.5, 10.5, 0, 15.5), (14, 20, 4, 5)])
-    return {"office": office, "orchard": orchard, "ushape": ushape}
+    rng = np.random.default_rng(99)
+    boulders = np.ones((PIXELS, PIXELS), dtype=bool)
+    placed = 0
+    while placed < 28:
+        cx, cy = rng.uniform(0.0, 20.0, 2)
+        r = rng.uniform(0.4, 1.2)
+        if cx < 7.3 + r and cy < 7.3 + r:
+            continue                          # the start box [0, 7]^2 stays free, with 0.3 m to spare
+        boulders &= ~((X - cx) ** 2 + (Y - cy) ** 2 <= r * r)
+        placed += 1
+    return {"office": office, "orchard": orchard, "ushape": ushape, "boulders": boulders}
 
 
 def main():
