@@ -416,7 +416,8 @@ class GaussianProcess:
 
     def _kron_left(self, sx: np.ndarray, sy: np.ndarray, z: np.ndarray) -> np.ndarray:
         """(sx (x) sy) @ z for z of shape (M, K), without forming the Kronecker product."""
-        return self._kron_apply(sx, sy, np.ascontiguousarray(z))
+        z = np.ascontiguousarray(z)
+        return self._kron_apply(sx, sy, z, out=np.empty_like(z), work=np.empty_like(z))
 
     def _sandwich(self, sx: np.ndarray, sy: np.ndarray, a: np.ndarray, out: np.ndarray,
                   work: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
@@ -440,18 +441,13 @@ class GaussianProcess:
         return self._kron_apply(sx, sy, w1, out=out, work=w2)   # S (S a)^T = S a S
 
     @staticmethod
-    def _kron_apply(sx: np.ndarray, sy: np.ndarray, z: np.ndarray, out: np.ndarray | None = None,
-                    work: np.ndarray | None = None) -> np.ndarray:
-        """(sx (x) sy) @ z for a C-contiguous z of shape (M, K) (into ``out``, with the temporary ``work``,
-        both C-contiguous (M, K), if given)."""
+    def _kron_apply(sx: np.ndarray, sy: np.ndarray, z: np.ndarray, out: np.ndarray, work: np.ndarray) -> np.ndarray:
+        """(sx (x) sy) @ z for a C-contiguous z of shape (M, K), into ``out`` with the temporary ``work`` (both
+        C-contiguous (M, K), neither overlapping z)."""
         gx, gy = sx.shape[0], sy.shape[0]
         k = z.shape[1]
-        if out is None:
-            t = (sx @ z.reshape(gx, gy * k)).reshape(gx, gy, k)     # sx on i
-            return np.matmul(sy, t).reshape(gx * gy, k)            # sy on j
-        t = work.reshape(gx, gy, k)
-        np.matmul(sx, z.reshape(gx, gy * k), out=work.reshape(gx, gy * k))
-        np.matmul(sy, t, out=out.reshape(gx, gy, k))
+        np.matmul(sx, z.reshape(gx, gy * k), out=work.reshape(gx, gy * k))      # sx on i
+        np.matmul(sy, work.reshape(gx, gy, k), out=out.reshape(gx, gy, k))     # sy on j
         return out
 
     def _factorize(self, signal_variance: float, length_scale: float, a: np.ndarray):
