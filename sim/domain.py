@@ -136,15 +136,23 @@ def cell_fractions(free_pixels: np.ndarray, extent, nx: int, ny: int) -> np.ndar
     return area / (((x1 - x0) / nx) * ((y1 - y0) / ny))
 
 
+def _pieces(block: np.ndarray):
+    """``(labels, n)`` of the face-connected pieces of free pixels of ``block``, or None if there are fewer
+    than two (nothing for a wall to divide)."""
+    if block.all():                      # most cells: nothing to label
+        return None
+    from scipy import ndimage
+    lab, n = ndimage.label(block)
+    return (lab, n) if n >= 2 else None
+
+
 def _split(block: np.ndarray) -> bool:
     """True if the free pixels of ``block`` (a cell's pixels) fall into two or more face-connected pieces of
     at least a quarter of them each: a wall cuts the cell."""
-    if block.all():                      # most cells: nothing to label
+    pieces = _pieces(block)
+    if pieces is None:
         return False
-    from scipy import ndimage
-    lab, n = ndimage.label(block)
-    if n < 2:
-        return False
+    lab, n = pieces
     sizes = np.bincount(lab.ravel(), minlength=n + 1)[1:]
     return int(np.sum(sizes >= 0.25 * sizes.sum())) >= 2
 
@@ -153,12 +161,10 @@ def _divided(block: np.ndarray, cut: int) -> bool:
     """True if a wall divides the two cells ``block[:cut]`` and ``block[cut:]`` (their pixels, the face between
     them across the first axis): no face-connected piece of free pixels holds a quarter of each cell's free
     pixels."""
-    if block.all():
+    pieces = _pieces(block)
+    if pieces is None:
         return False
-    from scipy import ndimage
-    lab, n = ndimage.label(block)
-    if n <= 1:
-        return False
+    lab, n = pieces
     ca = np.bincount(lab[:cut].ravel(), minlength=n + 1)[1:]
     cb = np.bincount(lab[cut:].ravel(), minlength=n + 1)[1:]
     return not np.any((ca >= 0.25 * max(ca.sum(), 1)) & (cb >= 0.25 * max(cb.sum(), 1)))
