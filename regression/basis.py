@@ -71,7 +71,7 @@ class SplineAxis:
         self.h = (hi - lo) / self.n_cells
         self.n_nodes = self.n_cells + 3
         self.nodes = lo + (np.arange(self.n_nodes) - 1.0) * self.h
-        self._prior_cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        self._prior_cache: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
     def locate(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Cell index ``i`` (int64) and local coordinate ``t in [0, 1]`` of coordinates ``x``.
@@ -94,12 +94,14 @@ class SplineAxis:
             out[rows, i + p] = w[:, p]
         return out
 
-    def prior_factor(self, length_scale: float) -> tuple[np.ndarray, np.ndarray]:
-        """``(Kc, Kc^{1/2})``: projected unit SE factor and its symmetric PSD square root.
+    def prior_factor(self, length_scale: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(Kc, lam, vec)``: the projected unit SE factor and its eigen-decomposition
+        ``Kc = vec diag(lam) vec^T`` with the eigenvalues in decreasing order (round-off negative
+        ones set to zero).
 
-        See the module docstring for ``Kc = G^{-1} F G^{-1}``. The square root comes from the
-        eigen-decomposition with round-off negative eigenvalues set to zero. Cached per length
-        scale (the hyperparameter fit evaluates a handful).
+        See the module docstring for ``Kc = G^{-1} F G^{-1}``. :mod:`regression.gp` builds its
+        prior factor ``vec sqrt(lam)`` from it and drops the directions of negligible variance.
+        Cached per length scale (the hyperparameter fit evaluates a handful).
         """
         key = float(length_scale)
         hit = self._prior_cache.get(key)
@@ -116,9 +118,10 @@ class SplineAxis:
         kc = np.linalg.solve(gram, ginv_load.T)
         kc = 0.5 * (kc + kc.T)
         lam, vec = np.linalg.eigh(kc)
-        root = (vec * np.sqrt(np.clip(lam, 0.0, None))) @ vec.T
-        root = 0.5 * (root + root.T)
+        lam, vec = np.clip(lam[::-1], 0.0, None), np.ascontiguousarray(vec[:, ::-1])
+        for a in (kc, lam, vec):
+            a.flags.writeable = False
         if len(self._prior_cache) > 32:
             self._prior_cache.clear()
-        self._prior_cache[key] = (kc, root)
-        return kc, root
+        self._prior_cache[key] = (kc, lam, vec)
+        return kc, lam, vec
