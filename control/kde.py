@@ -275,17 +275,18 @@ class KernelDensity:
         wy = np.pi * np.arange(my) / (y1 - y0)
         a *= np.exp(-0.5 * hx2 * wx * wx)[:, None]
         a *= np.exp(-0.5 * hy2 * wy * wy)[None, :]
-        p = sfft.idctn(a, type=2)
-        # d/dx: coefficient k -> -wx_k a_k placed at DST index k-1 (last DST entry zero)
-        bx = np.zeros_like(a)
-        bx[:-1, :] = -wx[1:, None] * a[1:, :]
-        px = sfft.idct(sfft.idst(bx, type=2, axis=0), type=2, axis=1)
+        # d/dx: coefficient k -> -wx_k a_k placed at DST index k-1 (last DST entry zero); likewise d/dy.
+        # The inverse transforms are separable: along y once for p and d/dx (DCT) and once for d/dy and
+        # d2/dxdy (DST), then along x for the four at once (8 one-axis passes instead of 10)
+        along_y = np.empty((2, mx, my))
+        along_y[0] = sfft.idct(a, type=2, axis=1)
         by = np.zeros_like(a)
         by[:, :-1] = -wy[None, 1:] * a[:, 1:]
-        py = sfft.idst(sfft.idct(by, type=2, axis=0), type=2, axis=1)
-        bxy = np.zeros_like(a)
-        bxy[:-1, :-1] = wx[1:, None] * wy[None, 1:] * a[1:, 1:]
-        pxy = sfft.idstn(bxy, type=2)
+        along_y[1] = sfft.idst(by, type=2, axis=1)
+        bx = np.zeros_like(along_y)
+        bx[:, :-1, :] = -wx[None, 1:, None] * along_y[:, 1:, :]
+        p, py = sfft.idct(along_y, type=2, axis=1)               # axis 1 of the stack: x
+        px, pxy = sfft.idst(bx, type=2, axis=1)
         if self.free is not None:
             m = self.mask(mx, my)
             mass = float(np.maximum(p[m], 0.0).sum()) * dx * dy
@@ -385,19 +386,20 @@ def _linear_binning_numpy(X, x0, y0, dx, dy, mx, my) -> np.ndarray:
     return c.reshape(mx, my)
 
 
-def _pad_reflect(f: np.ndarray, odd_x: bool, odd_y: bool) -> np.ndarray:
-    """Add one ghost layer on each side: the mirror value across the wall (negated if odd)."""
-    mx, my = f.shape                 # np.pad(f, 1, mode="edge") by slicing (np.pad's overhead is ~0.1 ms)
-    g = np.empty((mx + 2, my + 2), dtype=f.dtype)
-    g[1:-1, 1:-1] = f
-    g[0, 1:-1], g[-1, 1:-1] = f[0], f[-1]
-    g[:, 0], g[:, -1] = g[:, 1], g[:, -2]
-    if odd_x:
-        g[0, :] *= -1
-        g[-1, :] *= -1
-    if odd_y:
-        g[:, 0] *= -1
-        g[:, -1] *= -1
+def _pad_reflect(p, px, py, pxy) -> np.ndarray:
+    """(4, mx + 2, my + 2): p, dp/dx, dp/dy, d2p/dxdy, each with one ghost layer on every side holding the
+    mirror value across the wall, negated where the field is odd across it (dp/dx at the x walls, dp/dy at
+    the y walls, d2p/dxdy at all).  Edge padding by slicing, all four at once (np.pad costs ~0.1 ms a call)."""
+    mx, my = p.shape
+    g = np.empty((4, mx + 2, my + 2))
+    for k, f in enumerate((p, px, py, pxy)):
+        g[k, 1:-1, 1:-1] = f
+    g[:, 0, 1:-1], g[:, -1, 1:-1] = g[:, 1, 1:-1], g[:, -2, 1:-1]
+    g[:, :, 0], g[:, :, -1] = g[:, :, 1], g[:, :, -2]
+    g[1::2, 0, :] *= -1             # odd in x: dp/dx, d2p/dxdy
+    g[1::2, -1, :] *= -1
+    g[2:, :, 0] *= -1               # odd in y: dp/dy, d2p/dxdy
+    g[2:, :, -1] *= -1
     return g
 
 
@@ -417,10 +419,7 @@ class DensityEstimate:
 
     def __post_init__(self):
         # padded, flattened (bx+2)*(by+2) grids of p, dp/dx, dp/dy, d2p/dxdy with reflected ghost nodes
-        flat = (_pad_reflect(self.values, False, False).ravel(),
-                _pad_reflect(self.grad_x, True, False).ravel(),
-                _pad_reflect(self.grad_y, False, True).ravel(),
-                _pad_reflect(self.grad_xy, True, True).ravel())
+        flat = tuple(g.ravel() for g in _pad_reflect(self.values, self.grad_x, self.grad_y, self.grad_xy))
         object.__setattr__(self, "_flat", flat)
 
     def __repr__(self):

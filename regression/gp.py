@@ -155,6 +155,7 @@ class _PriorBasis:
     keep: np.ndarray | None          # None: every product of the cx x cy kept
     fx_band: np.ndarray = None       # (gx, 7, cx): fx_band[i, d] = fx[i + d - 3] (0 beyond the ends)
     fy_band: np.ndarray = None
+    runs: tuple = ()                 # keep as runs (start in 0 .. cx cy, length, start in 0 .. r): one per i
 
     @property
     def size(self) -> int:
@@ -480,7 +481,11 @@ class GaussianProcess:
         cy = int(np.flatnonzero(kept.any(axis=0))[-1]) + 1
         kept = kept[:cx, :cy]
         fx, fy = vx[:, :cx] * np.sqrt(lx[:cx]), vy[:, :cy] * np.sqrt(ly[:cy])
-        basis = _PriorBasis(kcx, kcy, fx, fy, None if kept.all() else np.flatnonzero(kept), _band_rows(fx), _band_rows(fy))
+        # for each i the kept j are 0 .. c_i - 1 (eigenvalues decrease): a run of consecutive indices i cy + j
+        lengths = kept.sum(axis=1)
+        runs = tuple((i * cy, int(c), int(o)) for i, (c, o) in enumerate(zip(lengths, np.cumsum(lengths) - lengths)) if c)
+        basis = _PriorBasis(kcx, kcy, fx, fy, None if kept.all() else np.flatnonzero(kept), _band_rows(fx), _band_rows(fy),
+                            runs)
         if len(self._bases) > 8:
             self._bases.clear()
         self._bases[key] = basis
@@ -492,9 +497,14 @@ class GaussianProcess:
         if basis.keep is None:
             return self._band_sandwich(basis, a, out=out, work=work)
         full = self._band_sandwich(basis, a, out=work[1], work=(out, work[0]))     # S^T a S, (cx cy)^2
-        k = basis.keep
-        rows = np.take(full, k, axis=0, out=_view(work[0], (k.size, full.shape[1])), mode="clip")
-        return np.take(rows, k, axis=1, out=_view(out, (k.size, k.size)), mode="clip")
+        r = basis.size
+        rows = _view(work[0], (r, full.shape[1]))
+        res = _view(out, (r, r))
+        for src, n, dst in basis.runs:                         # the kept rows, then the kept columns
+            rows[dst:dst + n] = full[src:src + n]
+        for src, n, dst in basis.runs:
+            res[:, dst:dst + n] = rows[:, src:src + n]
+        return res
 
     def _embed(self, basis: _PriorBasis, z: np.ndarray, out: np.ndarray) -> np.ndarray:
         """The r x r ``z`` placed at the kept rows and columns of a zero (cx cy)^2 array in ``out``."""
@@ -503,13 +513,16 @@ class GaussianProcess:
         n = basis.fx.shape[1] * basis.fy.shape[1]
         e = _view(out, (n, n))
         e.fill(0.0)
-        e[np.ix_(basis.keep, basis.keep)] = z
+        for src, k, dst in basis.runs:                         # rows of the runs; in them, columns of the runs
+            block = e[src:src + k]
+            for src2, k2, dst2 in basis.runs:
+                block[:, src2:src2 + k2] = z[dst:dst + k, dst2:dst2 + k2]
         return e
 
     @staticmethod
     def _band_sandwich(basis: _PriorBasis, a: np.ndarray, out: np.ndarray, work) -> np.ndarray:
         """S^T A S ((cx cy) x (cx cy)) for S = fx (x) fy and the banded symmetric A given by its band ``a``
-        (gx, 7, gy, 7), on the start of ``out`` (``work``: two work arrays of >= M^2 doubles).
+        (gx, 7, gy, 7), on the start of ``out`` (``work``: two work arrays of >= M^2 doubles, the first used).
 
         A couples nodes at most 3 apart on each axis, so with A_ii' its (gy x gy, banded) block of x-nodes
         i, i': (S^T A S)[(p, q), (p', q')] = sum_i fx[i, p] sum_|i'-i|<=3 (fy^T A_ii' fy)[q, q'] fx[i', p'].
@@ -522,11 +535,11 @@ class GaussianProcess:
         at = np.ascontiguousarray(a.transpose(2, 0, 1, 3)).reshape(gy, gx * _BAND, _BAND)   # [j, (i, di), dj]
         e = np.matmul(at, basis.fy_band)                     # [j, (i, di), q'] = sum_dj A fy
         f = fy.T @ e.reshape(gy, gx * _BAND * cy)            # [q, (i, di, q')] = fy^T A_ii' fy
-        ft = np.ascontiguousarray(f.reshape(cy, gx, _BAND, cy).transpose(1, 0, 3, 2)).reshape(gx, cy * cy, _BAND)
-        g = np.matmul(ft, basis.fx_band, out=_view(work[0], (gx, cy * cy, cx)))            # [i, (q, q', p')]
-        c1 = np.matmul(fx.T, g.reshape(gx, cy * cy * cx), out=_view(work[1], (cx, cy * cy * cx)))
-        res = _view(out, (cx * cy, cx * cy))
-        np.copyto(res.reshape(cx, cy, cx, cy), c1.reshape(cx, cy, cy, cx).transpose(0, 1, 3, 2))
+        f = np.ascontiguousarray(f.reshape(cy, gx, _BAND, cy).transpose(1, 0, 2, 3))         # [i, q, di, q']
+        fxb_t = np.ascontiguousarray(basis.fx_band.transpose(0, 2, 1))[:, None]               # [i, 1, p', di]
+        g = np.matmul(fxb_t, f, out=_view(work[0], (gx, cy, cx, cy)))                         # [i, q, p', q']
+        res = _view(out, (cx * cy, cx * cy))                                                  # [(p, q), (p', q')]
+        np.matmul(fx.T, g.reshape(gx, cy * cx * cy), out=res.reshape(cx, cy * cx * cy))
         return res
 
     def _kron_left(self, px: np.ndarray, py: np.ndarray, z: np.ndarray) -> np.ndarray:

@@ -192,17 +192,17 @@ def test_compiled_euler_maruyama_substep_agrees_with_numpy(sigma):
 
 
 def test_pad_reflect_is_numpys_edge_pad_with_odd_ghosts():
-    f = np.random.default_rng(0).normal(size=(5, 4))
-    for ox in (False, True):
-        for oy in (False, True):
-            g = np.pad(f, 1, mode="edge")
-            if ox:
-                g[0, :] *= -1
-                g[-1, :] *= -1
-            if oy:
-                g[:, 0] *= -1
-                g[:, -1] *= -1
-            assert np.array_equal(kde_mod._pad_reflect(f, ox, oy), g)
+    fields = np.random.default_rng(0).normal(size=(4, 5, 4))
+    padded = kde_mod._pad_reflect(*fields)
+    for k, (ox, oy) in enumerate(((False, False), (True, False), (False, True), (True, True))):
+        g = np.pad(fields[k], 1, mode="edge")
+        if ox:
+            g[0, :] *= -1
+            g[-1, :] *= -1
+        if oy:
+            g[:, 0] *= -1
+            g[:, -1] *= -1
+        assert np.array_equal(padded[k], g)
 
 
 def test_without_compiled_kernels_the_numpy_path_runs_with_one_line_on_stderr(tmp_path):
