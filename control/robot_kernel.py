@@ -191,6 +191,24 @@ static inline void plan_cell(double x, double y, double gx0, double gy0, double 
     *cj = j;
 }
 
+/* the lower-left cell centre (gi, gj) of the bilinear stencil of (x, y) on the nx x ny centres, the
+   fractions (sx, sy) and whether (x, y) is strictly inside the centres' span per axis (inx, iny) */
+static inline void bilinear_cell(double x, double y, double gx0, double gy0, double gdx, double gdy, long nx, long ny,
+                                 long *gi_, long *gj_, double *sx, double *sy, double *inx, double *iny) {
+    double rx = (x - gx0) / gdx - 0.5, ry = (y - gy0) / gdy - 0.5;
+    double gfx = rx < 0.0 ? 0.0 : (rx > nx - 1.0 ? nx - 1.0 : rx);
+    double gfy = ry < 0.0 ? 0.0 : (ry > ny - 1.0 ? ny - 1.0 : ry);
+    long gi = (long)gfx, gj = (long)gfy;                  /* gfx, gfy >= 0: truncation is floor */
+    gi = gi > nx - 2 ? nx - 2 : gi;
+    gj = gj > ny - 2 ? ny - 2 : gj;
+    *sx = gfx - gi;
+    *sy = gfy - gj;
+    *inx = (rx > 0 && rx < nx - 1) ? 1.0 : 0.0;
+    *iny = (ry > 0 && ry < ny - 1) ? 1.0 : 0.0;
+    *gi_ = gi;
+    *gj_ = gj;
+}
+
 /* sin u and cos u for u in [0, pi] (the argument of the basis), branch free so that a loop over robots
    vectorises: x = min(u, pi - u) in [0, pi/2], Taylor series in x^2 to degree 23 / 22 (truncation error
    < 1e-20), cos u = +-cos x.  Within a few ulps of libm (tests: the velocity within 1e-12 of NumPy's). */
@@ -234,7 +252,7 @@ static inline void sincos_0pi(double u, double *s, double *c) {
    change a bit. */
 #define BLK 64
 long sf_tracking(long n, const double *X, double *V, const Params *q) {
-    double *w = (double *)malloc(sizeof(double) * BLK * (18 + 4 * MAXMODES));
+    double *w = (double *)malloc(sizeof(double) * BLK * (20 + 4 * MAXMODES));
     if (!w) return -1;
     double *ph = w, *phx = w + BLK, *phy = w + 2 * BLK, *pr = w + 3 * BLK, *prx = w + 4 * BLK, *pry = w + 5 * BLK;
     double *vrx = w + 6 * BLK, *vry = w + 7 * BLK, *sux = w + 8 * BLK, *cux = w + 9 * BLK, *suy = w + 10 * BLK;
@@ -244,20 +262,27 @@ long sf_tracking(long n, const double *X, double *V, const Params *q) {
     const double gx0 = q->gx0, gy0 = q->gy0, gdx = q->gdx, gdy = q->gdy, vx0 = q->vx0, vy0 = q->vy0;
     const double vbx = q->vbx, vby = q->vby, vlim2 = q->v_max * q->v_max * (1.0 - 1e-12);
     double *xs = w + 15 * BLK, *ys = w + 16 * BLK;
-    double *Sx = w + 18 * BLK, *Sy = Sx + MAXMODES * BLK, *Cx = Sy + MAXMODES * BLK, *Cy = Cx + MAXMODES * BLK;
+    double *nxs = w + 17 * BLK, *nys = w + 18 * BLK;     /* the law's numerators */
+    double *Sx = w + 20 * BLK, *Sy = Sx + MAXMODES * BLK, *Cx = Sy + MAXMODES * BLK, *Cy = Cx + MAXMODES * BLK;
     const double *P = q->P, *PX = q->PX, *PY = q->PY, *PXY = q->PXY, *F = q->F;
     const unsigned char *fr = q->fr;
     long I = q->I, J = q->J;
     for (long k0 = 0; k0 < n; k0 += BLK) {
         long m = n - k0 < BLK ? n - k0 : BLK;
         const double *Xb = X + 2 * k0;
+        long bad = 0;            /* a robot outside the domain (NaN and inf included): counted in a loop that vectorises */
         for (long b = 0; b < m; b++) {
             double x = Xb[2 * b], y = Xb[2 * b + 1];
-            if (!isfinite(x) || !isfinite(y) || x < x0 - tx || x > x1 + tx
-                || y < y0 - ty || y > y1 + ty) { free(w); return k0 + b + 1; }
+            bad += !((x >= x0 - tx) & (x <= x1 + tx) & (y >= y0 - ty) & (y <= y1 + ty));
             xs[b] = x;
             ys[b] = y;
         }
+        if (bad)
+            for (long b = 0; b < m; b++)
+                if (!((xs[b] >= x0 - tx) & (xs[b] <= x1 + tx) & (ys[b] >= y0 - ty) & (ys[b] <= y1 + ty))) {
+                    free(w);
+                    return k0 + b + 1;
+                }
         /* ---- p_hat and its gradient: bicubic Hermite on the padded grids (DensityEstimate._hermite) */
         for (long b = 0; b < m; b++) {
             double x = xs[b], y = ys[b];
@@ -296,20 +321,16 @@ long sf_tracking(long n, const double *X, double *V, const Params *q) {
             phx[b] = neg ? 0.0 : gx_;
             phy[b] = neg ? 0.0 : gy_;
         }
-        /* ---- p_r and its gradient: bilinear between the cell centres (ReferencePlan._bilinear) */
-        for (long b = 0; b < m; b++) {
-            double x = xs[b], y = ys[b];
-            double rx = (x - gx0) / gdx - 0.5, ry = (y - gy0) / gdy - 0.5;
-            double gfx = rx < 0.0 ? 0.0 : (rx > nx - 1.0 ? nx - 1.0 : rx);
-            double gfy = ry < 0.0 ? 0.0 : (ry > ny - 1.0 ? ny - 1.0 : ry);
-            long gi = (long)floor(gfx), gj = (long)floor(gfy);
-            gi = gi > nx - 2 ? nx - 2 : gi;
-            gj = gj > ny - 2 ? ny - 2 : gj;
-            double sx = gfx - gi, sy = gfy - gj;
-            double f00 = F[gi * ny + gj], f10 = F[(gi + 1) * ny + gj];
-            double f01 = F[gi * ny + gj + 1], f11 = F[(gi + 1) * ny + gj + 1];
-            double inx = (rx > 0 && rx < nx - 1) ? 1.0 : 0.0, iny = (ry > 0 && ry < ny - 1) ? 1.0 : 0.0;
-            if (fr) {       /* over the free corners, weights renormalised; 0 in a blocked cell */
+        /* ---- p_r and its gradient: bilinear between the cell centres (ReferencePlan._bilinear); without
+           obstacles in a loop of its own, which vectorises */
+        if (fr) {
+            for (long b = 0; b < m; b++) {
+                double x = xs[b], y = ys[b], sx, sy, inx, iny;
+                long gi, gj;
+                bilinear_cell(x, y, gx0, gy0, gdx, gdy, nx, ny, &gi, &gj, &sx, &sy, &inx, &iny);
+                double f00 = F[gi * ny + gj], f10 = F[(gi + 1) * ny + gj];
+                double f01 = F[gi * ny + gj + 1], f11 = F[(gi + 1) * ny + gj + 1];
+                /* over the free corners, weights renormalised; 0 in a blocked cell */
                 double m00 = fr[gi * ny + gj], m10 = fr[(gi + 1) * ny + gj];
                 double m01 = fr[gi * ny + gj + 1], m11 = fr[(gi + 1) * ny + gj + 1];
                 double w00 = (1 - sx) * (1 - sy), w10 = sx * (1 - sy), w01 = (1 - sx) * sy, w11 = sx * sy;
@@ -327,14 +348,25 @@ long sf_tracking(long n, const double *X, double *V, const Params *q) {
                 pr[b] = inside ? num / safe : 0.0;
                 prx[b] = (inside ? (dnx * safe - num * ddx) / (safe * safe) : 0.0) / gdx * inx;
                 pry[b] = (inside ? (dny * safe - num * ddy) / (safe * safe) : 0.0) / gdy * iny;
-                continue;
             }
-            pr[b] = (1 - sx) * (1 - sy) * f00 + sx * (1 - sy) * f10 + (1 - sx) * sy * f01 + sx * sy * f11;
-            prx[b] = ((1 - sy) * (f10 - f00) + sy * (f11 - f01)) / gdx * inx;
-            pry[b] = ((1 - sx) * (f01 - f00) + sx * (f11 - f10)) / gdy * iny;
+        } else {
+            for (long b = 0; b < m; b++) {
+                double sx, sy, inx, iny;
+                long gi, gj;
+                bilinear_cell(xs[b], ys[b], gx0, gy0, gdx, gdy, nx, ny, &gi, &gj, &sx, &sy, &inx, &iny);
+                double f00 = F[gi * ny + gj], f10 = F[(gi + 1) * ny + gj];
+                double f01 = F[gi * ny + gj + 1], f11 = F[(gi + 1) * ny + gj + 1];
+                pr[b] = (1 - sx) * (1 - sy) * f00 + sx * (1 - sy) * f10 + (1 - sx) * sy * f01 + sx * sy * f11;
+                prx[b] = ((1 - sy) * (f10 - f00) + sy * (f11 - f01)) / gdx * inx;
+                pry[b] = ((1 - sx) * (f01 - f00) + sx * (f11 - f10)) / gdy * iny;
+            }
         }
+        long negative = 0;
         for (long b = 0; b < m; b++)
-            if (pr[b] < 0) { free(w); return k0 + b + 1; }
+            negative += pr[b] < 0;
+        if (negative)
+            for (long b = 0; b < m; b++)
+                if (pr[b] < 0) { free(w); return k0 + b + 1; }
         /* ---- v_r: the separable series of the interval (ocp.basis.velocity_at), across the block */
         if (q->coef) {
             for (long b = 0; b < m; b++) {
@@ -403,53 +435,65 @@ long sf_tracking(long n, const double *X, double *V, const Params *q) {
         } else {
             for (long b = 0; b < m; b++) { vrx[b] = 0.0; vry[b] = 0.0; }
         }
-        /* ---- the law (control.feedback.feedback_velocity) */
+        /* ---- the law (control.feedback.feedback_velocity): the numerators in a loop that vectorises, the
+           optional fluxes added robot by robot (libm calls), the division, then the saturation where needed */
         for (long b = 0; b < m; b++) {
-            double x = xs[b], y = ys[b];
-            double nxv = -q->alpha * (phx[b] - prx[b]) + q->sigma * phx[b] + vrx[b] * pr[b];
-            double nyv = -q->alpha * (phy[b] - pry[b]) + q->sigma * phy[b] + vry[b] * pr[b];
-            double ex = 0.0, ey = 0.0;
-            if (q->TFX) {            /* control.poisson_flux.PoissonFlux.at: staggered interpolation, 0 if blocked */
-                long ci, cj;
-                double sx, sy;
-                plan_cell(x, y, gx0, gy0, gdx, gdy, nx, ny, &ci, &cj, &sx, &sy);
-                if (!fr || fr[ci * ny + cj]) {
-                    ex = (1.0 - sx) * q->TFX[ci * ny + cj] + sx * q->TFX[(ci + 1) * ny + cj];
-                    ey = (1.0 - sy) * q->TFY[ci * (ny + 1) + cj] + sy * q->TFY[ci * (ny + 1) + cj + 1];
+            nxs[b] = -q->alpha * (phx[b] - prx[b]) + q->sigma * phx[b] + vrx[b] * pr[b];
+            nys[b] = -q->alpha * (phy[b] - pry[b]) + q->sigma * phy[b] + vry[b] * pr[b];
+        }
+        if (q->TFX || q->stir) {
+            for (long b = 0; b < m; b++) {
+                double x = xs[b], y = ys[b];
+                double ex = 0.0, ey = 0.0;
+                if (q->TFX) {        /* control.poisson_flux.PoissonFlux.at: staggered interpolation, 0 if blocked */
+                    long ci, cj;
+                    double sx, sy;
+                    plan_cell(x, y, gx0, gy0, gdx, gdy, nx, ny, &ci, &cj, &sx, &sy);
+                    if (!fr || fr[ci * ny + cj]) {
+                        ex = (1.0 - sx) * q->TFX[ci * ny + cj] + sx * q->TFX[(ci + 1) * ny + cj];
+                        ey = (1.0 - sy) * q->TFY[ci * (ny + 1) + cj] + sy * q->TFY[ci * (ny + 1) + cj + 1];
+                    }
                 }
-            }
-            if (q->stir) {           /* control.stirring.stirring_flux */
-                double ax = q->kpi * (x - q->sx0) / q->sbx, ay = q->kpi * (y - q->sy0) / q->sby;
-                double ssx = sin(ax), ssy = sin(ay), ccx = cos(ax), ccy = cos(ay);
-                double phi = ssx * ssy;
-                double dphx = q->kpbx * ccx * ssy, dphy = q->kpby * ssx * ccy;
-                double dpsx = q->sc * (prx[b] * phi + pr[b] * dphx);
-                double dpsy = q->sc * (pry[b] * phi + pr[b] * dphy);
-                if (q->TFX) {        /* NumPy: num + (J + F) */
-                    nxv = nxv + ((-dpsy) + ex);
-                    nyv = nyv + (dpsx + ey);
+                if (q->stir) {       /* control.stirring.stirring_flux */
+                    double ax = q->kpi * (x - q->sx0) / q->sbx, ay = q->kpi * (y - q->sy0) / q->sby;
+                    double ssx = sin(ax), ssy = sin(ay), ccx = cos(ax), ccy = cos(ay);
+                    double phi = ssx * ssy;
+                    double dphx = q->kpbx * ccx * ssy, dphy = q->kpby * ssx * ccy;
+                    double dpsx = q->sc * (prx[b] * phi + pr[b] * dphx);
+                    double dpsy = q->sc * (pry[b] * phi + pr[b] * dphy);
+                    if (q->TFX) {    /* NumPy: num + (J + F) */
+                        nxs[b] = nxs[b] + ((-dpsy) + ex);
+                        nys[b] = nys[b] + (dpsx + ey);
+                    } else {
+                        nxs[b] = nxs[b] + (-dpsy);
+                        nys[b] = nys[b] + dpsx;
+                    }
                 } else {
-                    nxv = nxv + (-dpsy);
-                    nyv = nyv + dpsx;
+                    nxs[b] = nxs[b] + ex;
+                    nys[b] = nys[b] + ey;
                 }
-            } else if (q->TFX) {
-                nxv = nxv + ex;
-                nyv = nyv + ey;
             }
+        }
+        double *Vb = V + 2 * k0;
+        for (long b = 0; b < m; b++) {
             double den = ph[b] > q->p_floor ? ph[b] : q->p_floor;
-            double vx = nxv / den, vy = nyv / den;
-            /* |v| <= v_max for sure below (1 - 1e-12) v_max^2 in the squares: hypot only near or above it
-               (the same decision, so the same bits) */
-            if (q->saturate && vx * vx + vy * vy > vlim2) {
-                double sp = hypot(vx, vy);
-                if (sp > q->v_max) {
-                    double r = q->v_max / sp;
-                    vx = vx * r;
-                    vy = vy * r;
+            Vb[2 * b] = nxs[b] / den;
+            Vb[2 * b + 1] = nys[b] / den;
+        }
+        /* |v| <= v_max for sure below (1 - 1e-12) v_max^2 in the squares: hypot only near or above it
+           (the same decision, so the same bits) */
+        if (q->saturate) {
+            for (long b = 0; b < m; b++) {
+                double vx = Vb[2 * b], vy = Vb[2 * b + 1];
+                if (vx * vx + vy * vy > vlim2) {
+                    double sp = hypot(vx, vy);
+                    if (sp > q->v_max) {
+                        double r = q->v_max / sp;
+                        Vb[2 * b] = vx * r;
+                        Vb[2 * b + 1] = vy * r;
+                    }
                 }
             }
-            V[2 * (k0 + b)] = vx;
-            V[2 * (k0 + b) + 1] = vy;
         }
     }
     free(w);
