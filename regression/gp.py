@@ -22,10 +22,20 @@ to ~1.5e-3 s_f^2 at h = l/2. The model is then an exact Bayesian linear regressi
 coefficients c:
 
     A = sum_n phi(x_n) phi(x_n)^T / s_n^2,        b = sum_n phi(x_n) (y_n - m) / s_n^2,
-    Sigma = (K_c^{-1} + A)^{-1} = S (I + S A S)^{-1} S,   mu = Sigma b,   K_c = S S,
+    Sigma = (K_c^{-1} + A)^{-1} = S (I + S^T A S)^{-1} S^T,   mu = Sigma b,   K_c = S S^T,
 
-with ``S = s_f (Kc_x^{1/2} (x) Kc_y^{1/2})`` (a Kronecker square root, so ``I + S A S`` has
-eigenvalues >= 1 and its Cholesky factorisation needs no jitter, unlike ``K_c^{-1}``).
+with the Kronecker factor ``S = s_f (F_x (x) F_y)``, ``F_d = Q_d Lambda_d^{1/2}`` from the
+eigen-decomposition of ``Kc_d`` (so ``I + S^T A S`` has eigenvalues >= 1 and its Cholesky
+factorisation needs no jitter, unlike ``K_c^{-1}``).
+
+*Truncated prior* (``GPSettings.prior_truncation``, default 1e-8): the columns of S are the prior's
+eigen-directions, with variances ``lambda_x,i lambda_y,j``; those below the tolerance times the
+largest are dropped (S_K, r of the M columns kept: a Karhunen-Loeve truncation of the spline prior).
+The prior covariance of f(x) changes by at most that fraction of the largest eigenvalue, and the
+O(r^3) factorisation shrinks with r: at h = l/2 the SE spectrum at the grid's Nyquist frequency is
+still ~1e-9, so r = 1617 of 1849 (0.67 of the O(M^3) work); a learned l = 1.5 on the same grid keeps
+r = 762 (0.07 of it).  Measured against every direction kept (0): mean and variance within ~1e-8
+(``tests/test_regression.py``; a rough field with 1e6 points: 8e-9 in the mean).
 
 Why the cost does not grow with n: on a cell of the grid, phi(x) has 16 non-zeros, the
 products of four cubic polynomials in the local coordinates (t_1, t_2) per axis. Hence A and b
@@ -38,9 +48,14 @@ evaluates each query point from its 16 active coefficients.
 
 Updating the posterior: factorisation from the power sums or Woodbury update
 ----------------------------------------------------------------------------
-*From scratch* (the source of truth): A and b are assembled from the power sums, B = I + s_f^2
-S A S is formed by Kronecker "sandwich" products, Cholesky-factorised and inverted (LAPACK
-dpotrf/dpotri), and Sigma = s_f^2 S B^{-1} S; O(M^3) whatever the number of observations.
+*From scratch* (the source of truth): A (as its band: nodes at most 3 apart per axis, 49 M numbers)
+and b are assembled from the power sums, B = I + s_f^2 S_K^T A S_K is formed through A's band
+(:meth:`GaussianProcess._band_sandwich`, a third of a dense Kronecker sandwich's flops),
+Cholesky-factorised and inverted (LAPACK dpotrf/dpotri, O(r^3) whatever the number of
+observations).  Sigma = s_f^2 S_K B^{-1} S_K^T is kept as its left factor T = S_K B^{-1} (M x r,
+one Kronecker product): a prediction needs only Sigma's entries between nodes at most 3 apart
+(a query point's 16 active nodes), which T gives in O(49 M r / 43) flops, and mu = s_f^2 T (S_K^T b);
+the full M x M Sigma is formed (one more Kronecker product) only when a Woodbury update needs it.
 
 *Woodbury update*: when only k <= ``update_rank_fraction`` * M points (default M/4) have been
 added since the last posterior (at the same s_f^2, l, s_n^2), each adds phi phi^T / s_n^2 to the
@@ -51,7 +66,7 @@ precision Sigma^{-1}, so with U = [phi(x_1) .. phi(x_k)] / s_n (16 non-zeros per
 computed as W^T = U^T Sigma (a sparse gather of 16 rows per point, O(16 k M)), L L^T = I +
 U^T W (eigenvalues >= 1, so well conditioned), V^T = L^{-1} W^T (O(k^2 M)) and the symmetric
 rank-k update Sigma -= V V^T (BLAS dsyrk, O(k M^2), mirrored so Sigma stays exactly
-symmetric). Without an earlier posterior the base is the prior Sigma = K_c = S S (all data
+symmetric). Without an earlier posterior the base is the prior Sigma = S_K S_K^T (all data
 pending). :meth:`add` keeps the pending positions (only while they number <= the update
 rank); mu = Sigma b is recomputed from the power sums whenever the data or the prior mean
 change (O(M^2)). The posterior is recomputed from scratch when the hyperparameters change,
@@ -84,8 +99,10 @@ Cost (2-core AVX-512 machine, single-threaded OpenBLAS, M = 1849, 1,600 query po
 ``add`` of 10,000 points ~6 ms (~1 ms with the compiled power sums of
 :mod:`regression.power_sums_kernel`, the same bits; 10^6 points ~45 ms); the closed-loop step ``add`` of 100 points + ``predict`` ~18 ms
 (Woodbury update; ~10 ms for 10 points, ~60 ms for 462 = M/4; it was ~270 ms when every step
-refactorised); a step that refactorises (e.g. 10,000 new points, or 1e6 accumulated) ~0.24 s
-whatever the number of observations; ``predict`` without new data ~4 ms. Multi-threaded
+refactorised); a ``predict`` that refactorises (e.g. after 10,000 new points, or 1e6 accumulated)
+~0.17 s whatever the number of observations (dpotrf 38 ms and dpotri 68 ms at r = 1617, B through
+A's band 24 ms, T 16 ms; it was 0.26 s with the full M and dense Kronecker sandwiches);
+``predict`` without new data ~4 ms. Multi-threaded
 OpenBLAS on an oversubscribed machine can make the factorisation several times slower (threads
 spin-waiting on each other); set ``OPENBLAS_NUM_THREADS=1`` there.
 """
@@ -190,9 +207,9 @@ _WORK_SIZES = 2
 def _work_arrays(m: int) -> list:
     """This thread's four M x M work arrays of the O(M^3) path (a slot a GP emptied is refilled here).
 
-    Roles: [0] B = I + s_f^2 S A S, factorised and inverted in place; [1], [2] the temporaries of
-    :meth:`GaussianProcess._sandwich`; [3] the new Sigma, which the GP then keeps, giving its old Sigma
-    to the pool in exchange.  They are reused by every factorisation (and every GP) of the thread,
+    Roles: [0] B = I + s_f^2 S_K^T A S_K, factorised and inverted in place; [1], [2] temporaries (the
+    Kronecker products, the truncated prior's gathers and embedding); [3] the new T = S_K B^{-1}, which the
+    GP then keeps, giving the array of its old posterior to the pool in exchange.  They are reused by every factorisation (and every GP) of the thread,
     because fresh arrays of M^2 doubles are page-faulted in on first touch: at M = 1849 (27 MB each)
     the six fresh arrays of a factorisation cost as much CPU as the Cholesky factorisation itself
     (measured: 0.38 s -> 0.25 s a factorisation, ``benchmarks/measurement_step.py``).  The pool holds
@@ -256,7 +273,7 @@ class GaussianProcess:
     """
 
     #: Woodbury updates of the posterior covariance allowed between two factorisations from the
-    #: power sums (bounds the accumulation of round-off; the factorisation costs ~0.3 s at M = 1849).
+    #: power sums (bounds the accumulation of round-off; the factorisation costs ~0.17 s at M = 1849).
     refactor_every = 50
     #: a batch of new points is applied by a Woodbury update if it has at most this fraction of M
     #: points (and refactorised from the power sums otherwise).

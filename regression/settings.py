@@ -58,9 +58,9 @@ class GPSettings:
         the spacing must therefore be <= length_scale / 1.5.
     max_inducing_points
         Upper bound on the number of inducing grid nodes M = (cells_x + 3) * (cells_y + 3).
-        ``predict`` after new data costs one dense M x M Cholesky factorisation and inverse
-        (~0.3 s at M = 1849, growing like M^3; memory ~ 6 M^2 doubles), so the bound turns an
-        accidental fine grid into a clear error instead of a stall.
+        ``predict`` after new data costs one dense Cholesky factorisation and inverse of order
+        r <= M (~0.17 s at M = 1849, growing like M^3; memory ~ 6 M^2 doubles), so the bound turns
+        an accidental fine grid into a clear error instead of a stall.
     learn_hyperparameters
         Refit (signal_variance, length_scale) by maximum a posteriori each re-planning period
         (``sim.loop``), warm-started from the previous period's values (default False: the
