@@ -2,7 +2,7 @@
 
     python benchmarks/measurement_step.py [--robots 1000 10000 100000 1000000] [--periods 3]
                                           [--every 1 8 auto] [--controller feedback] [--kernels numpy auto]
-                                          [--configs default coarse-gp coarse-gp+hold]
+                                          [--configs default coarse-gp coarse-gp+hold exact-prior]
                                           [--domains rectangle harbour floor lake]
 
 Each (robots, configuration, metrics_every, domain) runs in its own process, so that its peak RSS
@@ -38,7 +38,9 @@ Two configurations for large swarms can be added to the table (``--configs``):
   error ~5.5e-3 s_f^2 instead of ~1.4e-3);
 * ``coarse-gp+hold``: also ``kde.hold_substeps = 8`` (p̂ refitted once per measurement step instead
   of every Euler sub-step);
-* ``hold``: ``kde.hold_substeps = 8`` alone (default GP).
+* ``hold``: ``kde.hold_substeps = 8`` alone (default GP);
+* ``exact-prior``: ``gp.prior_truncation = 0`` (every direction of the spline prior kept: the model before
+  the truncated prior, for the time and the final RMSE side by side).
 
 ``--domains`` times the same step with obstacles (issue 19: built-in domains, :mod:`sim.domain`;
 target: within 1.3x of the empty rectangle at 10,000 robots); ``rectangle`` is the empty domain.
@@ -64,6 +66,7 @@ CONFIGS = {
     "coarse-gp": {"gp": {"inducing_spacing": 1.0 / 1.5}},
     "coarse-gp+hold": {"gp": {"inducing_spacing": 1.0 / 1.5}, "kde": {"hold_substeps": 8}},
     "hold": {"kde": {"hold_substeps": 8}},
+    "exact-prior": {"gp": {"prior_truncation": 0.0}},
 }
 
 
