@@ -53,9 +53,9 @@ def _image(ax, grid_values, domain, **kw):
     return ax.imshow(np.asarray(grid_values).T, origin="lower", extent=domain, interpolation="nearest", **kw)
 
 
-def _obstacles(ax, result):
-    """Grey overlay of the obstacles (fine raster of the domain) on a map axis; returns the image
-    (None without obstacles)."""
+def _obstacles(ax, result, dx: float = 0.0, **kw):
+    """Grey overlay of the obstacles (fine raster of the domain) on a map axis, shifted by ``dx`` along x
+    (``kw``: more ``imshow`` arguments); returns the image (None without obstacles)."""
     region = getattr(result, "region", None)
     if region is None:
         return None
@@ -68,8 +68,8 @@ def _obstacles(ax, result):
         from ..control.kde import resample_mask
         off = ~resample_mask(free, *blocked.shape) & ~blocked
         rgba[off] = (0.85, 0.85, 0.85, 0.8)
-    return ax.imshow(np.transpose(rgba, (1, 0, 2)), origin="lower", extent=(x0, x1, y0, y1),
-                     interpolation="nearest", zorder=2)
+    return ax.imshow(np.transpose(rgba, (1, 0, 2)), origin="lower", extent=(x0 + dx, x1 + dx, y0, y1),
+                     interpolation="nearest", zorder=2, **kw)
 
 
 def clip_note(values, vmin, vmax):
@@ -112,24 +112,81 @@ def panel_snapshots(result, periods=PANEL_PERIODS):
     return [snaps[int(np.argmin(np.abs(times - p * T)))] for p in periods]
 
 
-def _grid_axes(fig, nrow, ncol, left, right, bottom, top, wspace, hspace, size):
-    """nrow x ncol square axes of ``size`` inches placed by hand (no layout engine: it costs more
-    than the drawing), margins in inches; returns the array of axes and the colour-bar rectangles."""
+def _row_axes(fig, nrow, left, bottom, top, hspace, width, size):
+    """``nrow`` axes of ``width`` x ``size`` inches, one above the other, each holding a row of panels, and a
+    colour-bar rectangle to the right of each; margins in inches (placed by hand: a layout engine costs more
+    than the drawing).  One Axes a row, not one a panel: an Axes costs ~3 ms to create and more to draw,
+    which with one per panel was most of the figure's time."""
     W, H = fig.get_size_inches()
-    axes = np.empty((nrow, ncol), object)
-    cbar = []
+    rows, cbar = [], []
     for r in range(nrow):
         y = H - top - (r + 1) * size - r * hspace
-        for c in range(ncol):
-            x = left + c * (size + wspace)
-            axes[r, c] = fig.add_axes([x / W, y / H, size / W, size / H])
-        xc = left + ncol * size + (ncol - 1) * wspace + 0.15
+        rows.append(fig.add_axes([left / W, y / H, width / W, size / H]))
+        xc = left + width + 0.15
         cbar.append(fig.add_axes([xc / W, (y + 0.1 * size) / H, 0.13 / W, 0.8 * size / H]))
-    return axes, cbar
+    return rows, cbar
+
+
+class _PanelRow:
+    """Panels side by side in one Axes: panel c shows the domain shifted by ``offsets[c]`` along x, framed,
+    and every artist drawn in it is clipped to its frame."""
+
+    def __init__(self, ax, domain, ncol, gap_inches, size_inches):
+        from matplotlib.patches import Rectangle
+        x0, x1, y0, y1 = domain
+        self.ax, self.domain = ax, domain
+        side = max(x1 - x0, y1 - y0)                       # the larger side fills the square slot
+        gap = gap_inches / size_inches * side
+        self.offsets = [c * (side + gap) + 0.5 * (side - (x1 - x0)) for c in range(ncol)]
+        yc = 0.5 * (y0 + y1)
+        ax.set_xlim(-x0, -x0 + ncol * side + (ncol - 1) * gap)
+        ax.set_ylim(yc - 0.5 * side, yc + 0.5 * side)
+        ax.set_aspect("auto")                              # the limits give equal scales already
+        for sp in ax.spines.values():
+            sp.set_visible(False)
+        self.frames = []
+        for dx in self.offsets:
+            fr = Rectangle((x0 + dx, y0), x1 - x0, y1 - y0, fill=False, lw=0.8, edgecolor="k", zorder=6,
+                           clip_on=False)                  # on the Axes' edges: not half cut away
+            ax.add_patch(fr)
+            self.frames.append(fr)
+
+    def clip(self, c, artist):
+        if artist is not None:
+            artist.set_clip_path(self.frames[c])
+        return artist
+
+    def image(self, c, values, **kw):
+        x0, x1, y0, y1 = self.domain
+        dx = self.offsets[c]
+        return self.clip(c, self.ax.imshow(np.asarray(values).T, origin="lower", extent=(x0 + dx, x1 + dx, y0, y1),
+                                           interpolation="nearest", aspect="auto", **kw))
+
+    def title(self, c, text):
+        from matplotlib.transforms import blended_transform_factory
+        x0, x1, _, _ = self.domain
+        self.ax.text(0.5 * (x0 + x1) + self.offsets[c], 1.02, text, fontsize=10, ha="center", va="bottom",
+                     transform=blended_transform_factory(self.ax.transData, self.ax.transAxes))
+
+    def ticks(self, x: bool, n: int = 3):
+        """``n`` y ticks from wall to wall (left of the first panel) and, with ``x``, ``n`` x ticks under each
+        panel labelled in the domain's own coordinates."""
+        from matplotlib.ticker import FixedFormatter, FixedLocator
+        x0, x1, y0, y1 = self.domain
+        self.ax.set_yticks(np.linspace(y0, y1, n))
+        if not x:
+            self.ax.set_xticks([])
+            self.ax.xaxis.set_visible(False)
+            return
+        t = np.linspace(x0, x1, n)
+        self.ax.xaxis.set_major_locator(FixedLocator(np.concatenate([t + dx for dx in self.offsets])))
+        self.ax.xaxis.set_major_formatter(FixedFormatter([f"{v:g}" for v in t] * len(self.offsets)))
+        self.ax.set_xlabel("x [m]")
 
 
 def make_panels(result, periods=PANEL_PERIODS):
-    """The paper's Fig. "GP and density tracking" (see the module docstring) as a Figure."""
+    """The paper's Fig. "GP and density tracking" (see the module docstring) as a Figure: one Axes per row
+    (robots over p̂, f̄, sqrt(V), v), one panel per column (the snapshots of ``periods``)."""
     snaps = panel_snapshots(result, periods)
     dom = result.grid.domain
     x0, x1, y0, y1 = dom
@@ -138,25 +195,23 @@ def make_panels(result, periods=PANEL_PERIODS):
     sd_max = float(np.sqrt(max(sn.var.max() for sn in snaps)))
     ncol, size = len(snaps), 2.4
     left, right, bottom, top, ws, hs = 1.15, 1.6, 0.55, 0.85, 0.3, 0.32
-    fig = _figure(left + ncol * size + (ncol - 1) * ws + right, top + 4 * size + 3 * hs + bottom)
-    axes, cax = _grid_axes(fig, 4, ncol, left, right, bottom, top, ws, hs, size)
+    width = ncol * size + (ncol - 1) * ws
+    fig = _figure(left + width + right, top + 4 * size + 3 * hs + bottom)
+    axes, cax = _row_axes(fig, 4, left, bottom, top, hs, width, size)
+    rows = [_PanelRow(ax, dom, ncol, ws, size) for ax in axes]
     q = None
     pmax = max(float(sn.p_hat.max()) for sn in snaps)
     speeds = [np.hypot(sn.velocity[..., 0], sn.velocity[..., 1]).max() for sn in snaps if sn.velocity is not None]
     vmax_speed = max(speeds) if speeds else 1.0
     means = []
     for c, sn in enumerate(snaps):
-        ax = axes[0, c]
-        im0 = _image(ax, sn.p_hat, dom, cmap="Greys", vmin=0, vmax=pmax)
-        ax.scatter(sn.X[:, 0], sn.X[:, 1], s=4, c="tab:red", lw=0, zorder=3)
-        ax.set_title(f"t = {sn.t:.2f} s" + (f" ({sn.t / T:.3g} T)" if sn.t > 0 else ""), fontsize=10, y=1.0)
-        im1 = _image(axes[1, c], sn.mean, dom, cmap="viridis", vmin=fmin, vmax=fmax)
+        dx = rows[0].offsets[c]
+        im0 = rows[0].image(c, sn.p_hat, cmap="Greys", vmin=0, vmax=pmax)
+        rows[0].clip(c, axes[0].scatter(sn.X[:, 0] + dx, sn.X[:, 1], s=4, c="tab:red", lw=0, zorder=3))
+        rows[0].title(c, f"t = {sn.t:.2f} s" + (f" ({sn.t / T:.3g} T)" if sn.t > 0 else ""))
+        im1 = rows[1].image(c, sn.mean, cmap="viridis", vmin=fmin, vmax=fmax)
         means.append(sn.mean)
-        im2 = _image(axes[2, c], np.sqrt(sn.var), dom, cmap="magma", vmin=0, vmax=sd_max)
-        for r in range(3):
-            _obstacles(axes[r, c], result)
-        ax = axes[3, c]
-        ax.set_xlim(x0, x1), ax.set_ylim(y0, y1), ax.set_aspect("equal")
+        im2 = rows[2].image(c, np.sqrt(sn.var), cmap="magma", vmin=0, vmax=sd_max)
         if sn.velocity is not None:
             m = sn.velocity.shape[0]
             xs = x0 + (np.arange(m) + 0.5) * (x1 - x0) / m
@@ -166,27 +221,22 @@ def make_panels(result, periods=PANEL_PERIODS):
             if getattr(result, "region", None) is not None:       # no arrows inside obstacles
                 vel[~result.region.contains(np.column_stack([XQ.ravel(), YQ.ravel()])).reshape(XQ.shape)] = 0.0
             sp = np.hypot(vel[..., 0], vel[..., 1])
-            q = ax.quiver(XQ, YQ, vel[..., 0], vel[..., 1], sp, cmap="plasma", clim=(0, vmax_speed),
-                          angles="xy", zorder=3)
+            # matplotlib's autoscaling as for an Axes one panel wide: a typical arrow 1 / (1.8 sn) and the
+            # shaft 0.06 / sn of the panel's width, sn = max(10, sqrt(number of arrows))
+            sn = max(10.0, np.sqrt(sp.size))
+            amean = float(sp.mean()) or 1.0
+            q = rows[3].clip(c, axes[3].quiver(XQ + dx, YQ, vel[..., 0], vel[..., 1], sp, cmap="plasma",
+                                               clim=(0, vmax_speed), angles="xy", scale_units="xy",
+                                               scale=1.8 * amean * sn / (x1 - x0), units="xy",
+                                               width=0.06 * (x1 - x0) / sn, zorder=3))
         else:
-            ax.text(0.5, 0.5, "no plan", ha="center", va="center", transform=ax.transAxes)
-        _obstacles(ax, result)
+            axes[3].text(0.5 * (x0 + x1) + dx, 0.5 * (y0 + y1), "no plan", ha="center", va="center")
         for r in range(4):
-            a = axes[r, c]
-            _ticks(a, dom, x=r == 3, y=c == 0)
-            # an axis without ticks or label is not drawn at all (most of the panels' drawing time was
-            # the 40 Axis objects, two thirds of them empty)
-            if r < 3:
-                a.set_xticks([])
-                a.xaxis.set_visible(False)
-            else:
-                a.set_xlabel("x [m]")
-            if c:
-                a.set_yticks([])
-                a.yaxis.set_visible(False)
-    rows = ["robots over p̂", "GP mean f̄", "GP std √V", "feedback velocity v"]
-    for r, lab in enumerate(rows):
-        axes[r, 0].set_ylabel(f"{lab}\ny [m]")
+            rows[r].clip(c, _obstacles(axes[r], result, dx, aspect="auto"))
+    labels = ["robots over p̂", "GP mean f̄", "GP std √V", "feedback velocity v"]
+    for r, lab in enumerate(labels):
+        rows[r].ticks(x=r == 3)
+        axes[r].set_ylabel(f"{lab}\ny [m]")
     _colorbar(fig, im0, cax[0], "p̂ [1/m²]")
     _colorbar(fig, im1, cax[1], "f̄ [field units]", np.array(means))
     _colorbar(fig, im2, cax[2], "√V [field units]")
@@ -239,9 +289,11 @@ def make_convergence(result):
     ax = axes[1, 1]
     ax.plot(t, _column(rows, "mean_speed"), "o-", ms=3)
     ax.set_ylabel("mean |v| [m/s]"), ax.set_xlabel("t [s]"), ax.set_title("commanded speed", y=1.0)
+    t_replans = [r["t0"] for r in result.replans]
     for a in axes.ravel():
-        for r in result.replans:
-            a.axvline(r["t0"], color="0.8", ls=":", lw=0.8, zorder=0)
+        if t_replans:           # one collection per axis (a Line2D each cost ~0.5 ms to create and draw)
+            a.vlines(t_replans, 0, 1, transform=a.get_xaxis_transform(), colors="0.8", linestyles=":", lw=0.8,
+                     zorder=0)
         a.grid(alpha=0.25)
         a.locator_params(axis="x", nbins=5)
         if a.get_yscale() == "linear":

@@ -160,20 +160,31 @@ def _labels(fig):
 def test_panels_figure_content(result):
     from swarmfield.sim.figures import make_panels, panel_snapshots
     fig = make_panels(result)
-    ncol = len(panel_snapshots(result))
+    snaps = panel_snapshots(result)
+    ncol = len(snaps)
     bars = [a for a in fig.axes if getattr(a, "_colorbar", None) is not None]
-    grid = [a for a in fig.axes if a not in bars]
-    assert len(grid) == 4 * ncol
-    assert len(bars) == 4 and all(b.get_ylabel() for b in bars)            # four colour bars, each labelled
-    assert sum(len(a.images) for a in grid) == 3 * ncol                    # p_hat, f_bar, sqrt(V) per column
-    quivers = [a for a in grid if any(type(c).__name__ == "Quiver" for c in a.collections)]
-    assert len(quivers) == sum(sn.velocity is not None for sn in panel_snapshots(result))
-    assert [a.get_xlabel() for a in grid[-ncol:]] == ["x [m]"] * ncol
-    assert all(a.get_ylabel().endswith("y [m]") for a in grid[::ncol])
-    # the labelled axes are drawn; the inner panels' empty axes are not (drawing time)
-    assert all(a.xaxis.get_visible() for a in grid[-ncol:]) and all(a.yaxis.get_visible() for a in grid[::ncol])
-    assert not any(a.xaxis.get_visible() for a in grid[:-ncol]) and not any(a.yaxis.get_visible() for a in grid[1:ncol])
-    assert all(a.get_title().startswith("t = ") for a in grid[:ncol])
+    rows = [a for a in fig.axes if a not in bars]
+    # one Axes per row (robots over p_hat, f_bar, sqrt(V), v), its panels side by side and framed
+    assert len(rows) == 4 and len(bars) == 4 and all(b.get_ylabel() for b in bars)
+    assert [len(a.images) for a in rows[:3]] == [ncol] * 3               # p_hat, f_bar, sqrt(V) per column
+    assert all(len(a.patches) == ncol for a in rows)                     # a frame per panel
+    quivers = [c for c in rows[3].collections if type(c).__name__ == "Quiver"]
+    assert len(quivers) == sum(sn.velocity is not None for sn in snaps)
+    # the panels do not overlap: each image's extent lies in its own frame, clipped to it
+    extents = [im.get_extent() for im in rows[0].images]
+    assert all(e[1] < f[0] for e, f in zip(extents, extents[1:]))
+    for a in rows[:3]:                     # a rectangle clip path becomes the artist's clip box
+        assert all(np.allclose(im.get_clip_box().extents, fr.get_window_extent().extents)
+                   for im, fr in zip(a.images, a.patches))
+    x0, x1, y0, y1 = result.grid.domain
+    assert all(np.isclose(e[1] - e[0], x1 - x0) and np.allclose(e[2:], (y0, y1)) for e in extents)
+    # y ticks on every row, x ticks (in the domain's own coordinates) under every panel of the last row only
+    assert all(a.yaxis.get_visible() and a.get_ylabel().endswith("y [m]") for a in rows)
+    assert not any(a.xaxis.get_visible() for a in rows[:3]) and rows[3].get_xlabel() == "x [m]"
+    labels = [t.get_text() for t in rows[3].get_xticklabels()]
+    assert len(labels) == 3 * ncol and labels[:3] == [f"{v:g}" for v in np.linspace(x0, x1, 3)]
+    titles = [t.get_text() for t in rows[0].texts]
+    assert len(titles) == ncol and all(t.startswith("t = ") for t in titles)
     assert "[1/m²]" in bars[0].get_ylabel() and "[m/s]" in bars[3].get_ylabel()
     assert fig.get_suptitle()
 
