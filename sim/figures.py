@@ -139,7 +139,7 @@ class _PanelRow:
         gap = gap_inches / size_inches * side
         self.offsets = [c * (side + gap) + 0.5 * (side - (x1 - x0)) for c in range(ncol)]
         yc = 0.5 * (y0 + y1)
-        ax.set_xlim(-x0, -x0 + ncol * side + (ncol - 1) * gap)
+        ax.set_xlim(x0, x0 + ncol * side + (ncol - 1) * gap)     # slot c: [x0 + c (side + gap), ... + side]
         ax.set_ylim(yc - 0.5 * side, yc + 0.5 * side)
         ax.set_aspect("auto")                              # the limits give equal scales already
         for sp in ax.spines.values():
