@@ -28,17 +28,18 @@ with the Kronecker factor ``S = s_f (F_x (x) F_y)``, ``F_d = Q_d Lambda_d^{1/2}`
 eigen-decomposition of ``Kc_d`` (so ``I + S^T A S`` has eigenvalues >= 1 and its Cholesky
 factorisation needs no jitter, unlike ``K_c^{-1}``).
 
-*Truncated prior* (``GPSettings.prior_truncation``, default 1e-8): the columns of S are the prior's
-eigen-directions, with variances ``lambda_x,i lambda_y,j``; those below the tolerance times the
-largest are dropped (S_K, r of the M columns kept: a Karhunen-Loeve truncation of the spline prior).
-The prior covariance of f(x) changes by at most that fraction of the largest eigenvalue, and the
-O(r^3) factorisation shrinks with r: at h = l/2 the SE spectrum at the grid's Nyquist frequency is
-still ~1e-9, so r = 1617 of 1849 (0.67 of the O(M^3) work); a learned l = 1.5 on the same grid keeps
-r = 762 (0.07 of it).  Measured against every direction kept (0), 40 x 40 cell centres: at l = 1,
-2.4e5 points, f̄ within 2e-8 and V within 5e-7 relative (``tests/test_regression.py`` asserts it on
-the paper's data); a field rougher than the prior (sin 6x) with 1e6 points, 7e-8 and 2e-6; at l = 1.5
-(r = 762) 6e-7 and 7e-5 -- against the spline's own kernel error of 1.4e-3 s_f^2 (1e-7 would keep
-r = 1467 but move f̄ by 4e-5 on the rough field: not taken).
+*Truncated prior* (``GPSettings.prior_truncation``, default 2e-7): the columns of S are the prior's
+eigen-directions, with variances ``s_f^2 lambda_x,i lambda_y,j``; those with ``lambda_x,i lambda_y,j``
+below the tolerance are dropped (S_K, r of the M columns kept: a Karhunen-Loeve truncation of the spline
+prior).  As ``|phi(x)| <= 1``, the prior covariance of f changes by at most tolerance x s_f^2 (against
+the spline's own kernel error of 1.4e-3 s_f^2), and the O(r^3) factorisation shrinks with r: at h = l/2
+the SE spectrum at the grid's Nyquist frequency is still ~1e-9 of its peak, so r = 1623 of 1849 (0.68
+of the O(M^3) work); a learned l = 1.5 / 2 / 3 / 10 on the same grid keeps r = 807 / 492 / 259 / 56.
+Measured against every direction kept (0), 40 x 40 cell centres, 2e4 points of a smooth field: f̄
+within 4e-9 / 6e-8 / 9e-8 / 7e-8 / 2e-6 and V within 4e-8 / 2e-6 / 5e-6 / 5e-6 / 4e-6 relative at
+l = 1 / 1.5 / 2 / 3 / 10 (``tests/test_regression.py`` asserts it on the paper's data); a field rougher
+than the prior (sin 6x) with 1e6 points at l = 1: 6e-8 and 2e-6.  (A tolerance relative to the largest
+eigenvalue, tried first, let the error grow with l / h: 1e-4 in f̄ at l = 10.)
 
 Why the cost does not grow with n: on a cell of the grid, phi(x) has 16 non-zeros, the
 products of four cubic polynomials in the local coordinates (t_1, t_2) per axis. Hence A and b
@@ -103,7 +104,7 @@ Cost (2-core AVX-512 machine, single-threaded OpenBLAS, M = 1849, 1,600 query po
 :mod:`regression.power_sums_kernel`, the same bits; 10^6 points ~45 ms); the closed-loop step ``add`` of 100 points + ``predict`` ~18 ms
 (Woodbury update; ~10 ms for 10 points, ~60 ms for 462 = M/4; it was ~270 ms when every step
 refactorised); a ``predict`` that refactorises (e.g. after 10,000 new points, or 1e6 accumulated)
-~0.17 s whatever the number of observations (dpotrf 38 ms and dpotri 68 ms at r = 1617, B through
+~0.18 s whatever the number of observations (dpotrf 38 ms and dpotri 68 ms at r = 1617, B through
 A's band 24 ms, T 16 ms; it was 0.26 s with the full M and dense Kronecker sandwiches);
 ``predict`` without new data ~4 ms. Multi-threaded
 OpenBLAS on an oversubscribed machine can make the factorisation several times slower (threads
@@ -166,7 +167,7 @@ class _PriorBasis:
 
     ``fx`` (gx, cx) and ``fy`` (gy, cy) are the per-axis eigenvectors scaled by the square roots of
     their eigenvalues (decreasing), ``keep`` the flat indices ``i * cy + j`` of the products kept
-    (eigenvalue ``lam_x[i] lam_y[j]`` above ``prior_truncation`` x the largest), columns beyond
+    (eigenvalue ``lam_x[i] lam_y[j]`` above ``prior_truncation``), columns beyond
     which no product is kept already cut from fx and fy; ``kcx``, ``kcy`` the full factors."""
     kcx: np.ndarray
     kcy: np.ndarray
@@ -495,8 +496,9 @@ class GaussianProcess:
             return hit
         kcx, lx, vx = self._ax.prior_factor(length_scale)
         kcy, ly, vy = self._ay.prior_factor(length_scale)
-        cut = tol * lx[0] * ly[0]
-        kept = np.multiply.outer(lx, ly) > cut if tol > 0 else np.multiply.outer(lx > 0, ly > 0)
+        # a product direction of variance lx_i ly_j (unit s_f^2) adds at most that to the prior variance of f(x)
+        # (|phi(x)| <= 1): dropping those below tol changes the prior covariance of f by at most tol s_f^2
+        kept = np.multiply.outer(lx, ly) > tol if tol > 0 else np.multiply.outer(lx > 0, ly > 0)
         cx = int(np.flatnonzero(kept.any(axis=1))[-1]) + 1      # eigenvalues decrease: a staircase
         cy = int(np.flatnonzero(kept.any(axis=0))[-1]) + 1
         kept = kept[:cx, :cy]

@@ -77,12 +77,12 @@ class GPSettings:
         exact sufficient statistics of the data (:mod:`regression.hyper`; ~30x cheaper at 2);
         the learned length scale is then >= 1.5 x the coarse spacing (1.5 m at the defaults).
     prior_truncation
-        Directions of the spline prior whose variance is below this fraction of the largest are
-        left out of the posterior (its products of per-axis eigenvectors: a Karhunen-Loeve
-        truncation, :mod:`regression.gp`). The prior kernel changes by at most that fraction of
-        its largest eigenvalue, and the O(M^3) factorisations shrink with the directions kept
-        (at 1e-8: 87% of M at h = l/2, 41% at h = l/3; f̄ and V change by <= ~1e-6 and ~1e-4
-        relative in the cases measured, ~1e-8 at the paper's setting: :mod:`regression.gp`).
+        Directions of the spline prior whose variance is below this multiple of signal_variance
+        are left out of the posterior (products of per-axis eigenvectors: a Karhunen-Loeve
+        truncation, :mod:`regression.gp`). The prior covariance of the field changes by at most
+        that multiple of signal_variance, and the O(M^3) factorisations shrink with the
+        directions kept (at 2e-7: 88% of M at h = l/2, 44% at h = l/3; f̄ and V change by
+        <= ~2e-6 and ~2e-5 relative in the cases measured, ~1e-8 at the paper's setting).
         0 keeps every direction (the exact spline model).
     """
 
@@ -96,7 +96,7 @@ class GPSettings:
     hyper_prior_sd: float = 1.0
     hyper_maxiter: int = 15
     hyper_coarsening: int = 2
-    prior_truncation: float = 1e-8
+    prior_truncation: float = 2e-7
 
     def __post_init__(self):
         object.__setattr__(self, "signal_variance", _finite_positive("signal_variance", self.signal_variance))

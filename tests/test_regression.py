@@ -312,21 +312,23 @@ def test_factorisations_of_several_gps_share_work_arrays_without_aliasing():
 
 # ---------------------------------------------------------------------- truncated prior, banded algebra
 def test_truncated_prior_matches_the_exact_spline_model():
-    """prior_truncation = 1e-8 keeps 1617 of the 1849 prior directions at l = 1, h = l/2 (2/3 of the O(M^3)
-    work) and changes the mean by ~1e-8 and the variance by ~1e-8 relative [measured 2.5e-9, 1.0e-8] against
-    every direction kept."""
+    """The default prior_truncation (2e-7 s_f^2) keeps 1623 of the 1849 prior directions at l = 1, h = l/2 (2/3
+    of the O(M^3) work) and changes the mean and the variance by ~1e-8 relative [measured 2.0e-9, 8.3e-9]
+    against every direction kept; at a learned l = 3 on the same grid it keeps 259."""
     X, y = paper_data(3, n_robots=2000, n_spread=3000)
     pts = cell_centres()
     out = {}
-    for tol in (0.0, 1e-8):
+    for tol in (0.0, GPSettings().prior_truncation):
         gp = GaussianProcess(dataclasses.replace(PAPER, prior_truncation=tol))
         gp.add(X, y)
         out[tol] = gp.predict(pts)
         assert gp.n_factorizations == 1
         out[tol, "r"] = gp._prior_basis(PAPER.length_scale).size
-    assert out[0.0, "r"] == 1849 and out[1e-8, "r"] == 1617
-    np.testing.assert_allclose(out[1e-8][0], out[0.0][0], rtol=0, atol=1e-7)
-    np.testing.assert_allclose(out[1e-8][1], out[0.0][1], rtol=1e-5, atol=0)
+    tol = GPSettings().prior_truncation
+    assert tol == 2e-7 and out[0.0, "r"] == 1849 and out[tol, "r"] == 1623
+    np.testing.assert_allclose(out[tol][0], out[0.0][0], rtol=0, atol=1e-7)
+    np.testing.assert_allclose(out[tol][1], out[0.0][1], rtol=1e-5, atol=0)
+    assert gp._prior_basis(3.0).size == 259
 
 
 def test_band_sandwich_equals_the_dense_kronecker_product():
