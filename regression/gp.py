@@ -104,8 +104,8 @@ Cost (2-core AVX-512 machine, single-threaded OpenBLAS, M = 1849, 1,600 query po
 :mod:`regression.power_sums_kernel`, the same bits; 10^6 points ~45 ms); the closed-loop step ``add`` of 100 points + ``predict`` ~18 ms
 (Woodbury update; ~10 ms for 10 points, ~60 ms for 462 = M/4; it was ~270 ms when every step
 refactorised); a ``predict`` that refactorises (e.g. after 10,000 new points, or 1e6 accumulated)
-~0.18 s whatever the number of observations (dpotrf 38 ms and dpotri 68 ms at r = 1617, B through
-A's band 24 ms, T 16 ms; it was 0.26 s with the full M and dense Kronecker sandwiches);
+~0.19 s whatever the number of observations (dpotrf 39 ms and dpotri 71 ms at r = 1623, B through
+A's band 26 ms, T 16 ms; it was 0.26 s with the full M and dense Kronecker sandwiches);
 ``predict`` without new data ~4 ms. Multi-threaded
 OpenBLAS on an oversubscribed machine can make the factorisation several times slower (threads
 spin-waiting on each other); set ``OPENBLAS_NUM_THREADS=1`` there.
@@ -277,7 +277,7 @@ class GaussianProcess:
     """
 
     #: Woodbury updates of the posterior covariance allowed between two factorisations from the
-    #: power sums (bounds the accumulation of round-off; the factorisation costs ~0.17 s at M = 1849).
+    #: power sums (bounds the accumulation of round-off; the factorisation costs ~0.19 s at M = 1849).
     refactor_every = 50
     #: a batch of new points is applied by a Woodbury update if it has at most this fraction of M
     #: points (and refactorised from the power sums otherwise).

@@ -59,7 +59,7 @@ class GPSettings:
     max_inducing_points
         Upper bound on the number of inducing grid nodes M = (cells_x + 3) * (cells_y + 3).
         ``predict`` after new data costs one dense Cholesky factorisation and inverse of order
-        r <= M (~0.17 s at M = 1849, growing like M^3; memory ~ 6 M^2 doubles), so the bound turns
+        r <= M (~0.19 s at M = 1849, growing like M^3; memory ~ 6 M^2 doubles), so the bound turns
         an accidental fine grid into a clear error instead of a stall.
     learn_hyperparameters
         Refit (signal_variance, length_scale) by maximum a posteriori each re-planning period
