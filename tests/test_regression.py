@@ -331,6 +331,26 @@ def test_truncated_prior_matches_the_exact_spline_model():
     assert gp._prior_basis(3.0).size == 259
 
 
+@pytest.mark.parametrize("length_scale, kept, tol_mean, tol_var", [(3.0, 259, 1e-6, 1e-4), (10.0, 56, 2e-5, 1e-4)])
+def test_truncation_stays_small_at_long_learned_length_scales(length_scale, kept, tol_mean, tol_var):
+    """A learned length scale on the initial (fine) grid: the dropped directions are bounded in absolute terms
+    (2e-7 s_f^2), so the error does not grow with l / h [measured 7e-8 / 5e-6 at l = 3, 2e-6 / 4e-6 at
+    l = 10; a cut relative to the largest eigenvalue moved the mean by 1e-4 at l = 10]."""
+    rng = np.random.default_rng(7)
+    X = rng.uniform(0.0, 20.0, (20000, 2))
+    y = np.sin(X[:, 0] / 2) * np.cos(X[:, 1] / 3) + 0.3 * np.sin(X[:, 0]) + rng.normal(0.0, 0.2, len(X))
+    pts = cell_centres()
+    out = {}
+    for tol in (0.0, GPSettings().prior_truncation):
+        gp = GaussianProcess(GPSettings(length_scale=length_scale, inducing_spacing=0.5, prior_truncation=tol))
+        gp.add(X, y)
+        out[tol] = gp.predict(pts)
+    assert gp._prior_basis(length_scale).size == kept
+    (m0, v0), (m1, v1) = out[0.0], out[GPSettings().prior_truncation]
+    np.testing.assert_allclose(m1, m0, rtol=0, atol=tol_mean)
+    np.testing.assert_allclose(v1, v0, rtol=tol_var, atol=0)
+
+
 def test_band_sandwich_equals_the_dense_kronecker_product():
     """S^T A S from A's band (gx, 7, gy, 7) equals (fx (x) fy)^T A (fx (x) fy) with A dense."""
     gp = GaussianProcess(COARSE, (0.0, 10.0, 0.0, 10.0))
