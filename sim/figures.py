@@ -112,24 +112,31 @@ def panel_snapshots(result, periods=PANEL_PERIODS):
     return [snaps[int(np.argmin(np.abs(times - p * T)))] for p in periods]
 
 
-def _row_axes(fig, nrow, left, bottom, top, hspace, width, size):
-    """``nrow`` axes of ``width`` x ``size`` inches, one above the other, each holding a row of panels, and a
-    colour-bar rectangle to the right of each; margins in inches (placed by hand: a layout engine costs more
-    than the drawing).  One Axes a row, not one a panel: an Axes costs ~3 ms to create and more to draw,
-    which with one per panel was most of the figure's time."""
+def _row_axes(fig, nrow, left, bottom, top, hspace, width, size, height):
+    """``nrow`` axes of ``width`` x ``height`` inches centred in rows ``size`` inches high, one above the other,
+    each holding a row of panels, and a colour-bar rectangle to the right of each; margins in inches (placed by
+    hand: a layout engine costs more than the drawing).  One Axes a row, not one a panel: an Axes costs ~3 ms
+    to create and more to draw, which with one per panel was most of the figure's time."""
     W, H = fig.get_size_inches()
     rows, cbar = [], []
     for r in range(nrow):
         y = H - top - (r + 1) * size - r * hspace
-        rows.append(fig.add_axes([left / W, y / H, width / W, size / H]))
+        rows.append(fig.add_axes([left / W, (y + 0.5 * (size - height)) / H, width / W, height / H]))
         xc = left + width + 0.15
         cbar.append(fig.add_axes([xc / W, (y + 0.1 * size) / H, 0.13 / W, 0.8 * size / H]))
     return rows, cbar
 
 
+def panel_height(domain, size: float) -> float:
+    """Height in inches of a panel of the domain in a square slot of ``size`` inches (its larger side fills it)."""
+    x0, x1, y0, y1 = domain
+    return size * (y1 - y0) / max(x1 - x0, y1 - y0)
+
+
 class _PanelRow:
-    """Panels side by side in one Axes: panel c shows the domain shifted by ``offsets[c]`` along x, framed,
-    and every artist drawn in it is clipped to its frame."""
+    """Panels side by side in one Axes ``panel_height`` high: panel c shows the domain shifted by
+    ``offsets[c]`` along x, centred in its square slot, framed, and every artist drawn in it is clipped to
+    its frame."""
 
     def __init__(self, ax, domain, ncol, gap_inches, size_inches):
         from matplotlib.patches import Rectangle
@@ -138,10 +145,9 @@ class _PanelRow:
         side = max(x1 - x0, y1 - y0)                       # the larger side fills the square slot
         gap = gap_inches / size_inches * side
         self.offsets = [c * (side + gap) + 0.5 * (side - (x1 - x0)) for c in range(ncol)]
-        yc = 0.5 * (y0 + y1)
         ax.set_xlim(x0, x0 + ncol * side + (ncol - 1) * gap)     # slot c: [x0 + c (side + gap), ... + side]
-        ax.set_ylim(yc - 0.5 * side, yc + 0.5 * side)
-        ax.set_aspect("auto")                              # the limits give equal scales already
+        ax.set_ylim(y0, y1)
+        ax.set_aspect("auto")                              # with panel_height, the limits give equal scales
         for sp in ax.spines.values():
             sp.set_visible(False)
         self.frames = []
@@ -197,7 +203,7 @@ def make_panels(result, periods=PANEL_PERIODS):
     left, right, bottom, top, ws, hs = 1.15, 1.6, 0.55, 0.85, 0.3, 0.32
     width = ncol * size + (ncol - 1) * ws
     fig = _figure(left + width + right, top + 4 * size + 3 * hs + bottom)
-    axes, cax = _row_axes(fig, 4, left, bottom, top, hs, width, size)
+    axes, cax = _row_axes(fig, 4, left, bottom, top, hs, width, size, panel_height(dom, size))
     rows = [_PanelRow(ax, dom, ncol, ws, size) for ax in axes]
     q = None
     pmax = max(float(sn.p_hat.max()) for sn in snaps)

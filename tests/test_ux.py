@@ -194,17 +194,19 @@ def test_panel_rows_keep_equal_scales_and_their_frames_inside_the_axes(domain):
     """Panels side by side in one Axes (panels.png): whatever the domain's origin and shape, each frame lies in
     the Axes' limits, the frames do not overlap, and x and y have the same scale (metres per inch)."""
     from swarmfield.runtime.plotting import new_figure
-    from swarmfield.sim.figures import _PanelRow
+    from swarmfield.sim.figures import _PanelRow, panel_height
     fig = new_figure(10, 3)
     size, gap = 2.0, 0.3
-    ax = fig.add_axes([0.05, 0.1, (4 * size + 3 * gap) / 10, size / 3])
+    height = panel_height(domain, size)
+    ax = fig.add_axes([0.05, 0.1, (4 * size + 3 * gap) / 10, height / 3])
     row = _PanelRow(ax, domain, 4, gap, size)
     (xa, xb), (ya, yb) = ax.get_xlim(), ax.get_ylim()
     x0, x1, y0, y1 = domain
     spans = [(x0 + dx, x1 + dx) for dx in row.offsets]
-    assert all(xa - 1e-9 <= a and b <= xb + 1e-9 for a, b in spans) and ya <= y0 and y1 <= yb
+    assert all(xa - 1e-9 <= a and b <= xb + 1e-9 for a, b in spans) and (ya, yb) == (y0, y1)
     assert all(b < c for (_, b), (c, _) in zip(spans, spans[1:]))
-    assert np.isclose((xb - xa) / (4 * size + 3 * gap), (yb - ya) / size)
+    assert np.isclose((xb - xa) / (4 * size + 3 * gap), (yb - ya) / height)      # metres per inch, x and y
+    assert height <= size and max(x1 - x0, y1 - y0) * height == pytest.approx(size * (y1 - y0))
 
 
 def test_convergence_figure_has_no_duplicated_curve(result):
