@@ -227,14 +227,14 @@ def make_panels(result, periods=PANEL_PERIODS):
             if getattr(result, "region", None) is not None:       # no arrows inside obstacles
                 vel[~result.region.contains(np.column_stack([XQ.ravel(), YQ.ravel()])).reshape(XQ.shape)] = 0.0
             sp = np.hypot(vel[..., 0], vel[..., 1])
-            # matplotlib's autoscaling as for an Axes one panel wide: a typical arrow 1 / (1.8 sn) and the
-            # shaft 0.06 / sn of the panel's width, sn = max(10, sqrt(number of arrows))
-            sn = max(10.0, np.sqrt(sp.size))
+            # matplotlib's autoscaling as for an Axes one panel wide: a typical arrow 1 / (1.8 k) and the
+            # shaft 0.06 / k of the panel's width, k = max(10, sqrt(number of arrows))
+            k = max(10.0, np.sqrt(sp.size))
             amean = float(sp.mean()) or 1.0
             q = rows[3].clip(c, axes[3].quiver(XQ + dx, YQ, vel[..., 0], vel[..., 1], sp, cmap="plasma",
                                                clim=(0, vmax_speed), angles="xy", scale_units="xy",
-                                               scale=1.8 * amean * sn / (x1 - x0), units="xy",
-                                               width=0.06 * (x1 - x0) / sn, zorder=3))
+                                               scale=1.8 * amean * k / (x1 - x0), units="xy",
+                                               width=0.06 * (x1 - x0) / k, zorder=3))
         else:
             axes[3].text(0.5 * (x0 + x1) + dx, 0.5 * (y0 + y1), "no plan", ha="center", va="center")
         for r in range(4):
