@@ -165,8 +165,7 @@ class _PanelRow:
     def image(self, c, values, **kw):
         x0, x1, y0, y1 = self.domain
         dx = self.offsets[c]
-        return self.clip(c, self.ax.imshow(np.asarray(values).T, origin="lower", extent=(x0 + dx, x1 + dx, y0, y1),
-                                           interpolation="nearest", aspect="auto", **kw))
+        return self.clip(c, _image(self.ax, values, (x0 + dx, x1 + dx, y0, y1), aspect="auto", **kw))
 
     def title(self, c, text):
         from matplotlib.transforms import blended_transform_factory
