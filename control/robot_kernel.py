@@ -191,6 +191,11 @@ static inline void plan_cell(double x, double y, double gx0, double gy0, double 
     *cj = j;
 }
 
+/* 1 if lo_x <= x <= hi_x and lo_y <= y <= hi_y (0 for NaN), branch free */
+static inline int in_box(double x, double y, double lo_x, double hi_x, double lo_y, double hi_y) {
+    return (x >= lo_x) & (x <= hi_x) & (y >= lo_y) & (y <= hi_y);
+}
+
 /* the lower-left cell centre (gi, gj) of the bilinear stencil of (x, y) on the nx x ny centres, the
    fractions (sx, sy) and whether (x, y) is strictly inside the centres' span per axis (inx, iny) */
 static inline void bilinear_cell(double x, double y, double gx0, double gy0, double gdx, double gdy, long nx, long ny,
@@ -273,13 +278,13 @@ long sf_tracking(long n, const double *X, double *V, const Params *q) {
         long bad = 0;            /* a robot outside the domain (NaN and inf included): counted in a loop that vectorises */
         for (long b = 0; b < m; b++) {
             double x = Xb[2 * b], y = Xb[2 * b + 1];
-            bad += !((x >= x0 - tx) & (x <= x1 + tx) & (y >= y0 - ty) & (y <= y1 + ty));
+            bad += !in_box(x, y, x0 - tx, x1 + tx, y0 - ty, y1 + ty);
             xs[b] = x;
             ys[b] = y;
         }
         if (bad)
             for (long b = 0; b < m; b++)
-                if (!((xs[b] >= x0 - tx) & (xs[b] <= x1 + tx) & (ys[b] >= y0 - ty) & (ys[b] <= y1 + ty))) {
+                if (!in_box(xs[b], ys[b], x0 - tx, x1 + tx, y0 - ty, y1 + ty)) {
                     free(w);
                     return k0 + b + 1;
                 }
