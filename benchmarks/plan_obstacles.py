@@ -1,7 +1,7 @@
 """Benchmark: the paper's first planning step with obstacles (issue 19, item 9) against the empty rectangle.
 
     python benchmarks/plan_obstacles.py [--repeat 3] [--grids 40] [--transports auto] [--scheme upwind]
-        [--cold-starts zero,coarse] [--kernel]
+        [--cold-starts zero,coarse] [--methods ipopt,grg] [--kernel]
 
 The domains (``--layouts``): the paper's [0, 20]^2 with "rooms": a wall at 9 <= x <= 10 (a door at
 12 <= y <= 15) and two blocks, [13, 17] x [3, 8] and [2, 6.5] x [12, 16] (14 % of the cells blocked at
@@ -90,6 +90,9 @@ def main():
     ap.add_argument("--layouts", default="rooms,pillars", help=f"comma-separated, of {', '.join(LAYOUTS)}")
     ap.add_argument("--cold-starts", default="zero",
                     help="comma-separated planner.cold_start values: zero (default), coarse (coarse-to-fine)")
+    ap.add_argument("--methods", default="ipopt",
+                    help="comma-separated planner methods: ipopt (default), grg (the paper's generalized reduced "
+                         "gradient, ocp.grg; zero start only)")
     ap.add_argument("--kernel", action="store_true",
                     help="also time the compiled kernel alone (forward + adjoint, min of 15) with and without the mask")
     args = ap.parse_args()
@@ -100,8 +103,11 @@ def main():
     for n in [int(v) for v in args.grids.split(",") if v]:
         for tr in args.transports.split(","):
             res = {}
-            for cs in args.cold_starts.split(","):
-                s = PlannerSettings(nx=n, ny=n, transport=tr, scheme=args.scheme, cold_start=cs)
+            starts = [(cs, m) for m in args.methods.split(",") for cs in args.cold_starts.split(",")
+                      if m == "ipopt" or cs == "zero"]
+            for cs, method in starts:
+                s = PlannerSettings(nx=n, ny=n, transport=tr, scheme=args.scheme, cold_start=cs, method=method)
+                tag = cs if method == "ipopt" else method        # the row's start (ipopt) or method (grg)
                 for label in ("empty", *args.layouts.split(",")):
                     g = Grid(s.domain, n, n)
                     free = obstacle_mask(g, label) if label != "empty" else None
@@ -119,21 +125,21 @@ def main():
                     sv = plan.meta["solver"]
                     it = max(sv["iterations"], 1)
                     c, w = float(np.median(cpu)), float(np.median(wall))
-                    res[(cs, label)] = (c, w, c / it)
+                    res[(tag, label)] = (c, w, c / it)
                     blocked = 0.0 if free is None else 1 - free.mean()
                     coarse = sv.get("cold_start")
                     extra = (f"  coarse {coarse['grid'][0]}x{coarse['grid'][1]}: {coarse['iterations']} it "
                              f"{coarse['cpu_time_s']:.3f} s" if coarse and coarse.get("used") else "")
-                    print(f"{n}x{n} {plan.meta['transport']:>8s} {args.scheme:6s} {cs:6s} {label:8s} blocked "
+                    print(f"{n}x{n} {plan.meta['transport']:>8s} {args.scheme:6s} {tag:6s} {label:8s} blocked "
                           f"{100 * blocked:4.1f} %  cpu {c:7.3f} s  wall {w:7.3f} s (median of {args.repeat}, cpu "
                           f"min {min(cpu):.3f})  {sv['iterations']:4d} it  {c / it * 1e3:6.2f} ms/it  objective "
                           f"{plan.meta['objective']:9.4f}  {sv['status']}{extra}", flush=True)
                 for label in args.layouts.split(","):
-                    c, w, i = (a / b for a, b in zip(res[(cs, label)], res[(cs, "empty")]))
-                    print(f"{n}x{n} {tr} {cs}: {label} / empty ({cs}): cpu {c:.2f}, wall {w:.2f}", flush=True)
-                    if cs != "zero" and ("zero", "empty") in res:
-                        print(f"{n}x{n} {tr} {cs}: {label} / empty (zero start): cpu "
-                              f"{res[(cs, label)][0] / res[('zero', 'empty')][0]:.2f}", flush=True)
+                    c, w, i = (a / b for a, b in zip(res[(tag, label)], res[(tag, "empty")]))
+                    print(f"{n}x{n} {tr} {tag}: {label} / empty ({tag}): cpu {c:.2f}, wall {w:.2f}", flush=True)
+                    if tag != "zero" and ("zero", "empty") in res:
+                        print(f"{n}x{n} {tr} {tag}: {label} / empty (ipopt, zero start): cpu "
+                              f"{res[(tag, label)][0] / res[('zero', 'empty')][0]:.2f}", flush=True)
             if "zero" in args.cold_starts.split(","):
                 for cs in args.cold_starts.split(","):
                     if cs != "zero":
