@@ -411,9 +411,33 @@ class Domain:
         return (np.round(np.linspace(0, Nx, nx + 1)).astype(int), np.round(np.linspace(0, Ny, ny + 1)).astype(int))
 
     def reachable_pixels(self, start_box) -> np.ndarray:
-        """(Nx, Ny) bool: free pixels of the fine raster connected through pixel faces to a free pixel that
-        overlaps ``start_box``: the free space the robots can reach (they move at this resolution)."""
-        return _connected_to_box(self.free_pixels, self.extent, start_box)
+        """(Nx, Ny) bool: the free pixels the robots can reach from ``start_box``.
+
+        Rasters: the free pixels connected through pixel faces to a free pixel that overlaps the box (the robots
+        move at this resolution; pixels that touch only at a corner are not connected).  Polygons: the free
+        pixels whose centre lies in a part of the free region that overlaps the box with positive area.  The
+        robots move on the polygons themselves, so two parts that touch at a single point (a valid
+        MultiPolygon) are not connected -- the raster's pixels centred on their boundaries would link them --
+        and a corridor narrower than a pixel still connects what it joins."""
+        fine = self.free_pixels
+        if self.geometry is None:
+            return _connected_to_box(fine, self.extent, start_box)
+        import shapely
+        bx0, bx1, by0, by1 = (float(v) for v in start_box)
+        box = shapely.box(bx0, by0, bx1, by1)
+        parts = list(shapely.get_parts(self.geometry))
+        reach = [p for p in parts if shapely.intersection(p, box).area > 0]
+        if len(reach) == len(parts):
+            return fine
+        out = np.zeros_like(fine)
+        if reach:
+            region = shapely.union_all(reach)
+            shapely.prepare(region)
+            x0, _, y0, _ = self.extent
+            px, py = self.pixel
+            i, j = np.nonzero(fine)
+            out[i, j] = shapely.intersects_xy(region, x0 + (i + 0.5) * px, y0 + (j + 0.5) * py)
+        return out
 
     def reachable_cells(self, free: np.ndarray, start_box) -> np.ndarray:
         """Free cells (of the (nx, ny) mask ``free``) the swarm can reach from ``start_box``: most of the cell's
@@ -423,9 +447,8 @@ class Domain:
         free = np.asarray(free, bool)
         nx, ny = free.shape
         if not self.is_rectangle:
-            fine = self.free_pixels
-            reach = cell_fractions(_connected_to_box(fine, self.extent, start_box), self.extent, nx, ny)
-            total = cell_fractions(fine, self.extent, nx, ny)
+            reach = cell_fractions(self.reachable_pixels(start_box), self.extent, nx, ny)
+            total = cell_fractions(self.free_pixels, self.extent, nx, ny)
             free = free & (reach >= 0.5 * total) & (reach > 0)
         return _connected_to_box(free, self.extent, start_box)
 

@@ -365,6 +365,28 @@ def test_a_room_closed_by_a_wall_thinner_than_a_cell_is_unreachable(tmp_path):
     assert np.array_equal(sim.free, reach)
 
 
+def test_polygons_touching_at_a_point_are_not_connected(tmp_path):
+    """A valid MultiPolygon of two triangles meeting only at (10, 10): the robots cannot pass a point, so the
+    upper triangle is unreachable from a start box in the lower one.  The fine raster's pixels centred on the
+    two triangles' edges next to the point are free and share a face; reachability must come from the polygons."""
+    pytest.importorskip("shapely")
+    lower, upper = [[0, 0], [20, 0], [10, 10], [0, 0]], [[10, 10], [20, 20], [0, 20], [10, 10]]
+    (tmp_path / "pinch.geojson").write_text(json.dumps({"type": "MultiPolygon", "coordinates": [[lower], [upper]]}))
+    d = load_domain(tmp_path / "pinch.geojson", EXT)
+    box = (8.0, 12.0, 0.0, 2.0)
+    fine = d.free_pixels
+    reach = d.reachable_pixels(box)
+    ny = fine.shape[1]
+    assert fine[:, ny // 2:].any() and not reach[:, ny // 2:].any()
+    assert np.array_equal(reach[:, : ny // 2], fine[:, : ny // 2])
+    free = d.free_cells((40, 40))
+    cells = d.reachable_cells(free, box)
+    assert free[:, 20:].sum() == 420 and not cells[:, 20:].any() and cells[:, :20].sum() == 420
+    # from the upper triangle: the upper one whole, nothing of the lower one
+    up = d.reachable_pixels((8.0, 12.0, 18.0, 20.0))
+    assert np.array_equal(up[:, ny // 2:], fine[:, ny // 2:]) and not up[:, : ny // 2].any()
+
+
 def test_geojson_positions_with_z_load(tmp_path):
     pytest.importorskip("shapely")
     ring = [[0, 0, 5], [20, 0, 5], [20, 20, 5], [0, 20, 5], [0, 0, 5]]
