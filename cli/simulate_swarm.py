@@ -95,6 +95,12 @@ def resolve(args):
     except ValueError as exc:
         raise InputError(str(exc)) from None
     assert isinstance(config, RunConfig)
+    import warnings
+    if getattr(args, "loss_time", None) is not None and config.sim.robot_loss == 0:
+        warnings.warn("--loss-time has no effect: no robot is lost (--robot-loss is 0)", stacklevel=2)
+    if getattr(args, "diffusion_sigma", None) is not None and config.sim.controller != "diffusion":
+        warnings.warn(f"--diffusion-sigma has no effect: it is the diffusion controller's noise, this run's "
+                      f"controller is {config.sim.controller}", stacklevel=2)
     return config, field
 
 

@@ -392,7 +392,10 @@ def dataclass_from_dict(cls, mapping, where: str = ""):
     try:
         return cls(**kwargs)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"{where + ': ' if where else ''}{exc}") from None
+        msg = str(exc)
+        if where and not msg.startswith((f"{where}.", f"{where}:", f"[{where}]")):   # the settings' own messages
+            msg = f"{where}: {msg}"                                                  # name their table already
+        raise ValueError(msg) from None
 
 
 def _coerce(value, hint, name):

@@ -264,6 +264,9 @@ class SimSettings:
             set_("reach", _number("reach", self.reach, positive=True))
         if self.robot_loss > 1:
             raise ValueError(f"sim.robot_loss must be a fraction in [0, 1], got {self.robot_loss:g}")
+        if self.robot_loss > 0 and self.loss_time > self.max_time + 1e-9 * self.period:
+            raise ValueError(f"sim.loss_time {self.loss_time:g} s is after the end of the run (max_periods "
+                             f"{self.max_periods} x T = {self.max_time:g} s): no robot would be lost")
         if self.robot_loss > 0:
             # the loop stops round(robot_loss * robots) robots, at most robots - 1; the density estimate
             # (KDE bandwidth from the spread of the positions) needs at least 2 working robots

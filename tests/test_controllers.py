@@ -149,7 +149,19 @@ def test_cli_controller_loss_and_start_box(tmp_path, capsys, no_planner):
     assert s["motion"]["robots_alive"] == 15 and s["motion"]["path_length_mean"] > 0
     assert s["periods_run"] == 2
     code = main(["--config", str(toml), "--out", str(tmp_path / "bad"), "--robot-loss", "2"])
-    assert code == 2 and "robot_loss" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert code == 2 and "robot_loss" in err and "sim: sim." not in err
+    # a loss after the last period would never happen: refused (as compare-controllers does), the run kept
+    before = (out / "summary.json").read_bytes()
+    code = main(["--config", str(toml), "--out", str(out), "--force", "--robot-loss", "0.5", "--loss-time", "100"])
+    err = capsys.readouterr().err
+    assert code == 2 and "sim.loss_time 100 s is after the end of the run" in err and len(err.strip().splitlines()) == 1
+    assert (out / "summary.json").read_bytes() == before
+    # flags that change nothing in this run say so (one line each)
+    code = main(["--config", str(toml), "--out", str(tmp_path / "noop"), "--controller", "lawnmower", "--loss-time", "3",
+                 "--diffusion-sigma", "5", "--max-periods", "1", "--no-figures", "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 0 and "warning: --loss-time has no effect" in err and "warning: --diffusion-sigma has no effect" in err
 
 
 def test_metrics_every_skips_posteriors_but_not_data():

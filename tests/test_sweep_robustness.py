@@ -320,7 +320,7 @@ def test_f10_times_outside_the_runs_are_refused(tmp_path, cfg, capsys):
 def test_f11_loss_time_after_the_end_of_the_runs_is_refused(tmp_path, cfg, capsys):
     code, err = cmp(TINY + ["--robot-loss", "0", "0.5", "--loss-time", "100", "--config", cfg, "--out", tmp_path / "c"],
                     capsys)
-    assert code == 2 and "--loss-time 100 s is after the end of the runs" in one_line(err)
+    assert code == 2 and "sim.loss_time 100 s is after the end of the run" in one_line(err)
     assert not (tmp_path / "c").exists()
 
 
