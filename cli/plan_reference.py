@@ -161,8 +161,12 @@ def domain_problem(args, grid, p0, target):
         classified = dom.free_cells(grid, f)
         if not classified.any():
             raise ValueError(f"domain {dom.name}: no free cell at {grid.nx} x {grid.ny} cells")
+        for note in dom.notes:
+            print(f"{PROG}: warning: {note}", file=sys.stderr)
         if args.initial is None:
-            dom.check_start_box((0.0, 7.0, 0.0, 7.0))
+            if not dom.box_is_free((0.0, 7.0, 0.0, 7.0)):
+                raise ValueError(f"domain {dom.name}: the default initial density (uniform on the paper's start box "
+                                 "[0, 7] x [0, 7]) overlaps an obstacle; give one on the free space with --initial")
             free = dom.reachable_cells(classified, (0.0, 7.0, 0.0, 7.0))
         else:
             from scipy import ndimage

@@ -114,7 +114,8 @@ def _extent(extent, name="extent") -> tuple:
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be [x0, x1, y0, y1], got {extent!r}") from None
     if not all(math.isfinite(v) for v in (x0, x1, y0, y1)) or not (x1 > x0 and y1 > y0):
-        raise ValueError(f"{name} must be finite [x0, x1, y0, y1] with x1 > x0 and y1 > y0, got {list(extent)}")
+        raise ValueError(f"{name} must be finite [x0, x1, y0, y1] with x1 > x0 and y1 > y0, got "
+                         f"[{', '.join(f'{v:g}' for v in (x0, x1, y0, y1))}]")
     return (x0, x1, y0, y1)
 
 
@@ -225,6 +226,7 @@ class Domain:
     geometry: object = None            # shapely geometry of the free region (polygons), else None
     name: str = "rectangle"
     start_box: tuple | None = None     # a free start box suggested by a built-in domain
+    notes: tuple = ()                  # what loading changed (e.g. invalid polygons repaired): warned by the runs
     _clear: np.ndarray = dc_field(default=None, repr=False)
 
     def __post_init__(self):
@@ -931,7 +933,7 @@ def _load_npz(path: Path, sim_extent):
     except (OSError, EOFError, ValueError) as exc:
         if str(exc).startswith("domain file"):
             raise
-        raise ValueError(f"domain file {path} is not a mask (.npz): {exc.__class__.__name__}") from None
+        raise ValueError(f"domain file {path} is not a mask (.npz): {exc or exc.__class__.__name__}") from None
     if ext is None:
         raise ValueError(f"domain file {path} has no 'extent' and no simulation domain was given")
     try:
@@ -985,8 +987,14 @@ def _load_tif(path: Path, sim_extent):
             raise ValueError(f"domain file {path} is not a GeoTIFF: {exc}") from None
     else:
         tifffile = _need("tifffile", "tifffile", "a GeoTIFF (.tif) domain")
+        import logging
+        log = logging.getLogger("tifffile")        # its own complaints about a broken file: ours is one line
+        was = log.disabled
+        log.disabled = True
         try:
             with tifffile.TiffFile(path) as tf:
+                if not len(tf.pages):
+                    raise ValueError("no readable image in it")
                 page = tf.pages[0]
                 a = page.asarray()
                 tags = page.tags
@@ -1011,6 +1019,8 @@ def _load_tif(path: Path, sim_extent):
             raise
         except Exception as exc:  # noqa: BLE001 -- tifffile raises many kinds
             raise ValueError(f"domain file {path} is not a GeoTIFF: {exc}") from None
+        finally:
+            log.disabled = was
     if nodata is not None and np.issubdtype(np.asarray(a).dtype, np.integer) and float(nodata).is_integer():
         nodata = int(nodata)
     free = _image_to_free(a, nodata=nodata, what=f"domain file {path}")
@@ -1052,6 +1062,12 @@ def _load_geojson(path: Path, sim_extent):
     collect(doc)
     if not geoms:
         raise ValueError(f"domain file {path} is not a polygon GeoJSON: no Polygon or MultiPolygon in it")
+    for g in geoms:
+        if not np.isfinite(shapely.get_coordinates(g)).all():
+            raise ValueError(f"domain file {path}: a polygon has a coordinate that is not a finite number")
+    bad = [g for g in geoms if not g.is_valid]
+    notes = (f"domain file {path}: {len(bad)} polygon(s) not valid ({shapely.is_valid_reason(bad[0])}); repaired "
+             "with shapely.make_valid: check the free region in the figures",) if bad else ()
     geom = shapely.union_all([shapely.make_valid(g) for g in geoms])
     ext = sim_extent
     if isinstance(doc, dict) and doc.get("bbox") is not None and ext is None:
@@ -1060,7 +1076,9 @@ def _load_geojson(path: Path, sim_extent):
     if ext is None:
         x0, y0, x1, y1 = geom.bounds
         ext = (x0, x1, y0, y1)
-    return Domain.from_polygons(geom, ext, name=path.stem)
+    dom = Domain.from_polygons(geom, ext, name=path.stem)
+    dom.notes = notes
+    return dom
 
 
 LOADERS = {".npz": _load_npz, ".png": _load_png, ".tif": _load_tif, ".tiff": _load_tif,

@@ -530,6 +530,8 @@ def resolve_domain(config: RunConfig, grid, domain=None):
     region = make_domain(ds.source if domain is None else domain, s.domain)
     if region is None:
         return None, None
+    for note in region.notes:
+        warnings.warn(note, UserWarning, stacklevel=3)
     region.check_start_box(s.start_box)
     free = region.free_cells(grid, ds.min_free_fraction)
     if not free.any():
@@ -551,8 +553,9 @@ def resolve_domain(config: RunConfig, grid, domain=None):
         warnings.warn(f"domain {region.name}: a wall thinner than a planner cell ({grid.dx:g} x {grid.dy:g} m) "
                       f"divides free planner cells at {walled} faces or cells; the planner and the feedback's "
                       "transport term move mass through it and the robots cannot follow: refine the planner grid "
-                      "([planner] nx, ny; cells at most twice as wide as the wall) or draw the walls at least a "
-                      "cell thick", UserWarning, stacklevel=3)
+                      "([planner] nx, ny; cells at most twice as wide as the wall), draw the walls at least a "
+                      f"cell thick, or, for small obstacles such as posts, raise [domain] min_free_fraction (now "
+                      f"{ds.min_free_fraction:g}) so that the cells they cut are blocked", UserWarning, stacklevel=3)
     return region, reach
 
 

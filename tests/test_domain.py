@@ -387,6 +387,24 @@ def test_polygons_touching_at_a_point_are_not_connected(tmp_path):
     assert np.array_equal(up[:, ny // 2:], fine[:, ny // 2:]) and not up[:, : ny // 2].any()
 
 
+def test_an_invalid_polygon_is_repaired_with_a_warning_and_plan_reference_points_to_initial(tmp_path, capsys):
+    pytest.importorskip("shapely")
+    from swarmfield.cli.simulate_swarm import main
+    bowtie = [[0, 0], [20, 0], [0, 20], [20, 20], [0, 0]]                         # self-intersecting at (10, 10)
+    (tmp_path / "bowtie.geojson").write_text(json.dumps({"type": "Polygon", "coordinates": [bowtie]}))
+    d = load_domain(tmp_path / "bowtie.geojson", EXT)
+    assert d.free_area == pytest.approx(200.0) and "not valid (Self-intersection" in d.notes[0]
+    code = main(["--domain", str(tmp_path / "bowtie.geojson"), "--start-box", "8", "12", "1", "3", "--controller",
+                 "diffusion", "--max-periods", "1", "--no-figures", "--quiet", "--out", str(tmp_path / "run")])
+    err = capsys.readouterr().err
+    assert code == 0 and "warning: domain file" in err and "repaired with shapely.make_valid" in err
+    assert "(420 planner cells) cannot be reached" in err              # the upper triangle, beyond a point
+    from swarmfield.cli.plan_reference import main as plan_main
+    code = plan_main(["--domain", str(tmp_path / "bowtie.geojson"), "--out", str(tmp_path / "plan.npz")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and "repaired" in err[0] and "give one on the free space with --initial" in err[-1]
+
+
 def test_geojson_positions_with_z_load(tmp_path):
     pytest.importorskip("shapely")
     ring = [[0, 0, 5], [20, 0, 5], [20, 20, 5], [0, 20, 5], [0, 0, 5]]
@@ -426,7 +444,13 @@ def _bad_files(tmp_path):
     (tmp_path / "single.npy").rename(tmp_path / "single.npz")                  # an .npy under an .npz name
     (tmp_path / "text.npz").write_text("free = 1")
     np.savez(tmp_path / "strext.npz", free=np.ones((10, 10), bool), extent=np.array(["a", "b", "c", "d"]))
-    return {"single.npz": "is not a mask .* single array", "text.npz": "is not a mask .* not a NumPy archive",
+    (tmp_path / "broken.tif").write_bytes(b"II*\x00" + bytes(104))               # a TIFF header, no image
+    np.savez(tmp_path / "pickled.npz", free=np.array([object()] * 4, dtype=object), extent=np.array(EXT))
+    (tmp_path / "nan.geojson").write_text(json.dumps(
+        {"type": "Polygon", "coordinates": [[[0, 0], [20, 0], [20, float("nan")], [0, 20], [0, 0]]]}))
+    return {"broken.tif": "is not a GeoTIFF: no readable image in it", "pickled.npz": "is not a mask .* Object arrays",
+            "nan.geojson": "a polygon has a coordinate that is not a finite number",
+"single.npz": "is not a mask .* single array", "text.npz": "is not a mask .* not a NumPy archive",
             "strext.npz": "'extent' must be four numbers","allblocked.npz": "no free cell", "small.npz": "does not match the simulation domain",
             "nofree.npz": "is not a mask", "black.png": "no free cell", "fake.png": "is not an image",
             "map.txt": "is not a mask, image or polygon file", "point.geojson": "is not a Polygon",
