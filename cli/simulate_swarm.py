@@ -42,7 +42,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=Path("run"), metavar="DIR", help="output folder")
     p.add_argument("--seed", type=int, help="random seed (default 0)")
     p.add_argument("--robots", type=int, help="number of robots (default 100)")
-    p.add_argument("--field", help="sinc | plumes | ridge | waves | path to a .npz/.npy/.csv field file (default sinc)")
+    p.add_argument("--field", help="sinc | plumes | ridge | waves | bumps | front | gp-sample | path to a .npz/.npy/.csv "
+                                   "field file (default sinc)")
     p.add_argument("--domain", metavar="FILE|NAME",
                    help="obstacles: a built-in domain (harbour, floor, lake) or a map file: .npz mask, .png image, "
                         ".tif GeoTIFF or .geojson polygons (docs/guide/domains.md); default: the empty rectangle")

@@ -434,8 +434,12 @@ def run(argv=None) -> int:
     for name in args.controllers:
         if name not in CONTROLLERS:
             raise InputError(f"unknown controller {name!r}; known: {', '.join(CONTROLLERS)}")
-    if args.robots is not None and any(n < 2 for n in args.robots) or args.max_periods < 1 or any(s < 0 for s in args.seeds):
-        raise InputError("--robots must be >= 2, --max-periods >= 1, --seeds >= 0")
+    if args.robots is not None and any(n < 2 for n in args.robots):
+        raise InputError(f"--robots must be >= 2, got {min(args.robots)}")
+    if args.max_periods < 1:
+        raise InputError(f"--max-periods must be >= 1, got {args.max_periods}")
+    if any(s < 0 for s in args.seeds):
+        raise InputError(f"--seeds must be >= 0, got {min(args.seeds)}")
     if args.workers is not None and args.workers < 1:
         raise InputError("--workers must be >= 1")
     if not (math.isfinite(args.scheduler_timeout) and args.scheduler_timeout > 0):

@@ -396,3 +396,12 @@ def test_a_worker_that_dies_fails_its_task_only_and_is_replaced(tmp_path):
         runner.run_tasks(tasks, die_or_square, tmp_path, workers=2, stream=None)
     assert [t for t, _ in info.value.failures] == [tasks[1]] and "exit code 3" in info.value.failures[0][1]
     assert len(list(tmp_path.glob("*.json"))) == 3             # the others ran, in a replacement worker too
+
+
+@pytest.mark.parametrize("flag,value", [("--robots", "1"), ("--max-periods", "0"), ("--seeds", "-1")])
+def test_each_bad_count_is_named(tmp_path, cfg, capsys, flag, value):
+    argv = [a for a in TINY if a not in ("--max-periods", "1")] + [flag, value, "--config", cfg, "--out", tmp_path / "c"]
+    code, err = cmp(argv, capsys)
+    line = one_line(err)
+    assert code == 2 and f"{flag} must be >= " in line and f"got {value}" in line
+    assert [f for f in ("--robots", "--max-periods", "--seeds") if f in line] == [flag]
