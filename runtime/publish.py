@@ -185,6 +185,13 @@ class OutputFolder:
             if entries and not self.marker.exists() and not (self.force or self.foreign_ok):
                 raise ValueError(f"output folder {path} is not empty and holds no previous {self.program} run; "
                                  "choose another --out or pass --force")
+            if entries and not self.marker.exists() and not self.force:
+                # beside other files, but not over files of the same names that this program did not write
+                clash = [n for n in self.outputs if (path / n).is_file()]
+                if clash:
+                    raise ValueError(f"output folder {path} holds {', '.join(clash[:3])}"
+                                     f"{' ...' if len(clash) > 3 else ''}, which no previous {self.program} run "
+                                     "wrote and this one would replace; choose another --out or pass --force")
             if not os.access(path, os.W_OK | os.X_OK):
                 raise ValueError(f"output folder {path} is not writable")
             for name in self.outputs + (self.marker.name, self.journal.name):

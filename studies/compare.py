@@ -416,6 +416,8 @@ def build_parser():
     p.add_argument("--scheduler-timeout", type=float, default=10.0, metavar="SECONDS",
                    help="give up connecting to --scheduler after this long (exit 2)")
     p.add_argument("--no-plots", action="store_true", help="write runs.csv and summary.md only")
+    p.add_argument("--force", action="store_true",
+                   help="replace runs.csv, summary.md or plots in --out that no previous sweep wrote")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return p
 
@@ -494,7 +496,7 @@ def run(argv=None) -> int:
                            for t in tasks})
     # OUT may hold other files (only these names are ever replaced); it is locked for the whole sweep,
     # and runs.csv, summary.md and the plots are published together (runtime.publish)
-    folder = OutputFolder(out, PROG, outputs, foreign_ok=True)
+    folder = OutputFolder(out, PROG, outputs, foreign_ok=True, force=args.force)
     try:
         check_path(out, "output folder")
         folder.check()

@@ -35,6 +35,8 @@ def add_sweep_arguments(ap) -> None:
     g.add_argument("--preset", choices=PRESETS, default=None,
                    help="one of the paper's fixed studies, or all of them; without sweep axes or --spec: all")
     g.add_argument("--workers", type=int, default=None, metavar="N", help="parallel worker processes (default: CPU count)")
+    g.add_argument("--force", action="store_true",
+                   help="replace study files in --out that no previous run of this command wrote")
     g.add_argument("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler address (tcp://host:8786)")
     g.add_argument("--scheduler-timeout", type=float, default=10.0, metavar="SECONDS",
                    help="give up connecting to --scheduler after this long (exit 2)")
@@ -225,7 +227,7 @@ def run_sweep_cli(args, prog: str) -> int:
     from .runner import SchedulerError, connect_scheduler, quiet_dask_logs
 
     # OUT is locked for the sweep; the study files are staged and published together (runtime.publish)
-    folder = OutputFolder(args.out, prog, SWEEP_OUTPUTS, foreign_ok=True)
+    folder = OutputFolder(args.out, prog, SWEEP_OUTPUTS, foreign_ok=True, force=getattr(args, "force", False))
     try:
         check_path(args.out, "output folder")
         folder.check()

@@ -405,3 +405,17 @@ def test_each_bad_count_is_named(tmp_path, cfg, capsys, flag, value):
     line = one_line(err)
     assert code == 2 and f"{flag} must be >= " in line and f"got {value}" in line
     assert [f for f in ("--robots", "--max-periods", "--seeds") if f in line] == [flag]
+
+
+def test_files_of_the_same_names_that_no_sweep_wrote_are_not_replaced(tmp_path, cfg, capsys):
+    out = tmp_path / "c"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")                         # other files beside the sweep's: fine
+    (out / "summary.md").write_text("my own summary")
+    code, err = cmp(TINY + ["--config", cfg, "--out", out], capsys)
+    assert code == 2 and "holds summary.md, which no previous compare-controllers run wrote" in one_line(err)
+    assert (out / "summary.md").read_text() == "my own summary" and not (out / "runs.csv").exists()
+    code, err = cmp(TINY + ["--config", cfg, "--out", out, "--force", "--quiet"], capsys)
+    assert code == 0 and (out / "runs.csv").exists() and (out / "notes.txt").read_text() == "mine"
+    code, err = cmp(TINY + ["--config", cfg, "--out", out, "--quiet"], capsys)      # now it is the sweep's own
+    assert code == 0
