@@ -148,10 +148,11 @@ def load_density(path: Path, shape, name: str) -> np.ndarray:
 
 
 def domain_problem(args, grid, p0, target):
-    """``(free, p0, target)`` with obstacles: the cells free by the free-area rule and connected (through
-    faces) to the initial density's support (the default scenario: the start box [0, 7]^2, which must
+    """``(free, p0, target, warnings)`` with obstacles: the cells free by the free-area rule and connected
+    (through faces) to the initial density's support (the default scenario: the start box [0, 7]^2, which must
     be free); both densities zeroed on the other cells and renormalised.  Unreachable free cells are
-    excluded with a one-line warning naming their area (as simulate-swarm does)."""
+    excluded; ``warnings`` (one line each: their area, thin walls, repaired polygons) are for the caller to
+    print once every input has passed its checks, so that a bad input is one line."""
     from ..sim.domain import make_domain
     f = args.min_free_fraction
     if not (0 < f <= 1):
@@ -161,8 +162,6 @@ def domain_problem(args, grid, p0, target):
         classified = dom.free_cells(grid, f)
         if not classified.any():
             raise ValueError(f"domain {dom.name}: no free cell at {grid.nx} x {grid.ny} cells")
-        for note in dom.notes:
-            print(f"{PROG}: warning: {note}", file=sys.stderr)
         if args.initial is None:
             if not dom.box_is_free((0.0, 7.0, 0.0, 7.0)):
                 raise ValueError(f"domain {dom.name}: the default initial density (uniform on the paper's start box "
@@ -178,23 +177,23 @@ def domain_problem(args, grid, p0, target):
         raise InputError(str(exc).replace("set [sim] domain", "set [planner] domain")) from None
     if not free.any():
         raise InputError(f"domain {dom.name}: the initial density has no mass on a free cell")
+    notes = list(dom.notes)
     lost = classified & ~free
     if lost.any():
-        print(f"{PROG}: warning: domain {dom.name}: {lost.sum() * grid.cell_area:g} m^2 of free space "
-              f"({int(lost.sum())} cells) cannot be reached from the initial density; it is excluded",
-              file=sys.stderr)
+        notes.append(f"domain {dom.name}: {lost.sum() * grid.cell_area:g} m^2 of free space "
+                     f"({int(lost.sum())} cells) cannot be reached from the initial density; it is excluded")
     walled = dom.walled_faces(free)
     if walled:
-        print(f"{PROG}: warning: domain {dom.name}: a wall thinner than a planner cell divides free cells at "
-              f"{walled} faces or cells; the plan moves mass through it (refine the grid: cells at most twice "
-              "as wide as the wall)", file=sys.stderr)
+        notes.append(f"domain {dom.name}: a wall thinner than a planner cell divides free cells at {walled} faces "
+                     "or cells; the plan moves mass through it (refine the grid: cells at most twice as wide as "
+                     "the wall)")
     out = []
     for arr, name in ((p0, "initial density"), (target, "target density")):
         a = np.where(free, arr, 0.0)
         if not a.sum() > 0:
             raise InputError(f"{name} has no mass on the free cells of domain {dom.name}")
         out.append(a / (a.sum() * grid.cell_area))
-    return free, out[0], out[1]
+    return free, out[0], out[1], notes
 
 
 def check_output(path: Path, suffix: str, what: str):
@@ -249,9 +248,9 @@ def run(argv=None) -> int:
         target, target_desc = first_step_target(grid, seed=args.seed)
     from ..ocp.planner import PlannerError, ReferencePlanner
 
-    free = None
+    free, notes = None, []
     if getattr(args, "domain", None) is not None:
-        free, p0, target = domain_problem(args, grid, p0, target)
+        free, p0, target, notes = domain_problem(args, grid, p0, target)
         try:
             planner = ReferencePlanner(settings, free=free)
         except TypeError:
@@ -267,6 +266,13 @@ def run(argv=None) -> int:
         gs = GPSettings()
         extra["information"] = InformationInputs(first_step_variance(grid, seed=args.seed), N_ROBOTS, 0.875,
                                                  gs.noise_variance, gs.length_scale)
+    if warm is not None:             # its basis, domain and mask against this planner's, before any warning
+        try:
+            planner.initial_coefficients(warm, args.t0)
+        except ValueError as exc:
+            raise InputError(f"warm-start plan {args.warm_start}: {exc}") from None
+    for note in notes:
+        print(f"{PROG}: warning: {note}", file=sys.stderr)
     try:
         plan = planner.solve(p0, target, t0=args.t0, warm_start=warm, **extra)
     except PlannerError as exc:
