@@ -162,13 +162,34 @@ def _divided(block: np.ndarray, cut: int) -> bool:
     """True if a wall divides the two cells ``block[:cut]`` and ``block[cut:]`` (their pixels, the face between
     them across the first axis): no face-connected piece of free pixels holds a quarter of each cell's free
     pixels."""
+    return _apart(block, [(slice(None, cut), slice(None)), (slice(cut, None), slice(None))])
+
+
+def _apart(block: np.ndarray, cells) -> bool:
+    """True if no face-connected piece of the free pixels of ``block`` holds a quarter of the free pixels of
+    each of ``cells`` (index pairs of slices into ``block``)."""
     pieces = _pieces(block)
     if pieces is None:
         return False
     lab, n = pieces
-    ca = np.bincount(lab[:cut].ravel(), minlength=n + 1)[1:]
-    cb = np.bincount(lab[cut:].ravel(), minlength=n + 1)[1:]
-    return not np.any((ca >= 0.25 * max(ca.sum(), 1)) & (cb >= 0.25 * max(cb.sum(), 1)))
+    held = []
+    for c in cells:
+        sizes = np.bincount(lab[c].ravel(), minlength=n + 1)[1:]
+        held.append(sizes >= 0.25 * max(sizes.sum(), 1))
+    return not np.any(np.logical_and.reduce(held))
+
+
+def _split_around(hood: np.ndarray, cell) -> bool:
+    """True if the free pixels of the cell ``hood[cell]`` fall into two or more pieces of at least a quarter of
+    them each that stay apart within the neighbourhood ``hood`` (the cell and the cells around it): a robot
+    in one piece cannot reach the other nearby, so a wall cuts the cell; a post inside it does not."""
+    pieces = _pieces(hood)
+    if pieces is None:
+        return False
+    lab, n = pieces
+    own = lab[cell]
+    sizes = np.bincount(own.ravel(), minlength=n + 1)[1:]
+    return int(np.sum(sizes >= 0.25 * max(sizes.sum(), 1))) >= 2
 
 
 def _connected_to_box(mask: np.ndarray, extent, box) -> np.ndarray:
@@ -456,23 +477,37 @@ class Domain:
 
     def walled_faces(self, free: np.ndarray) -> int:
         """Number of places where a wall at the map's own resolution divides free planner cells of ``free``
-        (nx, ny) that the planner treats as connected: faces between two free cells where, within the two
-        cells, no connected piece of free pixels holds a quarter of each cell's free pixels, and free cells
-        whose own free pixels fall into two pieces of at least a quarter each.  The planner (and the
-        feedback's transport term) move mass through such a face or cell, the robots cannot: a wall
-        thinner than a planner cell that leaves the cells mostly free."""
+        (nx, ny) that the planner treats as connected: faces between two free cells where no connected piece of
+        free pixels holds a quarter of each cell's free pixels, and free cells whose own free pixels fall into
+        two pieces of at least a quarter each -- both within the cells themselves and still within the cells
+        around them (a robot cannot go round the obstacle nearby).  The planner (and the feedback's transport
+        term) move mass through such a face or cell, the robots cannot: a wall thinner than a planner cell
+        that leaves the cells mostly free; a post smaller than a cell is no wall."""
         free = np.asarray(free, bool)
         if self.is_rectangle:
             return 0
         fine = self.free_pixels
         bx, by = self._pixel_bounds(*free.shape)
+        nx, ny = free.shape
         count = 0
-        # faces between free cells along x; along y they are the x faces of the transposed rasters
-        for cells, pixels, (b0, b1) in ((free, fine, (bx, by)), (free.T, fine.T, (by, bx))):
+        # faces between free cells along x; along y they are the x faces of the transposed rasters.  Divided
+        # within the two cells, and still apart within the cells around them (a robot cannot go round the
+        # obstacle nearby: a wall, not a post)
+        for cells, pixels, (b0, b1), (n0, n1) in ((free, fine, (bx, by), (nx, ny)),
+                                                  (free.T, fine.T, (by, bx), (ny, nx))):
             for i, j in zip(*np.nonzero(cells[:-1] & cells[1:])):
-                count += _divided(pixels[b0[i]:b0[i + 2], b1[j]:b1[j + 1]], b0[i + 1] - b0[i])
+                if not _divided(pixels[b0[i]:b0[i + 2], b1[j]:b1[j + 1]], b0[i + 1] - b0[i]):
+                    continue
+                i0, i1, j0, j1 = b0[max(i - 1, 0)], b0[min(i + 3, n0)], b1[max(j - 1, 0)], b1[min(j + 2, n1)]
+                a = (slice(b0[i] - i0, b0[i + 1] - i0), slice(b1[j] - j0, b1[j + 1] - j0))
+                b = (slice(b0[i + 1] - i0, b0[i + 2] - i0), a[1])
+                count += _apart(pixels[i0:i1, j0:j1], [a, b])
         for i, j in zip(*np.nonzero(free)):                       # cells split by a wall inside them
-            count += _split(fine[bx[i]:bx[i + 1], by[j]:by[j + 1]])
+            if not _split(fine[bx[i]:bx[i + 1], by[j]:by[j + 1]]):
+                continue
+            i0, i1, j0, j1 = bx[max(i - 1, 0)], bx[min(i + 2, nx)], by[max(j - 1, 0)], by[min(j + 2, ny)]
+            count += _split_around(fine[i0:i1, j0:j1], (slice(bx[i] - i0, bx[i + 1] - i0),
+                                                       slice(by[j] - j0, by[j + 1] - j0)))
         return count
 
     def box_is_free(self, box) -> bool:
