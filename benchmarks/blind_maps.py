@@ -16,27 +16,11 @@ start box [0, 7]^2.
 """
 from __future__ import annotations
 
-import argparse
-from pathlib import Path
-
 import numpy as np
 
-PIXELS = 400
-EXTENT = (0.0, 20.0, 0.0, 20.0)
+from heldout_maps import PIXELS, _blocks, _centres, write_maps      # the same raster, extent and file format
+
 BOX = 7.3           # the start box [0, 7]^2 and 0.3 m around it stay free
-
-
-def _centres():
-    xc = EXTENT[0] + (np.arange(PIXELS) + 0.5) * (EXTENT[1] - EXTENT[0]) / PIXELS
-    return np.meshgrid(xc, xc, indexing="ij")
-
-
-def _blocks(rects, free=None) -> np.ndarray:
-    X, Y = _centres()
-    free = np.ones((PIXELS, PIXELS), dtype=bool) if free is None else free
-    for x0, x1, y0, y1 in rects:
-        free &= ~((X > x0) & (X < x1) & (Y > y0) & (Y < y1))
-    return free
 
 
 def maps() -> dict:
@@ -72,14 +56,7 @@ def maps() -> dict:
 
 
 def main():
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("outdir", type=Path)
-    a = p.parse_args()
-    a.outdir.mkdir(parents=True, exist_ok=True)
-    for name, free in maps().items():
-        path = a.outdir / f"{name}.npz"
-        np.savez(path, free=free, extent=np.array(EXTENT))
-        print(f"{path}: {free.mean():.1%} free")
+    write_maps(maps(), __doc__.split("\n\n")[0])
 
 
 if __name__ == "__main__":

@@ -63,15 +63,20 @@ def maps() -> dict:
     return {"office": office, "orchard": orchard, "ushape": ushape, "boulders": boulders}
 
 
-def main():
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def write_maps(masks: dict, description: str) -> None:
+    """The command line of this script and of ``blind_maps.py``: write each mask as OUTDIR/NAME.npz."""
+    p = argparse.ArgumentParser(description=description)
     p.add_argument("outdir", type=Path)
     a = p.parse_args()
     a.outdir.mkdir(parents=True, exist_ok=True)
-    for name, free in maps().items():
+    for name, free in masks.items():
         path = a.outdir / f"{name}.npz"
         np.savez(path, free=free, extent=np.array(EXTENT))
         print(f"{path}: {free.mean():.1%} free")
+
+
+def main():
+    write_maps(maps(), __doc__.split("\n\n")[0])
 
 
 if __name__ == "__main__":
