@@ -1,10 +1,11 @@
 """Write four more maps, drawn after every setting of the tuned preset was chosen, as .npz masks: the blind
 check of a change to the preset that was measured on the built-in maps and those of ``heldout_maps.py``
-(docs/results/domains.md, "The reference speed, blind check").
+(docs/results/domains.md, "The reference at 24 m/s").
 
     python benchmarks/blind_maps.py OUTDIR
 
-    warehouse  five rows of shelves (0.8 m deep) with 2 m aisles between them and a cross aisle at x = 13
+    warehouse  four rows of shelves 0.8 m deep above the start box (2 m aisles, a cross aisle at 12 < x < 14)
+               and three racks to its right
     river      a river 1.5 m wide crossing the map diagonally, two bridges 2 m wide; the start box on one bank
     campus     nine rectangular buildings of 2-5 m at random places (seed 7), none in the start box's corner
     cave       a cave: free where a smoothed random field (seed 5) is above a level, kept where connected to
