@@ -124,3 +124,13 @@ def test_huge_finite_densities_are_normalised_without_overflow(tmp_path, capsys)
     g = plan.grid
     np.testing.assert_allclose(plan.p.sum(axis=(1, 2)) * g.cell_area, 1.0, atol=1e-10)
     np.testing.assert_allclose(plan.target, 1.0 / g.area)
+
+
+def test_default_initial_density_outside_an_offset_domain_points_to_initial(tmp_path, capsys):
+    toml = tmp_path / "offset.toml"
+    toml.write_text("[planner]\ndomain = [100.0, 120.0, 50.0, 70.0]\n")
+    out = tmp_path / "plan.npz"
+    code, _, err = run(["--config", toml, "--out", out], capsys)
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and "lies outside the planner's domain" in lines[0] and "--initial" in lines[0]
+    assert not out.exists()
