@@ -31,7 +31,8 @@ import time
 FORMS = ("single-shooting", "multiple-shooting", "direct-transcription")
 
 
-def one(grid: int, form: str, limit: str, basis: str, start: str, cpu_limit: float, hessian: str = "auto") -> dict:
+def one(grid: int, form: str, limit: str, basis: str, start: str, cpu_limit: float, hessian: str = "auto",
+        log: str | None = None) -> dict:
     """One solve in this process; returns the row."""
     import numpy as np
 
@@ -41,7 +42,10 @@ def one(grid: int, form: str, limit: str, basis: str, start: str, cpu_limit: flo
     from swarmfield.ocp.transport import simulate
     from swarmfield.sim.scenario import box_density, first_step_target
 
-    ip = IpoptSettings(extra={"max_cpu_time": float(cpu_limit)})
+    extra = {"max_cpu_time": float(cpu_limit)}
+    if log:              # IPOPT's own iteration log of the solve (the warm start's solve is not logged)
+        extra.update(output_file=str(log), file_print_level=5)
+    ip = IpoptSettings(extra=extra)
     base = dict(nx=grid, ny=grid, speed_limit=limit, basis=basis, accept_feasible_iterate=False, ipopt=ip)
     g = Grid(PlannerSettings(**base).domain, grid, grid)
     p0 = box_density(g)
@@ -49,7 +53,9 @@ def one(grid: int, form: str, limit: str, basis: str, start: str, cpu_limit: flo
     row = {"grid": grid, "formulation": form, "limit": limit, "basis": basis, "start": start, "hessian": hessian}
     warm = None
     if start == "warm":
-        warm = ReferencePlanner(PlannerSettings(**base)).solve(p0, target)
+        quiet = {k: v for k, v in base.items() if k != "ipopt"}
+        warm = ReferencePlanner(PlannerSettings(**quiet, ipopt=IpoptSettings(extra={"max_cpu_time": float(cpu_limit)}))
+                                ).solve(p0, target)
         row["warm_from"] = warm.meta["objective"]
     c0 = time.process_time()
     hess = "auto" if form == "single-shooting" else hessian
@@ -78,8 +84,12 @@ def one(grid: int, form: str, limit: str, basis: str, start: str, cpu_limit: flo
 
 def child(args) -> dict:
     """Run :func:`one` in a fresh interpreter under the wall-clock limit; peak RSS of that child."""
+    log = None
+    if args.ipopt_log:
+        os.makedirs(args.ipopt_log, exist_ok=True)
+        log = os.path.join(args.ipopt_log, f"{args.form}-{args.limit}-{args.basis}-{args.start}-{args.grid}.log")
     cmd = [sys.executable, __file__, "--one", json.dumps([args.grid, args.form, args.limit, args.basis, args.start,
-                                                           args.cpu_limit, args.hessian])]
+                                                           args.cpu_limit, args.hessian, log])]
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
     t = time.perf_counter()
     try:
@@ -125,6 +135,9 @@ def main(argv=None) -> int:
     ap.add_argument("--hessian", default="auto", choices=["auto", "exact", "limited-memory"],
                     help="Hessian of multiple shooting / direct transcription (auto: exact)")
     ap.add_argument("--json", default=None, help="append the rows (JSON lines) to this file")
+    ap.add_argument("--ipopt-log", default=None, metavar="DIR",
+                    help="write each solve's IPOPT iteration log to DIR/FORM-LIMIT-BASIS-START-GRID.log (progress of "
+                         "solves that take hours: tail -f)")
     args = ap.parse_args(argv)
     if args.one:
         row = one(*json.loads(args.one))
