@@ -52,7 +52,7 @@ PRESETS: dict[str, dict] = {
             # (8 since the transport flux, 5 before; docs/results/domains.md, "The reference at 24 m/s"): the
             # budget sum |a| <= v_ref bounds the velocity everywhere at once, so a door, a bridge or a far corner
             # gets a fraction of it.  Against the better of greedy and the lawnmower, time to the threshold
-            # 1.00 -> 0.85 of theirs on the tuning maps (8, 12, 16, 24 tried), 1.07 -> 0.87 on four maps drawn
+            # 1.00 -> 0.85 of theirs on the tuning maps (8, 12, 16, 24, 32 tried), 1.07 -> 0.87 on four maps drawn
             # afterwards, 0.89 -> 0.83 on the rectangle's held-out fields; the planner 1.7x per plan
             "reference_speed": 24.0,
         },
