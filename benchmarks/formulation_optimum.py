@@ -42,10 +42,9 @@ def one(grid: int, form: str, limit: str, basis: str, start: str, cpu_limit: flo
     from swarmfield.ocp.transport import simulate
     from swarmfield.sim.scenario import box_density, first_step_target
 
-    extra = {"max_cpu_time": float(cpu_limit)}
-    if log:              # IPOPT's own iteration log of the solve (the warm start's solve is not logged)
-        extra.update(output_file=str(log), file_print_level=5)
-    ip = IpoptSettings(extra=extra)
+    limits = {"max_cpu_time": float(cpu_limit)}
+    # IPOPT's own iteration log of the solve (the warm start's solve is not logged)
+    ip = IpoptSettings(extra={**limits, "output_file": str(log), "file_print_level": 5} if log else limits)
     base = dict(nx=grid, ny=grid, speed_limit=limit, basis=basis, accept_feasible_iterate=False, ipopt=ip)
     g = Grid(PlannerSettings(**base).domain, grid, grid)
     p0 = box_density(g)
@@ -53,9 +52,7 @@ def one(grid: int, form: str, limit: str, basis: str, start: str, cpu_limit: flo
     row = {"grid": grid, "formulation": form, "limit": limit, "basis": basis, "start": start, "hessian": hessian}
     warm = None
     if start == "warm":
-        quiet = {k: v for k, v in base.items() if k != "ipopt"}
-        warm = ReferencePlanner(PlannerSettings(**quiet, ipopt=IpoptSettings(extra={"max_cpu_time": float(cpu_limit)}))
-                                ).solve(p0, target)
+        warm = ReferencePlanner(PlannerSettings(**{**base, "ipopt": IpoptSettings(extra=limits)})).solve(p0, target)
         row["warm_from"] = warm.meta["objective"]
     c0 = time.process_time()
     hess = "auto" if form == "single-shooting" else hessian

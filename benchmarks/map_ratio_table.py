@@ -1,5 +1,5 @@
 """Per map and field: the feedback's median time to its threshold ÷ the better baseline's, for several sweeps
-(docs/results/domains.md, "The reference at 16 m/s").
+(docs/results/domains.md, "The reference at 24 m/s").
 
     python benchmarks/map_ratio_table.py BASELINES LABEL=FEEDBACK [LABEL=FEEDBACK ...]
 

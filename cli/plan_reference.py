@@ -241,11 +241,12 @@ def run(argv=None) -> int:
     if args.initial is not None:
         p0, p0_desc = load_density(args.initial, grid.shape, "initial density"), str(args.initial)
     else:
-        x0, x1, y0, y1 = grid.domain
-        if not (x0 < 7.0 and x1 > 0.0 and y0 < 7.0 and y1 > 0.0):
+        try:
+            p0 = box_density(grid)          # ValueError if the paper's start box misses the planner's domain
+        except ValueError:
             raise InputError(f"the default initial density (the paper's robots uniform on [0, 7] x [0, 7]) lies outside "
-                             f"the planner's domain {list(grid.domain)}; give one with --initial")
-        p0, p0_desc = box_density(grid), "100 robots uniform on [0,7]^2, KDE-smoothed"
+                             f"the planner's domain {list(grid.domain)}; give one with --initial") from None
+        p0_desc = "100 robots uniform on [0,7]^2, KDE-smoothed"
     if args.target is not None:
         target, target_desc = load_density(args.target, grid.shape, "target density"), str(args.target)
     else:

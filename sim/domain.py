@@ -150,12 +150,7 @@ def _pieces(block: np.ndarray):
 def _split(block: np.ndarray) -> bool:
     """True if the free pixels of ``block`` (a cell's pixels) fall into two or more face-connected pieces of
     at least a quarter of them each: a wall cuts the cell."""
-    pieces = _pieces(block)
-    if pieces is None:
-        return False
-    lab, n = pieces
-    sizes = np.bincount(lab.ravel(), minlength=n + 1)[1:]
-    return int(np.sum(sizes >= 0.25 * sizes.sum())) >= 2
+    return _split_around(block, (slice(None), slice(None)))
 
 
 def _divided(block: np.ndarray, cut: int) -> bool:
@@ -442,7 +437,10 @@ class Domain:
         robots move on the polygons themselves, so two parts that touch at a single point (a valid
         MultiPolygon) are not connected -- the raster's pixels centred on their boundaries would link them --
         and a corridor narrower than a pixel still connects what it joins."""
-        fine = self.free_pixels
+        return self._reachable(self.free_pixels, start_box)
+
+    def _reachable(self, fine: np.ndarray, start_box) -> np.ndarray:
+        """:meth:`reachable_pixels` from the free pixels ``fine`` (:attr:`free_pixels`, computed by the caller)."""
         if self.geometry is None:
             return _connected_to_box(fine, self.extent, start_box)
         import shapely
@@ -470,8 +468,9 @@ class Domain:
         free = np.asarray(free, bool)
         nx, ny = free.shape
         if not self.is_rectangle:
-            reach = cell_fractions(self.reachable_pixels(start_box), self.extent, nx, ny)
-            total = cell_fractions(self.free_pixels, self.extent, nx, ny)
+            fine = self.free_pixels
+            reach = cell_fractions(self._reachable(fine, start_box), self.extent, nx, ny)
+            total = cell_fractions(fine, self.extent, nx, ny)
             free = free & (reach >= 0.5 * total) & (reach > 0)
         return _connected_to_box(free, self.extent, start_box)
 
