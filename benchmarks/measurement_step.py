@@ -40,7 +40,9 @@ Two configurations for large swarms can be added to the table (``--configs``):
   of every Euler sub-step);
 * ``hold``: ``kde.hold_substeps = 8`` alone (default GP);
 * ``exact-prior``: ``gp.prior_truncation = 0`` (every direction of the spline prior kept: the model before
-  the truncated prior, for the time and the final RMSE side by side).
+  the truncated prior, for the time and the final RMSE side by side);
+* ``prior-2e-7``: ``gp.prior_truncation = 2e-7`` (the default until 2026-11-26: 1623 of the 1849
+  directions kept at l = 1 instead of 1358).
 
 ``--domains`` times the same step with obstacles (issue 19: built-in domains, :mod:`sim.domain`;
 target: within 1.3x of the empty rectangle at 10,000 robots); ``rectangle`` is the empty domain.
@@ -67,6 +69,7 @@ CONFIGS = {
     "coarse-gp+hold": {"gp": {"inducing_spacing": 1.0 / 1.5}, "kde": {"hold_substeps": 8}},
     "hold": {"kde": {"hold_substeps": 8}},
     "exact-prior": {"gp": {"prior_truncation": 0.0}},
+    "prior-2e-7": {"gp": {"prior_truncation": 2e-7}},
 }
 
 

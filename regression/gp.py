@@ -28,17 +28,18 @@ with the Kronecker factor ``S = s_f (F_x (x) F_y)``, ``F_d = Q_d Lambda_d^{1/2}`
 eigen-decomposition of ``Kc_d`` (so ``I + S^T A S`` has eigenvalues >= 1 and its Cholesky
 factorisation needs no jitter, unlike ``K_c^{-1}``).
 
-*Truncated prior* (``GPSettings.prior_truncation``, default 2e-7): the columns of S are the prior's
+*Truncated prior* (``GPSettings.prior_truncation``, default 1e-5): the columns of S are the prior's
 eigen-directions, with variances ``s_f^2 lambda_x,i lambda_y,j``; those with ``lambda_x,i lambda_y,j``
 below the tolerance are dropped (S_K, r of the M columns kept: a Karhunen-Loeve truncation of the spline
 prior).  As ``|phi(x)| <= 1``, the prior covariance of f changes by at most tolerance x s_f^2 (against
-the spline's own kernel error of 1.4e-3 s_f^2), and the O(r^3) factorisation shrinks with r: at h = l/2
-the SE spectrum at the grid's Nyquist frequency is still ~1e-9 of its peak, so r = 1623 of 1849 (0.68
-of the O(M^3) work); a learned l = 1.5 / 2 / 3 / 10 on the same grid keeps r = 807 / 492 / 259 / 56.
-Measured against every direction kept (0), 40 x 40 cell centres, 2e4 points of a smooth field: f̄
-within 4e-9 / 6e-8 / 9e-8 / 7e-8 / 2e-6 and V within 4e-8 / 2e-6 / 5e-6 / 5e-6 / 4e-6 relative at
-l = 1 / 1.5 / 2 / 3 / 10 (``tests/test_regression.py`` asserts it on the paper's data); a field rougher
-than the prior (sin 6x) with 1e6 points at l = 1: 6e-8 and 2e-6.  (A tolerance relative to the largest
+the spline's own kernel error of 1.4e-3 s_f^2: the default is under 1 % of it), and the O(r^3)
+factorisation shrinks with r: at h = l/2 r = 1358 of 1849 (0.40 of the O(M^3) work; 1623 and 0.68 at
+2e-7, the default until 2026-11-26); a learned l = 1.5 / 2 / 3 / 10 on the same grid keeps
+r = 642 / 392 / 205 / 43.  Measured against every direction kept (0), 40 x 40 cell centres, 2e4 points
+of a smooth field (unit amplitude, noise 0.2): f̄ within 6e-7 / 2e-6 / 5e-6 / 5e-6 / 4e-5 absolute and
+V within 3e-6 / 4e-5 / 6e-5 / 1e-4 / 1.5e-4 relative at l = 1 / 1.5 / 2 / 3 / 10 (at 2e-7: 4e-9 ... 6e-7
+and 1e-8 ... 3e-6; ``tests/test_regression.py`` asserts it, and on the paper's data 3e-7 and 2.3e-6).
+(A tolerance relative to the largest
 eigenvalue, tried first, let the error grow with l / h: 1e-4 in f̄ at l = 10.)
 
 Why the cost does not grow with n: on a cell of the grid, phi(x) has 16 non-zeros, the
@@ -104,8 +105,8 @@ Cost (2-core AVX-512 machine, single-threaded OpenBLAS, M = 1849, 1,600 query po
 :mod:`regression.power_sums_kernel`, the same bits; 10^6 points ~45 ms); the closed-loop step ``add`` of 100 points + ``predict`` ~18 ms
 (Woodbury update; ~10 ms for 10 points, ~60 ms for 462 = M/4; it was ~270 ms when every step
 refactorised); a ``predict`` that refactorises (e.g. after 10,000 new points, or 1e6 accumulated)
-~0.19 s whatever the number of observations (dpotrf 39 ms and dpotri 71 ms at r = 1623, B through
-A's band 26 ms, T 16 ms; it was 0.26 s with the full M and dense Kronecker sandwiches);
+~0.11 s whatever the number of observations (dpotrf 23 ms and dpotri 43 ms at r = 1358, B through
+A's band 16 ms; 0.20 s at r = 1623 (2e-7), 0.26 s with the full M and dense Kronecker sandwiches);
 ``predict`` without new data ~4 ms. Multi-threaded
 OpenBLAS on an oversubscribed machine can make the factorisation several times slower (threads
 spin-waiting on each other); set ``OPENBLAS_NUM_THREADS=1`` there.
