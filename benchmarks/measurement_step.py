@@ -59,6 +59,7 @@ import argparse
 import json
 import os
 import resource
+import statistics
 import subprocess
 import sys
 import time
@@ -77,7 +78,8 @@ def _every(v: str):
     return v if v == "auto" else int(v)
 
 
-def step_time(n: int, every, periods: int, controller: str, config: str = "default", domain: str = "rectangle"):
+def step_time(n: int, every, periods: int, controller: str, config: str = "default", domain: str = "rectangle",
+              seed: int | None = None):
     """One run in this process: a dict of the per-step wall and CPU times [s], the final RMSE, the rows
     recorded and this process's peak RSS [MiB]."""
     from swarmfield.regression import GaussianProcess
@@ -90,6 +92,8 @@ def step_time(n: int, every, periods: int, controller: str, config: str = "defau
         doc["domain"] = {"source": domain}
     doc["sim"] = {"robots": n, "metrics_every": every, "max_periods": periods, "gamma": 0.0, "controller": controller,
                   "allow_long_run": True}
+    if seed is not None:
+        doc["sim"]["seed"] = seed
     cfg = config_from_dict(doc)
     cpu = {"planner": 0.0, "regression": 0.0}
     wall = {"planner": 0.0, "regression": 0.0}
@@ -143,33 +147,46 @@ def main():
     ap.add_argument("--kernels", nargs="+", default=["auto"], choices=["auto", "numpy", "compiled"],
                     help="SWARMFIELD_ROBOT_KERNEL of the case: numpy = the NumPy per-robot passes (before issue 21 "
                          "item 4), auto = the compiled ones from control.robot_kernel.MIN_ROBOTS robots on")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[None],
+                    help="sim.seed values (default: the scenario's); with several, a last table gives each "
+                         "configuration's mean final RMSE over them (a single run's moves with any round-off)")
     ap.add_argument("--one", help=argparse.SUPPRESS)      # internal: run one case, print JSON
     args = ap.parse_args()
     if args.one:
-        n, config, every, dom = json.loads(args.one)
-        print(json.dumps(step_time(n, every, args.periods, args.controller, config, dom)))
+        n, config, every, dom, seed = json.loads(args.one)
+        print(json.dumps(step_time(n, every, args.periods, args.controller, config, dom, seed)))
         return
     env = dict(os.environ, OPENBLAS_NUM_THREADS=os.environ.get("OPENBLAS_NUM_THREADS", "1"),
                OMP_NUM_THREADS=os.environ.get("OMP_NUM_THREADS", "1"))
     print(f"{args.periods} periods per run, controller {args.controller}; times per measurement step, planner excluded")
     print()
-    print("| robots | domain | configuration | metrics_every | per-robot passes | steps | rows | CPU step [ms] "
+    print("| robots | domain | configuration | metrics_every | per-robot passes | seed | steps | rows | CPU step [ms] "
           "| CPU regression [ms] | wall step [ms] | peak RSS [MiB] | final RMSE |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
-    cases = [(n, c, e, d, k) for n in args.robots for c in args.configs for e in args.every for d in args.domains
-             for k in args.kernels]
-    for n, config, every, dom, kern in cases:
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    cases = [(n, c, e, d, k, sd) for n in args.robots for c in args.configs for e in args.every for d in args.domains
+             for k in args.kernels for sd in args.seeds]
+    rmse = {}
+    for n, config, every, dom, kern, seed in cases:
         env["SWARMFIELD_ROBOT_KERNEL"] = kern
-        case = json.dumps([n, config, every, dom])
+        case = json.dumps([n, config, every, dom, seed])
         out = subprocess.run([sys.executable, __file__, "--one", case, "--periods", str(args.periods),
                               "--controller", args.controller], env=env, capture_output=True, text=True)
         if out.returncode != 0:
-            print(f"| {n:,} | {dom} | {config} | {every} | {kern} | failed: {out.stderr.strip().splitlines()[-1]} |")
+            print(f"| {n:,} | {dom} | {config} | {every} | {kern} | {seed} | failed: "
+                  f"{out.stderr.strip().splitlines()[-1]} |")
             continue
         r = json.loads(out.stdout.strip().splitlines()[-1])
-        print(f"| {n:,} | {dom} | {config} | {every} | {kern} | {r['steps']} | {r['rows']} | {1e3 * r['cpu']:.0f} "
-              f"| {1e3 * r['cpu_regression']:.0f} | {1e3 * r['wall']:.0f} | {r['peak_mib']:.0f} "
-              f"| {r['rmse']:.6g} |", flush=True)
+        print(f"| {n:,} | {dom} | {config} | {every} | {kern} | {'default' if seed is None else seed} | {r['steps']} "
+              f"| {r['rows']} | {1e3 * r['cpu']:.0f} | {1e3 * r['cpu_regression']:.0f} | {1e3 * r['wall']:.0f} "
+              f"| {r['peak_mib']:.0f} | {r['rmse']:.6g} |", flush=True)
+        rmse.setdefault((n, dom, config, every, kern), []).append(r["rmse"])
+    if len(args.seeds) > 1:
+        print()
+        print("| robots | domain | configuration | metrics_every | per-robot passes | seeds | mean final RMSE | sd |")
+        print("|---|---|---|---|---|---|---|---|")
+        for (n, dom, config, every, kern), v in rmse.items():
+            sd = statistics.stdev(v) if len(v) > 1 else float("nan")
+            print(f"| {n:,} | {dom} | {config} | {every} | {kern} | {len(v)} | {statistics.fmean(v):.7f} | {sd:.2g} |")
 
 
 if __name__ == "__main__":
