@@ -208,12 +208,6 @@ def _run(argv=None) -> int:
 
 
 def _run_locked(args, argv, config, field, planner, folder) -> int:
-    from ..runtime.publish import InterruptedAfterPublish
-    from ..runtime.threads import thread_info
-    from ..runtime.signals import exit_code, stopped
-    from ..sim.loop import run_simulation
-    from ..sim.outputs import write_metrics, write_outputs
-
     try:
         stage = folder.stage()
     except ValueError as exc:
@@ -223,6 +217,29 @@ def _run_locked(args, argv, config, field, planner, folder) -> int:
         where = folder.set_aside(stage)
         return f"{args.out} keeps its previous contents; the metrics of the completed periods are in {where}"
     progress = None if args.quiet else _progress_printer(config)
+    drawer = None
+    if args.gif or not args.no_figures:
+        from ..runtime.plotting import DrawingProcess
+        from ..sim import figures  # noqa: F401  (shared with the drawing process, not loaded again there)
+        drawer = DrawingProcess.start()          # loads matplotlib on another core while this one simulates
+    try:
+        return _simulate_and_write(args, argv, config, field, planner, folder, stage, kept, progress, drawer)
+    finally:
+        if drawer is not None:
+            drawer.close()
+
+
+#: Results larger than this (robot positions and variances, bytes) are drawn here, not sent to the drawing process.
+_DRAWER_MAX_BYTES = 64 * 2**20
+
+
+def _simulate_and_write(args, argv, config, field, planner, folder, stage, kept, progress, drawer) -> int:
+    from ..runtime.publish import InterruptedAfterPublish
+    from ..runtime.threads import thread_info
+    from ..runtime.signals import exit_code, stopped
+    from ..sim.loop import run_simulation
+    from ..sim.outputs import write_metrics, write_outputs
+
     try:
         result = run_simulation(config, field=field, planner=planner, progress=progress,
                                 on_period=lambda res: write_metrics(res, stage))
@@ -237,11 +254,14 @@ def _run_locked(args, argv, config, field, planner, folder) -> int:
     try:
         def writing(name):
             print(f"{PROG}: writing {name} ...", file=sys.stderr, flush=True)
-        if result.rows and (args.gif or not args.no_figures):
+        size = sum(np.asarray(a).nbytes for a in [*result.positions, *result.variances])
+        if drawer is not None and size > _DRAWER_MAX_BYTES:
+            drawer = None                        # cheaper to draw here than to send it
+        if result.rows and (args.gif or not args.no_figures) and drawer is None:
             from ..runtime.plotting import lean_import
             lean_import()                        # this process draws and exits: no docstring tables
         files = write_outputs(result, stage, figures=not args.no_figures, gif=args.gif,
-                              progress=None if args.quiet else writing,
+                              progress=None if args.quiet else writing, drawer=drawer,
                               extra={"command": [PROG] + [str(a) for a in (sys.argv[1:] if argv is None else argv)],
                                      "threads": thread_info(),
                                      "planner_build_time_s": None if planner is None else planner.build_time})

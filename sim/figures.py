@@ -31,7 +31,7 @@ import numpy as np
 from ..runtime.atomic import atomic_path
 from ..runtime.plotting import new_figure, plain_log_axis, save_figure
 
-__all__ = ["write_figures", "make_panels", "make_convergence", "make_field_error", "plot_panels",
+__all__ = ["write_figures", "draw_figure", "make_panels", "make_convergence", "make_field_error", "plot_panels",
            "plot_convergence", "plot_field_error", "write_animation", "panel_snapshots", "FIGURE_FILES"]
 
 PANEL_PERIODS = (0, 1, 3, 4)
@@ -341,14 +341,31 @@ def plot_field_error(result, path):
     return _save(make_field_error(result), path)
 
 
-def write_figures(result, out, progress=None) -> list:
-    """The three PNG figures; returns their file names.  ``progress(name)`` before each."""
+def write_figures(result, out, progress=None, timings: dict | None = None, drawer=None) -> list:
+    """The three PNG figures; returns their file names.  ``progress(name)`` before each; ``timings``: filled
+    with each figure's wall time [s].  ``drawer``: a :class:`runtime.plotting.DrawingProcess` that draws
+    them (the command's matplotlib was loaded there while it simulated), or None to draw them here."""
+    import time
+
     out = Path(out)
-    for name, make in zip(FIGURE_FILES, (make_panels, make_convergence, make_field_error)):
+    for name in FIGURE_FILES:
         if progress is not None:
             progress(name)
-        _save(make(result), out / name)
+        t0 = time.perf_counter()
+        if drawer is not None:
+            drawer.call(draw_figure, result, name, out)
+        else:
+            draw_figure(result, name, out)
+        if timings is not None:
+            timings[name] = time.perf_counter() - t0
     return list(FIGURE_FILES)
+
+
+def draw_figure(result, name: str, out) -> str:
+    """Draw and save the figure ``name`` (one of :data:`FIGURE_FILES`) into the folder ``out``."""
+    make = dict(zip(FIGURE_FILES, (make_panels, make_convergence, make_field_error)))[name]
+    _save(make(result), Path(out) / name)
+    return name
 
 
 def write_animation(result, path, fps: int = 4, dpi: int = 80) -> str:

@@ -232,11 +232,12 @@ def _write_trajectory(result, out: Path) -> None:
 
 
 def write_outputs(result, out, *, figures: bool = True, gif: bool = False, extra: dict | None = None,
-                  progress=None) -> list:
+                  progress=None, drawer=None) -> list:
     """Write every output of ``result`` into the (prepared) folder ``out``; returns the file names.
 
     ``progress(name)`` is called before each figure and the GIF is written (they take seconds);
-    summary.json records each one's writing time under ``output_timings_s``."""
+    summary.json records each one's writing time under ``output_timings_s``.  ``drawer``: a
+    :class:`runtime.plotting.DrawingProcess` that draws the figures and the GIF (:func:`sim.figures.write_figures`)."""
     import time
 
     out = Path(out)
@@ -249,23 +250,15 @@ def write_outputs(result, out, *, figures: bool = True, gif: bool = False, extra
     if result.rows and (figures or gif):
         from . import figures as fig
 
-        clock = {}
-
-        def started(name):
-            clock[name] = time.perf_counter()
-            if progress is not None:
-                progress(name)
-
         if figures:
-            names = fig.write_figures(result, out, progress=started)
-            now = time.perf_counter()
-            for name, nxt in zip(names, names[1:] + [None]):
-                timings[name] = (clock[nxt] if nxt else now) - clock[name]
-            files += names
+            files += fig.write_figures(result, out, progress=progress, timings=timings, drawer=drawer)
         if gif:
-            started("animation.gif")
-            files.append(fig.write_animation(result, out / "animation.gif"))
-            timings["animation.gif"] = time.perf_counter() - clock["animation.gif"]
+            if progress is not None:
+                progress("animation.gif")
+            t0 = time.perf_counter()
+            files.append(fig.write_animation(result, out / "animation.gif") if drawer is None
+                         else drawer.call(fig.write_animation, result, out / "animation.gif"))
+            timings["animation.gif"] = time.perf_counter() - t0
     files.append("summary.json")
     write_summary(result, out, files, {**(extra or {}), "output_timings_s": timings})
     return files

@@ -261,6 +261,72 @@ def test_outputs_record_each_figure_time_and_report_progress(result, tmp_path):
     assert set(seen) <= set(files)
 
 
+@pytest.fixture
+def drawer():
+    from swarmfield.runtime.plotting import DrawingProcess
+    proc = DrawingProcess.start()
+    if proc is None:
+        pytest.skip("no fork or a single CPU: the commands draw in their own process")
+    with proc:
+        yield proc
+
+
+def test_figures_drawn_by_the_drawing_process_are_those_drawn_here(result, tmp_path, drawer):
+    """write_figures(drawer=...): the same files, pixel for pixel, as when this process draws them; each
+    figure's time recorded; the GIF too."""
+    from PIL import Image
+    from swarmfield.sim.figures import FIGURE_FILES, write_animation, write_figures
+    for sub, d in (("here", None), ("there", drawer)):
+        (tmp_path / sub).mkdir()
+        seen, timings = [], {}
+        assert write_figures(result, tmp_path / sub, progress=seen.append, timings=timings, drawer=d) == list(FIGURE_FILES)
+        assert seen == list(FIGURE_FILES) and set(timings) == set(FIGURE_FILES) and all(v > 0 for v in timings.values())
+    assert drawer.call(write_animation, result, tmp_path / "there" / "a.gif") == "a.gif"
+    write_animation(result, tmp_path / "here" / "a.gif")
+    for name in (*FIGURE_FILES, "a.gif"):
+        with Image.open(tmp_path / "here" / name) as a, Image.open(tmp_path / "there" / name) as b:
+            np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+def _fails(message):
+    raise ValueError(message)
+
+
+def test_the_drawing_process_reports_errors_and_its_end(drawer):
+    import os
+    import signal
+    with pytest.raises(RuntimeError, match=r"^ValueError: no data to draw$"):
+        drawer.call(_fails, "no data to draw")
+    assert drawer.call(max, 3, 4) == 4                           # still serving
+    os.kill(drawer._proc.pid, signal.SIGINT)                     # ignored there: the command handles an interrupt
+    assert drawer.call(max, 5, 6) == 6
+    drawer._proc.kill()
+    drawer._proc.join()
+    with pytest.raises(RuntimeError, match=r"the drawing process ended \(exit code -9\) before max returned"):
+        drawer.call(max, 1, 2)
+    drawer.close()
+    drawer.close()                                               # idempotent
+
+
+def test_lean_import_keeps_set_working():
+    """runtime.plotting.lean_import skips the set methods' generated signatures and tables; set() still
+    dispatches every property (a fresh interpreter: matplotlib must not be loaded yet)."""
+    code = ("from swarmfield.runtime.plotting import lean_import, new_figure\n"
+            "lean_import()\n"
+            "import matplotlib.lines, matplotlib.text\n"
+            "fig = new_figure(2, 2); ax = fig.add_subplot()\n"
+            "line, = ax.plot([0, 1], [0, 1]); line.set(color='r', linewidth=3, label='x')\n"
+            "t = ax.set_title('t'); t.set(fontsize=7)\n"
+            "assert line.get_color() == 'r' and line.get_linewidth() == 3 and t.get_fontsize() == 7\n"
+            "assert 'omitted' in matplotlib.lines.Line2D.set.__doc__\n"
+            "class Mine(matplotlib.lines.Line2D): pass\n"
+            "assert 'linewidth' in str(__import__('inspect').signature(Mine.set))\n"
+            "fig.canvas.draw(); print('ok')\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "ok"
+
+
 def test_plan_figure_content():
     from swarmfield.ocp import PlannerSettings, ReferencePlanner
     from swarmfield.ocp.figures import make_plan_figure
