@@ -266,6 +266,7 @@ class Domain:
             self._clear = np.where(ok, np.maximum(d - math.hypot(px, py), 0.0), 0.0)
         self._clear_flat = self._clear.ravel()
         self._index = _EdgeIndex(self.edges, self.extent)
+        self._edge_table = None                  # sim.domain_kernel's copy of the edges, made on first use
         if not (st != 0).any():
             raise ValueError(f"domain {self.name}: no free cell (the whole extent is an obstacle)")
 
@@ -573,8 +574,14 @@ class Domain:
         return out
 
     def _bounce(self, P, Q) -> np.ndarray:
-        P, Q = P.copy(), Q.copy()
         scale = 1e-9 * max(self.extent[1] - self.extent[0], self.extent[3] - self.extent[2])
+        from . import domain_kernel
+        if self._edge_table is None:
+            self._edge_table = domain_kernel.edge_table(self.edges)
+        out = domain_kernel.bounce(P, Q, self._edge_table, self._index, MAX_BOUNCES, scale)   # the same bits in C
+        if out is not None:
+            return out
+        P, Q = P.copy(), Q.copy()
         active = np.arange(len(P))
         for _ in range(MAX_BOUNCES):
             if not len(active):

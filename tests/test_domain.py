@@ -143,6 +143,27 @@ def test_no_robot_in_an_obstacle_1e4_robots_long_run(name):
     assert X[:, 0].max() > 15                               # they did spread past the obstacles
 
 
+@pytest.mark.parametrize("name", ["floor", "harbour", "lake"])
+def test_compiled_bounce_is_the_numpy_one_bit_for_bit(name, monkeypatch):
+    """sim.domain_kernel's reflection at obstacle edges against Domain._bounce's NumPy code: short steps (one
+    tile's candidate edges), long ones (every edge whose box meets the segment), several bounces each."""
+    from swarmfield.sim import domain_kernel
+    if domain_kernel._LIB.lib() is None:
+        pytest.skip(f"no compiled kernel: {domain_kernel._LIB.error}")
+    dom = make_domain(name, EXT)
+    rng = np.random.default_rng(4)
+    X = dom.sample(4000, EXT, rng)
+    for scale in (0.3, 1.5, 6.0):
+        Y = X + scale * rng.standard_normal(X.shape)
+        monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "numpy")
+        ref = dom._bounce(X, Y)
+        monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "auto")
+        got = dom._bounce(X, Y)
+        np.testing.assert_array_equal(got, ref)
+        moved = dom.move(X, Y)
+        assert dom.contains(moved).all()
+
+
 def test_no_robot_in_a_polygon_obstacle():
     shapely = pytest.importorskip("shapely")
     geom = shapely.box(0, 0, 20, 20).difference(shapely.Point(10, 10).buffer(4.0)).difference(
