@@ -124,7 +124,7 @@ long sf_speeds(long n, const double *V, double vlim, double *sp) {
    reflection of sim.dynamics.reflect (numpy.mod's rounding); returns 1 + k if Xn[k] is not finite */
 long sf_em_move(long n, const double *X, const double *V, const double *Z, double h, double c, long noise,
                 double x0, double x1, double y0, double y1, const double *sp, double *path, double *energy,
-                double *Xn, double *speed_sum) {
+                double *Xn, double *speed_sum, double *Y) {
     double acc[8] = {0};
     double lo[2] = {x0, y0}, hi[2] = {x1, y1};
     for (long k = 0; k < n; k++) {
@@ -136,6 +136,7 @@ long sf_em_move(long n, const double *X, const double *V, const double *Z, doubl
             double u = X[2 * k + d] + V[2 * k + d] * h;
             if (noise) u = u + c * Z[2 * k + d];
             if (!isfinite(u)) return 1 + k;
+            if (Y) Y[2 * k + d] = u;                   /* the step before any reflection (obstacles: sim.domain) */
             double a = lo[d], b = hi[d];
             if (u < a || u > b) {
                 double L = b - a, m2 = 2.0 * L;
@@ -533,7 +534,7 @@ def _declare(lib):
     lib.sf_kde_prepare.restype = L
     lib.sf_speeds.argtypes = [L, dp, D, dp]
     lib.sf_speeds.restype = L
-    lib.sf_em_move.argtypes = [L, dp, dp, dp, D, D, L, D, D, D, D, dp, dp, dp, dp, ctypes.POINTER(D)]
+    lib.sf_em_move.argtypes = [L, dp, dp, dp, D, D, L, D, D, D, D, dp, dp, dp, dp, ctypes.POINTER(D), ctypes.c_void_p]
     lib.sf_em_move.restype = L
 
 
@@ -684,12 +685,13 @@ def kde_prepare(X, domain, tol):
     return Xc, float(0.5 * (sd[0] + sd[1]))
 
 
-def em_step(X, V, draw, h, c, domain, vlim, path, energy, sp):
+def em_step(X, V, draw, h, c, domain, vlim, path, energy, sp, raw=None):
     """One Euler--Maruyama sub-step with reflection at the walls of ``domain`` (x0, x1, y0, y1) for all
     robots, accumulating ``path`` and ``energy`` in place (``sp``: an n-array of scratch); ``draw()``
     returns the standard normals Z (n, 2), or None for no noise.  Returns ``(X_new, sum of |v|)``, or None
     -- before ``draw`` is called and with nothing modified -- if a speed exceeds ``vlim``: the caller
-    then runs its NumPy code."""
+    then runs its NumPy code.  ``raw``: a C-contiguous float (n, 2) array that receives the step before the
+    reflection (X + v h + c Z), for the obstacles' reflection (:meth:`sim.domain.Domain.reflect_near`)."""
     lib = _LIB.lib()
     if lib is None:
         return None
@@ -700,8 +702,11 @@ def em_step(X, V, draw, h, c, domain, vlim, path, energy, sp):
     Xn = np.empty_like(X)
     tot = ctypes.c_double(0.0)
     noise = Z is not None
+    if raw is not None and (raw.shape != X.shape or raw.dtype != np.float64 or not raw.flags.c_contiguous):
+        raise ValueError("control.robot_kernel.em_step: raw must be a C-contiguous float64 array like X")
     rc = lib.sf_em_move(n, X, V, np.ascontiguousarray(Z) if noise else X, float(h), float(c), int(noise),
-                        *(float(v) for v in domain), sp, path, energy, Xn, ctypes.byref(tot))
+                        *(float(v) for v in domain), sp, path, energy, Xn, ctypes.byref(tot),
+                        None if raw is None else raw.ctypes.data)
     if rc != 0:          # sim.dynamics.reflect's message (the run ends here)
         raise ValueError("positions contain non-finite values (NaN or inf); the velocity or step blew up")
     return Xn, tot.value

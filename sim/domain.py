@@ -266,7 +266,7 @@ class Domain:
             self._clear = np.where(ok, np.maximum(d - math.hypot(px, py), 0.0), 0.0)
         self._clear_flat = self._clear.ravel()
         self._index = _EdgeIndex(self.edges, self.extent)
-        self._edge_table = None                  # sim.domain_kernel's copy of the edges, made on first use
+        self._kernel = None                      # sim.domain_kernel's arrays, made on first use
         if not (st != 0).any():
             raise ValueError(f"domain {self.name}: no free cell (the whole extent is an obstacle)")
 
@@ -559,7 +559,21 @@ class Domain:
         from .dynamics import reflect
         X = np.asarray(X, float)
         Y = np.asarray(Y, float)
-        out = reflect(Y, self.extent)            # also rejects non-finite steps
+        return self.reflect_near(X, Y, reflect(Y, self.extent))     # reflect also rejects non-finite steps
+
+    def reflect_near(self, X, Y, out) -> np.ndarray:
+        """The obstacles' part of :meth:`move`: ``out`` holds the steps X -> Y reflected at the walls only;
+        the robots whose step reaches an obstacle's clearance are replaced by their reflection at its edges
+        (in place; returns ``out``).  The compiled Euler--Maruyama sub-step gives Y and ``out`` in one pass."""
+        from . import domain_kernel
+        scale = 1e-9 * max(self.extent[1] - self.extent[0], self.extent[3] - self.extent[2])
+        mixed = domain_kernel.reflect_near(self, X, Y, out, MAX_BOUNCES, scale)     # the same bits in C
+        if mixed is not None:
+            if len(mixed):                        # ends in pixels cut by a polygon boundary: the exact test
+                import shapely
+                bad = mixed[~shapely.intersects_xy(self.geometry, out[mixed, 0], out[mixed, 1])]
+                out[bad] = X[bad]
+            return out
         dx = Y[:, 0] - X[:, 0]
         dy = Y[:, 1] - X[:, 1]
         c = self.clearance(X)
@@ -573,12 +587,18 @@ class Domain:
             out[k[bad]] = X[k[bad]]
         return out
 
+    def _kernel_arrays(self):
+        """What :mod:`sim.domain_kernel` reads: the edge table, the edge index, the clearance and state rasters."""
+        if self._kernel is None:
+            from .domain_kernel import edge_table
+            self._kernel = (edge_table(self.edges), self._index, np.ascontiguousarray(self._clear_flat, dtype=float),
+                            np.ascontiguousarray(self.state, dtype=np.uint8))
+        return self._kernel
+
     def _bounce(self, P, Q) -> np.ndarray:
         scale = 1e-9 * max(self.extent[1] - self.extent[0], self.extent[3] - self.extent[2])
         from . import domain_kernel
-        if self._edge_table is None:
-            self._edge_table = domain_kernel.edge_table(self.edges)
-        out = domain_kernel.bounce(P, Q, self._edge_table, self._index, MAX_BOUNCES, scale)   # the same bits in C
+        out = domain_kernel.bounce(P, Q, self._kernel_arrays()[0], self._index, MAX_BOUNCES, scale)   # same bits in C
         if out is not None:
             return out
         P, Q = P.copy(), Q.copy()
@@ -643,6 +663,8 @@ class _EdgeIndex:
         self.indptr = np.zeros(nx * ny + 1, np.intp)
         self.indptr[1:] = np.cumsum([len(b) for b in buckets])
         self.indices = np.array([e for b in buckets for e in b], np.intp)
+        self.indptr64 = np.ascontiguousarray(self.indptr, dtype=np.int64)      # for sim.domain_kernel
+        self.indices64 = np.ascontiguousarray(self.indices, dtype=np.int64)
 
     def first_hit(self, P, Q):
         m = len(P)

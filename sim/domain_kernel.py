@@ -64,45 +64,93 @@ static double first_hit(double px, double py, double qx, double qy, const double
     return best;
 }
 
+/* Domain._bounce of one segment p -> q: the end point after at most max_bounces mirror images */
+static void bounce_one(double px, double py, double qx, double qy, const double *E, long ne,
+                       const long long *indptr, const long long *indices, double x0, double y0, double tile,
+                       long ntx, long nty, long max_bounces, double scale, double *rx, double *ry) {
+    int done = 0;
+    for (long b = 0; b < max_bounces; b++) {
+        long e;
+        double th = first_hit(px, py, qx, qy, E, ne, indptr, indices, x0, y0, tile, ntx, nty, &e);
+        if (e < 0) {
+            done = 1;
+            break;
+        }
+        const double *g = E + 8 * e;
+        double tx = g[2], ty = g[3];
+        double h = hypot(-ty, tx);
+        double n0 = -ty / h, n1 = tx / h;
+        double d0 = qx - px, d1 = qy - py;
+        double c0 = px + th * d0, c1 = py + th * d1;
+        double dn = d0 * n0 + d1 * n1;
+        double side = dn > 0.0 ? 1.0 : (dn < 0.0 ? -1.0 : 0.0);
+        double r0 = qx - c0, r1 = qy - c1;
+        double rn = 2.0 * (r0 * n0 + r1 * n1);
+        r0 = r0 - rn * n0;
+        r1 = r1 - rn * n1;
+        double sc = side * scale;
+        px = c0 - sc * n0;
+        py = c1 - sc * n1;
+        qx = px + r0;
+        qy = py + r1;
+    }
+    if (!done) {                     /* still bouncing: stop at the last boundary point reached */
+        qx = px;
+        qy = py;
+    }
+    *rx = qx;
+    *ry = qy;
+}
+
 /* Domain._bounce for m segments P -> Q (m x 2), the results into OUT */
 void sf_bounce(long m, const double *P, const double *Q, const double *E, long ne, const long long *indptr,
                const long long *indices, double x0, double y0, double tile, long ntx, long nty, long max_bounces,
                double scale, double *out) {
-    for (long i = 0; i < m; i++) {
-        double px = P[2 * i], py = P[2 * i + 1], qx = Q[2 * i], qy = Q[2 * i + 1];
-        int done = 0;
-        for (long b = 0; b < max_bounces; b++) {
-            long e;
-            double th = first_hit(px, py, qx, qy, E, ne, indptr, indices, x0, y0, tile, ntx, nty, &e);
-            if (e < 0) {
-                done = 1;
-                break;
-            }
-            const double *g = E + 8 * e;
-            double tx = g[2], ty = g[3];
-            double h = hypot(-ty, tx);
-            double n0 = -ty / h, n1 = tx / h;
-            double d0 = qx - px, d1 = qy - py;
-            double c0 = px + th * d0, c1 = py + th * d1;
-            double dn = d0 * n0 + d1 * n1;
-            double side = dn > 0.0 ? 1.0 : (dn < 0.0 ? -1.0 : 0.0);
-            double r0 = qx - c0, r1 = qy - c1;
-            double rn = 2.0 * (r0 * n0 + r1 * n1);
-            r0 = r0 - rn * n0;
-            r1 = r1 - rn * n1;
-            double sc = side * scale;
-            px = c0 - sc * n0;
-            py = c1 - sc * n1;
-            qx = px + r0;
-            qy = py + r1;
+    for (long i = 0; i < m; i++)
+        bounce_one(P[2 * i], P[2 * i + 1], Q[2 * i], Q[2 * i + 1], E, ne, indptr, indices, x0, y0, tile, ntx, nty,
+                   max_bounces, scale, out + 2 * i, out + 2 * i + 1);
+}
+
+/* Domain.reflect_near for n robots: OUT (the steps X -> Y reflected at the walls) is replaced, for the robots
+   whose step reaches their clearance, by the bounced end point if it lies in a free pixel, by X if in a
+   blocked one; ends in a mixed pixel (polygon boundaries) are kept and their indices written to MIXED for the
+   caller's exact test.  Returns the number of those. */
+long sf_reflect_near(long n, const double *X, const double *Y, double *out, const double *clear,
+                     const unsigned char *state, long Nx, long Ny, double ex0, double ex1, double ey0, double ey1,
+                     const double *E, long ne, const long long *indptr, const long long *indices, double x0,
+                     double y0, double tile, long ntx, long nty, long max_bounces, double scale, long long *mixed) {
+    double fx = (double)Nx / (ex1 - ex0), fy = (double)Ny / (ey1 - ey0);
+    long nm = 0;
+    for (long k = 0; k < n; k++) {
+        double xk = X[2 * k], yk = X[2 * k + 1];
+        double dx = Y[2 * k] - xk, dy = Y[2 * k + 1] - yk;
+        long i = (long)((xk - ex0) * fx), j = (long)((yk - ey0) * fy);      /* Domain.clearance */
+        i = i < 0 ? 0 : (i > Nx - 1 ? Nx - 1 : i);
+        j = j < 0 ? 0 : (j > Ny - 1 ? Ny - 1 : j);
+        double c = clear[i * Ny + j];
+        if (!(dx * dx + dy * dy >= c * c))
+            continue;
+        double qx, qy;
+        bounce_one(xk, yk, Y[2 * k], Y[2 * k + 1], E, ne, indptr, indices, x0, y0, tile, ntx, nty, max_bounces,
+                   scale, &qx, &qy);
+        /* Domain.contains */
+        int inside = qx >= ex0 && qx <= ex1 && qy >= ey0 && qy <= ey1 && isfinite(qx) && isfinite(qy);
+        double fi = floor((isfinite(qx) ? qx - ex0 : 0.0) / (ex1 - ex0) * (double)Nx);
+        double fj = floor((isfinite(qy) ? qy - ey0 : 0.0) / (ey1 - ey0) * (double)Ny);
+        long pi = fi < 0.0 ? 0 : (fi > (double)(Nx - 1) ? Nx - 1 : (long)fi);
+        long pj = fj < 0.0 ? 0 : (fj > (double)(Ny - 1) ? Ny - 1 : (long)fj);
+        unsigned char st = state[pi * Ny + pj];
+        if (inside && st == 2)
+            mixed[nm++] = k;
+        if (inside && (st == 1 || st == 2)) {
+            out[2 * k] = qx;
+            out[2 * k + 1] = qy;
+        } else {
+            out[2 * k] = xk;
+            out[2 * k + 1] = yk;
         }
-        if (!done) {                 /* still bouncing: stop at the last boundary point reached */
-            qx = px;
-            qy = py;
-        }
-        out[2 * i] = qx;
-        out[2 * i + 1] = qy;
     }
+    return nm;
 }
 """
 
@@ -113,6 +161,9 @@ def _declare(lib):
     L, D = ctypes.c_long, ctypes.c_double
     lib.sf_bounce.argtypes = [L, dp, dp, dp, L, lp, lp, D, D, D, L, L, L, D, dp]
     lib.sf_bounce.restype = None
+    u8 = np.ctypeslib.ndpointer(dtype=np.uint8, flags="C_CONTIGUOUS")
+    lib.sf_reflect_near.argtypes = [L, dp, dp, dp, dp, u8, L, L, D, D, D, D, dp, L, lp, lp, D, D, D, L, L, L, D, lp]
+    lib.sf_reflect_near.restype = L
 
 
 _SMOKE = r"""
@@ -152,7 +203,27 @@ def bounce(P, Q, table, index, max_bounces: int, scale: float):
     Q = np.ascontiguousarray(Q, dtype=np.float64)
     out = np.empty_like(Q)
     nx, ny = index.nt
-    lib.sf_bounce(P.shape[0], P, Q, table, table.shape[0], np.ascontiguousarray(index.indptr, dtype=np.int64),
-                  np.ascontiguousarray(index.indices, dtype=np.int64), index.x0, index.y0,
+    lib.sf_bounce(P.shape[0], P, Q, table, table.shape[0], index.indptr64, index.indices64, index.x0, index.y0,
                   index.tile, nx, ny, int(max_bounces), float(scale), out)
     return out
+
+
+def reflect_near(domain, X, Y, out, max_bounces: int, scale: float):
+    """:meth:`sim.domain.Domain.reflect_near` in C: ``out`` updated in place; returns the indices of the robots
+    left in mixed pixels (the caller tests those against the polygons), or None (NumPy path)."""
+    if os.environ.get("SWARMFIELD_ROBOT_KERNEL", "auto") == "numpy":
+        return None
+    lib = _LIB.lib()
+    if lib is None or not (out.dtype == np.float64 and out.flags.c_contiguous):
+        return None
+    X = np.ascontiguousarray(X, dtype=np.float64)
+    Y = np.ascontiguousarray(Y, dtype=np.float64)
+    table, index, clear, state = domain._kernel_arrays()
+    Nx, Ny = state.shape
+    nx, ny = index.nt
+    mixed = np.empty(X.shape[0], np.int64)
+    x0, x1, y0, y1 = (float(v) for v in domain.extent)
+    m = lib.sf_reflect_near(X.shape[0], X, Y, out, clear, state, Nx, Ny, x0, x1, y0, y1, table, table.shape[0],
+                            index.indptr64, index.indices64, index.x0, index.y0, index.tile, nx, ny,
+                            int(max_bounces), float(scale), mixed)
+    return mixed[:m]

@@ -458,15 +458,14 @@ class Simulation:
         """Δt of eq. "Langevin equation" in ``substeps`` Euler--Maruyama steps (as dynamics.advance),
         lost robots frozen, the controller's velocity saturated at its speed limit.
 
-        From :data:`control.robot_kernel.MIN_ROBOTS` working robots in a domain without obstacles, a
-        sub-step whose velocities are within the limit (the feedback laws saturate already) is one
-        compiled pass (:func:`control.robot_kernel.em_step`: the same noise draws and bits for the
-        positions, path and energy; the mean speed summed in another order)."""
+        From :data:`control.robot_kernel.MIN_ROBOTS` working robots, a sub-step whose velocities are within
+        the limit (the feedback laws saturate already) is one compiled pass (:func:`control.robot_kernel.em_step`:
+        the same noise draws and bits for the positions, path and energy; the mean speed summed in another
+        order), followed with obstacles by their reflection (:meth:`sim.domain.Domain.reflect_near`)."""
         s, ctrl, alive, h = self.settings, self.controller, self.alive, self.h
         X, t, speed = self.X, self.t, 0.0
         vmax = ctrl.v_max
-        fast = (robot_kernel.use_compiled(X.shape[0]) and not hasattr(self.motion_domain, "move")
-                and X.dtype == np.float64 and X.flags.c_contiguous)
+        fast = robot_kernel.use_compiled(X.shape[0]) and X.dtype == np.float64 and X.flags.c_contiguous
         for i in range(s.substeps):
             v = np.asarray(ctrl.velocity(t + i * h, X, alive), dtype=float)
             if fast and v.shape == X.shape and alive.all():
@@ -500,9 +499,14 @@ class Simulation:
             return None
         def draw():                                  # the stream of euler_maruyama_step
             return self.rng.standard_normal(X.shape) if sigma > 0 else None
-        return robot_kernel.em_step(X, np.ascontiguousarray(v), draw, h, math.sqrt(2.0 * sigma * h),
-                                    self.motion_domain, vmax * (1 + 1e-9), self.path_length, self.energy,
-                                    self._sp_scratch)
+        region = self.motion_domain if hasattr(self.motion_domain, "move") else None
+        raw = None if region is None else np.empty_like(X)
+        out = robot_kernel.em_step(X, np.ascontiguousarray(v), draw, h, math.sqrt(2.0 * sigma * h),
+                                   self.motion_domain if region is None else region.extent, vmax * (1 + 1e-9),
+                                   self.path_length, self.energy, self._sp_scratch, raw=raw)
+        if out is not None and region is not None:    # then the obstacles, as Domain.move does after reflect
+            out = (region.reflect_near(X, raw, out[0]), out[1])
+        return out
 
     def context(self):
         """What the controller is given (:class:`sim.controllers.Context`)."""

@@ -160,8 +160,33 @@ def test_compiled_bounce_is_the_numpy_one_bit_for_bit(name, monkeypatch):
         monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "auto")
         got = dom._bounce(X, Y)
         np.testing.assert_array_equal(got, ref)
-        moved = dom.move(X, Y)
-        assert dom.contains(moved).all()
+        monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "numpy")
+        ref = dom.move(X, Y)
+        monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "auto")
+        got = dom.move(X, Y)
+        np.testing.assert_array_equal(got, ref)
+        assert dom.contains(got).all()
+
+
+def test_compiled_move_on_polygons_is_the_numpy_one(monkeypatch):
+    """Polygon domains: ends in pixels cut by a boundary are tested against the polygons as in NumPy."""
+    shapely = pytest.importorskip("shapely")
+    from swarmfield.sim import domain_kernel
+    if domain_kernel._LIB.lib() is None:
+        pytest.skip(f"no compiled kernel: {domain_kernel._LIB.error}")
+    geom = shapely.box(0, 0, 20, 20).difference(shapely.Point(10, 10).buffer(4.0)).difference(
+        shapely.Polygon([(2, 12), (8, 19), (3, 19)]))
+    dom = Domain.from_polygons(geom, EXT)
+    rng = np.random.default_rng(6)
+    X = dom.sample(5000, EXT, rng)
+    for scale in (0.3, 2.0):
+        Y = X + scale * rng.standard_normal(X.shape)
+        monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "numpy")
+        ref = dom.move(X, Y)
+        monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "auto")
+        got = dom.move(X, Y)
+        np.testing.assert_array_equal(got, ref)
+        assert shapely.intersects_xy(geom, got[:, 0], got[:, 1]).all()
 
 
 def test_no_robot_in_a_polygon_obstacle():
