@@ -191,12 +191,15 @@ def edge_table(edges: np.ndarray) -> np.ndarray:
         np.minimum(E[:, 1], E[:, 3]), np.maximum(E[:, 1], E[:, 3])]))
 
 
+def _lib():
+    """The library, or None: not built here, or ``SWARMFIELD_ROBOT_KERNEL = numpy``."""
+    return None if os.environ.get("SWARMFIELD_ROBOT_KERNEL", "auto") == "numpy" else _LIB.lib()
+
+
 def bounce(P, Q, table, index, max_bounces: int, scale: float):
     """:meth:`sim.domain.Domain._bounce` of the segments P -> Q (m, 2) in C, or None (NumPy path).
     ``table``: :func:`edge_table` of ``index.edges``; ``index``: the domain's ``_EdgeIndex``."""
-    if os.environ.get("SWARMFIELD_ROBOT_KERNEL", "auto") == "numpy":
-        return None
-    lib = _LIB.lib()
+    lib = _lib()
     if lib is None:
         return None
     P = np.ascontiguousarray(P, dtype=np.float64)
@@ -211,9 +214,7 @@ def bounce(P, Q, table, index, max_bounces: int, scale: float):
 def reflect_near(domain, X, Y, out, max_bounces: int, scale: float):
     """:meth:`sim.domain.Domain.reflect_near` in C: ``out`` updated in place; returns the indices of the robots
     left in mixed pixels (the caller tests those against the polygons), or None (NumPy path)."""
-    if os.environ.get("SWARMFIELD_ROBOT_KERNEL", "auto") == "numpy":
-        return None
-    lib = _LIB.lib()
+    lib = _lib()
     if lib is None or not (out.dtype == np.float64 and out.flags.c_contiguous):
         return None
     X = np.ascontiguousarray(X, dtype=np.float64)

@@ -155,17 +155,18 @@ def test_compiled_bounce_is_the_numpy_one_bit_for_bit(name, monkeypatch):
     X = dom.sample(4000, EXT, rng)
     for scale in (0.3, 1.5, 6.0):
         Y = X + scale * rng.standard_normal(X.shape)
-        monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "numpy")
-        ref = dom._bounce(X, Y)
-        monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "auto")
-        got = dom._bounce(X, Y)
-        np.testing.assert_array_equal(got, ref)
-        monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "numpy")
-        ref = dom.move(X, Y)
-        monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "auto")
-        got = dom.move(X, Y)
-        np.testing.assert_array_equal(got, ref)
-        assert dom.contains(got).all()
+        _same_in_numpy_and_c(monkeypatch, dom._bounce, X, Y)
+        assert dom.contains(_same_in_numpy_and_c(monkeypatch, dom.move, X, Y)).all()
+
+
+def _same_in_numpy_and_c(monkeypatch, f, *args):
+    """f(*args) with the NumPy code and with the compiled kernels: the same bits; returns the result."""
+    monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "numpy")
+    ref = f(*args)
+    monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "auto")
+    got = f(*args)
+    np.testing.assert_array_equal(got, ref)
+    return got
 
 
 def test_compiled_move_on_polygons_is_the_numpy_one(monkeypatch):
@@ -181,11 +182,7 @@ def test_compiled_move_on_polygons_is_the_numpy_one(monkeypatch):
     X = dom.sample(5000, EXT, rng)
     for scale in (0.3, 2.0):
         Y = X + scale * rng.standard_normal(X.shape)
-        monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "numpy")
-        ref = dom.move(X, Y)
-        monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "auto")
-        got = dom.move(X, Y)
-        np.testing.assert_array_equal(got, ref)
+        got = _same_in_numpy_and_c(monkeypatch, dom.move, X, Y)
         assert shapely.intersects_xy(geom, got[:, 0], got[:, 1]).all()
 
 
