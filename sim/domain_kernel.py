@@ -1,16 +1,19 @@
 """The robots' reflection at obstacle boundaries (:meth:`sim.domain.Domain.move`) in one compiled loop.
 
-:meth:`Domain.move` reflects every robot at the outer walls, then follows the step segment of those whose
-step is longer than their clearance (about one in twelve at feedback speeds) through the boundary edges of
-the obstacles, mirroring it at each edge it crosses (at most ``MAX_BOUNCES`` times).  The NumPy code of that
-second part (:meth:`Domain._bounce`, :meth:`_EdgeIndex.first_hit`) runs a dozen array operations per bounce
-round on a few hundred robots, ~1 ms a sub-step at 10^4 robots -- as much as the feedback law and the
-Euler--Maruyama step of all robots together.  Here each robot is one loop: the candidate edges of its tile
-(or every edge whose box meets the segment, for a segment longer than a tile), the first crossing, the
-mirror image, again.  The operations are those of the NumPy code in the same order (``-ffp-contract=off``,
-:mod:`runtime.cbuild`), so the result is **bit for bit** the same (``tests/test_domain.py`` checks it);
-built and loaded by :class:`runtime.cbuild.CLibrary`; without a compiler the NumPy code runs.
-``SWARMFIELD_ROBOT_KERNEL = numpy`` forces NumPy.
+:meth:`Domain.move` reflects every robot at the outer walls, then (:meth:`Domain.reflect_near`) follows the
+step segment of those whose step is longer than their clearance (about one in twelve at feedback speeds)
+through the boundary edges of the obstacles, mirroring it at each edge it crosses (at most ``MAX_BOUNCES``
+times), and keeps a robot where it was if the end point is not free.  The NumPy code of that second part
+(:meth:`Domain._bounce`, :meth:`_EdgeIndex.first_hit`, :meth:`Domain.contains`) runs a dozen array
+operations per bounce round on a few hundred robots, ~1 ms a sub-step at 10^4 robots -- as much as the
+feedback law and the Euler--Maruyama step of all robots together.  Here each robot is one loop: its
+clearance, the candidate edges of its tile (or every edge whose box meets the segment, for a segment longer
+than a tile), the first crossing, the mirror image, again, and the end point's pixel.  End points in pixels
+cut by a polygon's boundary are returned to the caller for shapely's exact test, as in NumPy.  The
+operations are those of the NumPy code in the same order (``-ffp-contract=off``, :mod:`runtime.cbuild`), so
+the result is **bit for bit** the same (``tests/test_domain.py`` checks it); built and loaded by
+:class:`runtime.cbuild.CLibrary`; without a compiler the NumPy code runs.  ``SWARMFIELD_ROBOT_KERNEL = numpy``
+forces NumPy.
 """
 from __future__ import annotations
 
