@@ -50,7 +50,7 @@ class DrawingProcess:
 
     A command starts it before its long computation, so that importing matplotlib (~0.2 s of CPU) runs on
     another core meanwhile, and draws its figures through :meth:`call` afterwards: the figures then cost the
-    command's wall clock only their drawing (:doc:`results/figures-and-threads`).  The arguments and the
+    command's wall clock only their drawing (docs/results/figures-and-threads.md).  The arguments and the
     return value travel pickled through a pipe (functions by reference: the child is a fork of this
     process).  The child ignores SIGINT (the command handles an interrupt and ends it) and exits when
     the pipe closes; a call whose function raises there raises RuntimeError here with its message."""
