@@ -277,8 +277,9 @@ def _simulate_and_write(args, argv, config, field, planner, folder, stage, kept,
     except KeyboardInterrupt as exc:
         print(f"{PROG}: {stopped(exc)} while writing the outputs; nothing written: {kept()}", file=sys.stderr)
         return exit_code(exc)
-    except OSError as exc:
-        print(f"{PROG}: error: cannot write the outputs ({exc.strerror or exc}); {args.out} keeps its previous "
+    except (OSError, RuntimeError) as exc:           # RuntimeError: the drawing process ended (killed)
+        why = (exc.strerror or exc) if isinstance(exc, OSError) else exc
+        print(f"{PROG}: error: cannot write the outputs ({why}); {args.out} keeps its previous "
               f"contents, whatever was written is in {folder.set_aside(stage)}", file=sys.stderr)
         return 1
     if not args.quiet:

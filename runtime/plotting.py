@@ -53,7 +53,8 @@ class DrawingProcess:
     command's wall clock only their drawing (docs/results/figures-and-threads.md).  The arguments and the
     return value travel pickled through a pipe (functions by reference: the child is a fork of this
     process).  The child ignores SIGINT (the command handles an interrupt and ends it) and exits when
-    the pipe closes; a call whose function raises there raises RuntimeError here with its message."""
+    the pipe closes; a call whose function raises there raises the same exception here (an OSError of a
+    figure file stays an OSError), and RuntimeError if the process ended."""
 
     def __init__(self, proc, conn):
         self._proc, self._conn = proc, conn
@@ -88,11 +89,12 @@ class DrawingProcess:
         try:
             self._conn.send((func, args))
             status, value = self._conn.recv()
-        except (EOFError, OSError, BrokenPipeError):
+        except (EOFError, OSError):
+            self._proc.join(timeout=1)         # its exit code, if it has ended
             raise RuntimeError(f"the drawing process ended (exit code {self._proc.exitcode}) before "
                                f"{getattr(func, '__name__', func)} returned") from None
         if status == "error":
-            raise RuntimeError(value)
+            raise value
         return value
 
     def close(self) -> None:
@@ -131,9 +133,12 @@ def _serve(conn) -> None:
         func, args = job
         try:
             reply = ("ok", func(*args))
-        except Exception as exc:               # reported by the caller, which owns the command's error handling
-            reply = ("error", f"{type(exc).__name__}: {exc}")
-        conn.send(reply)
+        except Exception as exc:               # raised again by the caller, which owns the command's error handling
+            reply = ("error", exc)
+        try:
+            conn.send(reply)
+        except Exception:                      # an exception (or a value) that does not pickle
+            conn.send(("error", RuntimeError(f"{type(reply[1]).__name__}: {reply[1]}")))
 
 
 def new_figure(width: float, height: float, dpi: float = DPI):

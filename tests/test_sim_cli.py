@@ -131,6 +131,44 @@ def test_interrupted_rerun_keeps_the_previous_run(tmp_path, cfg, capsys, monkeyp
     assert json.loads((out / "summary.json").read_text())["seed"] == 7
 
 
+_FAILURE = {}
+
+
+def _broken_draw(result, name, folder):
+    """sim.figures.draw_figure replaced (module level: the drawing process receives it pickled by name)."""
+    import os
+    if _FAILURE["mode"] == "dies":
+        os._exit(3)
+    raise PermissionError(13, "Permission denied")
+
+
+@pytest.mark.parametrize("failure", ["dies", "cannot write"])
+def test_a_figure_that_cannot_be_drawn_is_one_line_and_keeps_the_previous_run(tmp_path, cfg, capsys, monkeypatch,
+                                                                                 failure):
+    """Where the drawing process draws the figures (two CPUs), its death or an OSError there is the same
+    one-line error as an unwritable output folder; the previous run stays."""
+    from swarmfield.runtime.plotting import DrawingProcess
+    from swarmfield.sim import figures
+
+    probe = DrawingProcess.start()
+    if probe is None and failure == "dies":
+        pytest.skip("one CPU or no fork: the figures are drawn in the command's own process")
+    if probe is not None:
+        probe.close()
+    out = tmp_path / "run"
+    code, _, err = run(["--config", cfg, "--out", out, "--quiet", "--no-figures"], capsys)
+    assert code == 0, err
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    _FAILURE["mode"] = failure
+    monkeypatch.setattr(figures, "draw_figure", _broken_draw)   # the drawing process is forked with it
+    code, _, err = run(["--config", cfg, "--out", out, "--quiet"], capsys)
+    assert code == 1
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("simulate-swarm: error: cannot write the outputs ("), lines
+    assert ("ended (exit code 3)" if failure == "dies" else "Permission denied") in lines[0]
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before
+
+
 def test_force_writes_into_a_foreign_folder_and_keeps_its_files(tmp_path, cfg, capsys):
     out = tmp_path / "mine"
     out.mkdir()

@@ -295,8 +295,10 @@ def _fails(message):
 def test_the_drawing_process_reports_errors_and_its_end(drawer):
     import os
     import signal
-    with pytest.raises(RuntimeError, match=r"^ValueError: no data to draw$"):
+    with pytest.raises(ValueError, match=r"^no data to draw$"):
         drawer.call(_fails, "no data to draw")
+    with pytest.raises(FileNotFoundError):
+        drawer.call(open, "/nonexistent/folder/figure.png", "rb")
     assert drawer.call(max, 3, 4) == 4                           # still serving
     os.kill(drawer._proc.pid, signal.SIGINT)                     # ignored there: the command handles an interrupt
     assert drawer.call(max, 5, 6) == 6
