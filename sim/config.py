@@ -145,6 +145,10 @@ class SimSettings:
     gamma_relative  relative threshold (default 0.4 = the paper's 0.1 / 0.25)
     stop_length_scale  "robust": the shortest length scale the map must be resolved at [m]; None
                     (default): gp.length_scale, the prior median of a learned one
+    stop_signal_floor  "robust": a learned s_f^2 below this multiple of gp.noise_variance (default 0.25: a
+                    signal weaker than half the noise's standard deviation) is judged as if it were that
+                    large -- the rule then asks for the measurements such a field needs, not the tens per
+                    patch that 0.4 s_f^2 asks for under the noise; 0: none (sim.stopping)
     eta_relative    with stop_rule "relative", the target's tolerance is eta_relative * s_f^2 (default
                     0.2 = the paper's 0.05 / 0.25); below gamma_relative
     max_periods     stop after this many re-planning periods even if sup V > gamma
@@ -206,6 +210,7 @@ class SimSettings:
     gamma_relative: float = 0.4
     eta_relative: float = 0.2
     stop_length_scale: float | None = None
+    stop_signal_floor: float = 0.25
     allow_long_run: bool = False
     diffusion_sigma: float = 3.0
     greedy_radius: float = 5.0
@@ -236,6 +241,7 @@ class SimSettings:
             raise ValueError(f"sim.stop_rule must be one of {', '.join(sorted(STOP_RULES))}, got {self.stop_rule!r}")
         if self.stop_length_scale is not None:
             set_("stop_length_scale", _number("stop_length_scale", self.stop_length_scale, positive=True))
+        set_("stop_signal_floor", _number("stop_signal_floor", self.stop_signal_floor, nonneg=True))
         set_("gamma_relative", _number("gamma_relative", self.gamma_relative, nonneg=True))
         set_("eta_relative", _number("eta_relative", self.eta_relative, nonneg=True))
         if not self.gamma_relative < 1.0:

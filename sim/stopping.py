@@ -42,9 +42,18 @@ The check costs one more GP posterior on the same inducing grid, kept up to date
 hyperparameters (the paper preset) l = l_c and the rule is ``relative`` (= ``absolute`` at s_f^2 = 0.25
 and gamma_relative = 0.4).
 
+A signal buried in the noise.  The relative threshold asks for V <= 0.4 s_f^2, i.e. about 1.5 s_n^2 / s_f^2
+measurements per length-scale patch: with a learned s_f^2 far below the noise variance that is tens of them,
+more than a small swarm makes (50 robots on the sinc field, whose ripples beyond the start box have a variance
+of a few thousandths, learned s_f^2 = 0.002 with s_n^2 = 0.04: docs/results/domains.md).  Below
+``sim.stop_signal_floor`` x s_n^2 (default 0.25) the two conditions are therefore evaluated at the floor,
+s_f'^2 = floor x s_n^2 (the same data and length scales, V' from one more follower GP): the rule asks for the
+measurements a field of that variance would need, about six per patch at the default.  Above the floor
+nothing changes.
+
 The reported threshold (``threshold`` in the run's rows and in compare-controllers' runs.csv) is the
 level sup V_(s_f^2, l) must reach for both conditions to hold:
-gamma_r s_f^2 * min(1, sup V / sup V_c).
+gamma_r s_f^2 * min(1, sup V / sup V_c), and at the floor sup V * gamma_r s_f'^2 / max(sup V', sup V'_c).
 
 :func:`travel_time_limit` is the physical bound no rule that means "mapped" may beat: the time the
 fastest robot needs from the start box to the farthest cell centre, rounded up to a measurement.
@@ -123,7 +132,8 @@ class RobustThreshold(RelativeThreshold):
         super().__init__(settings, stops=stops)
         ls = settings.stop_length_scale
         self.check_length_scale = None if ls is None else float(ls)
-        self._gp = self._twin = None
+        self.signal_floor = float(getattr(settings, "stop_signal_floor", 0.0))
+        self._gp, self._twins = None, {}
         self.last_check_variance = None
 
     def check_scale(self, gp) -> float:
@@ -133,6 +143,22 @@ class RobustThreshold(RelativeThreshold):
         lc = gp.initial_settings.length_scale if self.check_length_scale is None else self.check_length_scale
         return max(min(gp.settings.length_scale, lc), lo)
 
+    def _variance(self, gp, role: str, signal_variance: float, length_scale: float) -> np.ndarray:
+        """V on the bound points with gp's data at (signal_variance, length_scale): gp's own posterior, or
+        that of a follower GP kept (one per role) and updated with gp (Woodbury updates)."""
+        s = gp.settings
+        if (signal_variance, length_scale) == (s.signal_variance, s.length_scale):
+            return gp.predict(self.points)[1]
+        if self._gp is not gp:
+            self._gp, self._twins = gp, {}
+        twin = self._twins.get(role)
+        if twin is None:
+            twin = self._twins[role] = gp.follower(signal_variance=signal_variance, length_scale=length_scale)
+        t = twin.settings
+        if (t.signal_variance, t.length_scale) != (signal_variance, length_scale):
+            twin.set_hyperparameters(signal_variance, length_scale)
+        return twin.predict(self.points)[1]
+
     def check_variance(self, gp) -> np.ndarray | None:
         """V at (s_f^2, l_c) on the bound points, or None when l_c is gp's own length scale."""
         if self.points is None:
@@ -141,18 +167,32 @@ class RobustThreshold(RelativeThreshold):
         lc = self.check_scale(gp)
         if lc >= s.length_scale * (1 - 1e-12):
             return None
-        if self._gp is not gp:
-            self._gp, self._twin = gp, gp.follower(length_scale=lc)
-        t = self._twin.settings
-        if (t.signal_variance, t.length_scale) != (s.signal_variance, lc):
-            self._twin.set_hyperparameters(s.signal_variance, lc)
-        return self._twin.predict(self.points)[1]
+        return self._variance(gp, "check", s.signal_variance, lc)
+
+    def floor_variance(self, gp) -> float | None:
+        """The signal variance the conditions are evaluated at when gp's is below the floor (module
+        docstring), else None."""
+        floor = self.signal_floor * gp.settings.noise_variance
+        return floor if floor > gp.settings.signal_variance else None
 
     def threshold(self, gp):
         base = super().threshold(gp)
         if self.points is None:          # unbound (e.g. sim.loop.stop_threshold): the relative level,
             self.last_check_variance = None      # an upper bound of the robust one
             return base
+        floor = self.floor_variance(gp)
+        if floor is not None:            # a signal under the noise: the conditions at s_f'^2 = floor
+            s = gp.settings
+            lc = min(self.check_scale(gp), s.length_scale)
+            sup_f = float(self._variance(gp, "floor", floor, s.length_scale).max())
+            sup_fc = float(self._variance(gp, "floor-check", floor, lc).max()) if lc < s.length_scale * (1 - 1e-12) \
+                else sup_f
+            sup_v = float(gp.predict(self.points)[1].max())
+            self.last_check_variance = sup_fc
+            worst = max(sup_f, sup_fc)
+            if worst <= 0.0:
+                return base
+            return sup_v * self.settings.gamma_relative * floor / worst
         vc = self.check_variance(gp)
         if vc is None:
             self.last_check_variance = None

@@ -1,4 +1,5 @@
 """Stop rules (sim.stopping, issue 20): the robust rule, the GP follower it uses, the travel-time limit."""
+import dataclasses
 import math
 
 import numpy as np
@@ -96,6 +97,37 @@ def test_a_long_learned_length_scale_cannot_make_an_unvisited_corner_look_mapped
         gp.add(Xc, np.zeros(len(Xc)))
     sup_v = gp.predict(pts)[1].max()
     assert sup_v <= rob.threshold(gp) and sup_v <= rel.threshold(gp)
+
+
+def test_a_signal_under_the_noise_is_judged_at_the_floor():
+    """A learned s_f^2 = 0.002 under s_n^2 = 0.04 (the sinc field's ripples, 50 robots): 15 measurements on
+    every metre leave V / s_f^2 near 0.6 -- 0.4 s_f^2 is out of reach -- but satisfy the rule evaluated at the
+    floor s_f'^2 = 0.25 s_n^2, whose reported threshold is sup V * 0.4 s_f'^2 / sup V'.  Above the floor the rule
+    is unchanged; stop_signal_floor = 0 turns the floor off."""
+    pts = _grid()
+    X = _lattice(0.25, 19.75, 0.25, 19.75, 1.0)
+    gp = GaussianProcess(GPSettings(length_scale=1.5), domain=(0, 20, 0, 20))
+    for _ in range(15):
+        gp.add(X, np.zeros(len(X)))
+    gp.set_hyperparameters(0.002, 1.5)
+    sup_v = gp.predict(pts)[1].max()
+    assert sup_v > 0.4 * 0.002 * 1.4                               # the relative precision is out of reach
+    rule = make_stop_rule(_robust_config().sim).bind(pts)
+    off = make_stop_rule(dataclasses.replace(_robust_config().sim, stop_signal_floor=0.0)).bind(pts)
+    assert off.threshold(gp) == pytest.approx(0.4 * 0.002) and not off.reached(gp.predict(pts)[1], gp)
+    thr = rule.threshold(gp)
+    ref = GaussianProcess(GPSettings(length_scale=1.5, signal_variance=0.01), domain=(0, 20, 0, 20))
+    for _ in range(15):
+        ref.add(X, np.zeros(len(X)))
+    sup_f = ref.predict(pts)[1].max()
+    assert sup_f <= 0.4 * 0.01                                     # a field of variance 0.01 would be mapped
+    assert thr == pytest.approx(sup_v * 0.4 * 0.01 / sup_f, rel=1e-9) and sup_v <= thr
+    assert rule.reached(gp.predict(pts)[1], gp)
+    # above the floor: the same threshold with or without it
+    gp.set_hyperparameters(0.05, 1.5)
+    assert rule.threshold(gp) == off.threshold(gp) == pytest.approx(0.4 * 0.05)
+    with pytest.raises(ValueError, match="stop_signal_floor must be >= 0"):
+        SimSettings(stop_signal_floor=-0.1)
 
 
 def test_stop_length_scale_setting():
