@@ -195,8 +195,14 @@ def edge_table(edges: np.ndarray) -> np.ndarray:
 
 
 def _lib():
-    """The library, or None: not built here, or ``SWARMFIELD_ROBOT_KERNEL = numpy``."""
-    return None if os.environ.get("SWARMFIELD_ROBOT_KERNEL", "auto") == "numpy" else _LIB.lib()
+    """The library, or None: not built here (one line on stderr, once per process), or
+    ``SWARMFIELD_ROBOT_KERNEL = numpy``."""
+    if os.environ.get("SWARMFIELD_ROBOT_KERNEL", "auto") == "numpy":
+        return None
+    lib = _LIB.lib()
+    if lib is None:
+        _LIB.warn_fallback()
+    return lib
 
 
 def bounce(P, Q, table, index, max_bounces: int, scale: float):
