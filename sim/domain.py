@@ -596,12 +596,8 @@ class Domain:
         return self._kernel
 
     def _bounce(self, P, Q) -> np.ndarray:
-        scale = 1e-9 * max(self.extent[1] - self.extent[0], self.extent[3] - self.extent[2])
-        from . import domain_kernel
-        out = domain_kernel.bounce(P, Q, self._kernel_arrays()[0], self._index, MAX_BOUNCES, scale)   # same bits in C
-        if out is not None:
-            return out
         P, Q = P.copy(), Q.copy()
+        scale = 1e-9 * max(self.extent[1] - self.extent[0], self.extent[3] - self.extent[2])
         active = np.arange(len(P))
         for _ in range(MAX_BOUNCES):
             if not len(active):
@@ -660,11 +656,10 @@ class _EdgeIndex:
             for a in range(max(lo_i[e] - 1, 0), min(hi_i[e], nx - 1) + 1):
                 for b in range(max(lo_j[e] - 1, 0), min(hi_j[e], ny - 1) + 1):
                     buckets[a * ny + b].append(e)
-        self.indptr = np.zeros(nx * ny + 1, np.intp)
+        # int64 (C long long), as sim.domain_kernel reads them
+        self.indptr = np.zeros(nx * ny + 1, np.int64)
         self.indptr[1:] = np.cumsum([len(b) for b in buckets])
-        self.indices = np.array([e for b in buckets for e in b], np.intp)
-        self.indptr64 = np.ascontiguousarray(self.indptr, dtype=np.int64)      # for sim.domain_kernel
-        self.indices64 = np.ascontiguousarray(self.indices, dtype=np.int64)
+        self.indices = np.array([e for b in buckets for e in b], np.int64)
 
     def first_hit(self, P, Q):
         m = len(P)

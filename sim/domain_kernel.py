@@ -105,15 +105,6 @@ static void bounce_one(double px, double py, double qx, double qy, const double 
     *ry = qy;
 }
 
-/* Domain._bounce for m segments P -> Q (m x 2), the results into OUT */
-void sf_bounce(long m, const double *P, const double *Q, const double *E, long ne, const long long *indptr,
-               const long long *indices, double x0, double y0, double tile, long ntx, long nty, long max_bounces,
-               double scale, double *out) {
-    for (long i = 0; i < m; i++)
-        bounce_one(P[2 * i], P[2 * i + 1], Q[2 * i], Q[2 * i + 1], E, ne, indptr, indices, x0, y0, tile, ntx, nty,
-                   max_bounces, scale, out + 2 * i, out + 2 * i + 1);
-}
-
 /* Domain.reflect_near for n robots: OUT (the steps X -> Y reflected at the walls) is replaced, for the robots
    whose step reaches their clearance, by the bounced end point if it lies in a free pixel, by X if in a
    blocked one; ends in a mixed pixel (polygon boundaries) are kept and their indices written to MIXED for the
@@ -162,8 +153,6 @@ def _declare(lib):
     dp = np.ctypeslib.ndpointer(dtype=np.float64, flags="C_CONTIGUOUS")
     lp = np.ctypeslib.ndpointer(dtype=np.int64, flags="C_CONTIGUOUS")
     L, D = ctypes.c_long, ctypes.c_double
-    lib.sf_bounce.argtypes = [L, dp, dp, dp, L, lp, lp, D, D, D, L, L, L, D, dp]
-    lib.sf_bounce.restype = None
     u8 = np.ctypeslib.ndpointer(dtype=np.uint8, flags="C_CONTIGUOUS")
     lib.sf_reflect_near.argtypes = [L, dp, dp, dp, dp, u8, L, L, D, D, D, D, dp, L, lp, lp, D, D, D, L, L, L, D, lp]
     lib.sf_reflect_near.restype = L
@@ -172,13 +161,13 @@ def _declare(lib):
 _SMOKE = r"""
 import ctypes, sys
 lib = ctypes.CDLL(sys.argv[1])
-D, L = ctypes.c_double, ctypes.c_long
+D, L, LL = ctypes.c_double, ctypes.c_long, ctypes.c_longlong
 E = (D * 8)(1.0, -1.0, 0.0, 2.0, 1.0, 1.0, -1.0, 1.0)          # the edge x = 1, -1 <= y <= 1
-out = (D * 2)()
-LL = ctypes.c_longlong
-lib.sf_bounce(L(1), (D * 2)(0.0, 0.0), (D * 2)(1.5, 0.0), E, L(1), (LL * 2)(0, 1), (LL * 1)(0), D(-5.0), D(-5.0),
-              D(100.0), L(1), L(1), L(8), D(0.0), out)
-assert abs(out[0] - 0.5) < 1e-12 and out[1] == 0.0, list(out)
+out = (D * 2)(1.5, 0.0)                                         # the step (0, 0) -> (1.5, 0), inside the walls
+n = lib.sf_reflect_near(L(1), (D * 2)(0.0, 0.0), (D * 2)(1.5, 0.0), out, (D * 1)(0.0), (ctypes.c_ubyte * 1)(1),
+                        L(1), L(1), D(-5.0), D(5.0), D(-5.0), D(5.0), E, L(1), (LL * 2)(0, 1), (LL * 1)(0),
+                        D(-5.0), D(-5.0), D(100.0), L(1), L(1), L(8), D(0.0), (LL * 1)())
+assert n == 0 and abs(out[0] - 0.5) < 1e-12 and out[1] == 0.0, list(out)
 """
 
 _LIB = CLibrary("domainmove", C_SOURCE, _declare, _SMOKE, "obstacle reflection (sim.domain_kernel)")
@@ -205,21 +194,6 @@ def _lib():
     return lib
 
 
-def bounce(P, Q, table, index, max_bounces: int, scale: float):
-    """:meth:`sim.domain.Domain._bounce` of the segments P -> Q (m, 2) in C, or None (NumPy path).
-    ``table``: :func:`edge_table` of ``index.edges``; ``index``: the domain's ``_EdgeIndex``."""
-    lib = _lib()
-    if lib is None:
-        return None
-    P = np.ascontiguousarray(P, dtype=np.float64)
-    Q = np.ascontiguousarray(Q, dtype=np.float64)
-    out = np.empty_like(Q)
-    nx, ny = index.nt
-    lib.sf_bounce(P.shape[0], P, Q, table, table.shape[0], index.indptr64, index.indices64, index.x0, index.y0,
-                  index.tile, nx, ny, int(max_bounces), float(scale), out)
-    return out
-
-
 def reflect_near(domain, X, Y, out, max_bounces: int, scale: float):
     """:meth:`sim.domain.Domain.reflect_near` in C: ``out`` updated in place; returns the indices of the robots
     left in mixed pixels (the caller tests those against the polygons), or None (NumPy path)."""
@@ -234,6 +208,6 @@ def reflect_near(domain, X, Y, out, max_bounces: int, scale: float):
     mixed = np.empty(X.shape[0], np.int64)
     x0, x1, y0, y1 = (float(v) for v in domain.extent)
     m = lib.sf_reflect_near(X.shape[0], X, Y, out, clear, state, Nx, Ny, x0, x1, y0, y1, table, table.shape[0],
-                            index.indptr64, index.indices64, index.x0, index.y0, index.tile, nx, ny,
+                            index.indptr, index.indices, index.x0, index.y0, index.tile, nx, ny,
                             int(max_bounces), float(scale), mixed)
     return mixed[:m]
