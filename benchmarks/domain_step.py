@@ -13,9 +13,9 @@ KDE, the GP update and posterior, the metrics); the planner is left out.  The st
 (robust to a loaded machine); with ``--every auto`` the median is a step without the period's posterior,
 so the means (every step, the posterior's included) are printed too.  Also timed: the motion
 alone (``Domain.move`` vs the wall reflection) per sub-step.  Target: the step with obstacles within
-1.3x of the rectangle's at 10,000 robots.  ``--every``: ``sim.metrics_every`` (default 1, the simulator's:
-a posterior every step; ``auto``: once per period at this swarm size, so the robots' own work -- where the
-obstacles cost -- is a larger share of the step).  Tests never assert wall-clock time.
+1.3x of the rectangle's at 10,000 robots.  ``--every``: ``sim.metrics_every`` (default 1: a posterior every
+step; ``auto``, the simulator's default: once per period at this swarm size, so the robots' own work -- where
+the obstacles cost -- is a larger share of the step).  Tests never assert wall-clock time.
 """
 from __future__ import annotations
 

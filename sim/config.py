@@ -172,16 +172,17 @@ class SimSettings:
     loss_time       time [s] of the loss (default: the period T, i.e. 7 s in the paper scenario)
     metrics_every   the GP posterior (f̄, V on the grid) and a metrics row are computed every this many
                     measurement steps and always at the end of a period (Algorithm 1 needs V only at
-                    t = kT); the measurements are added to the GP at every step.  1 records every
-                    step, as the paper's figures do (the default: one row per measurement step, and the
-                    controllers' ``observe`` after every step); with thousands of robots each posterior
-                    costs an O(M^3) refactorisation, so 8 (= once per period) makes a step ~8x cheaper
-                    in regression (benchmarks/measurement_step.py).  ``"auto"`` (for large swarms): every step
-                    while the step's new points fit a Woodbury update of the posterior (at most
-                    ``GaussianProcess.max_update_rank`` = M/4 = 462 points at the paper's settings,
-                    so the paper's 100-robot runs record every step, exactly as with 1), otherwise
-                    only at the end of each period: metrics.csv then has one row at t = 0 and one per
-                    period instead of one per measurement step (docs/results/closed-loop-step.md)
+                    t = kT); the measurements are added to the GP at every step.  ``"auto"`` (the
+                    default): every step while the step's new points fit a Woodbury update of the
+                    posterior (at most ``GaussianProcess.max_update_rank`` = M/4 = 462 points at the
+                    paper's settings, so the paper's 100-robot runs record every step, as the paper's
+                    figures do), and every step whatever it costs when the controller reads the
+                    posterior after every step (``Controller.observes``: greedy, ergodic); otherwise
+                    only at the end of each period, where Algorithm 1 regresses: metrics.csv then has
+                    one row at t = 0 and one per period, and the stop rule is checked there.  Each
+                    posterior of a large swarm is an O(M^3) refactorisation: at 10^4 robots a step
+                    costs 30 ms instead of 135 ms (docs/results/closed-loop-step.md).  1: a row after
+                    every measurement step at any swarm size (the design card's metrics.csv)
     target          ``variance`` (paper): p_f = max(V - eta, 0) / int; ``reachable``: the same weighted by
                     R = p̂ convolved with a Gaussian of standard deviation planner.v_max * T / 2 (2 sd =
                     where the reference can get in one period), floored at 1e-3 max R (regression.reachable_target_density; issue 10)
@@ -219,7 +220,7 @@ class SimSettings:
     ergodic_modes: int = 20
     robot_loss: float = 0.0
     loss_time: float | None = None
-    metrics_every: int | str = 1
+    metrics_every: int | str = "auto"
     target: str = "variance"
     reach: float | None = None
     replan_every: int = 0

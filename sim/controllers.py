@@ -103,7 +103,15 @@ class Controller:
         """Called at every re-planning time kT (``ctx.plan`` holds the new plan if ``needs_plan``)."""
 
     def observe(self, ctx: Context) -> None:
-        """Called after every measurement and regression (t = kT + jΔt)."""
+        """Called after every measurement step whose posterior was computed (t = kT + jΔt;
+        ``sim.metrics_every``): after every step if the controller :attr:`observes`."""
+
+    @property
+    def observes(self) -> bool:
+        """Whether the controller reads the posterior after every measurement step (it overrides
+        :meth:`observe`: greedy, ergodic); ``sim.metrics_every = "auto"`` then computes it every
+        step whatever the swarm's size, so that the cadence never changes what the controller sees."""
+        return type(self).observe is not Controller.observe
 
     def replanned(self, ctx: Context) -> None:
         """Called after a re-plan inside a period (``sim.replan_every``): ``ctx.plan`` is the new plan."""

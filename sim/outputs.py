@@ -2,10 +2,11 @@
 
 ``DIR/metrics.csv``     one row per measurement step, columns :data:`sim.metrics.COLUMNS`
                         (``t, max_variance, rmse, tracking_error, mean_speed, n_observations`` and
-                        more); ``nan`` where a value does not exist (no plan yet).  With
-                        ``sim.metrics_every = "auto"`` and more working robots than a
-                        Woodbury update of the GP takes (M/4 = 462 at the paper's settings) only
-                        one row at t = 0 and one per period; ``metrics_every = 1`` (default): every step
+                        more); ``nan`` where a value does not exist (no plan yet).  With the default
+                        ``sim.metrics_every = "auto"``, more working robots than a Woodbury update of
+                        the GP takes (M/4 = 462 at the paper's settings) and a controller that does not
+                        read the posterior every step, only one row at t = 0 and one per period;
+                        ``metrics_every = 1``: every step at any swarm size
 ``DIR/replans.csv``     one row per planner call: period, t0, sup V, rmse, IPOPT status,
                         iterations, solve time, objective
 ``DIR/summary.json``    resolved configuration (every setting), seed, field description,

@@ -284,12 +284,13 @@ class Simulation:
         """Whether measurement step ``j`` of the period (1 .. T/Δt) computes the posterior and a
         metrics row (``sim.metrics_every``): always at the period's end (Algorithm 1 needs V at
         t = kT); every ``metrics_every`` steps; ``"auto"``: while the ``n_new`` new points fit a
-        Woodbury update of the GP (:meth:`GaussianProcess.update_fits`), otherwise at the end only."""
+        Woodbury update of the GP (:meth:`GaussianProcess.update_fits`) or the controller reads the
+        posterior every step (:attr:`Controller.observes`), otherwise at the end only."""
         s = self.settings
         if j == s.steps_per_period or self.replan_due(j):
             return True
         if s.metrics_every == "auto":
-            return self.gp.update_fits(n_new)
+            return self.controller.observes or self.gp.update_fits(n_new)
         return j % s.metrics_every == 0
 
     def finish(self) -> None:

@@ -1,5 +1,6 @@
-"""sim.metrics_every = "auto" (issue 21 item 4): a posterior every step while the new points fit a
-Woodbury update, only at the period ends otherwise; same data, trajectory and final posterior as 1."""
+"""sim.metrics_every = "auto", the default (issue 21 item 4): a posterior every step while the new points fit a
+Woodbury update or the controller reads it every step, only at the period ends otherwise; same data,
+trajectory and final posterior as 1."""
 import numpy as np
 import pytest
 
@@ -19,8 +20,9 @@ def cfg(**sim):
     return config_from_dict(doc)
 
 
-def test_one_row_per_step_is_the_default_and_auto_is_validated():
-    assert SimSettings().metrics_every == 1                   # one row per measurement step (design card)
+def test_auto_is_the_default_and_the_cadence_is_validated():
+    assert SimSettings().metrics_every == "auto"              # a row per step up to M/4 robots, else per period
+    assert cfg(metrics_every=1).sim.metrics_every == 1
     assert cfg(metrics_every="auto").sim.metrics_every == "auto"
     assert cfg(robots=10, metrics_every=3).sim.metrics_every == 3
     for bad in ("sometimes", "Auto", 0, -1, 2.5, True):
@@ -72,3 +74,26 @@ def test_auto_skips_posteriors_of_a_large_swarm_but_ends_at_the_same_posterior()
     assert np.array_equal(a.positions[-1], b.positions[-1])
     np.testing.assert_allclose(b.mean, a.mean, rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(b.var, a.var, rtol=1e-10, atol=1e-14)
+
+
+@pytest.mark.parametrize("controller", ["greedy", "ergodic"])
+def test_auto_computes_every_posterior_a_controller_reads(controller):
+    # greedy and ergodic read V after every step: "auto" must not make them see it once a period only
+    a = run_simulation(cfg(robots=200, controller=controller, metrics_every=1))
+    b = run_simulation(cfg(robots=200, controller=controller, metrics_every="auto"))
+    assert len(a.rows) == len(b.rows) == 9
+    assert np.array_equal(a.positions[-1], b.positions[-1])
+    np.testing.assert_array_equal(b.var, a.var)
+
+
+def test_observes_tells_which_controllers_read_the_posterior_every_step():
+    from swarmfield.sim.controllers import CONTROLLERS, Controller
+
+    config = cfg()
+    readers = {name for name, c in CONTROLLERS.items() if c(config).observes}
+    assert readers == {"greedy", "ergodic"}
+
+    class Mine(Controller):                         # a user's controller that overrides observe
+        def observe(self, ctx):
+            pass
+    assert Mine(config).observes and not Controller(config).observes
