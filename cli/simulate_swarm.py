@@ -90,7 +90,10 @@ def resolve(args):
         preset = getattr(args, "preset", None)
         config = load_config(args.config, overrides, preset) if args.config is not None else \
             config_from_dict({}, overrides, preset)
-        config = with_domain(config, getattr(args, "domain", None))
+        source = getattr(args, "domain", None)
+        if source is None and config.domain.source:
+            source = config.domain.source      # a file from [domain] source is made absolute as --domain's is
+        config = with_domain(config, source)
         field = make_field(config.sim.field, config.sim.domain)
         check_config(config)
     except ValueError as exc:

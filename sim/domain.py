@@ -302,7 +302,13 @@ class Domain:
         geom = shapely.union_all([g for g in shapely.get_parts(geom) if g.geom_type in ("Polygon", "MultiPolygon")]) \
             if not geom.is_empty else geom
         if geom.is_empty or geom.area <= 0:
-            raise ValueError(f"{name}: no free cell (the polygons do not overlap the extent {list(ext)})")
+            whole = shapely.make_valid(geometry)
+            if whole.is_empty or whole.area <= 0:
+                raise ValueError(f"{name}: no free cell (the polygons have no area)")
+            gx0, gy0, gx1, gy1 = whole.bounds
+            raise ValueError(f"{name}: no free cell (the polygons, within [{gx0:g}, {gx1:g}, {gy0:g}, {gy1:g}], do not "
+                             f"overlap the extent {list(ext)}; if that is their site, set [sim] domain = "
+                             f"[{gx0:g}, {gx1:g}, {gy0:g}, {gy1:g}])")
         L = max(x1 - x0, y1 - y0)
         Nx = max(1, int(round(resolution * (x1 - x0) / L)))
         Ny = max(1, int(round(resolution * (y1 - y0) / L)))
@@ -926,6 +932,8 @@ def _sidecar_extent(path: Path):
         return None
     try:
         doc = json.loads(side.read_text())
+        if not isinstance(doc, dict) or "extent" not in doc:
+            raise ValueError(f'it has no "extent"; a sidecar is {{"extent": [x0, x1, y0, y1]}}')
         return _extent(doc["extent"], f"{side.name}: extent")
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ValueError(f"domain file {path}: cannot read the extent from {side.name} ({exc})") from None
@@ -958,6 +966,11 @@ def _image_to_free(a: np.ndarray, nodata=None, what="image") -> np.ndarray:
         else:
             raise ValueError(f"{what} has unsupported pixel type {a.dtype}")
         af = a.astype(float)
+        if full == 1.0:                        # floats: the light/dark rule needs them in [0, 1]
+            seen = af[np.isfinite(af) & ~nod[:, :, None]]
+            if seen.size and (seen.min() < 0.0 or seen.max() > 1.0):
+                raise ValueError(f"{what}: floating-point pixels must lie in [0, 1] (0 = dark, an obstacle; 1 = light, "
+                                 f"free), got {seen.min():g} to {seen.max():g}; scale it, or save it as 8-bit")
         colour = af[:, :, :3] if bands >= 3 else af[:, :, :1]
         val = colour.mean(axis=2)
         alpha = af[:, :, -1] if bands in (2, 4) else None
@@ -1049,6 +1062,7 @@ def _load_tif(path: Path, sim_extent):
         log = logging.getLogger("tifffile")        # its own complaints about a broken file: ours is one line
         was = log.disabled
         log.disabled = True
+        rotated = None
         try:
             with tifffile.TiffFile(path) as tf:
                 if not len(tf.pages):
@@ -1066,19 +1080,31 @@ def _load_tif(path: Path, sim_extent):
                     except ValueError:
                         nodata = None
                 ext = None
+                # rows and columns of the image (page.shape is (bands, rows, cols) for a band-separate file)
+                H, W = int(page.imagelength), int(page.imagewidth)
+                mtx = tags.get(34264)                      # ModelTransformationTag: a 4 x 4 matrix, row-major
                 if scale is not None and tie is not None:
                     sx, sy = float(scale.value[0]), float(scale.value[1])
                     I, J, _, X, Y, _ = (float(v) for v in tie.value[:6])
-                    H, W = page.shape[0], page.shape[1]
                     x0 = X - I * sx
                     y1 = Y + J * sy
                     ext = (x0, x0 + W * sx, y1 - H * sy, y1)
+                elif mtx is not None:
+                    m = [float(v) for v in mtx.value[:8]]
+                    if m[1] != 0.0 or m[4] != 0.0 or not (m[0] > 0.0 and m[5] < 0.0):
+                        rotated = m[:2] + m[4:6]
+                    else:
+                        x0, y1 = m[3], m[7]
+                        ext = (x0, x0 + W * m[0], y1 + H * m[5], y1)
         except MissingExtra:
             raise
         except Exception as exc:  # noqa: BLE001 -- tifffile raises many kinds
             raise ValueError(f"domain file {path} is not a GeoTIFF: {exc}") from None
         finally:
             log.disabled = was
+        if rotated is not None:
+            raise ValueError(f"domain file {path}: its ModelTransformation {rotated} is rotated, sheared or not "
+                             "north-up; warp the map to a north-up grid first")
     if nodata is not None and np.issubdtype(np.asarray(a).dtype, np.integer) and float(nodata).is_integer():
         nodata = int(nodata)
     free = _image_to_free(a, nodata=nodata, what=f"domain file {path}")

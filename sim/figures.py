@@ -53,22 +53,57 @@ def _image(ax, grid_values, domain, **kw):
     return ax.imshow(np.asarray(grid_values).T, origin="lower", extent=domain, interpolation="nearest", **kw)
 
 
-def _obstacles(ax, result, dx: float = 0.0, **kw):
-    """Grey overlay of the obstacles (fine raster of the domain) on a map axis, shifted by ``dx`` along x
-    (``kw``: more ``imshow`` arguments); returns the image (None without obstacles)."""
-    region = getattr(result, "region", None)
-    if region is None:
-        return None
-    x0, x1, y0, y1 = region.extent
+#: Largest side (pixels) of the obstacle overlay.  A finer map is reduced to it (an overlay pixel is an obstacle if
+#: any map pixel in it is, so thin walls stay visible): a panel is about 220 pixels wide, and a full-resolution
+#: overlay of a 4000 x 4000 map cost 0.5 GB per panel (10 GB and 45 s for panels.png).
+OVERLAY_PIXELS = 1024
+
+
+def _reduce_any(mask: np.ndarray, m: int, axis: int) -> np.ndarray:
+    """``mask`` reduced to ``m`` nearly equal blocks along ``axis`` (True if any entry of the block is)."""
+    n = mask.shape[axis]
+    if n <= m:
+        return mask
+    starts = np.unique(np.round(np.linspace(0, n, m + 1)[:-1]).astype(np.intp))
+    return np.logical_or.reduceat(mask, starts, axis=axis)
+
+
+def _obstacle_rgba(result) -> np.ndarray:
+    """(mx, my, 4) uint8 overlay of the obstacles (grey) and of the free space outside the reachable planner cells
+    (light grey), at most :data:`OVERLAY_PIXELS` per side; made once per result."""
+    cached = getattr(result, "_obstacle_overlay", None)
+    if cached is not None:
+        return cached
+    region = result.region
     blocked = ~region.free_pixels
-    rgba = np.zeros(blocked.shape + (4,))
-    rgba[blocked] = (0.55, 0.55, 0.55, 1.0)
+    Nx, Ny = blocked.shape
+    scale = OVERLAY_PIXELS / max(Nx, Ny)
+    if scale < 1:
+        mx, my = max(1, int(round(Nx * scale))), max(1, int(round(Ny * scale)))
+        blocked = _reduce_any(_reduce_any(blocked, mx, 0), my, 1)
+    rgba = np.zeros(blocked.shape + (4,), np.uint8)
     free = getattr(result, "free", None)
     if free is not None:               # free at the fine resolution but outside the reachable cells
         from ..control.kde import resample_mask
         off = ~resample_mask(free, *blocked.shape) & ~blocked
-        rgba[off] = (0.85, 0.85, 0.85, 0.8)
-    return ax.imshow(np.transpose(rgba, (1, 0, 2)), origin="lower", extent=(x0 + dx, x1 + dx, y0, y1),
+        rgba[off] = (217, 217, 217, 204)
+    rgba[blocked] = (140, 140, 140, 255)
+    rgba = np.ascontiguousarray(np.transpose(rgba, (1, 0, 2)))
+    try:
+        result._obstacle_overlay = rgba
+    except AttributeError:             # a result that takes no new attributes: made again per panel
+        pass
+    return rgba
+
+
+def _obstacles(ax, result, dx: float = 0.0, **kw):
+    """Grey overlay of the obstacles (fine raster of the domain, at most :data:`OVERLAY_PIXELS` per side) on a map
+    axis, shifted by ``dx`` along x (``kw``: more ``imshow`` arguments); returns the image (None without obstacles)."""
+    region = getattr(result, "region", None)
+    if region is None:
+        return None
+    x0, x1, y0, y1 = region.extent
+    return ax.imshow(_obstacle_rgba(result), origin="lower", extent=(x0 + dx, x1 + dx, y0, y1),
                      interpolation="nearest", zorder=2, **kw)
 
 

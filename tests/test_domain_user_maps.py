@@ -1,0 +1,133 @@
+"""Maps a user brings (adversarial): GeoTIFF layouts and georeferencing, float rasters, sidecars, polygons off
+the extent, a [domain] source in a configuration, and the obstacle overlay of a very fine map."""
+from __future__ import annotations
+
+import json
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from swarmfield.sim.domain import Domain, load_domain
+
+WIDE = (0.0, 60.0, 0.0, 20.0)
+
+
+def _wide_image():
+    """(100, 300) image rows (first row = largest y) of a 60 x 20 m site, 0.2 m pixels: True = free."""
+    ys = 20.0 - (np.arange(100) + 0.5) * 0.2
+    xs = (np.arange(300) + 0.5) * 0.2
+    Y, X = np.meshgrid(ys, xs, indexing="ij")
+    return ~(((X > 20) & (X < 24) & (Y > 4)) | ((X > 40) & (X < 44) & (Y < 14)))
+
+
+def _geo(sx, sy, x0, y1):
+    return [(33550, "d", 3, (sx, sy, 0.0), True), (33922, "d", 6, (0, 0, 0, x0, y1, 0.0), True)]
+
+
+def test_band_separate_geotiff_keeps_its_extent(tmp_path):
+    """A band-separate (planar) RGB GeoTIFF: page.shape is (bands, rows, cols); the extent comes from rows, cols."""
+    tifffile = pytest.importorskip("tifffile")
+    img = _wide_image()
+    t = np.where(img, 255, 0).astype(np.uint8)
+    rgb = np.stack([t, t, t])
+    tifffile.imwrite(tmp_path / "planar.tif", rgb, photometric="rgb", planarconfig="separate",
+                     extratags=_geo(0.2, 0.2, 0.0, 20.0))
+    dom = load_domain(tmp_path / "planar.tif", WIDE)
+    assert dom.extent == WIDE
+    assert np.array_equal(dom.free_pixels, img[::-1, :].T)
+
+
+def test_geotiff_model_transformation(tmp_path):
+    """Georeferencing by ModelTransformationTag (34264) instead of ModelPixelScale + ModelTiepoint is read,
+    not silently replaced by the simulation domain; a rotated one is refused in one line."""
+    tifffile = pytest.importorskip("tifffile")
+    t = np.where(_wide_image(), 255, 0).astype(np.uint8)
+    m = [0.2, 0, 0, 100.0, 0, -0.2, 0, 40.0, 0, 0, 0, 0, 0, 0, 0, 1]
+    tifffile.imwrite(tmp_path / "mtx.tif", t, extratags=[(34264, "d", 16, m, True)])
+    assert load_domain(tmp_path / "mtx.tif").extent == (100.0, 160.0, 20.0, 40.0)
+    with pytest.raises(ValueError, match=r"does not match the simulation domain.*set \[sim\] domain = \[100.0, 160.0"):
+        load_domain(tmp_path / "mtx.tif", WIDE)
+    r = [0.2, 0.05, 0, 100.0, 0.05, -0.2, 0, 40.0, 0, 0, 0, 0, 0, 0, 0, 1]
+    tifffile.imwrite(tmp_path / "rot.tif", t, extratags=[(34264, "d", 16, r, True)])
+    with pytest.raises(ValueError, match="rotated"):
+        load_domain(tmp_path / "rot.tif", WIDE)
+
+
+def test_float_raster_outside_unit_range_is_refused(tmp_path):
+    """Floats are light at >= 0.5 of [0, 1]: an elevation-like float map (100 and 900) would be all free; it is
+    an error naming the range.  NaN and nodata pixels are obstacles and do not count."""
+    tifffile = pytest.importorskip("tifffile")
+    img = np.ones((50, 50), bool)
+    img[10:20, 10:20] = False
+    tifffile.imwrite(tmp_path / "dem.tif", np.where(img, 900.0, 100.0).astype(np.float32))
+    with pytest.raises(ValueError, match=r"must lie in \[0, 1\].*got 100 to 900"):
+        load_domain(tmp_path / "dem.tif", (0, 20, 0, 20))
+    a = np.where(img, 1.0, 0.0).astype(np.float32)
+    a[:5] = np.nan
+    tifffile.imwrite(tmp_path / "unit.tif", a)
+    dom = load_domain(tmp_path / "unit.tif", (0, 20, 0, 20))
+    assert dom.free_pixels.sum() == img.sum() - 5 * 50
+    b = np.where(img, 1.0, 0.0).astype(np.float32)
+    b[:5] = -9999.0
+    tifffile.imwrite(tmp_path / "nd.tif", b, extratags=[(42113, "s", 0, "-9999", True)])
+    assert load_domain(tmp_path / "nd.tif", (0, 20, 0, 20)).free_pixels.sum() == img.sum() - 5 * 50
+
+
+def test_sidecar_without_extent_names_the_key(tmp_path):
+    """site.png next to site.json that is not a sidecar (the site's GeoJSON, say): the line says what is missing."""
+    PIL = pytest.importorskip("PIL.Image")
+    PIL.fromarray(np.full((20, 20), 255, np.uint8)).save(tmp_path / "site.png")
+    (tmp_path / "site.json").write_text(json.dumps({"type": "Polygon", "coordinates": []}))
+    with pytest.raises(ValueError, match='site.json .it has no "extent"'):
+        load_domain(tmp_path / "site.png", (0, 20, 0, 20))
+
+
+def test_polygons_off_the_extent_name_their_bounds(tmp_path):
+    """Polygons in site coordinates (UTM, say) with the default [sim] domain: the line gives their bounds."""
+    pytest.importorskip("shapely")
+    sq = [[500000, 4000000], [500020, 4000000], [500020, 4000020], [500000, 4000020], [500000, 4000000]]
+    (tmp_path / "utm.geojson").write_text(json.dumps({"type": "Polygon", "coordinates": [sq]}))
+    with pytest.raises(ValueError, match=r"set \[sim\] domain = \[500000, 500020, 4e\+06, 4\.00002e\+06\]"):
+        load_domain(tmp_path / "utm.geojson", (0, 20, 0, 20))
+
+
+def test_domain_source_of_a_config_is_written_absolute(tmp_path, monkeypatch):
+    """[domain] source = a relative file: DIR/config.toml names it absolutely, as for --domain, so that it repeats
+    the run from another folder."""
+    from swarmfield.cli.simulate_swarm import main
+    monkeypatch.chdir(tmp_path)
+    free = np.ones((40, 40), bool)
+    free[30:35, 30:35] = False
+    np.savez(tmp_path / "site.npz", free=free, extent=np.array([0, 20, 0, 20.0]))
+    (tmp_path / "cfg.toml").write_text('[domain]\nsource = "site.npz"\n')
+    args = ["--config", "cfg.toml", "--controller", "diffusion", "--robots", "10", "--max-periods", "1", "--no-figures",
+            "--quiet"]
+    assert main(args + ["--out", "run"]) == 0
+    text = (tmp_path / "run" / "config.toml").read_text()
+    assert f'source = "{tmp_path / "site.npz"}"' in text
+    other = tmp_path / "elsewhere"
+    other.mkdir()
+    monkeypatch.chdir(other)
+    assert main(["--config", str(tmp_path / "run" / "config.toml"), "--no-figures", "--quiet",
+                 "--out", "again"]) == 0
+
+
+def test_obstacle_overlay_of_a_fine_map_is_small():
+    """A 3000 x 3000 map: the overlay is at most OVERLAY_PIXELS a side, uint8, made once per result, and a
+    one-pixel wall stays visible (was a float64 RGBA of the full map per panel: 10 GB for a 4000 x 4000 map)."""
+    pytest.importorskip("matplotlib")
+    from matplotlib.figure import Figure
+    from swarmfield.sim import figures
+
+    free = np.ones((3000, 3000), bool)
+    free[1501, :2000] = False                        # a wall one map pixel thick
+    region = Domain.from_raster(free, (0, 20, 0, 20))
+    result = SimpleNamespace(region=region, free=None)
+    ax = Figure().add_subplot()
+    im = figures._obstacles(ax, result)
+    a = np.asarray(im.get_array())
+    assert max(a.shape[:2]) <= figures.OVERLAY_PIXELS and a.dtype == np.uint8
+    below = a[: a.shape[0] * 2 // 3 - 1, :, 3]           # rows are y, columns x (imshow of the transposed map)
+    assert (below == 255).all(axis=0).sum() == 1          # the wall: one opaque column
+    assert result._obstacle_overlay is figures._obstacle_rgba(result)
