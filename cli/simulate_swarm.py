@@ -95,6 +95,7 @@ def resolve(args):
             source = config.domain.source      # a file from [domain] source is made absolute as --domain's is
         config = with_domain(config, source)
         field = make_field(config.sim.field, config.sim.domain)
+        config = with_absolute_field(config)
         check_config(config)
     except ValueError as exc:
         raise InputError(str(exc)) from None
@@ -123,6 +124,17 @@ def with_domain(config, source):
                              "nor an existing file")
         source = str(p.resolve())
     return dataclasses.replace(config, domain=dataclasses.replace(config.domain, source=source))
+
+def with_absolute_field(config):
+    """``config`` with a field file's path made absolute (as :func:`with_domain` does for a domain file), so
+    that DIR/config.toml repeats the run from any folder; unchanged for a built-in field."""
+    import dataclasses
+    from ..sim.fields import FIELDS
+    spec = config.sim.field
+    if not isinstance(spec, str) or spec in FIELDS or not Path(spec).is_file():
+        return config
+    return dataclasses.replace(config, sim=dataclasses.replace(config.sim, field=str(Path(spec).resolve())))
+
 
 STOP_REASONS = {"threshold": "sup V at or below the threshold", "max_time": "time limit (--max-periods)",
                 "variance_below_eta": "nothing left to plan for (V below eta everywhere)",

@@ -1185,7 +1185,20 @@ def load_domain(path, sim_extent=None) -> Domain:
     dom = LOADERS[ext](path, None if sim_extent is None else _extent(sim_extent))
     if sim_extent is not None:
         check_extent(dom, sim_extent)
+    if dom.geometry is None:                   # a raster: its pixels should be about square
+        x0, x1, y0, y1 = dom.extent
+        px, py = (x1 - x0) / dom.state.shape[0], (y1 - y0) / dom.state.shape[1]
+        if max(px, py) > PIXEL_ASPECT_WARNING * min(px, py):
+            dom.notes = tuple(dom.notes) + (
+                f"domain file {path}: its {dom.state.shape[0]} x {dom.state.shape[1]} pixels (x by y) over the extent "
+                f"{[round(v, 9) for v in dom.extent]} are {px:.3g} m x {py:.3g} m, stretched {max(px, py) / min(px, py):.2f}x; "
+                "check the extent (a sidecar .json or [sim] domain) and, for an .npz, that free is x first (nx, ny)",)
     return dom
+
+
+#: A raster whose pixels over its extent are more than this far from square gets a warning (a map in image
+#: orientation saved as an .npz, or an image laid over a domain of another shape).
+PIXEL_ASPECT_WARNING = 1.25
 
 
 def check_extent(dom: Domain, sim_extent, tol: float = 1e-6) -> None:

@@ -113,6 +113,24 @@ def test_domain_source_of_a_config_is_written_absolute(tmp_path, monkeypatch):
                  "--out", "again"]) == 0
 
 
+def test_field_file_of_a_run_is_written_absolute(tmp_path, monkeypatch):
+    """--field a relative file: DIR/config.toml names it absolutely, so that it repeats the run from elsewhere."""
+    from swarmfield.cli.simulate_swarm import main
+    from swarmfield.sim.fields import save_npz_field
+    monkeypatch.chdir(tmp_path)
+    xs = np.linspace(0, 20, 41)
+    save_npz_field(tmp_path / "f.npz", np.add.outer(np.sin(xs), np.cos(xs)), (0, 20, 0, 20))
+    args = ["--field", "f.npz", "--controller", "diffusion", "--robots", "10", "--max-periods", "1", "--no-figures",
+            "--quiet"]
+    assert main(args + ["--out", "run"]) == 0
+    text = (tmp_path / "run" / "config.toml").read_text()
+    assert f'field = "{tmp_path / "f.npz"}"' in text
+    other = tmp_path / "elsewhere"
+    other.mkdir()
+    monkeypatch.chdir(other)
+    assert main(["--config", str(tmp_path / "run" / "config.toml"), "--no-figures", "--quiet", "--out", "again"]) == 0
+
+
 def test_obstacle_overlay_of_a_fine_map_is_small():
     """A 3000 x 3000 map: the overlay is at most OVERLAY_PIXELS a side, uint8, made once per result, and a
     one-pixel wall stays visible (was a float64 RGBA of the full map per panel: 10 GB for a 4000 x 4000 map)."""
@@ -131,3 +149,17 @@ def test_obstacle_overlay_of_a_fine_map_is_small():
     below = a[: a.shape[0] * 2 // 3 - 1, :, 3]           # rows are y, columns x (imshow of the transposed map)
     assert (below == 255).all(axis=0).sum() == 1          # the wall: one opaque column
     assert result._obstacle_overlay is figures._obstacle_rgba(result)
+
+
+def test_stretched_pixels_are_warned_about(tmp_path):
+    """A 300 x 100 (x by y) mask over a square extent, or the same mask saved transposed (image orientation):
+    loaded, with a note naming the stretch; square pixels get none."""
+    wide = _wide_image()[::-1, :].T                        # (300, 100), x first
+    np.savez(tmp_path / "ok.npz", free=wide, extent=np.array(WIDE))
+    assert load_domain(tmp_path / "ok.npz", WIDE).notes == ()
+    np.savez(tmp_path / "square.npz", free=wide, extent=np.array([0, 20, 0, 20.0]))
+    notes = load_domain(tmp_path / "square.npz").notes
+    assert len(notes) == 1 and "stretched 3.00x" in notes[0]
+    np.savez(tmp_path / "transposed.npz", free=wide.T, extent=np.array(WIDE))
+    notes = load_domain(tmp_path / "transposed.npz", WIDE).notes
+    assert len(notes) == 1 and "stretched 9.00x" in notes[0] and "x first" in notes[0]
