@@ -4,7 +4,7 @@
                      p_hat), the GP prediction f̄, the GP standard deviation sqrt(V) and the commanded
                      feedback velocity v (eq. "density feedback law using estimation") on a coarse
                      grid; columns are t = 0, T, 3T, 4T, or the closest recorded re-planning times
-                     when the run ended earlier.
+                     when the run ended earlier (each once: a shorter run has fewer columns).
 ``convergence.png``  sup V and mean V (with the stopping threshold in force), the RMSE of f̄, the
                      tracking error ||p_hat - p_r||_L2 and the mean speed against time; dotted lines
                      mark re-plans.  (The L2 error is not drawn: on the uniform grid it is
@@ -140,11 +140,13 @@ def _colorbar(fig, mappable, cax, label, values=None):
 
 
 def panel_snapshots(result, periods=PANEL_PERIODS):
-    """The snapshots shown in the columns: the ones closest in time to ``periods`` x T."""
+    """The snapshots shown in the columns: the ones closest in time to ``periods`` x T, each once (a run
+    shorter than the last period shows fewer columns rather than its last snapshot twice)."""
     snaps = result.snapshots
     T = result.config.sim.period
     times = np.array([sn.t for sn in snaps])
-    return [snaps[int(np.argmin(np.abs(times - p * T)))] for p in periods]
+    picked = dict.fromkeys(int(np.argmin(np.abs(times - p * T))) for p in periods)
+    return [snaps[i] for i in picked]
 
 
 def _row_axes(fig, nrow, left, bottom, top, hspace, width, size, height):

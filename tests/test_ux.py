@@ -162,6 +162,8 @@ def test_panels_figure_content(result):
     fig = make_panels(result)
     snaps = panel_snapshots(result)
     ncol = len(snaps)
+    # a run of 2 periods: t = 0, T, 2T (the snapshot nearest 3T and 4T is shown once, not three times)
+    assert [sn.t for sn in snaps] == [0.0, result.config.sim.period, 2 * result.config.sim.period]
     bars = [a for a in fig.axes if getattr(a, "_colorbar", None) is not None]
     rows = [a for a in fig.axes if a not in bars]
     # one Axes per row (robots over p_hat, f_bar, sqrt(V), v), its panels side by side and framed
