@@ -92,43 +92,37 @@ def test_polygons_off_the_extent_name_their_bounds(tmp_path):
         load_domain(tmp_path / "utm.geojson", (0, 20, 0, 20))
 
 
-def test_domain_source_of_a_config_is_written_absolute(tmp_path, monkeypatch):
-    """[domain] source = a relative file: DIR/config.toml names it absolutely, as for --domain, so that it repeats
-    the run from another folder."""
+def _written_absolute_and_repeatable(tmp_path, monkeypatch, first, line):
+    """simulate-swarm ``first`` (relative paths, run in tmp_path) writes ``line`` into DIR/config.toml, and that
+    file repeats the run from another folder."""
     from swarmfield.cli.simulate_swarm import main
+    quick = ["--controller", "diffusion", "--robots", "10", "--max-periods", "1", "--no-figures", "--quiet"]
+    assert main(first + quick + ["--out", "run"]) == 0
+    assert line in (tmp_path / "run" / "config.toml").read_text()
+    other = tmp_path / "elsewhere"
+    other.mkdir()
+    monkeypatch.chdir(other)
+    assert main(["--config", str(tmp_path / "run" / "config.toml"), "--no-figures", "--quiet", "--out", "again"]) == 0
+
+
+def test_domain_source_of_a_config_is_written_absolute(tmp_path, monkeypatch):
+    """[domain] source = a relative file: DIR/config.toml names it absolutely, as for --domain."""
     monkeypatch.chdir(tmp_path)
     free = np.ones((40, 40), bool)
     free[30:35, 30:35] = False
     np.savez(tmp_path / "site.npz", free=free, extent=np.array([0, 20, 0, 20.0]))
     (tmp_path / "cfg.toml").write_text('[domain]\nsource = "site.npz"\n')
-    args = ["--config", "cfg.toml", "--controller", "diffusion", "--robots", "10", "--max-periods", "1", "--no-figures",
-            "--quiet"]
-    assert main(args + ["--out", "run"]) == 0
-    text = (tmp_path / "run" / "config.toml").read_text()
-    assert f'source = "{tmp_path / "site.npz"}"' in text
-    other = tmp_path / "elsewhere"
-    other.mkdir()
-    monkeypatch.chdir(other)
-    assert main(["--config", str(tmp_path / "run" / "config.toml"), "--no-figures", "--quiet",
-                 "--out", "again"]) == 0
+    _written_absolute_and_repeatable(tmp_path, monkeypatch, ["--config", "cfg.toml"],
+                                     f'source = "{tmp_path / "site.npz"}"')
 
 
 def test_field_file_of_a_run_is_written_absolute(tmp_path, monkeypatch):
-    """--field a relative file: DIR/config.toml names it absolutely, so that it repeats the run from elsewhere."""
-    from swarmfield.cli.simulate_swarm import main
+    """--field a relative file: DIR/config.toml names it absolutely, as a domain file."""
     from swarmfield.sim.fields import save_npz_field
     monkeypatch.chdir(tmp_path)
     xs = np.linspace(0, 20, 41)
     save_npz_field(tmp_path / "f.npz", np.add.outer(np.sin(xs), np.cos(xs)), (0, 20, 0, 20))
-    args = ["--field", "f.npz", "--controller", "diffusion", "--robots", "10", "--max-periods", "1", "--no-figures",
-            "--quiet"]
-    assert main(args + ["--out", "run"]) == 0
-    text = (tmp_path / "run" / "config.toml").read_text()
-    assert f'field = "{tmp_path / "f.npz"}"' in text
-    other = tmp_path / "elsewhere"
-    other.mkdir()
-    monkeypatch.chdir(other)
-    assert main(["--config", str(tmp_path / "run" / "config.toml"), "--no-figures", "--quiet", "--out", "again"]) == 0
+    _written_absolute_and_repeatable(tmp_path, monkeypatch, ["--field", "f.npz"], f'field = "{tmp_path / "f.npz"}"')
 
 
 def test_obstacle_overlay_of_a_fine_map_is_small():
