@@ -119,6 +119,8 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
         from ..sim.domain import BUILTIN_DOMAINS
         dlabels = _labels(domains, BUILTIN_DOMAINS)
         for dom in domains:
+            if dom not in BUILTIN_DOMAINS and Path(dom).is_dir():
+                raise ValueError(f"domain file {dom} is a folder")
             if dom not in BUILTIN_DOMAINS and not Path(dom).is_file():
                 raise ValueError(f"domain {dom!r} is neither a built-in domain ({', '.join(BUILTIN_DOMAINS)}) "
                                  "nor an existing file")

@@ -605,6 +605,9 @@ def test_compare_controllers_domain_axis(tmp_path, capsys):
     assert "| domain | field |" in table and "| floor | sinc |" in table and "| harbour | sinc |" in table
     assert (out / "plots" / "floor_sinc_n20_loss0.png").is_file()
     assert main(["--controllers", "diffusion", "--domains", "nowhere", "--out", str(tmp_path / "x")]) == 2
+    capsys.readouterr()
+    assert main(["--controllers", "diffusion", "--domains", str(tmp_path), "--out", str(tmp_path / "y")]) == 2
+    assert "is a folder" in capsys.readouterr().err           # as simulate-swarm says it
 
 
 def test_move_mirrors_at_obstacle_faces_and_walls():
