@@ -386,13 +386,41 @@ class Simulation:
         return False
 
     def target(self):
-        """p_f = max(V - eta, 0) / int (or the reachable variant); None if V <= eta everywhere."""
+        """p_f = max(V - eta, 0) / int (or the reachable variant); None if V <= eta everywhere.
+
+        When V <= eta everywhere but the stop rule judges by a larger variance (``robust``: V at the shorter
+        length scale l_c, :meth:`stop_rule_variance`), p_f is made from that one: a long length scale learned
+        in a smooth region must not end the run ("nothing left to plan for") before the rule is met."""
         s, grid = self.settings, self.grid
         eta = self.stop_rule.tolerance(self.gp)
-        if s.target == "reachable":
-            reach = 0.5 * self.config.planner.v_max * s.period if s.reach is None else s.reach   # 2 sd = v_max T
-            return reachable_target_density(self.var, eta, grid.cell_area, self.p_hat, reach, grid.dx, grid.dy)
-        return target_density(self.var, eta, grid.cell_area)
+
+        def make(var):
+            if s.target == "reachable":
+                reach = 0.5 * self.config.planner.v_max * s.period if s.reach is None else s.reach   # 2 sd = v_max T
+                return reachable_target_density(var, eta, grid.cell_area, self.p_hat, reach, grid.dx, grid.dy)
+            return target_density(var, eta, grid.cell_area)
+
+        p_f = make(self.var)
+        if p_f is None:
+            judged = self.stop_rule_variance()
+            if judged is not None:
+                p_f = make(judged)
+        return p_f
+
+    def stop_rule_variance(self) -> np.ndarray | None:
+        """max(V, V_c) on the grid, V_c the variance the stop rule also judges by (``robust``: at l_c,
+        :meth:`sim.stopping.RobustThreshold.check_variance`, given on every cell centre or the free ones), or
+        None when the rule judges by V alone."""
+        check = getattr(self.stop_rule, "check_variance", None)
+        vc = check(self.gp) if check is not None else None
+        if vc is None:
+            return None
+        if self.free is None:
+            vc_grid = np.asarray(vc).reshape(self.grid.shape)
+        else:
+            vc_grid = np.zeros(self.grid.shape)
+            vc_grid[self.free] = vc
+        return np.maximum(self.var, vc_grid)
 
     def information_inputs(self) -> dict:
         """``{"information": InformationInputs}`` for ``planner.objective = "information"`` (the current GP
@@ -402,18 +430,11 @@ class Simulation:
         from ..ocp.objectives import InformationInputs
         gs = self.gp.settings
         var, ell = self.var, gs.length_scale
-        rule = self.stop_rule
-        if getattr(self.config.planner, "information_scale", "gp") == "stop-rule" and hasattr(rule, "check_variance"):
-            # plan for the variance the stop rule judges by (sim.stopping.RobustThreshold: l_c <= l), given on
-            # the points the rule is bound to: every cell centre, or the free ones with obstacles
-            vc = rule.check_variance(self.gp)
-            if vc is not None:
-                if self.free is None:
-                    vc_grid = np.asarray(vc).reshape(self.grid.shape)
-                else:
-                    vc_grid = np.zeros(self.grid.shape)
-                    vc_grid[self.free] = vc
-                var, ell = np.maximum(var, vc_grid), rule.check_scale(self.gp)
+        if getattr(self.config.planner, "information_scale", "gp") == "stop-rule":
+            # plan for the variance the stop rule judges by (sim.stopping.RobustThreshold: l_c <= l)
+            judged = self.stop_rule_variance()
+            if judged is not None:
+                var, ell = judged, self.stop_rule.check_scale(self.gp)
         return {"information": InformationInputs(var, int(self.alive.sum()), self.settings.dt,
                                                  gs.noise_variance, ell)}
 

@@ -7,6 +7,7 @@ import pytest
 
 from swarmfield.regression import GaussianProcess, GPSettings
 from swarmfield.sim.config import RunConfig, SimSettings, to_toml, config_from_dict
+from swarmfield.regression.target import target_density
 from swarmfield.sim.fields import FIELDS, make_field
 from swarmfield.sim.stopping import (AbsoluteThreshold, RelativeThreshold, RobustThreshold, farthest_distance,
                                      make_stop_rule, travel_time_limit)
@@ -229,3 +230,31 @@ def test_closed_loop_records_the_robust_threshold_and_stops_at_it():
     # (the twin GP is updated at other moments when the rule is also asked at period starts: round-off)
     np.testing.assert_allclose([r["threshold"] for r in res2.rows], [r["threshold"] for r in res.rows[:n]],
                                rtol=1e-9)
+
+
+def test_a_long_learned_length_scale_does_not_end_the_run_before_the_robust_rule():
+    """V <= eta everywhere at a long learned l, but V at l_c is not: the target comes from max(V, V_c) and the loop
+    plans on, instead of stopping with "nothing left to plan for" before the rule is met (a centre start on the
+    sinc field learned l = 11.8 m after one period and stopped there)."""
+    from swarmfield.sim.simulation import Simulation
+    cfg = config_from_dict({"sim": {"robots": 60, "start_box": [0.0, 20.0, 0.0, 20.0], "max_periods": 1,
+                                    "stop_rule": "robust", "eta_relative": 0.05},
+                            "gp": {"learn_hyperparameters": True, "length_scale": 1.0}})
+    sim = Simulation(cfg)
+    sim.start()
+    s2 = sim.gp.settings.signal_variance
+    sim.gp.set_hyperparameters(s2, 60.0)             # so long that V is under eta everywhere
+    sim.mean, sim.var = sim.predict()
+    eta = sim.stop_rule.tolerance(sim.gp)
+    assert sim.var.max() <= eta                      # the case under test: V alone says nothing is left
+    judged = sim.stop_rule_variance()
+    assert judged is not None and judged.max() > 10 * eta and np.all(judged >= sim.var)
+    assert not sim.stop_rule.reached(sim.var, sim.gp)
+    p_f = sim.target()
+    assert p_f is not None
+    np.testing.assert_allclose(p_f.sum() * sim.grid.cell_area, 1.0)
+    np.testing.assert_allclose(p_f, target_density(judged, eta, sim.grid.cell_area))
+    # the rule's variance at the GP's own length scale: V alone decides, as before
+    sim.gp.set_hyperparameters(s2, 1.0)
+    sim.mean, sim.var = sim.predict()
+    assert sim.stop_rule_variance() is None
