@@ -181,7 +181,7 @@ class SimSettings:
                     only at the end of each period, where Algorithm 1 regresses: metrics.csv then has
                     one row at t = 0 and one per period, and the stop rule is checked there.  Each
                     posterior of a large swarm is an O(M^3) refactorisation: at 10^4 robots a step
-                    costs 30 ms instead of 135 ms (docs/results/closed-loop-step.md).  1: a row after
+                    costs a quarter of what it does with 1 (docs/results/closed-loop-step.md).  1: a row after
                     every measurement step at any swarm size (the design card's metrics.csv)
     target          ``variance`` (paper): p_f = max(V - eta, 0) / int; ``reachable``: the same weighted by
                     R = p̂ convolved with a Gaussian of standard deviation planner.v_max * T / 2 (2 sd =
