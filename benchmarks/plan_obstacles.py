@@ -1,7 +1,8 @@
 """Benchmark: the paper's first planning step with obstacles (issue 19, item 9) against the empty rectangle.
 
     python benchmarks/plan_obstacles.py [--repeat 3] [--grids 40] [--transports auto] [--scheme upwind]
-        [--cold-starts zero,coarse] [--methods ipopt,grg] [--kernel]
+        [--cold-starts zero,coarse] [--methods ipopt,grg] [--recalc-y auto|yes|no] [--seed 0]
+        [--kernel]
 
 The domains (``--layouts``): the paper's [0, 20]^2 with "rooms": a wall at 9 <= x <= 10 (a door at
 12 <= y <= 15) and two blocks, [13, 17] x [3, 8] and [2, 6.5] x [12, 16] (14 % of the cells blocked at
@@ -23,7 +24,7 @@ import numpy as np
 from swarmfield.ocp.grid import Grid
 from swarmfield.ocp.planner import ReferencePlanner
 from swarmfield.sim.scenario import box_density, first_step_target
-from swarmfield.ocp.settings import PlannerSettings
+from swarmfield.ocp.settings import IpoptSettings, PlannerSettings
 
 #: obstacles (x0, x1, y0, y1) of the benchmark domains: "rooms" (a wall with a door, two blocks) and
 #: "pillars" (21 pillars of 1 m x 3 m on a 4 m lattice, none in the start box); all edges on multiples of
@@ -93,6 +94,10 @@ def main():
     ap.add_argument("--methods", default="ipopt",
                     help="comma-separated planner methods: ipopt (default), grg (the paper's generalized reduced "
                          "gradient, ocp.grg; zero start only)")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the first-step target (default 0)")
+    ap.add_argument("--recalc-y", default="auto", choices=("auto", "yes", "no"),
+                    help="ipopt.recalc_y (IpoptSettings): auto (default: no with the l1 limit's inequality rows), "
+                         "yes (IPOPT's own L-BFGS default: a least-squares multiplier estimate after every step)")
     ap.add_argument("--kernel", action="store_true",
                     help="also time the compiled kernel alone (forward + adjoint, min of 15) with and without the mask")
     args = ap.parse_args()
@@ -106,14 +111,15 @@ def main():
             starts = [(cs, m) for m in args.methods.split(",") for cs in args.cold_starts.split(",")
                       if m == "ipopt" or cs == "zero"]
             for cs, method in starts:
-                s = PlannerSettings(nx=n, ny=n, transport=tr, scheme=args.scheme, cold_start=cs, method=method)
+                s = PlannerSettings(nx=n, ny=n, transport=tr, scheme=args.scheme, cold_start=cs, method=method,
+                                    ipopt=IpoptSettings(recalc_y=args.recalc_y))
                 tag = cs if method == "ipopt" else method        # the row's start (ipopt) or method (grg)
                 for label in ("empty", *args.layouts.split(",")):
                     g = Grid(s.domain, n, n)
                     free = obstacle_mask(g, label) if label != "empty" else None
                     planner = ReferencePlanner(s, free=free)
                     p0 = box_density(g)
-                    target, _ = first_step_target(g, seed=0)
+                    target, _ = first_step_target(g, seed=args.seed)
                     if free is not None:
                         p0, target = masked(p0, free), masked(target, free)
                     cpu, wall = [], []

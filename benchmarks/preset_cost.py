@@ -1,15 +1,20 @@
 """CPU cost of a closed-loop run under a preset, and the planner's share (docs/results/tuned-preset.md).
 
     python benchmarks/preset_cost.py [--preset tuned] [--config FILE] [--field sinc] [--periods 2]
+        [--domains rectangle floor harbour]
 
-Runs ``run_simulation`` once (seed 0, the run does not stop early: its own stop rule may end it sooner)
-and prints the process CPU time (``time.process_time``), the planner's wall time and the number of
-plans.  Compare two configurations in one session, e.g. the released tuned preset against
+Runs ``run_simulation`` once per domain (seed 0; the run does not stop early: its own stop rule may end it
+sooner) and prints the process CPU time (``time.process_time``), the planner's wall time, the number of
+plans and their IPOPT iterations.  With ``--domains`` (``rectangle`` = the empty rectangle, else a built-in
+domain or a map file) it also prints each domain's planning time and iterations against the first one's
+(issue 19, item 9: docs/results/planner-obstacles.md, "The plans of a closed-loop run").  Compare two
+configurations in one session, e.g. the released tuned preset against
 ``--config docs/results/tuned-preset/prev.toml``.
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 
 
@@ -23,15 +28,33 @@ def main(argv=None) -> int:
     p.add_argument("--config", default=None)
     p.add_argument("--field", default="sinc")
     p.add_argument("--periods", type=int, default=2)
+    p.add_argument("--domains", nargs="+", default=None, metavar="NAME|FILE",
+                   help="rectangle (the empty one) and/or domains with obstacles, one run each")
     a = p.parse_args(argv)
     limit_threads()
-    cfg = load_config(a.config, preset=a.preset) if a.config else RunConfig.from_preset(a.preset)
-    cfg = cfg.replace(max_periods=a.periods, field=a.field)
-    t = time.process_time()
-    res = run_simulation(cfg)
-    cpu = time.process_time() - t
-    print(f"{a.preset} {a.config or ''}: {cpu:.1f} s CPU for {a.periods} periods on {a.field}; planner "
-          f"{res.timings['planner']:.1f} s wall, {len(res.replans)} plans; stop: {res.stop_reason}")
+    base = load_config(a.config, preset=a.preset) if a.config else RunConfig.from_preset(a.preset)
+    base = base.replace(max_periods=a.periods, field=a.field)
+    first = None
+    for name in a.domains or [None]:
+        cfg = base
+        if name is not None:
+            source = "" if name == "rectangle" else name
+            cfg = dataclasses.replace(base, domain=dataclasses.replace(base.domain, source=source))
+        t = time.process_time()
+        res = run_simulation(cfg)
+        cpu = time.process_time() - t
+        ok = [r for r in res.replans if r.get("iterations", -1) >= 0]
+        its = sum(r["iterations"] for r in ok)
+        plan_s = sum(r["solve_time_s"] for r in ok)
+        where = "" if name is None else f" on {name}"
+        print(f"{a.preset} {a.config or ''}{where}: {cpu:.1f} s CPU for {a.periods} periods on {a.field}; planner "
+              f"{res.timings['planner']:.2f} s wall, {len(res.replans)} plans, {its} IPOPT iterations "
+              f"({1e3 * plan_s / max(its, 1):.2f} ms each); stop: {res.stop_reason}", flush=True)
+        if first is None:
+            first = (plan_s, its)
+        elif first[0] > 0 and first[1] > 0:
+            print(f"    planning time / {a.domains[0]}'s: {plan_s / first[0]:.2f}, iterations / "
+                  f"{a.domains[0]}'s: {its / first[1]:.2f}", flush=True)
     return 0
 
 

@@ -100,6 +100,12 @@ class ReferencePlanner:
             # the formulation's preference replaces a *default* setting only (an explicit one wins)
             if key not in self.settings.ipopt.extra and getattr(self.settings.ipopt, key, None) == getattr(defaults, key, None):
                 ipopt[key] = value
+        if "recalc_y" not in ipopt and ipopt["hessian_approximation"] == "limited-memory" \
+                and not np.any(np.asarray(self.nlp.lbg) == np.asarray(self.nlp.ubg)):
+            # IpoptSettings.recalc_y = "auto": with inequality rows only (the l1 / face speed limits of single
+            # shooting) the multiplier re-estimate IPOPT makes after each L-BFGS step costs a factorisation and
+            # does not change the iterates (the same iterations, plans equal to 1e-10 on the paper's problems)
+            ipopt["recalc_y"] = "no"
         if s.objective == "information" and "obj_scaling_factor" not in s.ipopt.extra:
             # IPOPT's tolerances are absolute; the information objective is information_weight (100) times
             # a ratio of variances O(1), so unscaled its acceptable dual infeasibility 1e-3 is ~1e-5 of the

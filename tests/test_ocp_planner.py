@@ -225,3 +225,23 @@ def test_muscl_planner_solves_and_records_the_scheme():
     expected = "compiled" if compiled_available() else "casadi"      # issue 21: MUSCL in the compiled kernel
     assert plan.meta["settings"]["scheme"] == "muscl" and plan.meta["transport"] == expected
     assert plan.p.min() >= 0.0 and plan.meta["symmetric_kl_final"] < plan.meta["symmetric_kl_initial"]
+
+
+@pytest.mark.parametrize("speed_limit, auto", [("l1", "no"), ("norm", None)])
+def test_recalc_y_auto_skips_the_multiplier_estimate_only_without_equality_rows(speed_limit, auto):
+    """IpoptSettings.recalc_y = "auto": "no" for inequality rows only (the l1 limit), IPOPT's own default
+    (unset) with the norm limit's equality rows; an explicit value wins; the l1 plan is the one IPOPT's
+    default multiplier re-estimate gives (the iterates do not depend on it)."""
+    g_settings = PlannerSettings(**SMALL, speed_limit=speed_limit)
+    planner = ReferencePlanner(g_settings)
+    assert planner.ipopt_options.get("recalc_y") == auto
+    forced = ReferencePlanner(PlannerSettings(**SMALL, speed_limit=speed_limit, ipopt=IpoptSettings(recalc_y="yes")))
+    assert forced.ipopt_options["recalc_y"] == "yes"
+    if speed_limit == "l1":
+        g = planner.grid
+        p0, target = bump(g, 2.5, 2.5, 1.2), bump(g, 7.0, 5.0, 1.2)
+        fast, ref = planner.solve(p0, target), forced.solve(p0, target)
+        assert fast.meta["solver"]["iterations"] == ref.meta["solver"]["iterations"]
+        np.testing.assert_allclose(fast.coef, ref.coef, rtol=0, atol=1e-8 * np.abs(ref.coef).max())
+    with pytest.raises(ValueError, match="recalc_y"):
+        IpoptSettings(recalc_y="sometimes")
