@@ -6,7 +6,7 @@
 Runs ``run_simulation`` once per domain (seed 0; the run does not stop early: its own stop rule may end it
 sooner) and prints the process CPU time (``time.process_time``), the planner's wall time, the number of
 plans and their IPOPT iterations.  With ``--domains`` (``rectangle`` = the empty rectangle, else a built-in
-domain or a map file) it also prints each domain's planning time and iterations against the first one's
+domain or a map file) it also prints each domain's planning time and iterations per plan against the first one's
 (issue 19, item 9: docs/results/planner-obstacles.md, "The plans of a closed-loop run").  Compare two
 configurations in one session, e.g. the released tuned preset against
 ``--config docs/results/tuned-preset/prev.toml``.
@@ -50,11 +50,12 @@ def main(argv=None) -> int:
         print(f"{a.preset} {a.config or ''}{where}: {cpu:.1f} s CPU for {a.periods} periods on {a.field}; planner "
               f"{res.timings['planner']:.2f} s wall, {len(res.replans)} plans, {its} IPOPT iterations "
               f"({1e3 * plan_s / max(its, 1):.2f} ms each); stop: {res.stop_reason}", flush=True)
+        per_plan = (plan_s / max(len(ok), 1), its / max(len(ok), 1))   # runs may stop at their threshold
         if first is None:
-            first = (plan_s, its)
+            first = per_plan
         elif first[0] > 0 and first[1] > 0:
-            print(f"    planning time / {a.domains[0]}'s: {plan_s / first[0]:.2f}, iterations / "
-                  f"{a.domains[0]}'s: {its / first[1]:.2f}", flush=True)
+            print(f"    per plan: time / {a.domains[0]}'s {per_plan[0] / first[0]:.2f}, iterations / "
+                  f"{a.domains[0]}'s {per_plan[1] / first[1]:.2f}", flush=True)
     return 0
 
 
