@@ -58,6 +58,11 @@ class IpoptSettings:
     tol: float = 1e-6
     acceptable_tol: float = 1e-3
     acceptable_iter: int = 5
+    #: IPOPT's objective-change stopping test: also stop "acceptably" once the relative change of the
+    #: objective stays below this for ``acceptable_iter`` iterations (with the other acceptable tests met);
+    #: for quasi-Newton runs "which have trouble to bring down the dual infeasibility" (IPOPT's options).
+    #: 1e20 (IPOPT's default) turns it off
+    acceptable_obj_change_tol: float = 1e20
     max_iter: int = 500
     hessian_approximation: str = "limited-memory"
     limited_memory_max_history: int = 3
@@ -75,7 +80,7 @@ class IpoptSettings:
     extra: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        _positive(self, "tol", "acceptable_tol")
+        _positive(self, "tol", "acceptable_tol", "acceptable_obj_change_tol")
         _positive_int(self, "max_iter", "limited_memory_max_history", "acceptable_iter")
         if self.hessian_approximation not in ("limited-memory", "exact"):
             raise ValueError(f"ipopt.hessian_approximation must be 'limited-memory' or 'exact', got {self.hessian_approximation!r}")
@@ -106,6 +111,8 @@ class IpoptSettings:
             "print_level": int(self.print_level),
             "sb": "yes",
         }
+        if self.acceptable_obj_change_tol < 1e20:
+            opts["acceptable_obj_change_tol"] = float(self.acceptable_obj_change_tol)
         if self.recalc_y != "auto":
             opts["recalc_y"] = self.recalc_y
         if self.hessian_approximation == "limited-memory":

@@ -245,3 +245,20 @@ def test_recalc_y_auto_skips_the_multiplier_estimate_only_without_equality_rows(
         np.testing.assert_allclose(fast.coef, ref.coef, rtol=0, atol=1e-8 * np.abs(ref.coef).max())
     with pytest.raises(ValueError, match="recalc_y"):
         IpoptSettings(recalc_y="sometimes")
+
+
+def test_objective_change_stop_is_off_by_default_and_passed_to_ipopt_when_set():
+    """IpoptSettings.acceptable_obj_change_tol: IPOPT's default (off) unless set; a set value reaches
+    IPOPT and ends the solve no later than without it, at an objective within the test's tolerance."""
+    assert "acceptable_obj_change_tol" not in IpoptSettings().options()
+    assert IpoptSettings(acceptable_obj_change_tol=1e-4).options()["acceptable_obj_change_tol"] == 1e-4
+    with pytest.raises(ValueError, match="acceptable_obj_change_tol"):
+        IpoptSettings(acceptable_obj_change_tol=0.0)
+    base = ReferencePlanner(PlannerSettings(**SMALL))
+    loose = ReferencePlanner(PlannerSettings(**SMALL, ipopt=IpoptSettings(acceptable_tol=1e-2,
+                                                                          acceptable_obj_change_tol=1e-3)))
+    g = base.grid
+    p0, target = bump(g, 2.5, 2.5, 1.2), bump(g, 7.0, 5.0, 1.2)
+    a, b = base.solve(p0, target), loose.solve(p0, target)
+    assert b.meta["solver"]["iterations"] <= a.meta["solver"]["iterations"]
+    assert b.meta["objective"] == pytest.approx(a.meta["objective"], rel=1e-2)
