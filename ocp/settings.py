@@ -73,7 +73,7 @@ class IpoptSettings:
     #: least-squares re-estimate of the constraint multipliers after every step (IPOPT's ``recalc_y``, on by
     #: default with L-BFGS; one more factorisation of the augmented system per iteration).  "auto": "no" when
     #: the NLP has inequality rows only (single shooting with the l1 or face speed limit: the iterates do not
-    #: depend on it, 23-30 % less CPU a solve; docs/design/planner-speed.md, "recalc_y"), IPOPT's default
+    #: depend on it, 4-28 % less CPU a solve; docs/design/planner-speed.md, "recalc_y"), IPOPT's default
     #: otherwise; "yes" / "no" force it
     recalc_y: str = "auto"
     print_level: int = 0

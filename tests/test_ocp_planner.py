@@ -232,8 +232,7 @@ def test_recalc_y_auto_skips_the_multiplier_estimate_only_without_equality_rows(
     """IpoptSettings.recalc_y = "auto": "no" for inequality rows only (the l1 limit), IPOPT's own default
     (unset) with the norm limit's equality rows; an explicit value wins; the l1 plan is the one IPOPT's
     default multiplier re-estimate gives (the iterates do not depend on it)."""
-    g_settings = PlannerSettings(**SMALL, speed_limit=speed_limit)
-    planner = ReferencePlanner(g_settings)
+    planner = ReferencePlanner(PlannerSettings(**SMALL, speed_limit=speed_limit))
     assert planner.ipopt_options.get("recalc_y") == auto
     forced = ReferencePlanner(PlannerSettings(**SMALL, speed_limit=speed_limit, ipopt=IpoptSettings(recalc_y="yes")))
     assert forced.ipopt_options["recalc_y"] == "yes"
