@@ -125,6 +125,7 @@ def with_domain(config, source):
         source = str(p.resolve())
     return dataclasses.replace(config, domain=dataclasses.replace(config.domain, source=source))
 
+
 def with_absolute_field(config):
     """``config`` with a field file's path made absolute (as :func:`with_domain` does for a domain file), so
     that DIR/config.toml repeats the run from any folder; unchanged for a built-in field."""

@@ -46,6 +46,10 @@ def check_domain(dom, name: str) -> tuple:
 TRANSPORTS = ("auto", "compiled", "numpy", "casadi")
 
 
+#: IPOPT's value for "no limit" in its tolerances (e.g. ``acceptable_obj_change_tol``)
+IPOPT_OFF = 1e20
+
+
 @dataclass(frozen=True)
 class IpoptSettings:
     """IPOPT options used by the planner (names follow IPOPT's own).
@@ -61,8 +65,8 @@ class IpoptSettings:
     #: IPOPT's objective-change stopping test: also stop "acceptably" once the relative change of the
     #: objective stays below this for ``acceptable_iter`` iterations (with the other acceptable tests met);
     #: for quasi-Newton runs "which have trouble to bring down the dual infeasibility" (IPOPT's options).
-    #: 1e20 (IPOPT's default) turns it off
-    acceptable_obj_change_tol: float = 1e20
+    #: IPOPT_OFF (1e20, IPOPT's default) turns it off
+    acceptable_obj_change_tol: float = IPOPT_OFF
     max_iter: int = 500
     hessian_approximation: str = "limited-memory"
     limited_memory_max_history: int = 3
@@ -111,7 +115,7 @@ class IpoptSettings:
             "print_level": int(self.print_level),
             "sb": "yes",
         }
-        if self.acceptable_obj_change_tol < 1e20:
+        if self.acceptable_obj_change_tol < IPOPT_OFF:
             opts["acceptable_obj_change_tol"] = float(self.acceptable_obj_change_tol)
         if self.recalc_y != "auto":
             opts["recalc_y"] = self.recalc_y

@@ -1186,8 +1186,7 @@ def load_domain(path, sim_extent=None) -> Domain:
     if sim_extent is not None:
         check_extent(dom, sim_extent)
     if dom.geometry is None:                   # a raster: its pixels should be about square
-        x0, x1, y0, y1 = dom.extent
-        px, py = (x1 - x0) / dom.state.shape[0], (y1 - y0) / dom.state.shape[1]
+        px, py = dom.pixel
         if max(px, py) > PIXEL_ASPECT_WARNING * min(px, py):
             dom.notes = tuple(dom.notes) + (
                 f"domain file {path}: its {dom.state.shape[0]} x {dom.state.shape[1]} pixels (x by y) over the extent "
