@@ -15,6 +15,11 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from swarmfield import PlannerSettings, ReferencePlanner
+from swarmfield.runtime.threads import limit_threads
+
+# one BLAS/OpenMP thread, as the commands and run_simulation use: many small factorisations run
+# slower with a thread per core (several times so on a busy machine); OPENBLAS_NUM_THREADS=... wins
+limit_threads()
 
 settings = PlannerSettings(nx=20, ny=20, n_intervals=6, n_modes_x=4, n_modes_y=4)
 planner = ReferencePlanner(settings)          # builds the CasADi problem once; reuse it for re-plans

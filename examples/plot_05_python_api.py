@@ -23,6 +23,11 @@ import numpy as np
 from swarmfield import (FeedbackSettings, GaussianProcess, GPSettings, KernelDensity, PlannerSettings,
                         ReferencePlanner, make_field, target_density, tracking_velocity)
 from swarmfield.sim import euler_maruyama_step, measure
+from swarmfield.runtime.threads import limit_threads
+
+# one BLAS/OpenMP thread, as the commands and run_simulation use: many small factorisations run
+# slower with a thread per core (several times so on a busy machine); OPENBLAS_NUM_THREADS=... wins
+limit_threads()
 
 rng = np.random.default_rng(1)                 # all randomness through one explicit generator
 domain = (0.0, 10.0, 0.0, 10.0)

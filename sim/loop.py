@@ -11,6 +11,7 @@ from __future__ import annotations
 from types import SimpleNamespace
 from typing import Callable
 
+from ..runtime.threads import COMMAND_THREADS
 from .config import RunConfig
 from .fields import Field
 from .recorders import CallbackRecorder
@@ -25,7 +26,8 @@ __all__ = ["Snapshot", "SimulationResult", "run_simulation", "check_config", "QU
 def run_simulation(config: RunConfig | None = None, *, field: Field | None = None, planner=None,
                    progress: Callable[[dict], None] | None = None,
                    on_period: Callable[[SimulationResult], None] | None = None,
-                   controller=None, stop_rule=None, recorders=(), domain=None) -> SimulationResult:
+                   controller=None, stop_rule=None, recorders=(), domain=None,
+                   threads: int | None = COMMAND_THREADS) -> SimulationResult:
     """Run Algorithm 1 with ``config``; returns a :class:`SimulationResult`.
 
     ``field`` overrides ``config.sim.field``; ``planner`` may be a prebuilt ``ocp.ReferencePlanner``
@@ -37,10 +39,15 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
     ``progress(info)`` is called after every period start (``info["event"] == "plan"``) and at the end
     (``"done"``); ``on_period(result)`` after every completed period (the CLI writes the outputs so
     far there).
+
+    ``threads``: BLAS/OpenMP threads during the run, as the commands use (default
+    :data:`runtime.threads.COMMAND_THREADS` = 1, restored afterwards; a variable such as
+    ``OPENBLAS_NUM_THREADS`` set in the environment wins; ``None`` leaves the thread pools alone):
+    :meth:`sim.simulation.Simulation.run`.
     """
     sim = Simulation(config, field=field, planner=planner, controller=controller, stop_rule=stop_rule,
                      recorders=[CallbackRecorder(progress, on_period), *recorders], domain=domain)
-    return sim.run()
+    return sim.run(threads=threads)
 
 
 def stop_threshold(config: RunConfig, signal_variance: float) -> float:

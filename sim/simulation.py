@@ -49,6 +49,7 @@ import numpy as np
 from ..control import KernelDensity, robot_kernel, tracking_velocity
 from ..regression import GaussianProcess, reachable_target_density, target_density
 from ..regression.hyper import refit_online
+from ..runtime.threads import COMMAND_THREADS, limit_threads
 
 from .config import RunConfig
 from .dynamics import euler_maruyama_step, measure, uniform_in_box
@@ -189,17 +190,25 @@ class Simulation:
         self.finished = False
 
     # ----------------------------------------------------------------------------- the loop
-    def run(self) -> SimulationResult:
-        """Run to the end (stop rule, time limit or planner failure); returns the result."""
-        self.start()
-        try:
-            while self.step():
-                pass
-        except BaseException:
-            self.interrupted = True
-            raise
-        finally:
-            self.finish()
+    def run(self, threads: int | None = COMMAND_THREADS) -> SimulationResult:
+        """Run to the end (stop rule, time limit or planner failure); returns the result.
+
+        ``threads``: the BLAS/OpenMP thread pools (NumPy's and SciPy's OpenBLAS, OpenMP) are limited to this
+        many threads during the run and restored afterwards (:func:`runtime.threads.limit_threads`, a
+        threadpoolctl context), as the commands do: the loop's many small factorisations are slower with a
+        thread per core, several times so on a loaded machine.  Any of ``OPENBLAS_NUM_THREADS``,
+        ``OMP_NUM_THREADS``, ... set in the environment wins (nothing is changed); ``None`` leaves the pools
+        as they are (e.g. under the caller's own ``threadpool_limits``)."""
+        with limit_threads(threads):
+            self.start()
+            try:
+                while self.step():
+                    pass
+            except BaseException:
+                self.interrupted = True
+                raise
+            finally:
+                self.finish()
         return self.result
 
     def start(self) -> None:

@@ -24,8 +24,9 @@ nothing imports CasADi, so any study (the planner's solver study too) can run th
   with :class:`SweepAborted` naming the path; the runs stored before stay, so a restart resumes.
 * Repeated axis values: the commands drop them with a one-line note (:func:`unique_values`);
   a task list with duplicates is refused here before anything is created.
-* Threads: every worker process (local or Dask) runs its tasks with one BLAS/OpenMP thread
-  (:data:`runtime.threads.WORKER_THREADS`) unless ``OPENBLAS_NUM_THREADS``/``OMP_NUM_THREADS``/... are set.
+* Threads: every worker process (local or Dask), and this process while it runs the tasks itself
+  (``workers=1``), runs them with one BLAS/OpenMP thread (:data:`runtime.threads.WORKER_THREADS`; this
+  process's limits are restored afterwards) unless ``OPENBLAS_NUM_THREADS``/``OMP_NUM_THREADS``/... are set.
 * Progress on stderr: tasks done / total, failures, elapsed time and ETA.  A task that raises is
   reported (one line) and not stored, so a restart retries it; :class:`SweepError` at the end lists them.
 """
@@ -181,13 +182,16 @@ def run_tasks(tasks: list[dict], fn: Callable[[dict], list], runs_dir, *, worker
         with terminate_as_interrupt():
             _run_dask(todo, limited(fn, WORKER_THREADS), scheduler, finished)
     elif todo and (workers or os.cpu_count() or 1) == 1 and not isolate:
-        for task in todo:
-            try:
-                rows = fn(task)
-            except Exception as exc:            # noqa: BLE001 -- reported, retried on restart
-                finished(task, exc=exc)
-            else:
-                finished(task, rows)
+        # in this process: its BLAS/OpenMP threads limited as a worker's for the sweep, then restored
+        from ..runtime.threads import limit_threads
+        with limit_threads(WORKER_THREADS):
+            for task in todo:
+                try:
+                    rows = fn(task)
+                except Exception as exc:            # noqa: BLE001 -- reported, retried on restart
+                    finished(task, exc=exc)
+                else:
+                    finished(task, rows)
     elif todo:
         # worker processes tied to this one (studies.pool): they never outlive it, never hold the
         # output folder's lock, ignore Ctrl-C; an interrupt here kills them before it propagates.

@@ -142,6 +142,76 @@ def test_sweep_workers_run_one_blas_thread(tmp_path, monkeypatch):
     assert threads.environment_sets_threads() is None          # this process's environment is untouched
 
 
+def _blas_threads():
+    from threadpoolctl import threadpool_info
+    return sorted({p["num_threads"] for p in threadpool_info() if p["user_api"] in ("blas", "openmp")})
+
+
+def _two_threads_or_skip():
+    """A context with every BLAS/OpenMP pool at 2 threads (skip where the pools cannot hold 2)."""
+    pytest.importorskip("threadpoolctl")
+    import scipy.linalg  # noqa: F401 -- SciPy's own OpenBLAS, so that the limit can be seen on it too
+    from threadpoolctl import threadpool_limits
+    ctx = threadpool_limits(limits=2)
+    if _blas_threads() != [2]:
+        ctx.restore_original_limits()
+        pytest.skip("the BLAS pools cannot be set to 2 threads here")
+    return ctx
+
+
+def test_run_simulation_limits_blas_threads_inside_the_run_and_restores_them(monkeypatch):
+    """The Python API runs as the commands do: one BLAS/OpenMP thread inside the run (seen by a recorder
+    at every measurement), the caller's limits back afterwards, the environment's count respected."""
+    from swarmfield import run_simulation
+    from swarmfield.runtime import threads
+    from swarmfield.sim import config_from_dict
+    from swarmfield.sim.recorders import Recorder
+
+    class Probe(Recorder):
+        def __init__(self):
+            self.seen = []
+
+        def start(self, sim):
+            self.seen.append(_blas_threads())
+
+        measured = start
+
+    for var in threads.ENV_VARS:
+        monkeypatch.delenv(var, raising=False)
+    config = config_from_dict({"sim": {"domain": [0.0, 10.0, 0.0, 10.0], "start_box": [0.0, 4.0, 0.0, 4.0],
+                                       "robots": 12, "max_periods": 1, "substeps": 2, "controller": "greedy"},
+                               "planner": {"nx": 12, "ny": 12}})
+    ctx = _two_threads_or_skip()
+    try:
+        probe = Probe()
+        run_simulation(config, recorders=[probe])
+        assert len(probe.seen) >= 2 and all(s == [threads.COMMAND_THREADS] for s in probe.seen), probe.seen
+        assert _blas_threads() == [2]                                       # restored
+        probe = Probe()
+        run_simulation(config, recorders=[probe], threads=None)             # the caller's limits kept
+        assert all(s == [2] for s in probe.seen), probe.seen
+        monkeypatch.setenv("OPENBLAS_NUM_THREADS", "2")                     # the environment wins
+        probe = Probe()
+        run_simulation(config, recorders=[probe])
+        assert all(s == [2] for s in probe.seen), probe.seen
+    finally:
+        ctx.restore_original_limits()
+
+
+def test_sweep_in_this_process_runs_one_blas_thread_and_restores(tmp_path, monkeypatch):
+    from swarmfield.runtime import threads
+    from swarmfield.studies.runner import run_tasks
+    for var in threads.ENV_VARS:
+        monkeypatch.delenv(var, raising=False)
+    ctx = _two_threads_or_skip()
+    try:
+        rows = run_tasks([{"i": 0}, {"i": 1}], _pool_threads, tmp_path / "runs", workers=1, stream=None)
+        assert [set(r[0]["threads"]) for r in rows] == [{threads.WORKER_THREADS}] * 2
+        assert _blas_threads() == [2]
+    finally:
+        ctx.restore_original_limits()
+
+
 # ----------------------------------------------------------------------------------- figures
 @pytest.fixture(scope="module")
 def result():
