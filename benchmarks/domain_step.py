@@ -45,7 +45,7 @@ class TimedSimulation(Simulation):
 
 def _move_cost(domain, n, reps=40):
     """CPU ms per sub-step of the motion alone: Domain.move vs reflect, feedback-sized steps."""
-    from swarmfield.sim.domain import make_domain
+    from swarmfield.domain import make_domain
     from swarmfield.sim.dynamics import reflect
     dom = make_domain(domain, (0, 20, 0, 20))
     rng = np.random.default_rng(0)

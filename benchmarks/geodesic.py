@@ -1,5 +1,5 @@
 """Benchmark: geodesic distances on the planner grid, Dijkstra (scipy.sparse.csgraph, 16-neighbour
-stencil, :class:`sim.domain.GeodesicGrid`) against fast marching (scikit-fmm, if installed).
+stencil, :class:`domain.GeodesicGrid`) against fast marching (scikit-fmm, if installed).
 
     python benchmarks/geodesic.py [--n 40]
 
@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from swarmfield.sim.domain import GeodesicGrid
+from swarmfield.domain import GeodesicGrid
 
 
 def exact(P, A=(5.25, 5.25)):

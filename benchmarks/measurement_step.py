@@ -44,7 +44,7 @@ Two configurations for large swarms can be added to the table (``--configs``):
 * ``prior-2e-7``: ``gp.prior_truncation = 2e-7`` (the default until 2026-11-26: 1623 of the 1849
   directions kept at l = 1 instead of 1358).
 
-``--domains`` times the same step with obstacles (issue 19: built-in domains, :mod:`sim.domain`;
+``--domains`` times the same step with obstacles (issue 19: built-in domains, :mod:`domain`;
 target: within 1.3x of the empty rectangle at 10,000 robots); ``rectangle`` is the empty domain.
 
 The final RMSE of f̄ is printed so that the price in accuracy is visible next to the time.

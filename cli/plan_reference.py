@@ -153,7 +153,7 @@ def domain_problem(args, grid, p0, target):
     be free); both densities zeroed on the other cells and renormalised.  Unreachable free cells are
     excluded; ``warnings`` (one line each: their area, thin walls, repaired polygons) are for the caller to
     print once every input has passed its checks, so that a bad input is one line."""
-    from ..sim.domain import make_domain
+    from ..domain import make_domain
     f = args.min_free_fraction
     if not (0 < f <= 1):
         raise InputError(f"--min-free-fraction must be in (0, 1], got {f}")

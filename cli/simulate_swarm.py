@@ -113,7 +113,7 @@ def with_domain(config, source):
     """``config`` with ``[domain] source`` replaced by ``source`` (a built-in name, or a file made
     absolute so that DIR/config.toml repeats the run from anywhere); unchanged for None."""
     import dataclasses
-    from ..sim.domain import BUILTIN_DOMAINS
+    from ..domain import BUILTIN_DOMAINS
     if source is None:
         return config
     if source not in BUILTIN_DOMAINS and source != "":

@@ -136,7 +136,7 @@ long sf_em_move(long n, const double *X, const double *V, const double *Z, doubl
             double u = X[2 * k + d] + V[2 * k + d] * h;
             if (noise) u = u + c * Z[2 * k + d];
             if (!isfinite(u)) return 1 + k;
-            if (Y) Y[2 * k + d] = u;                   /* the step before any reflection (obstacles: sim.domain) */
+            if (Y) Y[2 * k + d] = u;                   /* the step before any reflection (obstacles: domain) */
             double a = lo[d], b = hi[d];
             if (u < a || u > b) {
                 double L = b - a, m2 = 2.0 * L;
@@ -691,7 +691,7 @@ def em_step(X, V, draw, h, c, domain, vlim, path, energy, sp, raw=None):
     returns the standard normals Z (n, 2), or None for no noise.  Returns ``(X_new, sum of |v|)``, or None
     -- before ``draw`` is called and with nothing modified -- if a speed exceeds ``vlim``: the caller
     then runs its NumPy code.  ``raw``: a C-contiguous float (n, 2) array that receives the step before the
-    reflection (X + v h + c Z), for the obstacles' reflection (:meth:`sim.domain.Domain.reflect_near`)."""
+    reflection (X + v h + c Z), for the obstacles' reflection (:meth:`domain.Domain.reflect_near`)."""
     lib = _LIB.lib()
     if lib is None:
         return None

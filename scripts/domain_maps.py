@@ -12,7 +12,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from swarmfield.sim.domain import BUILTIN_DOMAINS  # noqa: E402
+from swarmfield.domain import BUILTIN_DOMAINS  # noqa: E402
 
 
 def main():

@@ -9,8 +9,9 @@ prints the package-level graph and any layout problem (exit 1 if there is one). 
 Layers, lowest first (a module may import its own layer and the ones below, never above):
 
     runtime            infrastructure: publication, atomic writes, argument parsing, validation
-    ocp, control, regression    the science (control may use ocp's ReferencePlan; regression imports
-                       neither; ocp imports neither)
+    ocp, control, regression, domain    the science (control may use ocp's ReferencePlan; regression,
+                       ocp and domain import none of the others; the planner and the feedback receive
+                       the domain's geometry as arrays)
     sim                the closed loop (Algorithm 1), controllers, fields, metrics, figures
     studies            sweeps of runs: the runner, the controller comparison, the solver study
     cli                command-line entry points (nothing imports them)
@@ -27,9 +28,9 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 SKIP = {"tests", "benchmarks", "scripts", "docs", "examples", "build", "dist"}
-LAYER = {"runtime": 0, "ocp": 1, "control": 1, "regression": 1, "sim": 2, "studies": 3, "cli": 4}
+LAYER = {"runtime": 0, "ocp": 1, "control": 1, "regression": 1, "domain": 1, "sim": 2, "studies": 3, "cli": 4}
 #: imports allowed inside the science layer (importer -> importees)
-SCIENCE = {"ocp": set(), "regression": set(), "control": {"ocp"}}
+SCIENCE = {"ocp": set(), "regression": set(), "control": {"ocp"}, "domain": set()}
 
 
 def modules(root: Path = ROOT) -> dict[str, Path]:
@@ -175,11 +176,12 @@ def draw(graph, path: Path) -> Path:
             count[p] += 1
             lines[p] += sum(1 for _ in f.open(encoding="utf-8"))
     # layers bottom-up; runtime (imported by every layer) stands apart on the right
-    pos = {"ocp": (0.13, 0.2), "control": (0.41, 0.2), "regression": (0.69, 0.2), "sim": (0.41, 0.45),
+    pos = {"ocp": (0.1, 0.2), "control": (0.31, 0.2), "regression": (0.52, 0.2), "domain": (0.73, 0.2),
+           "sim": (0.41, 0.45),
            "studies": (0.27, 0.68), "cli": (0.55, 0.88)}
     fig, ax = plt.subplots(figsize=(8.0, 6.2))
     ax.set_axis_off()
-    w, h = 0.24, 0.1
+    w, h = 0.19, 0.1
     boxes = {p: (x - w / 2, y - h / 2, w, h) for p, (x, y) in pos.items()}
     boxes["runtime"] = (0.86, 0.12, 0.13, 0.82)
     for p, (x, y, bw, bh) in boxes.items():
@@ -198,7 +200,7 @@ def draw(graph, path: Path) -> Path:
             style = dict(arrowstyle="->", color="#555555", lw=0.6 + 0.12 * min(n, 12), shrinkA=1, shrinkB=1)
             if b == "runtime" and LAYER[a] == 1:     # under the science row, into runtime's foot
                 yl = 0.1 - 0.02 * list(SCIENCE).index(a)
-                xr = 0.89 + 0.035 * list(SCIENCE).index(a)
+                xr = 0.88 + 0.03 * list(SCIENCE).index(a)
                 ax.plot([xa, xa, xr], [ya - h / 2, yl, yl], color="#555555", lw=style["lw"])
                 start, end = (xr, yl), (xr, 0.12)
                 label = (0.5 * (xa + xr), yl + 0.006)

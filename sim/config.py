@@ -14,7 +14,7 @@ the GP (``regression.GPSettings``), the KDE (:class:`KDESettings`), the feedback
     [planner]    nx, ny, horizon, n_intervals, n_modes_x, n_modes_y, w_f, w_p, w_v, v_max, ...
     [planner.ipopt]  tol, max_iter, ...
     [domain]     source ("harbour", "floor", "lake" or a .npz/.png/.tif/.geojson file; "" = the empty
-                 rectangle), min_free_fraction (0.5), unreachable ("exclude" or "refuse"); see sim.domain
+                 rectangle), min_free_fraction (0.5), unreachable ("exclude" or "refuse"); see the domain package
 
 Unknown tables or keys and bad values raise ``ValueError`` naming them.  Shared quantities have one
 source: ``planner.domain`` is ``sim.domain``, ``planner.horizon`` defaults to ``sim.period`` and
@@ -56,7 +56,7 @@ from ..control import FeedbackSettings
 from ..control.kde import OBSTACLE_KERNELS
 from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict
 from ..regression import GPSettings
-from .domain import DomainSettings
+from ..domain import DomainSettings
 from .presets import DEFAULT_PRESET, PRESETS, merge_under_preset
 from .stopping import STOP_RULES
 

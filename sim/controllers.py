@@ -22,11 +22,11 @@ coverage towards mu ∝ V, :mod:`sim.ergodic`).  ``diffusion`` has v = 0.
 
 Obstacles (issue 19).  With a domain (``[domain] source``), ``ctx.free`` is the (nx, ny) bool mask of
 the planner cells the swarm can use (free and reachable from the start box) and ``ctx.region`` the
-:class:`sim.domain.Domain` (fine free space, ``contains``, ``sample``); both are None on the empty
+:class:`domain.Domain` (fine free space, ``contains``, ``sample``); both are None on the empty
 rectangle, where every controller behaves exactly as before.  The loop reflects every robot at the
 obstacle boundaries, whatever a controller commands.  With obstacles ``coverage`` tracks the
 uniform density of the free space, ``greedy`` measures its radius and separation by geodesic
-distance (Dijkstra on the free cells, :class:`sim.domain.GeodesicGrid`) and drives along the
+distance (Dijkstra on the free cells, :class:`domain.GeodesicGrid`) and drives along the
 shortest path, ``lawnmower`` splits the free area into rectangles of equal free area and sweeps the
 free runs of each lane (a boustrophedon with geodesic detours between runs).
 
@@ -66,7 +66,7 @@ class Context:
     estimate   callable X -> KDE estimate (``control.DensityEstimate``), cached on the array identity
     rng        the run's random generator (draws change the run's random stream)
     free       (nx, ny) bool: planner cells free and reachable (None: the empty rectangle)
-    region     the ``sim.domain.Domain`` of the run (None: the empty rectangle)
+    region     the ``domain.Domain`` of the run (None: the empty rectangle)
     """
 
     t: float
@@ -234,7 +234,7 @@ class GreedyController(Controller):
         self.goals = ctx.X.copy()
         self.geo = None
         if ctx.free is not None:
-            from .domain import GeodesicGrid
+            from ..domain import GeodesicGrid
             self.geo = GeodesicGrid(ctx.free, ctx.domain)
             self.goal_cells = self.geo.cell_of(ctx.X)
         self.observe(ctx)
@@ -371,7 +371,7 @@ class LawnmowerController(Controller):
         equal free area within each (robots sorted by y); in each robot's rectangle the lanes are
         cut into their free runs, swept back and forth, and consecutive runs (and the approach from
         the start) are joined by geodesic paths through the free cells."""
-        from .domain import GeodesicGrid
+        from ..domain import GeodesicGrid
         geo = self.geo = GeodesicGrid(ctx.free, ctx.domain)
         self.region = ctx.region
         free = geo.free

@@ -16,9 +16,9 @@ estimate p_hat of all robots, so within one measurement period Δt the motion is
 ``n_sub`` sub-steps of ``h = Δt / n_sub`` and the velocity is re-evaluated (with the KDE refitted)
 at every sub-step; see :func:`advance`.
 
-Obstacles (issue 19): wherever ``domain`` is accepted it may also be a :class:`sim.domain.Domain`;
+Obstacles (issue 19): wherever ``domain`` is accepted it may also be a :class:`domain.Domain`;
 the step is then reflected at the obstacle boundaries as well as at the walls
-(:meth:`sim.domain.Domain.move`), at the geometry's own resolution, so robots never enter an
+(:meth:`domain.Domain.move`), at the geometry's own resolution, so robots never enter an
 obstacle, and :func:`uniform_in_box` samples the start box intersected with the free space.
 
 Measurements (section "Problem Formulation"): ``y_i = f(X_i) + eps_i``, eps_i i.i.d.
@@ -31,34 +31,14 @@ from typing import Callable
 
 import numpy as np
 
+from ..domain.walls import reflect
+
 __all__ = ["reflect", "euler_maruyama_step", "advance", "measure", "uniform_in_box"]
-
-
-def reflect(X, domain) -> np.ndarray:
-    """Fold positions back into ``domain = (x0, x1, y0, y1)`` by repeated mirror reflection.
-
-    Closed form of reflecting again and again: with L the width and ``s = (u - a) mod 2L``,
-    ``R(u) = a + s`` if ``s <= L`` else ``a + 2L - s``.  Points already inside are unchanged.
-    """
-    X = np.array(X, dtype=float, copy=True)
-    if X.ndim != 2 or X.shape[1] != 2:
-        raise ValueError(f"positions must have shape (n, 2), got {X.shape}")
-    if not np.all(np.isfinite(X)):
-        raise ValueError("positions contain non-finite values (NaN or inf); the velocity or step blew up")
-    x0, x1, y0, y1 = (float(v) for v in domain)
-    for d, (a, b) in enumerate(((x0, x1), (y0, y1))):
-        u = X[:, d]
-        out = (u < a) | (u > b)
-        if np.any(out):
-            L = b - a
-            s = np.mod(u[out] - a, 2.0 * L)
-            u[out] = np.clip(np.where(s <= L, a + s, a + 2.0 * L - s), a, b)
-    return X
 
 
 def euler_maruyama_step(X, v, h: float, sigma: float, rng: np.random.Generator, domain) -> np.ndarray:
     """One Euler--Maruyama step of eq. "Langevin equation" followed by wall reflection (and obstacle
-    reflection if ``domain`` is a :class:`sim.domain.Domain`)."""
+    reflection if ``domain`` is a :class:`domain.Domain`)."""
     X = np.asarray(X, dtype=float)
     v = np.asarray(v, dtype=float)
     if v.shape != X.shape:
@@ -107,7 +87,7 @@ def measure(field, X, noise_variance: float, rng: np.random.Generator) -> np.nda
 
 def uniform_in_box(n: int, box, rng: np.random.Generator, domain=None) -> np.ndarray:
     """n positions uniform on ``box = (x0, x1, y0, y1)`` (the paper's initial distribution); with a
-    :class:`sim.domain.Domain`, uniform on the box intersected with its free space."""
+    :class:`domain.Domain`, uniform on the box intersected with its free space."""
     if domain is not None and hasattr(domain, "sample"):
         return domain.sample(n, box, rng)
     bx0, bx1, by0, by1 = (float(v) for v in box)

@@ -19,7 +19,7 @@ further editing); the ``plot_*``/``write_*`` functions save it.  Colour scales t
 say so in the colour bar's label ("clipped to [a, b]") and show the clipped end(s) as a triangle.
 The field's values carry the field's own unit ("field units"); lengths are in metres.
 
-With obstacles (:mod:`sim.domain`) every map shows them as a grey overlay at the geometry's own
+With obstacles (:mod:`domain`) every map shows them as a grey overlay at the geometry's own
 resolution, and free space outside the planner cells the swarm can reach in light grey.
 """
 from __future__ import annotations

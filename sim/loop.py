@@ -35,7 +35,7 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
     ``controller`` is a :class:`sim.controllers.Controller` instance (default: the one named by
     ``config.sim.controller``), ``stop_rule`` a :class:`sim.stopping.StopRule` (default:
     ``config.sim.stop_rule``), ``recorders`` extra :class:`sim.recorders.Recorder` objects, ``domain``
-    a :class:`sim.domain.Domain`, built-in name or file (default: ``config.domain.source``).
+    a :class:`domain.Domain`, built-in name or file (default: ``config.domain.source``).
     ``progress(info)`` is called after every period start (``info["event"] == "plan"``) and at the end
     (``"done"``); ``on_period(result)`` after every completed period (the CLI writes the outputs so
     far there).

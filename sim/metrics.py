@@ -15,7 +15,7 @@ p_f and the reference p_r live; 40 x 40 cells of 0.5 m by default):
                     ``gp.learn_hyperparameters``)
 ``threshold``       the stopping threshold in effect (sim.stopping): sim.gamma, or gamma_relative * signal_variance (scaled down by the robust rule)
 
-With obstacles (:mod:`sim.domain`) every field figure is taken over the free cells the swarm can
+With obstacles (:mod:`domain`) every field figure is taken over the free cells the swarm can
 reach only (``free``): sup V, mean V, RMSE (mean over free cells) and the L2 error (sum over free
 cells).
 """

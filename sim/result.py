@@ -53,7 +53,7 @@ class SimulationResult:
     alive: np.ndarray | None = None                        # (n,) robots still working at the end
     timings: dict = dc_field(default_factory=lambda: {"planner": 0.0, "regression": 0.0, "dynamics": 0.0})
     free: np.ndarray | None = None                         # (nx, ny) free, reachable planner cells (obstacles)
-    region: object = None                                  # the sim.domain.Domain of the run (None: rectangle)
+    region: object = None                                  # the domain.Domain of the run (None: rectangle)
 
     @property
     def time_to_threshold(self) -> float | None:

@@ -31,7 +31,7 @@ the cell centres of the planner grid (:mod:`sim.metrics`).  A planner failure
 then is kept in the result.
 
 Obstacles (issue 19): with a domain (``[domain] source`` or ``Simulation(..., domain=...)``, a
-:class:`sim.domain.Domain`, a built-in name or a file) the planner cells are classified by
+:class:`domain.Domain`, a built-in name or a file) the planner cells are classified by
 ``domain.min_free_fraction`` and restricted to those the swarm can reach from the start box
 (``free``, (nx, ny)); the robots start uniformly on the start box (which must be free) and are
 reflected at obstacle boundaries at the geometry's resolution; the KDE is renormalised over the
@@ -492,7 +492,7 @@ class Simulation:
         From :data:`control.robot_kernel.MIN_ROBOTS` working robots, a sub-step whose velocities are within
         the limit (the feedback laws saturate already) is one compiled pass (:func:`control.robot_kernel.em_step`:
         the same noise draws and bits for the positions, path and energy; the mean speed summed in another
-        order), followed with obstacles by their reflection (:meth:`sim.domain.Domain.reflect_near`)."""
+        order), followed with obstacles by their reflection (:meth:`domain.Domain.reflect_near`)."""
         s, ctrl, alive, h = self.settings, self.controller, self.alive, self.h
         X, t, speed = self.X, self.t, 0.0
         vmax = ctrl.v_max
@@ -553,14 +553,14 @@ class Simulation:
 
 
 def resolve_domain(config: RunConfig, grid, domain=None):
-    """``(region, free)`` of a run: the :class:`sim.domain.Domain` (``domain`` argument, else
+    """``(region, free)`` of a run: the :class:`domain.Domain` (``domain`` argument, else
     ``config.domain.source``; None for the empty rectangle) and the (nx, ny) mask of the planner
     cells that are free (``config.domain.min_free_fraction``) and reachable from the start box.
 
     ``ValueError`` (one line) for: no free cell, an extent other than sim.domain, a start box that is
     not free, and -- with ``domain.unreachable = "refuse"`` -- free cells the swarm cannot reach; with
     ``"exclude"`` (default) those cells are left out with a ``UserWarning`` naming their area."""
-    from .domain import make_domain
+    from ..domain import make_domain
     s, ds = config.sim, config.domain
     region = make_domain(ds.source if domain is None else domain, s.domain)
     if region is None:

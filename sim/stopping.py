@@ -8,7 +8,7 @@ target density p_f = max(V - eta, 0) / int.  A stop rule is a small object with
 ``tolerance(gp)``  the eta of the target density;
 ``reached(var, gp)``  whether the run may stop (default: ``var.max() <= threshold(gp)``).
 
-With obstacles (:mod:`sim.domain`) ``var`` is 0 on the cells outside the free space the swarm can
+With obstacles (:mod:`domain`) ``var`` is 0 on the cells outside the free space the swarm can
 reach, so a rule that looks at maxima or means of the positive part sees the free cells only.
 
 The simulator (:class:`sim.simulation.Simulation`) asks it at every period start, the metrics record
@@ -248,13 +248,13 @@ def travel_time_limit(config, points=None, speed: float | None = None, free=None
     (feedback.sigma) is ignored: with sigma = 0.05 m^2/s it adds ~0.3 m over a period.
 
     ``free`` (bool (nx, ny), the planner cells a run with obstacles maps): the distance is then
-    geodesic, around the obstacles (:class:`sim.domain.GeodesicGrid`, from the free cells whose
+    geodesic, around the obstacles (:class:`domain.GeodesicGrid`, from the free cells whose
     centres lie in the start box to the farthest free cell; paths through cell centres, so it is
     exact to about a cell)."""
     s = config.sim
     v = float(max(config.planner.v_max, config.feedback.v_max) if speed is None else speed)
     if free is not None:
-        from .domain import GeodesicGrid
+        from ..domain import GeodesicGrid
         geo = GeodesicGrid(free, s.domain)
         bx0, bx1, by0, by1 = s.start_box
         c = geo.centers

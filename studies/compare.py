@@ -15,7 +15,7 @@ Dask cluster with ``--scheduler``; resumable: a restarted sweep skips the runs s
                   fixed times, the mean path length and energy per robot at the end
 ``plots/*.png``   RMSE and sup V against t/T, a band (min-max over seeds) and the median per controller
 
-``--domains harbour floor FILE ...`` adds the domain (obstacles, :mod:`sim.domain`) as an axis: a
+``--domains harbour floor FILE ...`` adds the domain (obstacles, :mod:`domain`) as an axis: a
 ``domain`` column in runs.csv and summary.md, one plot per domain; without it every run uses the
 configuration's own ``[domain]`` (the empty rectangle by default) and the outputs are unchanged.
 
@@ -98,7 +98,7 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
     ``base_doc`` is a configuration document as written in a TOML file (only the values the user
     gives); each of ``presets`` (:mod:`sim.presets`; default: the document's own ``preset`` key, else
     ``paper``) is laid under it, so the baselines of a preset share its GP and stopping settings.
-    ``domains`` (built-in names or files, :mod:`sim.domain`) adds the domain axis; each task then has
+    ``domains`` (built-in names or files, :mod:`domain`) adds the domain axis; each task then has
     a ``domain`` label."""
     from ..sim.config import config_from_dict
     from ..sim.controllers import make_controller
@@ -116,7 +116,7 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
     loaded, checked = {}, set()       # every field file and configuration is checked once, here in the parent
     labels = _labels(fields, FIELDS)
     if domains:
-        from ..sim.domain import BUILTIN_DOMAINS
+        from ..domain import BUILTIN_DOMAINS
         dlabels = _labels(domains, BUILTIN_DOMAINS)
         for dom in domains:
             if dom not in BUILTIN_DOMAINS and Path(dom).is_dir():

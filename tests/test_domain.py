@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from swarmfield.control import KernelDensity
-from swarmfield.sim.domain import (BUILTIN_DOMAINS, Domain, GeodesicGrid, load_domain, make_domain)
+from swarmfield.domain import (BUILTIN_DOMAINS, Domain, GeodesicGrid, load_domain, make_domain)
 from swarmfield.sim.dynamics import euler_maruyama_step
 
 EXT = (0.0, 20.0, 0.0, 20.0)
@@ -145,10 +145,10 @@ def test_no_robot_in_an_obstacle_1e4_robots_long_run(name):
 
 @pytest.mark.parametrize("name", ["floor", "harbour", "lake"])
 def test_compiled_reflection_is_the_numpy_one_bit_for_bit(name, monkeypatch):
-    """sim.domain_kernel's reflection at obstacle edges (Domain.reflect_near) against the NumPy code
+    """domain.kernel's reflection at obstacle edges (Domain.reflect_near) against the NumPy code
     (Domain._bounce and contains): short steps (one tile's candidate edges), long ones (every edge whose box
     meets the segment), several bounces each."""
-    from swarmfield.sim import domain_kernel
+    from swarmfield.domain import kernel as domain_kernel
     if domain_kernel._LIB.lib() is None:
         pytest.skip(f"no compiled kernel: {domain_kernel._LIB.error}")
     dom = make_domain(name, EXT)
@@ -173,7 +173,7 @@ def _same_in_numpy_and_c(monkeypatch, f, *args):
 def test_compiled_move_on_polygons_is_the_numpy_one(monkeypatch):
     """Polygon domains: ends in pixels cut by a boundary are tested against the polygons as in NumPy."""
     shapely = pytest.importorskip("shapely")
-    from swarmfield.sim import domain_kernel
+    from swarmfield.domain import kernel as domain_kernel
     if domain_kernel._LIB.lib() is None:
         pytest.skip(f"no compiled kernel: {domain_kernel._LIB.error}")
     geom = shapely.box(0, 0, 20, 20).difference(shapely.Point(10, 10).buffer(4.0)).difference(
@@ -653,7 +653,7 @@ def test_stop_rule_scale_reaches_the_information_objective_with_obstacles():
 @pytest.mark.parametrize("wall", [(9.95, 10.05), (9.7, 9.8)])
 def test_a_wall_thinner_than_a_planner_cell_is_warned_about(tmp_path, wall):
     """A 0.1 m wall with a door above it, on a cell face or inside a cell column: the planner's cells stay free
-    on both sides, so the run warns (sim.domain.Domain.walled_faces); thick walls and open maps do not."""
+    on both sides, so the run warns (domain.Domain.walled_faces); thick walls and open maps do not."""
     from swarmfield.ocp import Grid
     from swarmfield.sim.simulation import resolve_domain
     n = 400

@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from swarmfield.sim.domain import Domain, load_domain
+from swarmfield.domain import Domain, load_domain
 
 WIDE = (0.0, 60.0, 0.0, 20.0)
 

@@ -1,4 +1,4 @@
-"""The robots' reflection at obstacle boundaries (:meth:`sim.domain.Domain.move`) in one compiled loop.
+"""The robots' reflection at obstacle boundaries (:meth:`domain.domain.Domain.move`) in one compiled loop.
 
 :meth:`Domain.move` reflects every robot at the outer walls, then (:meth:`Domain.reflect_near`) follows the
 step segment of those whose step is longer than their clearance (about one in twelve at feedback speeds)
@@ -170,12 +170,12 @@ n = lib.sf_reflect_near(L(1), (D * 2)(0.0, 0.0), (D * 2)(1.5, 0.0), out, (D * 1)
 assert n == 0 and abs(out[0] - 0.5) < 1e-12 and out[1] == 0.0, list(out)
 """
 
-_LIB = CLibrary("domainmove", C_SOURCE, _declare, _SMOKE, "obstacle reflection (sim.domain_kernel)")
+_LIB = CLibrary("domainmove", C_SOURCE, _declare, _SMOKE, "obstacle reflection (domain.kernel)")
 
 
 def edge_table(edges: np.ndarray) -> np.ndarray:
     """(n_edges, 8): per edge its start (ax, ay), direction (ex, ey) and bounding box (x0, x1, y0, y1), as
-    :func:`sim.domain._pair_hits` and :func:`sim.domain._first_hit` compute them."""
+    :func:`domain.edges._pair_hits` and :func:`domain.edges._first_hit` compute them."""
     E = np.asarray(edges, float)
     return np.ascontiguousarray(np.column_stack([
         E[:, 0], E[:, 1], E[:, 2] - E[:, 0], E[:, 3] - E[:, 1],
@@ -195,7 +195,7 @@ def _lib():
 
 
 def reflect_near(domain, X, Y, out, max_bounces: int, scale: float):
-    """:meth:`sim.domain.Domain.reflect_near` in C: ``out`` updated in place; returns the indices of the robots
+    """:meth:`domain.domain.Domain.reflect_near` in C: ``out`` updated in place; returns the indices of the robots
     left in mixed pixels (the caller tests those against the polygons), or None (NumPy path)."""
     lib = _lib()
     if lib is None or not (out.dtype == np.float64 and out.flags.c_contiguous):

@@ -1,4 +1,4 @@
-"""Irregular domains: free space and obstacles inside the rectangle Omega (issue 19).
+"""Irregular domains: free space and obstacles inside the rectangle Omega.
 
 A :class:`Domain` is the rectangle ``extent = (x0, x1, y0, y1)`` (the simulation domain Omega) with
 obstacles cut out.  It keeps the free space at the geometry's *own* resolution:
@@ -17,7 +17,7 @@ What the rest of the toolkit gets from a Domain:
 ``free_cells(grid)``   the planner's cells classified by their free-area fraction (the rule, below).
 ``move(X, Y)``         robot motion with obstacles: the step X -> Y (the proposal of eq. "Langevin
                        equation") reflected at obstacle boundaries and walls (mirror reflection, as
-                       :func:`sim.dynamics.reflect` does at the walls); robots never enter an obstacle.
+                       :func:`domain.walls.reflect` does at the walls); robots never enter an obstacle.
 ``sample(n, box, rng)``  n positions uniform on ``box`` intersected with the free space.
 ``reachable_cells(grid, box)``  the free cells connected (through faces) to the start box (and reached by the robots).
 
@@ -266,7 +266,7 @@ class Domain:
             self._clear = np.where(ok, np.maximum(d - math.hypot(px, py), 0.0), 0.0)
         self._clear_flat = self._clear.ravel()
         self._index = _EdgeIndex(self.edges, self.extent)
-        self._kernel = None                      # sim.domain_kernel's arrays, made on first use
+        self._kernel = None                      # domain.kernel's arrays, made on first use
         if not (st != 0).any():
             raise ValueError(f"domain {self.name}: no free cell (the whole extent is an obstacle)")
 
@@ -560,9 +560,9 @@ class Domain:
         """Positions after the steps X -> Y (both (n, 2)), reflected at walls and obstacle boundaries.
 
         X must be free.  Robots far from every obstacle (step shorter than the clearance) are only
-        reflected at the walls, as by :func:`sim.dynamics.reflect`; the others follow their step
+        reflected at the walls, as by :func:`domain.walls.reflect`; the others follow their step
         segment and are mirrored at each boundary edge they cross (module docstring)."""
-        from .dynamics import reflect
+        from .walls import reflect
         X = np.asarray(X, float)
         Y = np.asarray(Y, float)
         return self.reflect_near(X, Y, reflect(Y, self.extent))     # reflect also rejects non-finite steps
@@ -571,9 +571,9 @@ class Domain:
         """The obstacles' part of :meth:`move`: ``out`` holds the steps X -> Y reflected at the walls only;
         the robots whose step reaches an obstacle's clearance are replaced by their reflection at its edges
         (in place; returns ``out``).  The compiled Euler--Maruyama sub-step gives Y and ``out`` in one pass."""
-        from . import domain_kernel
+        from . import kernel
         scale = 1e-9 * max(self.extent[1] - self.extent[0], self.extent[3] - self.extent[2])
-        mixed = domain_kernel.reflect_near(self, X, Y, out, MAX_BOUNCES, scale)     # the same bits in C
+        mixed = kernel.reflect_near(self, X, Y, out, MAX_BOUNCES, scale)     # the same bits in C
         if mixed is not None:
             if len(mixed):                        # ends in pixels cut by a polygon boundary: the exact test
                 import shapely
@@ -594,9 +594,9 @@ class Domain:
         return out
 
     def _kernel_arrays(self):
-        """What :mod:`sim.domain_kernel` reads: the edge table, the edge index, the clearance and state rasters."""
+        """What :mod:`domain.kernel` reads: the edge table, the edge index, the clearance and state rasters."""
         if self._kernel is None:
-            from .domain_kernel import edge_table
+            from .kernel import edge_table
             self._kernel = (edge_table(self.edges), self._index, np.ascontiguousarray(self._clear_flat, dtype=float),
                             np.ascontiguousarray(self.state, dtype=np.uint8))
         return self._kernel
@@ -662,7 +662,7 @@ class _EdgeIndex:
             for a in range(max(lo_i[e] - 1, 0), min(hi_i[e], nx - 1) + 1):
                 for b in range(max(lo_j[e] - 1, 0), min(hi_j[e], ny - 1) + 1):
                     buckets[a * ny + b].append(e)
-        # int64 (C long long), as sim.domain_kernel reads them
+        # int64 (C long long), as domain.kernel reads them
         self.indptr = np.zeros(nx * ny + 1, np.int64)
         self.indptr[1:] = np.cumsum([len(b) for b in buckets])
         self.indices = np.array([e for b in buckets for e in b], np.int64)
@@ -1171,7 +1171,7 @@ LOADERS = {".npz": _load_npz, ".png": _load_png, ".tif": _load_tif, ".tiff": _lo
 
 def load_domain(path, sim_extent=None) -> Domain:
     """Read a domain file: ``.npz`` mask, ``.png`` image, ``.tif`` GeoTIFF or ``.geojson`` polygons
-    (module docstring of :mod:`sim.domain` and docs/guide/domains.md).  ``sim_extent`` is used when
+    (module docstring of :mod:`domain.domain` and docs/guide/domains.md).  ``sim_extent`` is used when
     the file itself gives none, and otherwise must equal the file's extent."""
     path = Path(path)
     if not path.exists():
