@@ -1,0 +1,120 @@
+"""Geodesic (shortest-path-in-free-space) distances between planner cells."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .common import _extent
+
+def geodesic_graph(free: np.ndarray, dx: float, dy: float):
+    """Sparse graph of the free cells with a 16-neighbour stencil: the 8 neighbours and the 8 knight
+    moves (±1, ±2), (±2, ±1); a move is an edge only if every cell of the block it spans is free (no
+    corner cutting).  Weights are the centre-to-centre distances.  The stencil's worst direction is
+    about 2.7 % longer than the straight line (8 neighbours alone: 8.2 %)."""
+    from scipy import sparse
+    free = np.asarray(free, bool)
+    nx, ny = free.shape
+    idx = np.arange(nx * ny).reshape(nx, ny)
+    rows, cols, w = [], [], []
+    for di, dj in ((1, 0), (0, 1), (1, 1), (1, -1), (1, 2), (2, 1), (1, -2), (2, -1)):
+        ia, ib = slice(0, nx - di), slice(di, nx)
+        if dj >= 0:
+            ja, jb = slice(0, ny - dj), slice(dj, ny)
+        else:
+            ja, jb = slice(-dj, ny), slice(0, ny + dj)
+        ok = np.ones((nx - di, ny - abs(dj)), bool)
+        j_lo = 0 if dj >= 0 else -dj
+        for a in range(di + 1):               # every cell of the spanned block is free
+            for b in range(abs(dj) + 1):
+                bb = b if dj >= 0 else -b
+                ok &= free[a:a + nx - di, j_lo + bb:j_lo + bb + ny - abs(dj)]
+        rows.append(idx[ia, ja][ok])
+        cols.append(idx[ib, jb][ok])
+        w.append(np.full(int(ok.sum()), math.hypot(di * dx, dj * dy)))
+    r, c, ww = np.concatenate(rows), np.concatenate(cols), np.concatenate(w)
+    n = nx * ny
+    return sparse.csr_matrix((np.concatenate([ww, ww]), (np.concatenate([r, c]), np.concatenate([c, r]))), shape=(n, n))
+
+
+class GeodesicGrid:
+    """Geodesic (shortest-path-in-free-space) distances between the cells of a planner grid, by
+    Dijkstra on :func:`geodesic_graph` (scipy.sparse.csgraph); rows are cached per source cell.
+    Error against the true geodesic distance: exact along the stencil's directions, at most about
+    2.7 % longer in between, plus O(cell) at obstacle corners (paths run through free cell centres).
+    ``next_hop`` follows the stencil, so a hop may be a knight move (two cells away)."""
+
+    def __init__(self, free: np.ndarray, extent):
+        self.free = np.asarray(free, bool)
+        self.extent = _extent(extent)
+        nx, ny = self.free.shape
+        x0, x1, y0, y1 = self.extent
+        self.dx, self.dy = (x1 - x0) / nx, (y1 - y0) / ny
+        self.graph = geodesic_graph(self.free, self.dx, self.dy)
+        xc = x0 + (np.arange(nx) + 0.5) * self.dx
+        yc = y0 + (np.arange(ny) + 0.5) * self.dy
+        XC, YC = np.meshgrid(xc, yc, indexing="ij")
+        self.centers = np.column_stack([XC.ravel(), YC.ravel()])
+        self._rows: dict = {}
+        self._D = self._done = None
+        # the (up to 16) neighbours of each cell reachable in one graph step (-1 where none)
+        g = self.graph.tocsr()
+        deg = np.diff(g.indptr)
+        self.nbr = np.full((nx * ny, 16), -1, np.intp)
+        for c in np.flatnonzero(deg):
+            js = g.indices[g.indptr[c]:g.indptr[c + 1]]
+            self.nbr[c, :len(js)] = js
+
+    def cell_of(self, X) -> np.ndarray:
+        """Index of the nearest free cell of each point (its own cell if free)."""
+        X = np.asarray(X, float).reshape(-1, 2)
+        x0, x1, y0, y1 = self.extent
+        nx, ny = self.free.shape
+        i = np.clip(((X[:, 0] - x0) / self.dx).astype(np.intp), 0, nx - 1)
+        j = np.clip(((X[:, 1] - y0) / self.dy).astype(np.intp), 0, ny - 1)
+        c = i * ny + j
+        bad = ~self.free.ravel()[c]
+        if bad.any():
+            fc = np.flatnonzero(self.free.ravel())
+            d2 = ((X[bad, None, :] - self.centers[None, fc, :]) ** 2).sum(-1)
+            c[bad] = fc[np.argmin(d2, axis=1)]
+        return c
+
+    def distances(self, sources) -> np.ndarray:
+        """(len(sources), nx*ny) geodesic distances from the source cells (inf where unreachable)."""
+        from scipy.sparse import csgraph
+        sources = np.asarray(sources, np.intp).ravel()
+        n = self.free.size
+        if self._D is None:
+            if n <= 2500:              # rows kept in one matrix (<= 50 MB)
+                self._D = np.zeros((n, n))
+                self._done = np.zeros(n, bool)
+        if self._D is not None:
+            missing = np.unique(sources[~self._done[sources]])
+            if len(missing):
+                self._D[missing] = csgraph.dijkstra(self.graph, directed=True, indices=missing)
+                self._done[missing] = True
+            return self._D[sources]
+        missing = np.unique([s for s in sources.tolist() if s not in self._rows])
+        if len(missing):
+            if len(self._rows) + len(missing) > 2048:
+                self._rows.clear()
+                missing = np.unique(sources)
+            D = csgraph.dijkstra(self.graph, directed=True, indices=missing)
+            for s, row in zip(missing.tolist(), D):
+                self._rows[s] = row
+        return np.array([self._rows[s] for s in sources.tolist()]).reshape(len(sources), -1)
+
+    def next_hop(self, cells, goals) -> np.ndarray:
+        """For each (cell, goal cell) pair, the neighbouring cell on a shortest path to the goal (the cell
+        itself at the goal or when unreachable)."""
+        cells = np.asarray(cells, np.intp)
+        goals = np.asarray(goals, np.intp)
+        ug, inv = np.unique(goals, return_inverse=True)
+        D = self.distances(ug)                                    # (G, ncells)
+        nb = self.nbr[cells]                                      # (n, 8)
+        dn = np.where(nb >= 0, D[inv[:, None], np.maximum(nb, 0)], np.inf)
+        k = np.argmin(dn, axis=1)
+        best = dn[np.arange(len(cells)), k]
+        own = D[inv, cells]
+        return np.where(best < own, nb[np.arange(len(cells)), k], cells)

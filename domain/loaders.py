@@ -1,0 +1,335 @@
+"""Domain files: ``.npz`` masks, ``.png`` images, ``.tif`` GeoTIFFs and ``.geojson`` polygons
+(docs/guide/domains.md), and :func:`make_domain` (a built-in name, a file or a Domain)."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .builtin import BUILTIN_DOMAINS
+from .common import MissingExtra, _extent, _need
+from .domain import Domain
+
+#: Image values at or above this fraction of the full scale are free (light), below blocked (dark).
+LIGHT = 0.5
+
+
+def _sidecar_extent(path: Path):
+    side = path.with_suffix(".json")
+    if not side.is_file():
+        return None
+    try:
+        doc = json.loads(side.read_text())
+        if not isinstance(doc, dict) or "extent" not in doc:
+            raise ValueError(f'it has no "extent"; a sidecar is {{"extent": [x0, x1, y0, y1]}}')
+        return _extent(doc["extent"], f"{side.name}: extent")
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ValueError(f"domain file {path}: cannot read the extent from {side.name} ({exc})") from None
+
+
+def _image_to_free(a: np.ndarray, nodata=None, what="image") -> np.ndarray:
+    """Image array (rows, cols[, bands]), first row = largest y -> free (nx, ny) x first.
+    Light = free, dark / transparent / nodata = obstacle."""
+    a = np.asarray(a)
+    if a.ndim == 3 and a.shape[0] in (1, 2, 3, 4) and a.shape[-1] not in (1, 2, 3, 4):
+        a = np.moveaxis(a, 0, -1)             # band-first GeoTIFF -> band-last
+    if a.ndim == 2:
+        a = a[:, :, None]
+    if a.ndim != 3 or a.shape[2] not in (1, 2, 3, 4) or min(a.shape[:2]) < 1:
+        raise ValueError(f"{what} must be a single-band, grey+alpha, RGB or RGBA raster, got shape {a.shape}")
+    bands = a.shape[2]
+    nod = np.zeros(a.shape[:2], bool)
+    if nodata is not None:
+        nod = np.all(a == nodata, axis=2) if not (isinstance(nodata, float) and math.isnan(nodata)) else \
+            np.any(np.isnan(a.astype(float)), axis=2)
+    if a.dtype == bool:
+        val = a[:, :, 0].astype(float)
+        full = 1.0
+        alpha = None
+    else:
+        if np.issubdtype(a.dtype, np.integer):
+            full = float(np.iinfo(a.dtype).max)
+        elif np.issubdtype(a.dtype, np.floating):
+            full = 1.0
+        else:
+            raise ValueError(f"{what} has unsupported pixel type {a.dtype}")
+        af = a.astype(float)
+        if full == 1.0:                        # floats: the light/dark rule needs them in [0, 1]
+            seen = af[np.isfinite(af) & ~nod[:, :, None]]
+            if seen.size and (seen.min() < 0.0 or seen.max() > 1.0):
+                raise ValueError(f"{what}: floating-point pixels must lie in [0, 1] (0 = dark, an obstacle; 1 = light, "
+                                 f"free), got {seen.min():g} to {seen.max():g}; scale it, or save it as 8-bit")
+        colour = af[:, :, :3] if bands >= 3 else af[:, :, :1]
+        val = colour.mean(axis=2)
+        alpha = af[:, :, -1] if bands in (2, 4) else None
+    free = np.nan_to_num(val, nan=-1.0) >= LIGHT * full
+    if alpha is not None:
+        free &= alpha >= LIGHT * full
+    free &= ~nod
+    if not free.any():
+        finite = val[np.isfinite(val)]
+        seen = f"its pixels range from {finite.min():g} to {finite.max():g}" if finite.size else "no finite pixel"
+        raise ValueError(f"{what}: no free cell: a pixel is free when its colour is at least {LIGHT * full:g} "
+                         f"(half of the full scale {full:g} of {a.dtype}) and it is opaque and not nodata; {seen}")
+    return free[::-1, :].T.copy()
+
+
+def _load_npz(path: Path, sim_extent):
+    try:
+        z = np.load(path, allow_pickle=False)
+    except (OSError, EOFError, ValueError) as exc:   # ValueError: pickled data, e.g. a text file
+        raise ValueError(f"domain file {path} is not a mask (.npz): not a NumPy archive "
+                         f"({exc.__class__.__name__})") from None
+    if not isinstance(z, np.lib.npyio.NpzFile):      # a single .npy array under an .npz name
+        raise ValueError(f"domain file {path} is not a mask (.npz): it holds a single array, not an archive with "
+                         "'free' and 'extent'")
+    try:
+        with z:
+            if "free" not in z.files:
+                raise ValueError(f"domain file {path} is not a mask: no array 'free' (found {', '.join(z.files) or 'none'})")
+            free = np.asarray(z["free"])
+            ext = z["extent"] if "extent" in z.files else sim_extent
+    except (OSError, EOFError, ValueError) as exc:
+        if str(exc).startswith("domain file"):
+            raise
+        raise ValueError(f"domain file {path} is not a mask (.npz): {exc or exc.__class__.__name__}") from None
+    if ext is None:
+        raise ValueError(f"domain file {path} has no 'extent' and no simulation domain was given")
+    try:
+        ext = np.asarray(ext, float).ravel()
+    except (TypeError, ValueError):
+        raise ValueError(f"domain file {path}: 'extent' must be four numbers [x0, x1, y0, y1], "
+                         f"got {np.asarray(ext).tolist()!r}") from None
+    return Domain.from_raster(free, ext, name=path.stem)
+
+
+def _load_png(path: Path, sim_extent):
+    PIL = _need("PIL.Image", "pillow", "a .png domain")
+    try:
+        with PIL.open(path) as im:
+            if im.mode in ("P", "PA"):
+                im = im.convert("RGBA")
+            elif im.mode not in ("1", "L", "LA", "RGB", "RGBA", "I;16", "I", "F"):
+                im = im.convert("RGBA")
+            a = np.asarray(im)
+    except Exception as exc:  # noqa: BLE001 -- PIL raises many kinds
+        raise ValueError(f"domain file {path} is not an image: {exc}") from None
+    if a.dtype == np.int32 and a.max() <= 65535:
+        a = a.astype(np.uint16)
+    free = _image_to_free(a, what=f"domain file {path}")
+    ext = _sidecar_extent(path) or sim_extent
+    if ext is None:
+        raise ValueError(f"domain file {path}: no extent (give {path.with_suffix('.json').name} with "
+                         '{"extent": [x0, x1, y0, y1]})')
+    return Domain.from_raster(free, ext, name=path.stem)
+
+
+def _load_tif(path: Path, sim_extent):
+    try:                       # tifffile (the [domains] extra) first; rasterio if only it is installed
+        import tifffile  # noqa: F401
+        have_rasterio = False
+    except ImportError:
+        try:
+            import rasterio  # noqa: F401
+            have_rasterio = True
+        except ImportError:
+            have_rasterio = False
+    if have_rasterio:
+        import rasterio
+        try:
+            with rasterio.open(path) as ds:
+                a = ds.read()
+                nodata = ds.nodata
+                b = ds.bounds
+                ext = None if ds.transform.is_identity else (b.left, b.right, b.bottom, b.top)
+        except Exception as exc:  # noqa: BLE001
+            raise ValueError(f"domain file {path} is not a GeoTIFF: {exc}") from None
+    else:
+        tifffile = _need("tifffile", "tifffile", "a GeoTIFF (.tif) domain")
+        import logging
+        log = logging.getLogger("tifffile")        # its own complaints about a broken file: ours is one line
+        was = log.disabled
+        log.disabled = True
+        rotated = None
+        try:
+            with tifffile.TiffFile(path) as tf:
+                if not len(tf.pages):
+                    raise ValueError("no readable image in it")
+                page = tf.pages[0]
+                a = page.asarray()
+                tags = page.tags
+                scale = tags.get(33550)
+                tie = tags.get(33922)
+                nd = tags.get(42113)
+                nodata = None
+                if nd is not None:
+                    try:
+                        nodata = float(str(nd.value).strip("\x00 "))
+                    except ValueError:
+                        nodata = None
+                ext = None
+                # rows and columns of the image (page.shape is (bands, rows, cols) for a band-separate file)
+                H, W = int(page.imagelength), int(page.imagewidth)
+                mtx = tags.get(34264)                      # ModelTransformationTag: a 4 x 4 matrix, row-major
+                if scale is not None and tie is not None:
+                    sx, sy = float(scale.value[0]), float(scale.value[1])
+                    I, J, _, X, Y, _ = (float(v) for v in tie.value[:6])
+                    x0 = X - I * sx
+                    y1 = Y + J * sy
+                    ext = (x0, x0 + W * sx, y1 - H * sy, y1)
+                elif mtx is not None:
+                    m = [float(v) for v in mtx.value[:8]]
+                    if m[1] != 0.0 or m[4] != 0.0 or not (m[0] > 0.0 and m[5] < 0.0):
+                        rotated = m[:2] + m[4:6]
+                    else:
+                        x0, y1 = m[3], m[7]
+                        ext = (x0, x0 + W * m[0], y1 + H * m[5], y1)
+        except MissingExtra:
+            raise
+        except Exception as exc:  # noqa: BLE001 -- tifffile raises many kinds
+            raise ValueError(f"domain file {path} is not a GeoTIFF: {exc}") from None
+        finally:
+            log.disabled = was
+        if rotated is not None:
+            raise ValueError(f"domain file {path}: its ModelTransformation {rotated} is rotated, sheared or not "
+                             "north-up; warp the map to a north-up grid first")
+    if nodata is not None and np.issubdtype(np.asarray(a).dtype, np.integer) and float(nodata).is_integer():
+        nodata = int(nodata)
+    free = _image_to_free(a, nodata=nodata, what=f"domain file {path}")
+    ext = ext or _sidecar_extent(path) or sim_extent
+    if ext is None:
+        raise ValueError(f"domain file {path}: no extent in the GeoTIFF and no {path.with_suffix('.json').name}")
+    return Domain.from_raster(free, ext, name=path.stem)
+
+
+def _load_geojson(path: Path, sim_extent):
+    shapely = _need("shapely", "shapely", "a GeoJSON domain")
+    from shapely.geometry import shape
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"domain file {path} is not GeoJSON: {exc}") from None
+    geoms = []
+
+    def collect(obj):
+        if not isinstance(obj, dict) or "type" not in obj:
+            raise ValueError(f"domain file {path} is not a polygon GeoJSON (an object without 'type')")
+        t = obj["type"]
+        if t == "FeatureCollection":
+            for f in obj.get("features") or []:
+                collect(f)
+        elif t == "Feature":
+            if obj.get("geometry") is not None:
+                collect(obj["geometry"])
+        elif t == "GeometryCollection":
+            for g in obj.get("geometries") or []:
+                collect(g)
+        elif t in ("Polygon", "MultiPolygon"):
+            try:
+                geoms.append(shape(obj))
+            except Exception as exc:  # noqa: BLE001
+                raise ValueError(f"domain file {path}: bad {t}: {exc}") from None
+        else:
+            raise ValueError(f"domain file {path}: geometry type {t} is not a Polygon or MultiPolygon")
+    collect(doc)
+    if not geoms:
+        raise ValueError(f"domain file {path} is not a polygon GeoJSON: no Polygon or MultiPolygon in it")
+    for g in geoms:
+        if not np.isfinite(shapely.get_coordinates(g)).all():
+            raise ValueError(f"domain file {path}: a polygon has a coordinate that is not a finite number")
+    bad = [g for g in geoms if not g.is_valid]
+    notes = (f"domain file {path}: {len(bad)} polygon(s) not valid ({shapely.is_valid_reason(bad[0])}); repaired "
+             "with shapely.make_valid: check the free region in the figures",) if bad else ()
+    geom = shapely.union_all([shapely.make_valid(g) for g in geoms])
+    ext = sim_extent
+    if isinstance(doc, dict) and doc.get("bbox") is not None and ext is None:
+        b = doc["bbox"]
+        ext = (b[0], b[2], b[1], b[3])
+    if ext is None:
+        x0, y0, x1, y1 = geom.bounds
+        ext = (x0, x1, y0, y1)
+    dom = Domain.from_polygons(geom, ext, name=path.stem)
+    dom.notes = notes
+    return dom
+
+
+LOADERS = {".npz": _load_npz, ".png": _load_png, ".tif": _load_tif, ".tiff": _load_tif,
+           ".geojson": _load_geojson, ".json": _load_geojson}
+
+
+def load_domain(path, sim_extent=None) -> Domain:
+    """Read a domain file: ``.npz`` mask, ``.png`` image, ``.tif`` GeoTIFF or ``.geojson`` polygons
+    (module docstring of :mod:`domain.domain` and docs/guide/domains.md).  ``sim_extent`` is used when
+    the file itself gives none, and otherwise must equal the file's extent."""
+    path = Path(path)
+    if not path.exists():
+        raise ValueError(f"domain {str(path)!r} is neither a built-in domain ({', '.join(BUILTIN_DOMAINS)}) "
+                         "nor an existing file")
+    if not path.is_file():
+        raise ValueError(f"domain file {path} is a folder")
+    ext = path.suffix.lower()
+    if ext not in LOADERS:
+        raise ValueError(f"domain file {path} is not a mask, image or polygon file: use .npz, .png, .tif or .geojson")
+    dom = LOADERS[ext](path, None if sim_extent is None else _extent(sim_extent))
+    if sim_extent is not None:
+        check_extent(dom, sim_extent)
+    if dom.geometry is None:                   # a raster: its pixels should be about square
+        px, py = dom.pixel
+        if max(px, py) > PIXEL_ASPECT_WARNING * min(px, py):
+            dom.notes = tuple(dom.notes) + (
+                f"domain file {path}: its {dom.state.shape[0]} x {dom.state.shape[1]} pixels (x by y) over the extent "
+                f"{[round(v, 9) for v in dom.extent]} are {px:.3g} m x {py:.3g} m, stretched {max(px, py) / min(px, py):.2f}x; "
+                "check the extent (a sidecar .json or [sim] domain) and, for an .npz, that free is x first (nx, ny)",)
+    return dom
+
+
+#: A raster whose pixels over its extent are more than this far from square gets a warning (a map in image
+#: orientation saved as an .npz, or an image laid over a domain of another shape).
+PIXEL_ASPECT_WARNING = 1.25
+
+
+def check_extent(dom: Domain, sim_extent, tol: float = 1e-6) -> None:
+    se = _extent(sim_extent)
+    scale = max(se[1] - se[0], se[3] - se[2])
+    if any(abs(a - b) > tol * scale for a, b in zip(dom.extent, se)):
+        raise ValueError(f"domain {dom.name}: its extent {[round(v, 9) for v in dom.extent]} does not match the "
+                         f"simulation domain {list(se)}; set [sim] domain = {[round(v, 9) for v in dom.extent]}")
+
+
+_CACHE: dict = {}
+
+
+def make_domain(source, sim_extent=None) -> Domain | None:
+    """A :class:`Domain` from a built-in name, a file, a Domain, or None/"" (the empty rectangle: None).
+    Built-ins and files are built once per process (files again when they change)."""
+    key = None
+    if isinstance(source, (str, Path)) and str(source):
+        p = Path(str(source))
+        stamp = p.stat().st_mtime_ns if str(source) not in BUILTIN_DOMAINS and p.is_file() else None
+        key = (str(source), stamp, None if sim_extent is None else tuple(float(v) for v in sim_extent))
+        if key in _CACHE:
+            return _CACHE[key]
+    dom = _make_domain(source, sim_extent)
+    if key is not None:
+        if len(_CACHE) > 16:
+            _CACHE.clear()
+        _CACHE[key] = dom
+    return dom
+
+
+def _make_domain(source, sim_extent=None) -> Domain | None:
+    if source is None or isinstance(source, Domain):
+        if isinstance(source, Domain) and sim_extent is not None:
+            check_extent(source, sim_extent)
+        return source
+    source = str(source)
+    if source == "":
+        return None
+    if source in BUILTIN_DOMAINS:
+        dom = BUILTIN_DOMAINS[source]()
+        if sim_extent is not None:
+            check_extent(dom, sim_extent)
+        return dom
+    return load_domain(source, sim_extent)
