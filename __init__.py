@@ -12,13 +12,14 @@ The handful of names a user needs are here, loaded on first use (``swarmfield.co
     from swarmfield import ReferencePlanner, PlannerSettings, GaussianProcess, GPSettings
     from swarmfield import KernelDensity, FeedbackSettings, tracking_velocity, RunConfig, run_simulation
 """
-from importlib import import_module, metadata as _metadata
+from importlib import import_module
+
+try:                                        # the one place the version is written (pyproject reads it)
+    from ._version import __version__
+except ImportError:                         # this file run outside its package (pytest collecting the checkout)
+    from swarmfield._version import __version__
 
 DISTRIBUTION = "swarmfield"
-try:
-    __version__ = _metadata.version(DISTRIBUTION)
-except _metadata.PackageNotFoundError:      # imported from a source tree that was never installed
-    __version__ = "0+unknown"
 
 # public name -> subpackage that defines it
 _API = {

@@ -1,4 +1,4 @@
-"""Benchmark: the closed-loop measurement step with obstacles against the empty rectangle (issue 19).
+"""Benchmark: the closed-loop measurement step with obstacles against the empty rectangle.
 
     python benchmarks/domain_step.py [--robots 10000] [--periods 2] [--domains harbour floor lake]
                                      [--controller feedback] [--config coarse-gp] [--every 1|auto|N]

@@ -1,4 +1,4 @@
-"""Same optimum from every formulation (issue 21, item 1): single shooting, multiple shooting and direct
+"""Same optimum from every formulation: single shooting, multiple shooting and direct
 transcription on the paper's first planning step (robots uniform on [0, 7]^2, target from the GP variance,
 N = 12, I = J = 8, T = 7 s; ``solver-study``'s problem) at one grid, for both speed-limit forms (l1,
 norm) and both bases (sine, sine-cosine), cold and warm started; prints one table.

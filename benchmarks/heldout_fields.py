@@ -1,4 +1,4 @@
-"""Write the three held-out fields of the tuned-preset check (issue 20) as .npz field files.
+"""Write the three held-out fields of the tuned-preset check as .npz field files.
 
 Never used for tuning (docs/results/tuned-preset.md); they imitate the outside check's descriptions:
 

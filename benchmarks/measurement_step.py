@@ -24,7 +24,7 @@ reported.
 
 Three settings of ``sim.metrics_every`` can be timed:
 
-* ``auto`` (default since issue 21): as ``1`` while a step's new points fit a Woodbury update
+* ``auto`` (the default): as ``1`` while a step's new points fit a Woodbury update
   (<= M/4 = 462 robots), as ``8`` otherwise;
 * ``1`` (the paper's figures): the posterior at every step.  With more than M/4 = 462
   new points per step, every posterior is an O(M^3) refactorisation (M = 1849 inducing points).
@@ -44,12 +44,12 @@ Two configurations for large swarms can be added to the table (``--configs``):
 * ``prior-2e-7``: ``gp.prior_truncation = 2e-7`` (the default until 2026-11-26: 1623 of the 1849
   directions kept at l = 1 instead of 1358).
 
-``--domains`` times the same step with obstacles (issue 19: built-in domains, :mod:`domain`;
+``--domains`` times the same step with obstacles (built-in domains, :mod:`domain`;
 target: within 1.3x of the empty rectangle at 10,000 robots); ``rectangle`` is the empty domain.
 
 The final RMSE of f̄ is printed so that the price in accuracy is visible next to the time.
 
-Targets (issue 9): a full step with regression <= 50 ms at 10,000 robots, <= 0.5 s at 100,000; (issue 21)
+Targets: a full step with regression <= 50 ms at 10,000 robots, <= 0.5 s at 100,000;
 <= 40 ms at 10,000 with the default accuracy, <= 2 s at 1,000,000, peak memory stated.
 Tests never assert wall-clock time.
 """

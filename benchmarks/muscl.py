@@ -1,4 +1,4 @@
-"""Benchmark: MUSCL in the compiled kernel against the first-order scheme (issue 21, item 3).
+"""Benchmark: MUSCL in the compiled kernel against the first-order scheme.
 
     python benchmarks/muscl.py [--grids 40,60,80] [--repeat 3] [--schemes upwind,muscl] [--transports auto]
         [--cold-starts auto]

@@ -1,4 +1,4 @@
-"""Benchmark: the paper's first planning step with obstacles (issue 19, item 9) against the empty rectangle.
+"""Benchmark: the paper's first planning step with obstacles against the empty rectangle.
 
     python benchmarks/plan_obstacles.py [--repeat 3] [--grids 40] [--transports auto] [--scheme upwind]
         [--cold-starts zero,coarse] [--methods ipopt,grg] [--recalc-y auto|yes|no] [--seed 0]
@@ -12,7 +12,7 @@ variance of their first measurements (sim.scenario.first_step_target), zeroed on
 renormalised.  Prints per grid, transport and ``--cold-starts`` value (planner.cold_start: zero, coarse) the
 cold solve's time (median over ``--repeat``; CPU time of this single-threaded process, steadier than wall time
 on a shared machine, and wall time; the coarse solve of cold_start = coarse included), iterations,
-CPU ms per iteration, objective, and the time ratios masked / empty (issue 19's goal: <= 1.2 at 40 x 40).
+CPU ms per iteration, objective, and the time ratios masked / empty (the goal: <= 1.2 at 40 x 40).
 """
 from __future__ import annotations
 

@@ -7,7 +7,7 @@ Runs ``run_simulation`` once per domain (seed 0; the run does not stop early: it
 sooner) and prints the process CPU time (``time.process_time``), the planner's wall time, the number of
 plans and their IPOPT iterations.  With ``--domains`` (``rectangle`` = the empty rectangle, else a built-in
 domain or a map file) it also prints each domain's planning time and iterations per plan against the first one's
-(issue 19, item 9: docs/results/planner-obstacles.md, "The plans of a closed-loop run").  Compare two
+(docs/results/planner-obstacles.md, "The plans of a closed-loop run").  Compare two
 configurations in one session, e.g. the released tuned preset against
 ``--config docs/results/tuned-preset/prev.toml``.
 """

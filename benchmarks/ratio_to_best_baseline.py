@@ -1,4 +1,4 @@
-"""The issue-20 criterion per field and seed: the feedback's time to its threshold ÷ the better of the
+"""The tuned preset's criterion per field and seed: the feedback's time to its threshold ÷ the better of the
 lawnmower's and greedy's, and its RMSE at 2T ÷ the lawnmower's (docs/results/tuned-preset.md).
 
     python benchmarks/ratio_to_best_baseline.py BASELINES [LABEL=FEEDBACK[:SCALE] ...]

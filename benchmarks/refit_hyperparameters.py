@@ -1,4 +1,4 @@
-"""Time of one online MAP hyperparameter refit (issue 10) at the paper's grid (M = 1849).
+"""Time of one online MAP hyperparameter refit at the paper's grid (M = 1849).
 
     python benchmarks/refit_hyperparameters.py [n_observations] [maxiter] [--fine]
 

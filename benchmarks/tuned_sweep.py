@@ -1,4 +1,4 @@
-"""Exploration sweep of the tuned preset (issue 20): closed-loop runs scored like compare-controllers.
+"""Exploration sweep of the tuned preset: closed-loop runs scored like compare-controllers.
 
     python benchmarks/tuned_sweep.py OUT.jsonl JOBS.json [WORKERS]
 

@@ -58,7 +58,7 @@ class FeedbackSettings:
             uniform density on the paper's 20 x 20 domain.
     v_max : speed limit (> 0, ``math.inf`` for none); faster velocities are scaled to v_max.
     stir_speed : speed u [m/s] of the density-preserving stirring flux J added to the numerator
-            (:mod:`control.stirring`; beyond the paper, issue 10); 0 (default) is the paper's law.
+            (:mod:`control.stirring`; beyond the paper); 0 (default) is the paper's law.
     stir_cells : number k of stirring cells per axis (k and k + 1 alternate between periods).
     transport_rate : rate beta [1/s] of the global mass-transport flux beta grad psi added to the
             numerator (:mod:`control.poisson_flux`; beyond the paper): with it the error decays as

@@ -46,7 +46,7 @@ single isolated robot (about 1 % at the default rule, when the robot sits on a b
 much smaller for a swarm, where the s-dependence averages out (about 2e-4 of the peak for
 2000 robots against the exact image sum, see tests).
 
-Obstacles (issue 19).  ``free`` (a bool array, x first, True = free, covering the domain at any
+Obstacles.  ``free`` (a bool array, x first, True = free, covering the domain at any
 resolution: typically the planner's free cells) makes the estimate one of the free space: the
 reflected KDE above is computed as before, then scaled by 1 / (its mass over the free bins), so that
 p_hat integrates to 1 over the free space (the mass that the smoothing carried into obstacles is

@@ -1,4 +1,4 @@
-"""Compiled per-robot passes of the closed loop (issue 21, item 4): what costs O(n) per Euler sub-step.
+"""Compiled per-robot passes of the closed loop: what costs O(n) per Euler sub-step.
 
 At 10^6 robots one sub-step of the NumPy closed loop spends ~0.9 s in some forty passes over arrays of
 n numbers (the KDE's linear binning, the bicubic Hermite evaluation of p_hat and its gradient at the

@@ -1,6 +1,6 @@
 """Density-preserving stirring flux: robots keep moving while the density still tracks p_r.
 
-Beyond the paper (issue 10).  The mean-field law (eq. "density feedback law using estimation")
+Beyond the paper.  The mean-field law (eq. "density feedback law using estimation")
 prescribes the *density flux* p v; any divergence-free flux J added to its numerator,
 
     v = ( -alpha grad(p_hat - p_r) + grad(sigma p_hat) + v_r p_r + J ) / p_hat,    div J = 0,

@@ -1,4 +1,4 @@
-"""Velocity bases: the paper's Fourier sine basis and the sine-cosine basis (issue 10, item 3).
+"""Velocity bases: the paper's Fourier sine basis and the sine-cosine basis.
 
 On control interval l, velocity component d is
 

@@ -8,12 +8,12 @@ and p0, and returns the density at every sub-step; :meth:`TransportKernel.adjoin
 seeds on the interval-boundary snapshots back to face velocities and p0 (reverse sweep over the
 stored trajectory: the co-state equation of the discrete problem).
 
-Free-cell masks (issue 19, :mod:`ocp.mask`): the face masks (1 open, 0 closed) are data of the kernel;
+Free-cell masks (:mod:`ocp.mask`): the face masks (1 open, 0 closed) are data of the kernel;
 the split velocities v+ and v- of every face are multiplied by them (zero flux through a face next to
 a blocked cell, as at the walls), and the face-velocity adjoint by the same masks.  Without a mask
 they are ones, which leaves every result unchanged bit for bit.
 
-Second order (issue 21, ``scheme="muscl"``, compiled backend only): the minmod-MUSCL face values with
+Second order (``scheme="muscl"``, compiled backend only): the minmod-MUSCL face values with
 Heun's SSP-RK2 of :func:`ocp.transport.muscl_step` (bit for bit), slopes not reaching across closed
 faces; its adjoint recomputes the first stage of each sub-step from the stored trajectory and takes the
 branch of minmod the forward pass took (docs/design/muscl-kernel.md).

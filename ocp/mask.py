@@ -1,4 +1,4 @@
-"""Free-cell masks of irregular domains (issue 19): which planner cells are free, which faces are open.
+"""Free-cell masks of irregular domains: which planner cells are free, which faces are open.
 
 A mask ``free`` is a bool array (nx, ny), x first as everywhere in this project, True = free cell.
 ``None`` means the empty rectangle (every cell free); every function here then returns what the

@@ -1,4 +1,4 @@
-"""Objectives of the reference OCP beyond the paper's symmetric KL (issue 20, item 1).
+"""Objectives of the reference OCP beyond the paper's symmetric KL.
 
 ``planner.objective = "information"``: the expected GP posterior variance over the domain, given
 that the swarm measures at the rate of the *planned* density (a mean-field approximation of the GP

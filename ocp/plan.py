@@ -13,7 +13,7 @@ key              shape            meaning
                                   ("sine", the paper's, when absent; or "sine-cosine"; :mod:`ocp.basis`)
 ``target``       (nx, ny)         the target density p_f used
 ``free``         (nx, ny) bool    free cells of an irregular domain (obstacles False); absent for the
-                                  empty rectangle (issue 19, :mod:`ocp.mask`); ``p`` is 0 on blocked cells
+                                  empty rectangle (:mod:`ocp.mask`); ``p`` is 0 on blocked cells
 ``meta``         () str           JSON: settings, solver status, iterations, timings, costs, versions
 ===============  ===============  ==============================================================
 

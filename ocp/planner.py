@@ -4,7 +4,7 @@
 milliseconds); :meth:`ReferencePlanner.solve` is then called at every re-plan of Algorithm 1 with
 new (p0, p_f) as NLP *parameters*, optionally warm-started from the previous plan.
 
-``ReferencePlanner(settings, free=mask)`` plans on an irregular domain (issue 19, :mod:`ocp.mask`):
+``ReferencePlanner(settings, free=mask)`` plans on an irregular domain (:mod:`ocp.mask`):
 zero flux through every face next to a blocked cell, KL costs over free cells, densities exactly
 zero on blocked cells; the plan carries the mask (``ReferencePlan.free``).
 """

@@ -62,7 +62,7 @@ def norm_polygon(v_max: float, chords: int = NORM_CHORDS):
 class TransportProblem:
     """Symbolic pieces of the OCP for one setting: the shooting map, the costs and the NLP dict.
 
-    ``free``: optional free-cell mask (nx, ny), True = free (:mod:`ocp.mask`, issue 19): zero flux
+    ``free``: optional free-cell mask (nx, ny), True = free (:mod:`ocp.mask`): zero flux
     through every face next to a blocked cell (the split face velocities times the face masks, in the
     graph and in the kernels) and the KL terms summed over free cells only.  None = the empty
     rectangle, the graph of the unmasked problem unchanged."""

@@ -151,7 +151,7 @@ class PlannerSettings:
     v_max: float = 3.0
     #: bound of the *planned* reference velocity v_r [m/s]; None: ``v_max``.  ``v_max`` stays the robots'
     #: speed (the motion baselines drive at it, sim.controllers); a reference planned faster than the robots
-    #: can follow (issue 20: 4 m/s for robots of 3 m/s) keeps the feedback law saturated at the swarm's front,
+    #: can follow (4 m/s for robots of 3 m/s) keeps the feedback law saturated at the swarm's front,
     #: where the density lags the plan, instead of letting the robots settle at the plan's pace
     #: (docs/results/tuned-preset.md).  The planner solves with v_max = reference_speed (its plan meta says so)
     reference_speed: float | None = None
@@ -162,13 +162,13 @@ class PlannerSettings:
     log_eps: float = 1e-12
     speed_limit_form: str = "split"
     #: "l1" (default, the paper's): sum |a| <= v_max per interval; "face": |v_x| <= b on every x-face and
-    #: |v_y| <= b on every y-face, b = v_max / (sqrt 2 * speed_limit_safety) (:mod:`ocp.speedlimit`, issue 10);
+    #: |v_y| <= b on every y-face, b = v_max / (sqrt 2 * speed_limit_safety) (:mod:`ocp.speedlimit`);
     #: "norm": (B_x, B_y) in a polygon inscribed in the disc of radius v_max, B_d = sum_ij |a[l, d, i, j]|
     #: (6 linear rows per interval, ocp.problem.norm_polygon): sup |v| <= sqrt(sup|v_x|^2 + sup|v_y|^2)
     #: <= sqrt(B_x^2 + B_y^2) <= v_max, with up to sqrt 2 more coefficient budget than "l1"
     speed_limit: str = "l1"
     #: velocity basis (:mod:`ocp.basis`): "sine" (the paper's: both components vanish on every wall) or
-    #: "sine-cosine" (only the normal component vanishes; issue 10, item 3); recorded as the plan's meta["basis"]
+    #: "sine-cosine" (only the normal component vanishes); recorded as the plan's meta["basis"]
     basis: str = "sine"
     speed_limit_safety: float = 1.0     # extra margin on top of kappa (PlannerSettings.face_speed_bound)
     ipopt: IpoptSettings = field(default_factory=IpoptSettings)
@@ -188,7 +188,7 @@ class PlannerSettings:
     #: ocp.transport.muscl_step): the compiled kernel (with its hand-written adjoint) or the CasADi graph,
     #: i.e. transport "auto", "compiled" or "casadi", method "ipopt")
     scheme: str = "upwind"
-    #: cost of the OCP (ocp.objectives, issue 20): "symmetric-kl" (the paper's: w_f KLs(p(t_f), q) + w_p int KLs
+    #: cost of the OCP (ocp.objectives): "symmetric-kl" (the paper's: w_f KLs(p(t_f), q) + w_p int KLs
     #: + w_v energy) or "information" (the mean-field expected GP variance after the planned measurements, same
     #: w_f / w_p structure times ``information_weight``; needs ``solve(..., information=...)``)
     objective: str = "symmetric-kl"

@@ -1,4 +1,4 @@
-"""Pointwise speed limit on the grid faces (``PlannerSettings.speed_limit = "face"``, issue 10).
+"""Pointwise speed limit on the grid faces (``PlannerSettings.speed_limit = "face"``).
 
 The default limit ``"l1"`` bounds sum |a| <= v_max per interval: with |sin| <= 1 this bounds
 |v_x| + |v_y| everywhere, but a plan then moves mass at a fraction of v_max (the bound is attained

@@ -1,4 +1,4 @@
-"""Online hyperparameter learning from the GP's running sums on a coarser spline grid (issue 10).
+"""Online hyperparameter learning from the GP's running sums on a coarser spline grid.
 
 The GP (:mod:`regression.gp`) keeps, per cell of its inducing grid (width w), the power sums
 

@@ -1,4 +1,4 @@
-"""The O(n) part of :meth:`regression.GaussianProcess.add` in one compiled loop (issue 21, item 4).
+"""The O(n) part of :meth:`regression.GaussianProcess.add` in one compiled loop.
 
 Per point: its cell and local coordinates on the inducing grid (:meth:`regression.basis.SplineAxis.locate`),
 the powers t_1^a, t_2^b (a, b <= 6) and the 49 + 16 products accumulated into its cell's row of ``sums``

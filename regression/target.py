@@ -55,7 +55,7 @@ def target_density(var_grid, eta: float, cell_area: float) -> np.ndarray | None:
 
 def reachable_target_density(var_grid, eta: float, cell_area: float, p_hat, reach: float,
                              dx: float, dy: float, floor: float = 1e-3) -> np.ndarray | None:
-    """p_f that accounts for where the swarm can get within one period (issue 10, item 4).
+    """p_f that accounts for where the swarm can get within one period.
 
         p_f ∝ max(V - eta, 0) · R,     R = p̂ * G_reach  (normalised to max R = 1), floored at ``floor``,
 

@@ -22,7 +22,7 @@ def lean_import() -> None:
     """Import matplotlib's Figure and Agg canvas without building the ``set`` methods' signatures and
     docstring tables: matplotlib inspects every setter of each Artist subclass as the class is created
     (``Artist._update_set_signature_and_docstring``, its ``kwdoc`` table the larger part), ~0.1 s of the
-    ~0.4 s import (CPU time; issue 21).  The ``set`` methods work as before (they dispatch by name); only
+    ~0.4 s import (CPU time).  The ``set`` methods work as before (they dispatch by name); only
     ``help(artist.set)`` and ``inspect.signature`` lack the property list for the classes loaded here.
     Meant for the command-line programs, which draw and exit (``simulate-swarm`` calls it before its
     figures); it does nothing if matplotlib.figure is loaded."""

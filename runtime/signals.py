@@ -1,4 +1,4 @@
-"""Signals of the command-line tools (issue 18): SIGTERM handled like Ctrl-C, a shielded shutdown.
+"""Signals of the command-line tools: SIGTERM handled like Ctrl-C, a shielded shutdown.
 
 * :class:`Terminated` — raised by the SIGTERM handler a sweep installs while its workers run
   (:func:`terminate_as_interrupt`); a subclass of ``KeyboardInterrupt``, so every clean-up path

@@ -6,7 +6,7 @@ A comparison run never stops at its threshold, so its trajectory does not depend
 runs.csv records the threshold of the run's own rule (``threshold``) and the learned s_f^2
 (``signal_variance``).  This script reads the time (in T) at which sup V first falls under
 
-* ``relative``: gamma_relative * s_f^2 (the tuned preset's rule before issue 20), and
+* ``relative``: gamma_relative * s_f^2 (the tuned preset's first rule), and
 * the recorded ``threshold`` (the rule the sweep ran with, e.g. ``robust``),
 
 and prints per (field, controller) the median [min-max] over the reached runs, the median with

@@ -185,10 +185,10 @@ class SimSettings:
                     every measurement step at any swarm size (the design card's metrics.csv)
     target          ``variance`` (paper): p_f = max(V - eta, 0) / int; ``reachable``: the same weighted by
                     R = p̂ convolved with a Gaussian of standard deviation planner.v_max * T / 2 (2 sd =
-                    where the reference can get in one period), floored at 1e-3 max R (regression.reachable_target_density; issue 10)
+                    where the reference can get in one period), floored at 1e-3 max R (regression.reachable_target_density)
     reach           standard deviation [m] of that Gaussian for ``target = "reachable"``; None (default):
                     planner.v_max * T / 2
-    replan_every    receding horizon (beyond the paper, issue 20): also re-plan the reference (horizon T,
+    replan_every    receding horizon (beyond the paper): also re-plan the reference (horizon T,
                     from the current p̂ and GP variance) after every this many measurement steps inside a
                     period; 0 (default, Algorithm 1): at the period starts only.  The stop rule and the
                     hyperparameter refit stay at the period starts

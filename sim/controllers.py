@@ -20,7 +20,7 @@ reference); the motion baselines ``greedy`` and ``lawnmower`` drive at ``planner
 the planner's own limit on the reference velocity), and so does ``ergodic`` (spectral multiscale
 coverage towards mu ∝ V, :mod:`sim.ergodic`).  ``diffusion`` has v = 0.
 
-Obstacles (issue 19).  With a domain (``[domain] source``), ``ctx.free`` is the (nx, ny) bool mask of
+Obstacles.  With a domain (``[domain] source``), ``ctx.free`` is the (nx, ny) bool mask of
 the planner cells the swarm can use (free and reachable from the start box) and ``ctx.region`` the
 :class:`domain.Domain` (fine free space, ``contains``, ``sample``); both are None on the empty
 rectangle, where every controller behaves exactly as before.  The loop reflects every robot at the

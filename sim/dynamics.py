@@ -16,7 +16,7 @@ estimate p_hat of all robots, so within one measurement period Δt the motion is
 ``n_sub`` sub-steps of ``h = Δt / n_sub`` and the velocity is re-evaluated (with the KDE refitted)
 at every sub-step; see :func:`advance`.
 
-Obstacles (issue 19): wherever ``domain`` is accepted it may also be a :class:`domain.Domain`;
+Obstacles: wherever ``domain`` is accepted it may also be a :class:`domain.Domain`;
 the step is then reflected at the obstacle boundaries as well as at the walls
 (:meth:`domain.Domain.move`), at the geometry's own resolution, so robots never enter an
 obstacle, and :func:`uniform_in_box` samples the start box intersected with the free space.

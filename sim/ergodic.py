@@ -4,7 +4,7 @@ and design of ergodic dynamics for multi-agent systems", Physica D 240 (2011) 43
 The established density-matching method that *sweeps*: the swarm's time-averaged statistics are
 driven towards a target density mu, here mu ∝ V (the GP variance, normalised over the domain and
 refreshed after every measurement), so that the time the robots spend in a region is proportional
-to its uncertainty.  It is the anchor the paper's mean-field feedback must beat (issue 20).
+to its uncertainty.  It is the anchor the paper's mean-field feedback must beat.
 
 On the rectangle [x0, x1] x [y0, y1] (sides L1, L2) with the cosine basis (Neumann eigenfunctions
 of the Laplacian), k = (k1, k2) in {0..K-1}^2::

@@ -13,9 +13,9 @@ Analytic fields
             ``f(x) = b + sum_k a_k exp(-|x - c_k|^2 / (2 s_k^2))``.
 ``ridge``   a smooth "bathymetry": a continental-shelf step (tanh across a slanted line) plus a
             meandering Gaussian ridge.
-``waves``   a seeded sum of 12 random plane waves of wavelengths 4-12 m (issue 20, a tuning field).
+``waves``   a seeded sum of 12 random plane waves of wavelengths 4-12 m (a tuning field).
 
-Fine-structure fields (issue 20; generated, seeded, for checking stop rules and tuning):
+Fine-structure fields (generated, seeded, for checking stop rules and tuning):
 
 ``bumps``     eight small Gaussian bumps (0.8-1.2 m) of either sign on a flat background, none
               in the start box [0, 7]^2.
@@ -180,7 +180,7 @@ class RidgeField(Field):
 
 
 class WavesField(Field):
-    """Seeded random smooth field (issue 20, a tuning field): a sum of plane waves
+    """Seeded random smooth field (a tuning field): a sum of plane waves
 
     ``f(x) = base + amp / sqrt(K) * sum_k cos(2 pi <u_k, x> / lambda_k + phi_k)``,
 
@@ -214,7 +214,7 @@ class BumpsField(PlumesField):
     random sign with |a| in ``amplitude``) on a flat background, centres drawn with ``seed`` 3 widths
     outside ``keep_out`` (default the paper's start box [0, 7]^2, so the data of the first period see a flat
     field) and at least 3 widths from each other.  A field whose structure is smaller than the GP's
-    prior length scale (1 m), for the stop-rule check (sim.stopping, issue 20)."""
+    prior length scale (1 m), for the stop-rule check (sim.stopping)."""
 
     name = "bumps"
 

@@ -1,11 +1,11 @@
-"""Named configurations of a closed-loop run: ``paper`` (the default) and ``tuned`` (issue 10).
+"""Named configurations of a closed-loop run: ``paper`` (the default) and ``tuned``.
 
 A preset is a partial configuration document (the ``[sim]``, ``[gp]``, ... tables of
 :mod:`sim.config`) laid *under* whatever the user gives: precedence is preset < ``--config`` file
 < command-line flags.  ``paper`` is empty: every default of :mod:`sim.config` is the paper's
 scenario (Zheng & Lin, section "Simulation studies") or a documented choice where the paper is
 silent.  ``tuned`` is the measured best combination of the changes that go beyond the paper
-(README, "Beyond the paper"; issue 20: the information objective, docs/results/tuned-preset.md with
+(the information objective and more: docs/results/tuned-preset.md with
 the ablation); every entry below names the setting's own docstring for its meaning.
 
 The resolved configuration a run writes (``DIR/config.toml``) names its preset and spells out every

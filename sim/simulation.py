@@ -30,7 +30,7 @@ the cell centres of the planner grid (:mod:`sim.metrics`).  A planner failure
 (``ocp.PlannerError``) ends the run with ``stop_reason = "planner_failed"``; everything recorded until
 then is kept in the result.
 
-Obstacles (issue 19): with a domain (``[domain] source`` or ``Simulation(..., domain=...)``, a
+Obstacles: with a domain (``[domain] source`` or ``Simulation(..., domain=...)``, a
 :class:`domain.Domain`, a built-in name or a file) the planner cells are classified by
 ``domain.min_free_fraction`` and restricted to those the swarm can reach from the start box
 (``free``, (nx, ny)); the robots start uniformly on the start box (which must be free) and are

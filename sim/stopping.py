@@ -33,7 +33,7 @@ Why ``robust``.  The learned length scale says how far one measurement informs t
 from data of a smooth corner (the start box) it can grow to several metres (4.4 m was measured on a
 six-bump field), and then the variance of cells nobody has visited falls below the threshold: the
 lawnmower and greedy baselines "finished" at 0.62-0.75 T, before any robot could have reached the far
-corner (issue 20).  The variance at a length scale the data cannot rule out is the honest one: V is
+corner.  The variance at a length scale the data cannot rule out is the honest one: V is
 non-increasing in l for fixed data (longer correlation, more information per point), so among all
 length scales in [l_c, l] the largest sup V is at l_c, and the rule fires only once every cell has
 data within about ``0.7 l_c`` (one dense cluster at distance d leaves V = s_f^2 (1 - exp(-d^2/l^2))).

@@ -1,4 +1,4 @@
-"""Worker processes tied to their parent, for the sweep runner (:mod:`studies.runner`; issue 18).
+"""Worker processes tied to their parent, for the sweep runner (:mod:`studies.runner`).
 
 ``concurrent.futures.ProcessPoolExecutor`` with the ``fork`` start method let a sweep's workers
 outlive it: forked children inherit every descriptor of the main process -- the locked output
