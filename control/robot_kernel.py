@@ -4,7 +4,8 @@ At 10^6 robots one sub-step of the NumPy closed loop spends ~0.9 s in some forty
 n numbers (the KDE's linear binning, the bicubic Hermite evaluation of p_hat and its gradient at the
 robots, p_r and its gradient by bilinear interpolation, the sine series of v_r, the feedback law and
 its saturation).  Here each is one loop over the robots in C, compiled and loaded with ctypes by
-:class:`runtime.cbuild.CLibrary` (system ``cc``, per-user cache keyed by the source hash, smoke test;
+:class:`runtime.cbuild.CLibrary` (system ``cc`` at install time, else a private per-user cache keyed by
+the source hash; owner, mode and SHA-256 checked before loading; smoke test;
 without a compiler the NumPy code runs, with one line on stderr).
 
 Two functions, both checked against the NumPy reference in ``tests/test_robot_kernel.py``:

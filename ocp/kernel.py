@@ -23,11 +23,11 @@ interior x-faces ((nx-1)*ny), vy[i + nx j] on the interior y-faces (nx*(ny-1)).
 
 Backends:
 
-* ``"compiled"``: one fused C loop per sub-step, compiled once with the system C compiler (``cc``,
-  or ``$CC``; ``-march=native`` first where the CPU is identified; :mod:`runtime.cbuild`) into a per-user
-  cache folder keyed by a hash of the source, the flags (and the CPU), loaded with
-  ctypes;  :func:`compiled_available` says whether that worked (else one line on stderr and the
-  planner falls back to the CasADi graph);
+* ``"compiled"``: one fused C loop per sub-step, compiled with the system C compiler (``cc``,
+  or ``$CC``; ``-march=native`` first where the CPU is identified; :mod:`runtime.cbuild`) when the
+  package is installed (else once into a private per-user cache), keyed by a hash of the source, the
+  flags (and the CPU), checked (owner, mode, SHA-256) and loaded with ctypes;
+  :func:`compiled_available` says whether that worked (else one line on stderr and the planner falls back to the CasADi graph);
 * ``"numpy"``: the same loops vectorised per sub-step (no compiler; the reference for the C code).
 
 :func:`transport_callback` exposes a kernel to CasADi as a ``casadi.Callback`` with a reverse
@@ -507,7 +507,8 @@ def _declare(lib) -> None:
 
 #: the compiled library (runtime.cbuild: system cc, -O3 without contraction or reassociation, -march=native
 #: first where the CPU is identified -- measured 25-30 % faster MUSCL solves, bit for bit the generic build's
-#: results --, a per-user cache keyed by source, flags and CPU, a smoke test in a child process)
+#: results --, built at install time or into a private per-user cache keyed by source, flags and CPU,
+#: a smoke test in a child process)
 _LIBRARY = CLibrary("transport", C_SOURCE, _declare, _SMOKE, "transport kernel")
 _WARNED = False
 
@@ -518,7 +519,7 @@ def _load():
 
 
 def compiled_available() -> bool:
-    """True when the C kernel is compiled (or cached) and loaded."""
+    """True when the C kernel is built (at install time or in the private cache) and loaded."""
     return _load() is not None
 
 

@@ -133,8 +133,10 @@ def test_auto_uses_casadi_for_exact_hessian_and_rejects_kernel_with_it():
 
 def _fresh_library(monkeypatch):
     """A kernel library object that has not tried to build yet (runtime.cbuild.CLibrary)."""
+    from swarmfield.runtime import cbuild
     lib = K._LIBRARY
     monkeypatch.setattr(K, "_LIBRARY", type(lib)(lib.name, lib.source, lib.declare, lib.smoke, lib.what))
+    monkeypatch.setattr(cbuild, "INSTALLED_DIR", None)       # not the library built at install time
 
 
 def test_no_compiler_falls_back_to_casadi_with_one_line(monkeypatch, tmp_path, capsys):
@@ -162,8 +164,9 @@ def test_compiles_into_cache_keyed_by_source(monkeypatch, tmp_path):
     _fresh_library(monkeypatch)
     monkeypatch.setenv("SWARMFIELD_CACHE", str(tmp_path))
     assert K.compiled_available()
-    libs = list(tmp_path.glob("transport_*.so"))
-    assert len(libs) == 1 and not [p for p in tmp_path.iterdir() if p.is_dir()]   # no leftover temp folder
+    libs = list(tmp_path.glob("transport_*/lib.so"))
+    assert len(libs) == 1 and len(list(tmp_path.iterdir())) == 1       # no leftover temporary folder
+    assert K._LIBRARY.origin == "cache"
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
