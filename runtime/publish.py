@@ -160,10 +160,18 @@ class OutputFolder:
     files, e.g. into ``docs/figures``); otherwise such a folder needs ``force``.
     """
 
-    def __init__(self, path, program: str, outputs, *, force: bool = False, foreign_ok: bool = False):
+    def __init__(self, path, program: str, outputs, *, force: bool = False, foreign_ok: bool = False,
+                 folders=()):
         self.path = Path(path)
         self.program = program
         self.outputs = tuple(outputs)
+        for name in self.outputs:
+            parts = Path(name).parts
+            if not parts or Path(name).is_absolute() or any(p in ("..", ".") for p in parts):
+                raise ValueError(f"output name {name!r} would leave the output folder")
+        #: the subfolders the program writes into (those of the outputs, and e.g. ``runs``)
+        self.folders = tuple(dict.fromkeys([*folders, *(str(Path(n).parent) for n in self.outputs
+                                                        if len(Path(n).parts) > 1)]))
         self.force = force
         self.foreign_ok = foreign_ok
         self.marker = self.path / f".{program}"
@@ -194,8 +202,15 @@ class OutputFolder:
                                      "wrote and this one would replace; choose another --out or pass --force")
             if not os.access(path, os.W_OK | os.X_OK):
                 raise ValueError(f"output folder {path} is not writable")
+            for sub in self.folders:                 # never followed out of the folder
+                for p in [path.joinpath(*Path(sub).parts[:k]) for k in range(1, len(Path(sub).parts) + 1)]:
+                    if p.is_symlink():
+                        raise ValueError(f"{p} is a symbolic link; the run writes into a folder of that name "
+                                         "inside the output folder: remove the link or choose another --out")
+                    if p.exists() and not p.is_dir():
+                        raise ValueError(f"{p} is not a folder; the run writes into a folder of that name")
             for name in self.outputs + (self.marker.name, self.journal.name):
-                if (path / name).is_dir():
+                if (path / name).is_dir() and not (path / name).is_symlink():
                     raise ValueError(f"{path / name} is a folder; the run writes a file of that name")
         else:
             parent = path.parent
@@ -317,13 +332,24 @@ class OutputFolder:
                 pass
         for name in plan["files"]:
             if name in self.outputs and (stage / name).is_file():
-                (self.path / name).parent.mkdir(parents=True, exist_ok=True)    # outputs may sit in subfolders
+                self._subfolder(Path(name).parent)          # outputs may sit in subfolders
                 os.replace(stage / name, self.path / name)
         write_atomic(self.marker, json.dumps(plan["manifest"], indent=1) + "\n")
         self.journal.unlink()
         for folder in (stage, self.incomplete):      # a published run supersedes an earlier unfinished one
             if self._ours(folder):
                 shutil.rmtree(folder, ignore_errors=True)
+
+    def _subfolder(self, rel: Path) -> None:
+        """Create ``DIR/rel`` as real folders; a symbolic link in the way (made after the checks) is
+        replaced by a folder, never followed."""
+        p = self.path
+        for part in rel.parts:
+            p = p / part
+            if p.is_symlink():
+                p.unlink()
+            if not p.is_dir():
+                p.mkdir()
 
     def set_aside(self, stage) -> Path:
         """Keep the staged files of an unfinished run in ``DIR/.<program>-incomplete`` (replacing an

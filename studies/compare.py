@@ -315,8 +315,11 @@ def summary_table(runs, gamma: float, times) -> str:
 
 
 def plot_name(field: str, robots: int, robot_loss: float, domain: str | None = None) -> str:
-    """File name of the plot of one scenario (field, robot count, loss[, domain])."""
-    return (f"{domain}_" if domain else "") + f"{field}_n{robots}_loss{int(round(100 * robot_loss))}.png"
+    """File name of the plot of one scenario (field, robot count, loss[, domain]); labels that are paths
+    become safe names (:func:`runtime.filenames.safe_name`: one component, unique per label)."""
+    from ..runtime.filenames import safe_name
+    return ((f"{safe_name(domain)}_" if domain else "") +
+            f"{safe_name(field)}_n{robots}_loss{int(round(100 * robot_loss))}.png")
 
 
 def scenario_curves(runs) -> dict:
@@ -498,7 +501,7 @@ def run(argv=None) -> int:
                            for t in tasks})
     # OUT may hold other files (only these names are ever replaced); it is locked for the whole sweep,
     # and runs.csv, summary.md and the plots are published together (runtime.publish)
-    folder = OutputFolder(out, PROG, outputs, foreign_ok=True, force=args.force)
+    folder = OutputFolder(out, PROG, outputs, foreign_ok=True, force=args.force, folders=("runs",))
     try:
         check_path(out, "output folder")
         folder.check()

@@ -227,7 +227,8 @@ def run_sweep_cli(args, prog: str) -> int:
     from .runner import SchedulerError, connect_scheduler, quiet_dask_logs
 
     # OUT is locked for the sweep; the study files are staged and published together (runtime.publish)
-    folder = OutputFolder(args.out, prog, SWEEP_OUTPUTS, foreign_ok=True, force=getattr(args, "force", False))
+    folder = OutputFolder(args.out, prog, SWEEP_OUTPUTS, foreign_ok=True, force=getattr(args, "force", False),
+                          folders=("runs",))
     try:
         check_path(args.out, "output folder")
         folder.check()
