@@ -36,9 +36,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--warm-start", type=Path, help="previous plan (.npz) whose shifted coefficients start the solver")
     p.add_argument("--t0", type=float, default=0.0, help="plan start time [s]")
     p.add_argument("--seed", type=int, default=0, help="seed of the default scenario's robot sample")
+    p.add_argument("--start-box", type=float, nargs=4, metavar=("X0", "X1", "Y0", "Y1"),
+                   help="the default scenario's robots start uniformly on this box (default 0 7 0 7; with "
+                        "--domain it must be free)")
     g = p.add_argument_group("problem")
-    g.add_argument("--nx", type=int, help="cells along x (default 40)")
-    g.add_argument("--ny", type=int, help="cells along y (default 40)")
+    g.add_argument("--cell-size", type=float, metavar="METRES",
+                   help="side of the square planner cells; nx and ny follow from the extent (default: 40 cells "
+                        "along the longer side, the paper's 0.5 m on [0, 20]^2)")
+    g.add_argument("--nx", type=int, help="cells along x (instead of --cell-size)")
+    g.add_argument("--ny", type=int, help="cells along y (instead of --cell-size)")
     g.add_argument("--intervals", type=int, help="number N of control intervals (default 12)")
     g.add_argument("--modes", type=int, nargs=2, metavar=("I", "J"), help="sine modes per axis (default 8 8)")
     g.add_argument("--horizon", type=float, help="planning horizon T [s] (default 7)")
@@ -111,6 +117,17 @@ def resolve_settings(args) -> PlannerSettings:
              "formulation_hessian": getattr(args, "formulation_hessian", None)}
     if args.modes is not None:
         flags["n_modes_x"], flags["n_modes_y"] = args.modes
+    cell_size = getattr(args, "cell_size", None)
+    if cell_size is not None:
+        if args.nx is not None or args.ny is not None:
+            raise InputError("give either --cell-size or --nx / --ny, not both")
+        cfg.pop("nx", None)          # the flag beats the file's cell counts
+        cfg.pop("ny", None)
+        flags["cell_size"] = cell_size
+    elif args.nx is not None or args.ny is not None:
+        cfg.pop("cell_size", None)   # the flags' cell counts beat the file's cell size
+    elif cfg.get("cell_size") is not None and (cfg.get("nx") is not None or cfg.get("ny") is not None):
+        raise InputError(f"config {args.config}: give either cell_size or nx / ny in [planner], not both")
     cfg.update({k: v for k, v in flags.items() if v is not None})
     ip = dict(cfg.get("ipopt", {}))
     ipflags = {"tol": args.tol, "max_iter": args.max_iter, "hessian_approximation": args.hessian,
@@ -147,6 +164,24 @@ def load_density(path: Path, shape, name: str) -> np.ndarray:
     return arr
 
 
+def start_box(args) -> tuple:
+    """The default scenario's start box: ``--start-box`` or the paper's [0, 7]^2."""
+    box = getattr(args, "start_box", None)
+    return (0.0, 7.0, 0.0, 7.0) if box is None else tuple(float(v) for v in box)
+
+
+def check_start_box(args, grid) -> None:
+    """``InputError`` unless ``--start-box`` is four finite numbers x0 < x1, y0 < y1 inside the planner's domain."""
+    if getattr(args, "start_box", None) is None:
+        return
+    x0, x1, y0, y1 = start_box(args)
+    gx0, gx1, gy0, gy1 = grid.domain
+    if not all(math.isfinite(v) for v in (x0, x1, y0, y1)) or not (x1 > x0 and y1 > y0):
+        raise InputError(f"--start-box must be X0 X1 Y0 Y1 with X1 > X0 and Y1 > Y0, got {list(args.start_box)}")
+    if x0 < gx0 or x1 > gx1 or y0 < gy0 or y1 > gy1:
+        raise InputError(f"--start-box {[x0, x1, y0, y1]} is not inside the planner's domain {list(grid.domain)}")
+
+
 def domain_problem(args, grid, p0, target):
     """``(free, p0, target, warnings)`` with obstacles: the cells free by the free-area rule and connected
     (through faces) to the initial density's support (the default scenario: the start box [0, 7]^2, which must
@@ -163,10 +198,13 @@ def domain_problem(args, grid, p0, target):
         if not classified.any():
             raise ValueError(f"domain {dom.name}: no free cell at {grid.nx} x {grid.ny} cells")
         if args.initial is None:
-            if not dom.box_is_free((0.0, 7.0, 0.0, 7.0)):
-                raise ValueError(f"domain {dom.name}: the default initial density (uniform on the paper's start box "
-                                 "[0, 7] x [0, 7]) overlaps an obstacle; give one on the free space with --initial")
-            free = dom.reachable_cells(classified, (0.0, 7.0, 0.0, 7.0))
+            box = start_box(args)
+            if not dom.box_is_free(box):
+                suggestion = f" (e.g. --start-box {' '.join(f'{v:g}' for v in dom.start_box)})" if dom.start_box else ""
+                raise ValueError(f"domain {dom.name}: the default initial density (uniform on the start box "
+                                 f"{[round(v, 9) for v in box]}) overlaps an obstacle; choose a free --start-box"
+                                 f"{suggestion} or give a density with --initial")
+            free = dom.reachable_cells(classified, box)
         else:
             from scipy import ndimage
             lab, _ = ndimage.label(classified)
@@ -226,6 +264,8 @@ def run(argv=None) -> int:
     from ..sim.scenario import box_density, first_step_target
 
     grid = Grid(settings.domain, settings.nx, settings.ny)
+    check_start_box(args, grid)
+    box = start_box(args)
     warm = None
     if args.warm_start is not None:
         if not args.warm_start.exists():
@@ -242,15 +282,16 @@ def run(argv=None) -> int:
         p0, p0_desc = load_density(args.initial, grid.shape, "initial density"), str(args.initial)
     else:
         try:
-            p0 = box_density(grid)          # ValueError if the paper's start box misses the planner's domain
+            p0 = box_density(grid, box)     # ValueError if the start box misses the planner's domain
         except ValueError:
             raise InputError(f"the default initial density (the paper's robots uniform on [0, 7] x [0, 7]) lies outside "
-                             f"the planner's domain {list(grid.domain)}; give one with --initial") from None
-        p0_desc = "100 robots uniform on [0,7]^2, KDE-smoothed"
+                             f"the planner's domain {list(grid.domain)}; give a --start-box inside it or a density "
+                             "with --initial") from None
+        p0_desc = f"100 robots uniform on {[round(v, 9) for v in box]}, KDE-smoothed"
     if args.target is not None:
         target, target_desc = load_density(args.target, grid.shape, "target density"), str(args.target)
     else:
-        target, target_desc = first_step_target(grid, seed=args.seed)
+        target, target_desc = first_step_target(grid, seed=args.seed, box=box)
     from ..ocp.planner import PlannerError, ReferencePlanner
 
     free, notes = None, []
@@ -269,7 +310,7 @@ def run(argv=None) -> int:
         from ..regression import GPSettings
         from ..sim.scenario import N_ROBOTS, first_step_variance
         gs = GPSettings()
-        extra["information"] = InformationInputs(first_step_variance(grid, seed=args.seed), N_ROBOTS, 0.875,
+        extra["information"] = InformationInputs(first_step_variance(grid, seed=args.seed, box=box), N_ROBOTS, 0.875,
                                                  gs.noise_variance, gs.length_scale)
     if warm is not None:             # its basis, domain and mask against this planner's, before any warning
         try:

@@ -56,6 +56,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--loss-time", type=float, metavar="SECONDS", help="time of the robot loss (default 7 = T)")
     p.add_argument("--start-box", type=float, nargs=4, metavar=("X0", "X1", "Y0", "Y1"),
                    help="the swarm is released uniformly on this box (default 0 7 0 7)")
+    p.add_argument("--cell-size", type=float, metavar="METRES",
+                   help="side of the square planner cells (the grid of the plan, the maps and sup V; nx and ny "
+                        "follow from the extent; default: 40 cells along the longer side, 0.5 m on the paper's "
+                        "[0, 20]^2); replaces planner.cell_size, nx and ny of --config")
     p.add_argument("--diffusion-sigma", type=float, metavar="M2_PER_S",
                    help="diffusion coefficient of the diffusion controller (default 3)")
     p.add_argument("--max-periods", type=int, help="stop after this many re-planning periods T (default 20)")
@@ -88,8 +92,9 @@ def resolve(args):
         check_path(args.config, "config file")
     try:
         preset = getattr(args, "preset", None)
-        config = load_config(args.config, overrides, preset) if args.config is not None else \
-            config_from_dict({}, overrides, preset)
+        cell_size = getattr(args, "cell_size", None)
+        config = load_config(args.config, overrides, preset, cell_size) if args.config is not None else \
+            config_from_dict({}, overrides, preset, cell_size)
         source = getattr(args, "domain", None)
         if source is None and config.domain.source:
             source = config.domain.source      # a file from [domain] source is made absolute as --domain's is

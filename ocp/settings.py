@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
+import types
 import typing
 from dataclasses import dataclass, field
 
@@ -139,8 +141,15 @@ class PlannerSettings:
     """
 
     domain: tuple = (0.0, 20.0, 0.0, 20.0)
-    nx: int = 40
-    ny: int = 40
+    #: cells along x and y; None (default): from ``cell_size``, or square cells with ``CELLS_LONG_SIDE``
+    #: cells along the longer side (the paper's 20 m x 20 m: 40 x 40).  One of them alone: the other for
+    #: cells as square as the extent allows
+    nx: int | None = None
+    ny: int | None = None
+    #: side of the (square) planner cells [m]; when set it decides nx = round(width / cell_size) and
+    #: ny = round(height / cell_size) (at least 3 each; the cells are square to within the rounding,
+    #: dx = width / nx, dy = height / ny)
+    cell_size: float | None = None
     horizon: float = 7.0
     n_intervals: int = 12
     n_modes_x: int = 8
@@ -252,6 +261,11 @@ class PlannerSettings:
             raise ValueError(f"planner.accept_feasible_iterate must be true or false, got {self.accept_feasible_iterate!r}")
         object.__setattr__(self, "domain", check_domain(self.domain, "planner.domain"))
         _positive_int(self, "n_intervals", "n_modes_x", "n_modes_y")
+        nx, ny = grid_cells(self.domain, self.nx, self.ny, self.cell_size)
+        if self.cell_size is not None:
+            object.__setattr__(self, "cell_size", float(self.cell_size))
+        object.__setattr__(self, "nx", nx)
+        object.__setattr__(self, "ny", ny)
         if self.nx < 3 or self.ny < 3:
             raise ValueError(f"planner grid must be at least 3x3 cells, got {self.nx}x{self.ny}")
         _positive(self, "horizon", "v_max", "upwind_smoothing", "log_eps")
@@ -373,6 +387,41 @@ def _check_formulation(s):
                          "runs single shooting on its own")
 
 
+#: cells along the longer side of the extent when neither the cell counts nor the cell size is given
+CELLS_LONG_SIDE = 40
+
+
+def grid_cells(domain, nx=None, ny=None, cell_size=None) -> tuple[int, int]:
+    """``(nx, ny)`` of the planner grid on ``domain`` = (x0, x1, y0, y1) (:class:`PlannerSettings`):
+    ``cell_size`` (when given) decides both, nx = max(3, round(width / cell_size)) and likewise ny;
+    else the given counts, a missing one chosen for cells as square as the extent allows; neither:
+    ``CELLS_LONG_SIDE`` along the longer side (the paper's [0, 20]^2: 40 x 40)."""
+    x0, x1, y0, y1 = (float(v) for v in domain)
+    lx, ly = x1 - x0, y1 - y0
+    for name, v in (("nx", nx), ("ny", ny)):
+        if v is not None and (isinstance(v, bool) or not isinstance(v, numbers.Integral)):
+            raise ValueError(f"planner.{name} must be an integer, got {v!r}")
+    if cell_size is not None:
+        if isinstance(cell_size, bool) or not isinstance(cell_size, (int, float)) or not \
+                (math.isfinite(cell_size) and cell_size > 0):
+            raise ValueError(f"planner.cell_size must be a finite number of metres > 0, got {cell_size!r}")
+        n = [max(3, int(round(side / cell_size))) for side in (lx, ly)]
+        if max(n) > 100_000:
+            raise ValueError(f"planner.cell_size {cell_size:g} m on an extent of {lx:g} m x {ly:g} m gives "
+                             f"{n[0]} x {n[1]} cells; use larger cells")
+        return n[0], n[1]
+    if nx is None and ny is None:
+        if lx >= ly:
+            nx = CELLS_LONG_SIDE
+        else:
+            ny = CELLS_LONG_SIDE
+    if ny is None:
+        ny = max(3, int(round(int(nx) * ly / lx)))
+    if nx is None:
+        nx = max(3, int(round(int(ny) * lx / ly)))
+    return int(nx), int(ny)
+
+
 def _positive(obj, *names):
     for name in names:
         v = getattr(obj, name)
@@ -427,7 +476,9 @@ def _coerce(value, hint, name):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ValueError(f"{name} must be a number, got {value!r}")
         return float(value)
-    if hint is int:
+    if hint is int or (origin in (typing.Union, types.UnionType) and set(typing.get_args(hint)) == {int, type(None)}):
+        if value is None and type(None) in typing.get_args(hint):
+            return None
         if isinstance(value, bool) or not isinstance(value, int):
             raise ValueError(f"{name} must be an integer, got {value!r}")
         return value

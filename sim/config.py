@@ -11,7 +11,7 @@ the GP (``regression.GPSettings``), the KDE (:class:`KDESettings`), the feedback
     [gp]         signal_variance, length_scale, noise_variance, prior_mean, ...
     [kde]        bandwidth, bins
     [feedback]   alpha, sigma, p_floor, v_max
-    [planner]    nx, ny, horizon, n_intervals, n_modes_x, n_modes_y, w_f, w_p, w_v, v_max, ...
+    [planner]    cell_size (or nx, ny), horizon, n_intervals, n_modes_x, n_modes_y, w_f, w_p, w_v, v_max, ...
     [planner.ipopt]  tol, max_iter, ...
     [domain]     source ("harbour", "floor", "lake" or a .npz/.png/.tif/.geojson file; "" = the empty
                  rectangle), min_free_fraction (0.5), unreachable ("exclude" or "refuse"); see the domain package
@@ -54,7 +54,7 @@ from pathlib import Path
 from ..runtime.validation import MAX_MAGNITUDE
 from ..control import FeedbackSettings
 from ..control.kde import OBSTACLE_KERNELS
-from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict
+from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict, grid_cells
 from ..regression import GPSettings
 from ..domain import DomainSettings
 from .presets import DEFAULT_PRESET, PRESETS, merge_under_preset
@@ -406,7 +406,12 @@ def _with_sim(doc: dict, sim_changes: dict) -> dict:
     new = {**old, **sim_changes}
     # derived entries follow the simulation settings they default to
     if "domain" in sim_changes:
-        doc.get("planner", {}).pop("domain", None)
+        pl = doc.get("planner", {})
+        pl.pop("domain", None)
+        # cell counts that followed the old extent (from the cell size, or the default) follow the new one
+        if pl.get("cell_size") is not None or (pl.get("nx"), pl.get("ny")) == grid_cells(old.get("domain", SimSettings.domain)):
+            pl.pop("nx", None)
+            pl.pop("ny", None)
     if "period" in sim_changes and doc.get("planner", {}).get("horizon") == old.get("period", SimSettings.period):
         doc["planner"].pop("horizon", None)
     if "noise_variance" in sim_changes:
@@ -415,8 +420,10 @@ def _with_sim(doc: dict, sim_changes: dict) -> dict:
     return doc
 
 
-def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | None = None) -> RunConfig:
-    """Build a :class:`RunConfig` from a TOML-like mapping; ``overrides`` replace ``[sim]`` entries.
+def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | None = None,
+                     cell_size: float | None = None) -> RunConfig:
+    """Build a :class:`RunConfig` from a TOML-like mapping; ``overrides`` replace ``[sim]`` entries;
+    ``cell_size`` (the commands' ``--cell-size``) replaces ``planner.cell_size`` and any ``nx`` / ``ny``.
 
     The document's tables are laid over a preset (:mod:`sim.presets`): ``preset`` if given, else
     the document's top-level ``preset`` key, else ``"paper"``.  Raises ``ValueError`` naming
@@ -437,7 +444,15 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
     for section in SECTIONS:
         if section in doc and not isinstance(doc[section], dict):
             raise ValueError(f"[{section}] must be a table")
+    if cell_size is not None:
+        doc["planner"] = {**{k: v for k, v in doc.get("planner", {}).items() if k not in ("nx", "ny")},
+                          "cell_size": cell_size}
+    mine = doc.get("planner", {})
+    if mine.get("cell_size") is not None and (mine.get("nx") is not None or mine.get("ny") is not None):
+        raise ValueError("give either planner.cell_size or planner.nx / planner.ny, not both")
     doc = merge_under_preset(doc, name)
+    if mine.get("nx") is not None or mine.get("ny") is not None:     # the user's cell counts beat a preset's cell size
+        doc["planner"] = {k: v for k, v in doc["planner"].items() if k != "cell_size"}
     sim_map = dict(doc.get("sim", {}))
     sim_map.update({k: v for k, v in (overrides or {}).items() if v is not None})
     sim = dataclass_from_dict(SimSettings, sim_map, "sim")
@@ -479,13 +494,15 @@ def read_toml(path) -> dict:
     return doc
 
 
-def load_config(path, overrides: dict | None = None, preset: str | None = None) -> RunConfig:
+def load_config(path, overrides: dict | None = None, preset: str | None = None,
+                cell_size: float | None = None) -> RunConfig:
     """Read a TOML file (see module docstring); ``ValueError`` with the file name on any problem.
 
-    ``preset`` (if given) replaces the file's own top-level ``preset`` key."""
+    ``preset`` (if given) replaces the file's own top-level ``preset`` key; ``cell_size`` as in
+    :func:`config_from_dict`."""
     doc = read_toml(path)
     try:
-        return config_from_dict(doc, overrides, preset)
+        return config_from_dict(doc, overrides, preset, cell_size)
     except ValueError as exc:
         raise ValueError(f"config file {path}: {exc}") from None
 

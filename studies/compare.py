@@ -408,6 +408,9 @@ def build_parser():
                         "as an axis of the sweep (default: the configuration's [domain], the empty rectangle)")
     p.add_argument("--start-box", type=float, nargs=4, metavar=("X0", "X1", "Y0", "Y1"),
                    help="the swarm is released uniformly on this box (default: the configuration's, 0 7 0 7)")
+    p.add_argument("--cell-size", type=float, default=None, metavar="METRES",
+                   help="side of the square planner cells of every run (nx, ny from each extent; default: 40 cells "
+                        "along the longer side); replaces planner.cell_size, nx and ny of --config")
     p.add_argument("--max-periods", type=int, default=4, metavar="N", help="length of every run in periods T")
     p.add_argument("--times", nargs="+", type=float, default=None, metavar="K",
                    help="RMSE columns at these multiples of T (default 1 2 and --max-periods)")
@@ -475,6 +478,9 @@ def run(argv=None) -> int:
             check_path(args.config, "config file")
         base = load_config(args.config) if args.config else None
         base_doc = read_toml(args.config) if args.config else {}
+        if args.cell_size is not None:       # the flag beats the file's cell size and cell counts
+            base_doc = {**base_doc, "planner": {**{k: v for k, v in base_doc.get("planner", {}).items()
+                                                   if k not in ("nx", "ny")}, "cell_size": args.cell_size}}
         gamma = base.sim.gamma if base else 0.1
         robots = args.robots or [base.sim.robots if base else 100]
         # every field file and every run's configuration is loaded and checked here, before any worker

@@ -4,7 +4,7 @@ through the one generic runner :mod:`studies.runner` (local processes or Dask, r
 
 A spec is a dict of axis -> list of values.  Axes (all optional; a missing axis keeps the default):
 
-    grid, intervals, modes, horizon, w_f, w_p, w_v, v_max, solver (ipopt|grg),
+    grid, cell_size, intervals, modes, horizon, w_f, w_p, w_v, v_max, solver (ipopt|grg),
     formulation (single-shooting|multiple-shooting|direct-transcription; :mod:`ocp.formulations`),
     transport (auto|compiled|numpy|casadi), hessian (limited-memory|exact), tol,
     mu_strategy (monotone|adaptive), linear_solver (those present in the installed CasADi),
@@ -104,6 +104,7 @@ def available_linear_solvers() -> tuple:
 #: axis -> (converter, help)
 AXES = {
     "grid": (_pos_int, "cells per side (nx = ny)"),
+    "cell_size": (_pos_float, "side of the square planner cells [m] (nx, ny from the extent)"),
     "intervals": (_pos_int, "control intervals N"),
     "modes": (_pos_int, "sine modes per side I = J"),
     "horizon": (_pos_float, "planning horizon T [s]"),
@@ -190,6 +191,8 @@ def _settings_for(base: PlannerSettings, combo: dict) -> PlannerSettings:
     for axis, v in combo.items():
         if axis == "grid":
             kw.update(nx=v, ny=v)
+        elif axis == "cell_size":
+            kw["cell_size"] = v
         elif axis == "intervals":
             kw["n_intervals"] = v
         elif axis == "modes":
