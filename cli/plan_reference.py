@@ -136,7 +136,11 @@ def resolve_settings(args) -> PlannerSettings:
     if ip:
         cfg["ipopt"] = ip
     try:
-        return dataclass_from_dict(PlannerSettings, cfg, "planner")
+        settings = dataclass_from_dict(PlannerSettings, cfg, "planner")
+        if settings.method == "ipopt":      # a missing linear solver: refused here, not by a crash after the solve
+            from ..ocp.linear_solvers import check_linear_solver
+            check_linear_solver(settings.ipopt)
+        return settings
     except ValueError as exc:
         raise InputError(str(exc)) from None
 

@@ -26,6 +26,7 @@ from .grid import Grid
 from .mask import floor_free, normalize_free
 from .plan import ReferencePlan
 from .formulations import Formulation, SingleShooting, resolve_formulation
+from .linear_solvers import check_linear_solver
 from .problem import TransportProblem
 from .settings import IpoptSettings, PlannerSettings, to_dict
 
@@ -79,6 +80,8 @@ class ReferencePlanner:
         if free is not None and not isinstance(self.formulation, SingleShooting):
             raise ValueError(f"obstacles (free=) are posed in the single-shooting formulation only, not "
                              f"{self.formulation.name!r} (its own costs and steps know no mask)")
+        if s.method == "ipopt":               # a missing solver library fails here, not in (or after) the solve
+            check_linear_solver(s.ipopt)
         t0 = time.perf_counter()
         self.problem = TransportProblem(self.settings, free)
         self.nlp = self.formulation.build(self.problem)

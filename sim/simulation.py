@@ -69,11 +69,22 @@ def check_config(config: RunConfig) -> None:
     s = config.sim
     GaussianProcess(config.gp, domain=s.domain)
     make_stop_rule(s)
+    free = None
     if config.domain.source:           # a bad domain fails here, in one line (warnings come with the run)
         from ..ocp import Grid
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            resolve_domain(config, Grid(config.planner.domain, config.planner.nx, config.planner.ny))
+            free = resolve_domain(config, Grid(config.planner.domain, config.planner.nx, config.planner.ny))[1]
+    from .controllers import CONTROLLERS
+    if s.controller in CONTROLLERS and CONTROLLERS[s.controller].needs_plan:
+        # what the planner would refuse only when it is built (inside a sweep's runs)
+        p = config.planner
+        if free is not None and p.formulation != "single-shooting":
+            raise ValueError(f"planner.formulation = {p.formulation!r}: obstacles (domain {config.domain.source}) "
+                             "are posed in the single-shooting formulation only")
+        if p.method == "ipopt":
+            from ..ocp.linear_solvers import check_linear_solver
+            check_linear_solver(p.ipopt)
     kde = KernelDensity(domain=s.domain, bandwidth=config.kde.bandwidth, bins=config.kde.bins)
     if config.kde.bandwidth is not None:
         try:

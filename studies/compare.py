@@ -435,6 +435,11 @@ def _field_key(field: str):
     return field if field in FIELDS else str(Path(field).resolve())
 
 
+def _domain_key(domain: str):
+    from ..domain import BUILTIN_DOMAINS
+    return domain if domain in BUILTIN_DOMAINS else str(Path(domain).resolve())
+
+
 def run(argv=None) -> int:
     args = build_parser().parse_args(argv)
     from ..sim.config import load_config, read_toml
@@ -464,6 +469,8 @@ def run(argv=None) -> int:
     note = sys.stderr
     args.controllers = unique_values(args.controllers, "--controllers", note)
     args.fields = unique_values(args.fields, "--fields", note, key=_field_key)
+    if args.domains:
+        args.domains = unique_values(args.domains, "--domains", note, key=_domain_key)
     args.seeds = unique_values(args.seeds, "--seeds", note)
     args.robot_loss = unique_values(args.robot_loss, "--robot-loss", note, key=float)
     if args.robots is not None:

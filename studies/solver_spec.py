@@ -88,19 +88,6 @@ def _nonneg_int(v):
     return n
 
 
-def available_linear_solvers() -> tuple:
-    """IPOPT linear solvers usable with the installed CasADi: MUMPS (built in) plus those whose
-    library can be located (HSL ``ma27..ma97`` via libhsl/libcoinhsl, ``pardiso``, ``spral``)."""
-    import ctypes.util
-    out = ["mumps"]
-    if ctypes.util.find_library("hsl") or ctypes.util.find_library("coinhsl"):
-        out += ["ma27", "ma57", "ma77", "ma86", "ma97"]
-    for name in ("pardiso", "spral"):
-        if ctypes.util.find_library(name):
-            out.append(name)
-    return tuple(out)
-
-
 #: axis -> (converter, help)
 AXES = {
     "grid": (_pos_int, "cells per side (nx = ny)"),
@@ -161,11 +148,12 @@ def parse_spec(spec: dict, note="stderr") -> dict:
                   file=note, flush=True)
         out[axis] = vals
     if "linear_solver" in out:
-        have = available_linear_solvers()
+        from ..ocp.linear_solvers import linear_solver_status
         for ls in out["linear_solver"]:
-            if ls not in have:
-                raise SpecError(f"linear solver {ls!r} is not available in the installed CasADi/IPOPT "
-                                f"(available: {', '.join(have)})")
+            status = linear_solver_status(ls)         # asked in a child process: a crash there stays there
+            if status != "ok":
+                raise SpecError(f"linear solver {ls!r} is not available with the installed CasADi/IPOPT ({status}); "
+                                "the HSL solvers need ipopt.extra.hsllib, 'mumps' is built in")
     return out
 
 
