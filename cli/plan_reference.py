@@ -363,7 +363,8 @@ def run(argv=None) -> int:
         m = plan.meta
         sv = m["solver"]
         terms = m["objective_terms"]
-        print(f"{sv['status']}: {sv['iterations']} iterations ({m.get('formulation', 'single-shooting')}), "
+        from ..ocp.status import explain_status
+        print(f"{explain_status(sv['status'])}: {sv['iterations']} iterations ({m.get('formulation', 'single-shooting')}), "
               f"build {m['build_time_s']:.2f} s, "
               f"solve {sv['wall_time_s']:.2f} s ({settings.nx}x{settings.ny} cells, N={settings.n_intervals}, "
               f"I=J={settings.n_modes_x}x{settings.n_modes_y}, {m['substeps']} sub-steps/interval)")

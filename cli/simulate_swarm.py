@@ -50,7 +50,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--controller", choices=_controller_names(),
                    help="feedback: the paper's mean-field law (default); open-loop: follow v_r alone; baselines "
                         "without a planner: diffusion (Brownian motion only), coverage (feedback towards the "
-                        "uniform density), greedy (to the highest GP variance nearby), lawnmower (fixed strips)")
+                        "uniform density), greedy (to the highest GP variance nearby), lawnmower (fixed strips), ergodic "
+                        "(spectral multiscale coverage: time spent in a region proportional to its GP variance)")
     p.add_argument("--robot-loss", type=float, metavar="FRACTION",
                    help="fraction of the robots (random) that stop moving and measuring at --loss-time (default 0)")
     p.add_argument("--loss-time", type=float, metavar="SECONDS", help="time of the robot loss (default 7 = T)")
@@ -142,33 +143,16 @@ def with_absolute_field(config):
     return dataclasses.replace(config, sim=dataclasses.replace(config.sim, field=str(Path(spec).resolve())))
 
 
-STOP_REASONS = {"threshold": "sup V at or below the threshold", "max_time": "time limit (--max-periods)",
-                "variance_below_eta": "nothing left to plan for (V below eta everywhere)",
-                "planner_failed": "planner failure"}
-
-
 def _progress_printer(config):
-    T = config.sim.period
-
-    def show(info):
-        if info["event"] == "plan":
-            hyper = (f"  s_f^2 = {info['signal_variance']:.4g}, l = {info['length_scale']:.3g} m (learned)"
-                     if info.get("learned") else "")
-            thr = info.get("threshold")
-            print(f"{PROG}: t = {info['t']:7.2f} s ({info['t'] / T:4.1f} T)  sup V = {info['max_variance']:.4f}"
-                  + (f" (stop at {thr:.4g})" if thr is not None else "") + hyper +
-                  f"  rmse = {info['rmse']:.4f}  planner: {info['status']}, {info['iterations']} it, "
-                  f"{info['solve_time_s']:.2f} s", file=sys.stderr, flush=True)
-        elif info["event"] == "done":
-            print(f"{PROG}: simulated {info['t']:.2f} s in {info['wall_time']:.1f} s (stopped: "
-                  f"{STOP_REASONS.get(info['stop_reason'], info['stop_reason'])}); writing the outputs",
-                  file=sys.stderr, flush=True)
-    return show
+    from ..sim.progress import progress_lines
+    return progress_lines(config, prog=PROG, done_suffix="; writing the outputs")
 
 
 def headline(result) -> list[str]:
     """What the run achieved, in two lines: sup V against the stopping threshold (and when it got
-    there), the RMSE of the estimate and the mean variance at the start and at the end."""
+    there), the RMSE of the estimate and the mean variance at the start and at the end; a third says
+    why when the RMSE moved by less than a tenth (the paper's sinc field)."""
+    from ..sim.progress import STOP_REASONS
     rows = result.rows
     if not rows:
         return []
@@ -182,7 +166,25 @@ def headline(result) -> list[str]:
             f"{STOP_REASONS.get(result.stop_reason, result.stop_reason)}",
             f"{PROG}: mean V {first['mean_variance']:.4f} -> {last['mean_variance']:.4f}; RMSE of the estimate "
             f"{first['rmse']:.4f} at t = 0 -> {last['rmse']:.4f} at t = {last['t']:.2f} s; "
-            f"simulation wall time {result.wall_time:.1f} s"]
+            f"simulation wall time {result.wall_time:.1f} s"] + _rmse_note(result.config, first["rmse"], last["rmse"])
+
+
+#: The RMSE "barely moves" when it changes by less than this fraction of its start.
+RMSE_STILL = 0.1
+
+
+def _rmse_note(config, start: float, end: float) -> list[str]:
+    """Why the RMSE barely moved, when it did (|end - start| < RMSE_STILL start): the swarm is steered by
+    the GP variance, not by the error, and a field that the first measurements already predict (the
+    sinc field is 2 +- 0.1 away from the origin, under noise of s.d. 0.2) leaves the error little to gain."""
+    if not (start > 0 and abs(end - start) < RMSE_STILL * start):
+        return []
+    why = (f"{PROG}: the RMSE barely moves: the swarm steers by the GP variance (where nobody has measured), "
+           "not by the error")
+    if config.sim.field == "sinc":
+        return [why + "; the sinc field is flat (2 +- 0.1) away from the origin, so the first measurements "
+                "already predict most of it (a field with structure everywhere: --field plumes)"]
+    return [why + "; the first measurements already predict this field about as well as the last"]
 
 
 def run(argv=None) -> int:

@@ -48,7 +48,7 @@ extensions = [
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"
-exclude_patterns = ["_build", "Thumbs.db", ".DS_Store", "figures/**", "commands/_help/**", "**/README.md",
+exclude_patterns = ["_build", "_generated", "Thumbs.db", ".DS_Store", "figures/**", "commands/_help/**", "**/README.md",
                     "auto_examples/*.ipynb", "auto_examples/*.py", "auto_examples/*.zip",
                     "auto_examples/*.md5", "sg_execution_times.rst"]
 templates_path = ["_templates"]
@@ -83,6 +83,8 @@ nitpicky = False
 html_theme = "furo"
 html_title = f"swarmfield {release}"
 html_theme_options = {"navigation_with_keys": True}
+html_static_path = ["_static"]
+html_css_files = ["custom.css"]          # code blocks wrap long lines instead of cutting them off
 
 # --- sphinx-gallery ----------------------------------------------------------------------------------
 sphinx_gallery_conf = {
@@ -138,8 +140,9 @@ def _write_help_texts(app):
 
 
 def _draw_import_graph(app):
-    """``docs/figures/architecture/imports.png``: the package's import graph, drawn from the source at
-    every build (scripts/import_graph.py), so that the architecture page shows the code as it is."""
+    """``docs/_generated/imports.png`` (git-ignored: a build changes no tracked file): the package's
+    import graph, drawn from the source at every build (scripts/import_graph.py), so that the
+    architecture page shows the code as it is."""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("import_graph", ROOT / "scripts" / "import_graph.py")
@@ -149,7 +152,8 @@ def _draw_import_graph(app):
     problems = graph.problems(g)
     if problems:
         raise RuntimeError("import layout problems: " + "; ".join(problems))
-    graph.draw(g, DOCS / "figures" / "architecture" / "imports.png")
+    (DOCS / "_generated").mkdir(exist_ok=True)
+    graph.draw(g, DOCS / "_generated" / "imports.png")
 
 
 def setup(app):

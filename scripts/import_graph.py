@@ -1,6 +1,6 @@
 """The package's import graph, read from the source (AST), its layering rules, and a picture of it.
 
-    python scripts/import_graph.py [--png docs/figures/architecture/imports.png]
+    python scripts/import_graph.py [--png docs/_generated/imports.png]
 
 prints the package-level graph and any layout problem (exit 1 if there is one).  The test
 ``tests/test_layout.py`` runs the same checks; the documentation build draws the picture with

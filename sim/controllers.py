@@ -54,41 +54,54 @@ __all__ = ["Context", "Controller", "FeedbackController", "OpenLoopController", 
 
 @dataclass
 class Context:
-    """What a controller is given at the start, at each period and after each measurement.
+    """What a controller is given at the start, at each period and after each measurement.  Fields:"""
 
-    t          time [s];  period  index k of the period [kT, (k+1)T]
-    X          (n, 2) positions of all robots (lost ones included, frozen)
-    alive      (n,) bool, robots still working
-    mean, var  (nx, ny) GP mean f̄ and variance V on the planner grid's cell centres
-    centers    (nx * ny, 2) those cell centres (x first, same order as ``var.ravel()``)
-    domain     (x0, x1, y0, y1);  h  the Euler--Maruyama sub-step [s]
-    plan       the reference (p_r, v_r) for this period if ``needs_plan`` (``ocp.ReferencePlan``), else None
-    estimate   callable X -> KDE estimate (``control.DensityEstimate``), cached on the array identity
-    rng        the run's random generator (draws change the run's random stream)
-    free       (nx, ny) bool: planner cells free and reachable (None: the empty rectangle)
-    region     the ``domain.Domain`` of the run (None: the empty rectangle)
-    """
-
+    #: time [s]
     t: float
+    #: index k of the period [kT, (k+1)T]
     period: int
+    #: (n, 2) positions of all robots (lost ones included, frozen)
     X: np.ndarray
+    #: (n,) bool, the robots still working
     alive: np.ndarray
+    #: (nx, ny) GP mean f̄ on the planner grid's cell centres
     mean: np.ndarray
+    #: (nx, ny) GP variance V on the same cell centres
     var: np.ndarray
+    #: (nx * ny, 2) those cell centres (x first, in the order of ``var.ravel()``)
     centers: np.ndarray
+    #: the rectangle (x0, x1, y0, y1)
     domain: tuple
+    #: the Euler--Maruyama sub-step [s]
     h: float
+    #: the reference (p_r, v_r) for this period if the controller ``needs_plan`` (``ocp.ReferencePlan``), else None
     plan: object = None
+    #: callable X -> KDE estimate (``control.DensityEstimate``), cached on the array's identity
     estimate: object = None
+    #: the run's random generator (drawing from it changes the run's random stream)
     rng: object = None
+    #: (nx, ny) bool, the planner cells that are free and reachable (None: the empty rectangle)
     free: np.ndarray | None = None
+    #: the ``domain.Domain`` of the run (None: the empty rectangle)
     region: object = None
 
 
 class Controller:
-    """Base class: robots stand still.  Override ``velocity`` (and the hooks you need)."""
+    """Base class: robots stand still.  Override :meth:`velocity` (and the hooks you need).
 
+    The loop calls :meth:`start` once, :meth:`start_period` at every t = kT, :meth:`observe` after
+    measurements, :meth:`replanned` after a re-plan inside a period, and :meth:`velocity` at every
+    Euler--Maruyama sub-step; it zeroes the velocity of lost robots, saturates it at :attr:`v_max`
+    and adds the diffusion :attr:`sigma`.  Set in ``__init__`` (override them there):
+
+    * ``config``: the run's ``RunConfig``;
+    * ``sigma``: diffusion coefficient of the robots' motion [m²/s] (default ``feedback.sigma``);
+    * ``v_max``: the speed limit the loop applies [m/s] (default ``planner.v_max``).
+    """
+
+    #: the name under which :func:`register` makes the controller available to the commands
     name = "base"
+    #: whether the loop plans a reference for it every period (``ctx.plan``); False: no planner is built
     needs_plan = False
 
     def __init__(self, config):
@@ -108,15 +121,23 @@ class Controller:
 
     @property
     def observes(self) -> bool:
-        """Whether the controller reads the posterior after every measurement step (it overrides
-        :meth:`observe`: greedy, ergodic); ``sim.metrics_every = "auto"`` then computes it every
-        step whatever the swarm's size, so that the cadence never changes what the controller sees."""
+        """Whether the controller reads the posterior after every measurement step;
+        ``sim.metrics_every = "auto"`` then computes it every step whatever the swarm's size, so that
+        the cadence never changes what the controller sees.
+
+        By default True exactly when the subclass overrides :meth:`observe` (greedy, ergodic).
+        Overridable: a controller whose :meth:`observe` only counts steps, say, can declare
+        ``observes = False`` (a class attribute or a property) to keep the cheap cadence."""
         return type(self).observe is not Controller.observe
 
     def replanned(self, ctx: Context) -> None:
         """Called after a re-plan inside a period (``sim.replan_every``): ``ctx.plan`` is the new plan."""
 
     def velocity(self, t: float, X: np.ndarray, alive: np.ndarray) -> np.ndarray:
+        """The commanded velocity at time ``t`` [s]: an (n, 2) array [m/s] for the (n, 2) positions
+        ``X`` of all robots, ``alive`` the (n,) bool mask of the working ones.  Called at every
+        Euler--Maruyama sub-step; the loop zeroes the rows of lost robots and saturates the rest at
+        :attr:`v_max`, so a controller may return anything finite there.  The base class stands still."""
         return np.zeros_like(X)
 
 

@@ -8,6 +8,7 @@ working.
 """
 from __future__ import annotations
 
+import sys
 from types import SimpleNamespace
 from typing import Callable
 
@@ -24,7 +25,7 @@ __all__ = ["Snapshot", "SimulationResult", "run_simulation", "check_config", "QU
 
 
 def run_simulation(config: RunConfig | None = None, *, field: Field | None = None, planner=None,
-                   progress: Callable[[dict], None] | None = None,
+                   progress: Callable[[dict], None] | bool | None = None,
                    on_period: Callable[[SimulationResult], None] | None = None,
                    controller=None, stop_rule=None, recorders=(), domain=None,
                    threads: int | None = COMMAND_THREADS) -> SimulationResult:
@@ -36,15 +37,26 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
     ``config.sim.controller``), ``stop_rule`` a :class:`sim.stopping.StopRule` (default:
     ``config.sim.stop_rule``), ``recorders`` extra :class:`sim.recorders.Recorder` objects, ``domain``
     a :class:`domain.Domain`, built-in name or file (default: ``config.domain.source``).
-    ``progress(info)`` is called after every period start (``info["event"] == "plan"``) and at the end
-    (``"done"``); ``on_period(result)`` after every completed period (the CLI writes the outputs so
-    far there).
+    ``progress=True`` prints what ``simulate-swarm`` prints while it runs, on stderr: a line as the
+    run starts, one per period (time, sup V against the threshold, RMSE, the planner's status) and
+    one at the end (:mod:`sim.progress`).  A callable ``progress(info)`` is called instead after every
+    period start (``info["event"] == "plan"``) and at the end (``"done"``); ``on_period(result)`` after
+    every completed period (the CLI writes the outputs so far there).
 
     ``threads``: BLAS/OpenMP threads during the run, as the commands use (default
     :data:`runtime.threads.COMMAND_THREADS` = 1, restored afterwards; a variable such as
     ``OPENBLAS_NUM_THREADS`` set in the environment wins; ``None`` leaves the thread pools alone):
     :meth:`sim.simulation.Simulation.run`.
     """
+    if progress is True:
+        from .progress import progress_lines, start_line
+        shown = config if config is not None else RunConfig.default()
+        progress = progress_lines(shown, prog="run_simulation")
+        print(f"run_simulation: {start_line(shown, field)}", file=sys.stderr, flush=True)
+    elif progress is False:
+        progress = None
+    elif progress is not None and not callable(progress):
+        raise TypeError(f"progress must be True, False, None or a callable, not {type(progress).__name__}")
     sim = Simulation(config, field=field, planner=planner, controller=controller, stop_rule=stop_rule,
                      recorders=[CallbackRecorder(progress, on_period), *recorders], domain=domain)
     return sim.run(threads=threads)

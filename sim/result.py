@@ -19,41 +19,70 @@ QUIVER_POINTS = 12
 class Snapshot:
     """State at a re-planning time t = k T (and at the end of the run), for the figures."""
 
+    #: time of the snapshot [s]
     t: float
+    #: index k of the period that starts at t
     period: int
-    X: np.ndarray                      # (n, 2) robot positions
-    mean: np.ndarray                   # (nx, ny) GP mean f̄ on the planner grid
-    var: np.ndarray                    # (nx, ny) GP variance V
-    p_hat: np.ndarray                  # (nx, ny) KDE of the robots, normalised on the grid
-    target: np.ndarray | None = None   # (nx, ny) p_f used by the plan starting at t (None at the end)
-    velocity: np.ndarray | None = None  # (q, q, 2) commanded feedback velocity on QUIVER_POINTS^2 points
+    #: (n, 2) robot positions
+    X: np.ndarray
+    #: (nx, ny) GP mean f̄ on the planner grid
+    mean: np.ndarray
+    #: (nx, ny) GP variance V
+    var: np.ndarray
+    #: (nx, ny) KDE of the robots, normalised on the grid
+    p_hat: np.ndarray
+    #: (nx, ny) p_f used by the plan starting at t (None at the end)
+    target: np.ndarray | None = None
+    #: (q, q, 2) commanded feedback velocity on QUIVER_POINTS² points
+    velocity: np.ndarray | None = None
 
 
 @dataclass
 class SimulationResult:
-    """Everything a run produced; :mod:`sim.outputs` writes it to disk."""
+    """Everything a run produced; :mod:`sim.outputs` writes it to disk.  Fields:"""
 
+    #: the resolved configuration of the run (``RunConfig``)
     config: RunConfig
+    #: the true field the robots measured (:class:`sim.fields.Field`)
     field: Field
-    grid: object                                           # ocp.Grid of the planner
-    f_true: np.ndarray                                     # (nx, ny) true field on the grid
-    rows: list = dc_field(default_factory=list)            # one dict per measurement step (metrics.COLUMNS)
-    replans: list = dc_field(default_factory=list)         # one dict per planner call
-    snapshots: list = dc_field(default_factory=list)       # Snapshot at t = 0, T, 2T, ... and the end
-    times: list = dc_field(default_factory=list)           # measurement times
-    positions: list = dc_field(default_factory=list)       # (n, 2) positions at each measurement
-    variances: list = dc_field(default_factory=list)       # (nx, ny) float32 V at each measurement
-    mean: np.ndarray | None = None                         # final GP mean on the grid
-    var: np.ndarray | None = None                          # final GP variance on the grid
+    #: the planner's grid (``ocp.Grid``): the cells on which V, f̄, the metrics and the plans live
+    grid: object
+    #: (nx, ny) the true field on the grid's cell centres (what the RMSE compares f̄ with)
+    f_true: np.ndarray
+    #: one dict per metrics row: t, sup V, RMSE, tracking error, ... (``sim.metrics.COLUMNS``; ``metrics.csv``)
+    rows: list = dc_field(default_factory=list)
+    #: one dict per planner call: time, status, iterations, solve time, objective (``replans.csv``)
+    replans: list = dc_field(default_factory=list)
+    #: :class:`Snapshot` at t = 0, T, 2T, ... and at the end (what ``panels.png`` draws)
+    snapshots: list = dc_field(default_factory=list)
+    #: the measurement times [s]
+    times: list = dc_field(default_factory=list)
+    #: (n, 2) robot positions at each measurement time (``trajectory.npz``)
+    positions: list = dc_field(default_factory=list)
+    #: (nx, ny) float32 GP variance V at each measurement time
+    variances: list = dc_field(default_factory=list)
+    #: (nx, ny) the final GP mean f̄ on the grid
+    mean: np.ndarray | None = None
+    #: (nx, ny) the final GP variance V on the grid
+    var: np.ndarray | None = None
+    #: why the run ended: "threshold", "max_time", "variance_below_eta" or "planner_failed" ("running" before)
     stop_reason: str = "running"
+    #: the planner's error message when ``stop_reason == "planner_failed"``, else None
     error: str | None = None
+    #: wall-clock time of the run [s]
     wall_time: float = 0.0
-    path_length: np.ndarray | None = None                  # (n,) ∫|v| dt per robot (commanded velocity)
-    energy: np.ndarray | None = None                       # (n,) ∫|v|^2 dt per robot
-    alive: np.ndarray | None = None                        # (n,) robots still working at the end
+    #: (n,) path length ∫|v| dt of each robot's commanded velocity [m]
+    path_length: np.ndarray | None = None
+    #: (n,) energy ∫|v|² dt of each robot's commanded velocity [m²/s]
+    energy: np.ndarray | None = None
+    #: (n,) bool, the robots still working at the end (robot loss)
+    alive: np.ndarray | None = None
+    #: seconds spent in the planner, the regression and the dynamics
     timings: dict = dc_field(default_factory=lambda: {"planner": 0.0, "regression": 0.0, "dynamics": 0.0})
-    free: np.ndarray | None = None                         # (nx, ny) free, reachable planner cells (obstacles)
-    region: object = None                                  # the domain.Domain of the run (None: rectangle)
+    #: (nx, ny) bool, the free planner cells the swarm can reach (None: the empty rectangle)
+    free: np.ndarray | None = None
+    #: the ``domain.Domain`` of the run (None: the empty rectangle)
+    region: object = None
 
     @property
     def time_to_threshold(self) -> float | None:
@@ -72,4 +101,5 @@ class SimulationResult:
 
     @property
     def final(self) -> dict:
+        """The last metrics row (a copy; empty before the first measurement)."""
         return dict(self.rows[-1]) if self.rows else {}

@@ -137,10 +137,11 @@ def _start(slots, ctx, fn, alive_r, once) -> None:
         slots.append(_Slot(ctx, fn, alive_r, once))
 
 
-def run_pool(tasks, fn, workers: int, on_result, *, once: bool = False) -> None:
+def run_pool(tasks, fn, workers: int, on_result, *, once: bool = False, on_start=None) -> None:
     """Run ``fn`` on every task in ``workers`` processes; ``on_result(index, rows, error)`` in
-    this process as each finishes (``error``: None or a one-line message).  ``once``: a fresh
-    process per task.  Any exception (from ``on_result`` or an interrupt) kills the workers first."""
+    this process as each finishes (``error``: None or a one-line message), ``on_start(index)`` as
+    each is handed to a worker.  ``once``: a fresh process per task.  Any exception (from
+    ``on_result`` or an interrupt) kills the workers first."""
     ctx = _context()
     alive_r, alive_w = ctx.Pipe(duplex=False)
     todo = deque(range(len(tasks)))
@@ -157,6 +158,9 @@ def run_pool(tasks, fn, workers: int, on_result, *, once: bool = False) -> None:
                         s.conn.send((s.task, tasks[s.task]))
                     except (BrokenPipeError, OSError):
                         pass                    # its death is seen below
+                    else:
+                        if on_start is not None:
+                            on_start(s.task)
             waiting = {}
             for s in slots:
                 waiting[s.conn] = s

@@ -117,13 +117,29 @@ def load_results(runs_dir, tasks: list[dict]) -> dict:
     return out
 
 
+def describe_task(task: dict) -> str:
+    """A task in a few words for the progress lines: its short scalar fields, ``key=value``."""
+    parts = [f"{k}={v}" for k, v in task.items()
+             if isinstance(v, (str, int, float, bool)) and len(str(v)) <= 40]
+    text = ", ".join(parts)
+    return text if len(text) <= 160 else text[:157] + "..."
+
+
 class _Progress:
-    def __init__(self, total, skipped, label, stream):
+    def __init__(self, total, skipped, label, stream, describe=describe_task):
         self.total, self.done, self.failed, self.label, self.stream = total, skipped, 0, label, stream
         self.todo = total - skipped
+        self.started, self.describe = 0, describe or describe_task
         self.t0 = time.perf_counter()
         if stream is not None:
             print(f"{label}: {total} runs, {skipped} already done, {self.todo} to run", file=stream, flush=True)
+
+    def start(self, task):
+        """A line as a run starts (the first finished run may be minutes away)."""
+        self.started += 1
+        if self.stream is not None:
+            print(f"{self.label}: starting run {self.started}/{self.todo}: {self.describe(task)}",
+                  file=self.stream, flush=True)
 
     def tick(self, ok=True):
         self.done += ok
@@ -139,9 +155,13 @@ class _Progress:
 
 
 def run_tasks(tasks: list[dict], fn: Callable[[dict], list], runs_dir, *, workers: int | None = None,
-              scheduler=None, label: str = "sweep", stream=sys.stderr, isolate: bool = False) -> list[list]:
+              scheduler=None, label: str = "sweep", stream=sys.stderr, isolate: bool = False,
+              describe: Callable[[dict], str] | None = None) -> list[list]:
     """Run ``fn`` on every task not yet stored in ``runs_dir``; return the rows of all tasks, in
     the order of ``tasks``.  Raises :class:`SweepError` if any task failed (the rest are stored).
+
+    ``stream`` gets a line as the sweep starts, as each run starts on a local worker (with
+    ``describe(task)``, default :func:`describe_task`) and as each finishes (with an ETA).
 
     ``isolate``: every task in a fresh worker process (local runs only; ``max_tasks_per_child=1``
     with the forkserver start method), so that per-process measurements such as the peak resident
@@ -158,7 +178,7 @@ def run_tasks(tasks: list[dict], fn: Callable[[dict], list], runs_dir, *, worker
         raise SweepAborted(f"cannot create {runs_dir}: {exc.strerror or exc}") from None
     results = load_results(runs_dir, tasks)
     todo = [t for t, k in zip(tasks, keys) if k not in results]
-    prog = _Progress(len(tasks), len(tasks) - len(todo), label, stream)
+    prog = _Progress(len(tasks), len(tasks) - len(todo), label, stream, describe)
     failures = []
 
     def finished(task, rows=None, exc=None):
@@ -186,6 +206,7 @@ def run_tasks(tasks: list[dict], fn: Callable[[dict], list], runs_dir, *, worker
         from ..runtime.threads import limit_threads
         with limit_threads(WORKER_THREADS):
             for task in todo:
+                prog.start(task)
                 try:
                     rows = fn(task)
                 except Exception as exc:            # noqa: BLE001 -- reported, retried on restart
@@ -200,7 +221,8 @@ def run_tasks(tasks: list[dict], fn: Callable[[dict], list], runs_dir, *, worker
         from .pool import run_pool
         with terminate_as_interrupt():
             run_pool(todo, limited(fn, WORKER_THREADS), min(workers or os.cpu_count() or 1, len(todo)),
-                     lambda i, rows, error: finished(todo[i], rows, error), once=isolate)
+                     lambda i, rows, error: finished(todo[i], rows, error), once=isolate,
+                     on_start=lambda i: prog.start(todo[i]))
     if failures:
         raise SweepError(failures)
     return [results[k] for k in keys]

@@ -58,7 +58,8 @@ def cmp(argv, capsys):
 
 
 def one_line(err):
-    lines = err.strip().splitlines()
+    """The one message line of ``err`` (progress lines as runs start are not messages)."""
+    lines = [ln for ln in err.strip().splitlines() if ": starting run " not in ln]
     assert len(lines) == 1 and "Traceback" not in err, err
     return lines[0]
 
