@@ -63,6 +63,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "[0, 20]^2); replaces planner.cell_size, nx and ny of --config")
     p.add_argument("--diffusion-sigma", type=float, metavar="M2_PER_S",
                    help="diffusion coefficient of the diffusion controller (default 3)")
+    p.add_argument("--comm-radius", type=float, metavar="METRES",
+                   help="decentralized swarm: robots talk only to neighbours within this radius and estimate the "
+                        "density by consensus (default: none, the paper's communication centre; inf: the same)")
     p.add_argument("--max-periods", type=int, help="stop after this many re-planning periods T (default 20)")
     p.add_argument("--gif", action="store_true", help="also write animation.gif")
     p.add_argument("--no-figures", action="store_true", help="write no PNG figures")
@@ -83,6 +86,7 @@ def resolve(args):
                  "controller": args.controller, "allow_long_run": True if args.allow_long_run else None,
                  "robot_loss": getattr(args, "robot_loss", None),
                  "loss_time": getattr(args, "loss_time", None), "diffusion_sigma": getattr(args, "diffusion_sigma", None),
+                 "comm_radius": getattr(args, "comm_radius", None),
                  "start_box": None if getattr(args, "start_box", None) is None else list(args.start_box)}
     for name in ("seed", "robots", "max_periods"):
         v = overrides[name]

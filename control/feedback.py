@@ -198,7 +198,8 @@ def tracking_velocity(X, plan, t: float, est, settings: FeedbackSettings, stir_p
     if settings.transport_rate > 0:       # face fluxes once per call (one Poisson solve), all robots
         transport = _transport_faces(plan, t, est, settings.transport_rate)
     from . import robot_kernel
-    if robot_kernel.use_compiled(n):      # one C pass over the robots (control.robot_kernel; a few ulps)
+    from .kde import DensityEstimate
+    if isinstance(est, DensityEstimate) and robot_kernel.use_compiled(n):   # one C pass (control.robot_kernel)
         v = robot_kernel.tracking_velocity(X, plan, t, est, settings, stir_pattern, plan_dom, transport)
         if v is not None:
             return v
@@ -227,8 +228,23 @@ def _transport_faces(plan, t, est, rate):
         if len(_POISSON_CACHE) >= 8:
             _POISSON_CACHE.clear()
         solver = _POISSON_CACHE[key] = PoissonFlux(g, free)
+    if hasattr(est, "rows"):              # each robot its own estimate (control.consensus.RobotDensities)
+        return _OwnTransport(solver, est, plan.density_grid(t), rate), None
     error = est.on_grid(g.nx, g.ny) - plan.density_grid(t)
     return solver, solver.faces(error, rate)
+
+
+class _OwnTransport:
+    """The transport flux of each robot from its own density estimate: ``at(X, _)`` solves one potential per
+    robot (:meth:`control.poisson_flux.PoissonFlux.at_each`) of the error p̂_i - p_r on the plan's grid."""
+
+    def __init__(self, solver, est, p_r, rate):
+        self.solver, self.est, self.p_r, self.rate = solver, est, p_r, rate
+
+    def at(self, X, _faces):
+        g = self.solver.grid
+        P = self.est.on_grid(g.nx, g.ny, self.est.rows(len(X)))
+        return self.solver.at_each(X, P - self.p_r[None], self.rate)
 
 
 #: robots per block in :func:`tracking_velocity`

@@ -138,3 +138,40 @@ class PoissonFlux:
         out[:, 1] = (1.0 - sy) * fy[ci, cj] + sy * fy[ci, cj + 1]
         out[~self.free[ci, cj]] = 0.0
         return out
+
+    def at_each(self, X: np.ndarray, errors: np.ndarray, rate: float) -> np.ndarray:
+        """The flux of point k's own error field ``errors[k]`` (m, nx, ny) at X_k (m, 2): one potential per point
+        (the factorisation solves them all at once), then :meth:`at` at that point alone.  For robots that each
+        hold their own density estimate (:mod:`control.consensus`)."""
+        X = np.asarray(X, dtype=float)
+        E = np.where(self.free[None], np.asarray(errors, dtype=float), 0.0)
+        m = E.shape[0]
+        lab = self._labels.ravel()
+        means = np.stack([np.bincount(lab, weights=e.ravel(), minlength=self._n_comp + 1) for e in E])
+        means /= np.maximum(self._sizes, 1.0)[None]
+        means[:, 0] = 0.0
+        E = E - means[:, self._labels]
+        psi = np.zeros_like(E)
+        psi[:, self.free] = self._lu.solve(np.ascontiguousarray(E[:, self.free].T)).T
+        g = self.grid
+        ux = (X[:, 0] - g.domain[0]) / g.dx
+        uy = (X[:, 1] - g.domain[2]) / g.dy
+        ci = np.clip(np.floor(ux).astype(int), 0, g.nx - 1)
+        cj = np.clip(np.floor(uy).astype(int), 0, g.ny - 1)
+        sx = np.clip(ux - ci, 0.0, 1.0)
+        sy = np.clip(uy - cj, 0.0, 1.0)
+        k = np.arange(m)
+
+        def face(open_, ia, ja, ib, jb, inside, h):
+            ok = inside & open_[np.minimum(ia, open_.shape[0] - 1), np.minimum(ja, open_.shape[1] - 1)]
+            d = psi[k, np.clip(ib, 0, g.nx - 1), np.clip(jb, 0, g.ny - 1)] - psi[k, np.clip(ia, 0, g.nx - 1),
+                                                                                   np.clip(ja, 0, g.ny - 1)]
+            return np.where(ok, rate * d / h, 0.0)
+        left = face(self.open_x, ci - 1, cj, ci, cj, ci > 0, g.dx)
+        right = face(self.open_x, ci, cj, ci + 1, cj, ci < g.nx - 1, g.dx)
+        down = face(self.open_y, ci, cj - 1, ci, cj, cj > 0, g.dy)
+        up = face(self.open_y, ci, cj, ci, cj + 1, cj < g.ny - 1, g.dy)
+        out = np.column_stack([(1.0 - sx) * left + sx * right, (1.0 - sy) * down + sy * up])
+        out[~self.free[ci, cj]] = 0.0
+        return out
+

@@ -192,6 +192,12 @@ class SimSettings:
                     from the current p̂ and GP variance) after every this many measurement steps inside a
                     period; 0 (default, Algorithm 1): at the period starts only.  The stop rule and the
                     hyperparameter refit stay at the period starts
+    comm_radius     decentralized swarm (beyond the paper, its future work): robots talk only to neighbours
+                    within this radius [m] (:mod:`sim.comm`, :mod:`sim.network`); None (default) or inf: the
+                    paper's communication centre, Algorithm 1 unchanged
+    comm_loss       probability that a link fails for one message round (0 default)
+    comm_rounds     consensus rounds of the density estimate per Euler sub-step (default 4)
+    comm_modes      cosine modes per axis of the consensus density estimate (default 24; control.consensus)
     """
 
     robots: int = 100
@@ -224,6 +230,10 @@ class SimSettings:
     target: str = "variance"
     reach: float | None = None
     replan_every: int = 0
+    comm_radius: float | None = None
+    comm_loss: float = 0.0
+    comm_rounds: int = 4
+    comm_modes: int = 24
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -265,6 +275,19 @@ class SimSettings:
                 raise ValueError(f"sim.metrics_every must be a positive integer or \"auto\", got {self.metrics_every!r}")
             set_("metrics_every", _integer("metrics_every", self.metrics_every, 1))
         set_("replan_every", _integer("replan_every", self.replan_every, 0))
+        if self.comm_radius is not None:
+            r = self.comm_radius
+            if isinstance(r, bool) or not isinstance(r, (int, float)) or math.isnan(r) or not r > 0:
+                raise ValueError(f"sim.comm_radius must be a positive number of metres (inf: the centralized loop), "
+                                 f"got {r!r}")
+            set_("comm_radius", None if math.isinf(r) else _number("comm_radius", r, positive=True))
+        set_("comm_loss", _number("comm_loss", self.comm_loss, nonneg=True))
+        if not self.comm_loss < 1:
+            raise ValueError(f"sim.comm_loss must be a probability below 1, got {self.comm_loss:g}")
+        set_("comm_rounds", _integer("comm_rounds", self.comm_rounds, 1))
+        set_("comm_modes", _integer("comm_modes", self.comm_modes, 2))
+        if self.comm_modes > 256:
+            raise ValueError(f"sim.comm_modes must be at most 256, got {self.comm_modes}")
         if self.target not in ("variance", "reachable"):
             raise ValueError(f"sim.target must be 'variance' or 'reachable', got {self.target!r}")
         if self.reach is not None:

@@ -55,6 +55,7 @@ from ..runtime.publish import OutputFolder
 
 from .config import to_toml
 from .metrics import COLUMNS
+from .network import EXTRA_COLUMNS
 
 __all__ = ["MARKER", "STAGING", "OUTPUT_FILES", "output_folder", "check_output_dir", "write_atomic",
            "write_metrics", "write_summary", "write_outputs", "summary_dict", "versions"]
@@ -103,7 +104,8 @@ def _csv_text(rows, columns) -> str:
 def write_metrics(result, out: Path) -> None:
     """``metrics.csv`` and ``replans.csv`` (atomic)."""
     out = Path(out)
-    write_atomic(out / "metrics.csv", _csv_text(result.rows, COLUMNS))
+    extra = [c for c in EXTRA_COLUMNS if result.rows and c in result.rows[0]]     # a decentralized run
+    write_atomic(out / "metrics.csv", _csv_text(result.rows, COLUMNS + tuple(extra)))
     write_atomic(out / "replans.csv", _csv_text(result.replans, REPLAN_COLUMNS))
 
 
@@ -196,6 +198,9 @@ def summary_dict(result, files=(), extra: dict | None = None) -> dict:
         "versions": versions(),
         "files": sorted(files),
     }
+    comm = getattr(result, "communication", None)
+    if comm is not None:
+        summary["communication"] = comm
     if extra:
         summary.update(extra)
     return _clean(summary)

@@ -24,6 +24,7 @@ import time
 import numpy as np
 
 from .metrics import l2_norm, max_variance, rmse
+from .network import EXTRA_COLUMNS
 
 __all__ = ["Recorder", "MetricsRecorder", "CallbackRecorder"]
 
@@ -86,7 +87,8 @@ class MetricsRecorder(Recorder):
             "alive": int(sim.alive.sum()), "path_length": float(sim.path_length.mean()),
             "energy": float(sim.energy.mean()),
         })
-        res.rows.append({c: row[c] for c in ROW_ORDER if c in row})
+        row.update(sim.network.row(sim))          # a decentralized run: density error, components, bytes
+        res.rows.append({c: row[c] for c in ROW_ORDER + EXTRA_COLUMNS if c in row})
         res.times.append(sim.t)
         res.positions.append(sim.X.copy())
         res.variances.append(sim.var.astype(np.float32))

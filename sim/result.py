@@ -83,6 +83,8 @@ class SimulationResult:
     free: np.ndarray | None = None
     #: the ``domain.Domain`` of the run (None: the empty rectangle)
     region: object = None
+    #: messages and bytes of a decentralized run (``sim.comm_radius``, :mod:`sim.network`); None with the centre
+    communication: dict | None = None
 
     @property
     def time_to_threshold(self) -> float | None:

@@ -55,6 +55,7 @@ from .config import RunConfig
 from .dynamics import euler_maruyama_step, measure, uniform_in_box
 from .fields import make_field
 from .metrics import l2_norm
+from .network import make_network
 from .recorders import MetricsRecorder
 from .result import QUIVER_POINTS, SimulationResult, Snapshot
 from .stopping import make_stop_rule
@@ -187,6 +188,8 @@ class Simulation:
         self.result.region = self.region
         self.motion_domain = s.domain if self.region is None else self.region
         self.recorders = [MetricsRecorder(), *recorders]
+        self.network = make_network(config)       # the centre of Algorithm 1, or robots that talk to neighbours
+        self.network.bind(self)
         n = s.robots
         self.alive = np.ones(n, bool)
         self.path_length = np.zeros(n)
@@ -230,6 +233,7 @@ class Simulation:
         self.measure()
         self.regress()
         self.estimate_density(fresh=True)
+        self.network.start(self)
         self._notify("start")
         self.controller.start(self.context())
 
@@ -320,6 +324,7 @@ class Simulation:
         self.finished = True
         res = self.result
         res.mean, res.var = self.mean, self.var
+        res.communication = self.network.summary(self)
         res.wall_time = time.perf_counter() - self.wall0
         if not self.interrupted and self.plan is not None and res.snapshots and res.snapshots[-1].velocity is None:
             res.snapshots[-1].velocity = self.commanded_velocity()
@@ -555,7 +560,8 @@ class Simulation:
         from .controllers import Context
         return Context(t=self.t, period=self.period_index, X=self.X, alive=self.alive, mean=self.mean,
                        var=self.var, centers=self.centers, domain=self.settings.domain, h=self.h,
-                       plan=self.plan if self.controller.needs_plan else None, estimate=self.estimate,
+                       plan=self.plan if self.controller.needs_plan else None,
+                       estimate=self.network.estimator(self),
                        rng=self.rng, free=self.free, region=self.region)
 
     def _notify(self, event: str) -> None:

@@ -51,6 +51,18 @@ ROW_COLUMNS = ("preset", "controller", "field", "seed", "robot_loss", "robots", 
 KEYS = ("field", "robots", "robot_loss", "preset", "controller")
 #: with a domain axis (--domains): the extra column of runs.csv and the first key of summary.md
 DOMAIN_KEYS = ("domain",) + KEYS
+#: with a communication-radius axis (--comm-radius): the extra columns of runs.csv
+COMM_COLUMNS = ("comm_radius", "density_error", "components", "comm_bytes")
+
+
+def comm_label(radius) -> str:
+    """The label of a communication radius in runs.csv and summary.md: metres, or "inf" (the centre)."""
+    return "inf" if radius is None or math.isinf(radius) else f"{radius:g}"
+
+
+def controller_label(task) -> str:
+    """The controller of a task as summary.md and the plots name it: with the radius axis "feedback r=4"."""
+    return task["controller"] + (f" r={task['comm_radius']}" if "comm_radius" in task else "")
 
 
 # ------------------------------------------------------------------------------ one run
@@ -70,13 +82,17 @@ def run_task(task: dict) -> list[dict]:
         res = run_simulation(cfg, stop_rule=make_stop_rule(cfg.sim, stops=False))
     T = cfg.sim.period
     label = {k: task[k] for k in ("preset", "controller", "field", "seed", "robot_loss", "robots")}
-    if "domain" in task:
-        label["domain"] = task["domain"]
+    for k in ("domain", "comm_radius"):
+        if k in task:
+            label[k] = task[k]
+    comm = "comm_radius" in task       # the decentralized swarm's own columns (sim.network; 0 for the centre)
     return [{**label, "step": r["step"], "t": r["t"], "t_T": r["t"] / T, "max_variance": r["max_variance"],
              "threshold": r["threshold"],
              "rmse": r["rmse"], "alive": r["alive"], "path_length": r["path_length"], "energy": r["energy"],
              "n_observations": r["n_observations"], "signal_variance": r["signal_variance"],
-             "length_scale": r["length_scale"], "stop_reason": res.stop_reason} for r in res.rows]
+             "length_scale": r["length_scale"], "stop_reason": res.stop_reason,
+             **({"density_error": r.get("density_error", 0.0), "components": r.get("components", 1),
+                 "comm_bytes": r.get("comm_bytes", 0)} if comm else {})} for r in res.rows]
 
 
 def _labels(items, builtins) -> dict:
@@ -92,14 +108,15 @@ def _labels(items, builtins) -> dict:
 
 
 def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, loss_time=None, start_box=None,
-               max_periods=4, presets=None, domains=None) -> list[dict]:
+               max_periods=4, presets=None, domains=None, comm_radii=None) -> list[dict]:
     """The sweep's task dicts: every combination, each with its fully resolved configuration.
 
     ``base_doc`` is a configuration document as written in a TOML file (only the values the user
     gives); each of ``presets`` (:mod:`sim.presets`; default: the document's own ``preset`` key, else
     ``paper``) is laid under it, so the baselines of a preset share its GP and stopping settings.
     ``domains`` (built-in names or files, :mod:`domain`) adds the domain axis; each task then has
-    a ``domain`` label."""
+    a ``domain`` label.  ``comm_radii`` (metres; inf = the centralized loop) adds the communication radius
+    (``sim.comm_radius``, :mod:`sim.network`) as an axis; each task then has a ``comm_radius`` label."""
     from ..sim.config import config_from_dict
     from ..sim.controllers import make_controller
     from ..sim.fields import FIELDS
@@ -128,11 +145,22 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
             src = dom if dom in BUILTIN_DOMAINS else str(Path(dom).resolve())
             doc = {**base_doc, "domain": {**base_doc.get("domain", {}), "source": src}}
             sub = make_tasks(doc, controllers, fields, seeds, losses, robots, loss_time=loss_time,
-                             start_box=start_box, max_periods=max_periods, presets=presets)
+                             start_box=start_box, max_periods=max_periods, presets=presets, comm_radii=comm_radii)
             for t in sub:
                 t["domain"] = dlabels[dom]
                 if dom not in BUILTIN_DOMAINS:
                     t["domain_source"] = f"{src}#sha256={hashlib.sha256(Path(src).read_bytes()).hexdigest()[:16]}"
+            tasks += sub
+        return tasks
+    if comm_radii:
+        for r in comm_radii:
+            doc = {**base_doc, "sim": {**base_doc.get("sim", {}), "comm_radius": None if math.isinf(r) else float(r)}}
+            if math.isinf(r):
+                doc["sim"].pop("comm_radius")
+            sub = make_tasks(doc, controllers, fields, seeds, losses, robots, loss_time=loss_time,
+                             start_box=start_box, max_periods=max_periods, presets=presets)
+            for t in sub:
+                t["comm_radius"] = comm_label(r)
             tasks += sub
         return tasks
     for field in fields:
@@ -206,6 +234,8 @@ def write_csv(rows, path: Path) -> None:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     cols = ("domain",) + ROW_COLUMNS if any("domain" in r for r in rows) else ROW_COLUMNS
+    if any("comm_radius" in r for r in rows):
+        cols = cols + COMM_COLUMNS
     w.writerow(cols)
     for r in rows:
         w.writerow([_fmt(r.get(c)) for c in cols])
@@ -235,7 +265,8 @@ def _group(runs):
     groups = {}
     keys = _keys(runs)
     for task, rows in runs:
-        groups.setdefault(tuple(task.get(k) for k in keys), []).append((task, rows))
+        groups.setdefault(tuple(controller_label(task) if k == "controller" else task.get(k) for k in keys),
+                          []).append((task, rows))
     return groups
 
 
@@ -277,7 +308,7 @@ def summary_table(runs, gamma: float, times) -> str:
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     order = {}
     for task, _ in runs:
-        order.setdefault((task["preset"], task["controller"]), len(order))
+        order.setdefault((task["preset"], controller_label(task)), len(order))
     groups = _group(runs)
     limits = {}
     for task, _ in runs:
@@ -329,7 +360,7 @@ def scenario_curves(runs) -> dict:
     by_scenario = {}
     several = len({task["preset"] for task, _ in runs}) > 1
     for task, rows in runs:
-        label = f"{task['controller']} ({task['preset']})" if several else task["controller"]
+        label = f"{controller_label(task)} ({task['preset']})" if several else controller_label(task)
         by_scenario.setdefault((task.get("domain") or "", task["field"], task["robots"], task["robot_loss"]), {}) \
             .setdefault(label, []).append(rows)
     return by_scenario
@@ -412,6 +443,9 @@ def build_parser():
     p.add_argument("--cell-size", type=float, default=None, metavar="METRES",
                    help="side of the square planner cells of every run (nx, ny from each extent; default: 40 cells "
                         "along the longer side); replaces planner.cell_size, nx and ny of --config")
+    p.add_argument("--comm-radius", nargs="+", type=float, default=None, metavar="METRES",
+                   help="decentralized swarm: communication radii as an axis of the sweep (inf: the paper's "
+                        "communication centre); adds comm_radius, density_error, components, comm_bytes to runs.csv")
     p.add_argument("--max-periods", type=int, default=4, metavar="N", help="length of every run in periods T")
     p.add_argument("--times", nargs="+", type=float, default=None, metavar="K",
                    help="RMSE columns at these multiples of T (default 1 2 and --max-periods)")
@@ -454,6 +488,9 @@ def run(argv=None) -> int:
         raise InputError(f"--robots must be >= 2, got {min(args.robots)}")
     if args.max_periods < 1:
         raise InputError(f"--max-periods must be >= 1, got {args.max_periods}")
+    if args.comm_radius is not None and any(math.isnan(r) or r <= 0 for r in args.comm_radius):
+        raise InputError(f"--comm-radius must be positive numbers of metres (inf: centralized), got "
+                         f"{' '.join(f'{r:g}' for r in args.comm_radius)}")
     if any(s < 0 for s in args.seeds):
         raise InputError(f"--seeds must be >= 0, got {min(args.seeds)}")
     if args.workers is not None and args.workers < 1:
@@ -474,6 +511,8 @@ def run(argv=None) -> int:
         args.domains = unique_values(args.domains, "--domains", note, key=_domain_key)
     args.seeds = unique_values(args.seeds, "--seeds", note)
     args.robot_loss = unique_values(args.robot_loss, "--robot-loss", note, key=float)
+    if args.comm_radius is not None:
+        args.comm_radius = unique_values(args.comm_radius, "--comm-radius", note, key=float)
     if args.robots is not None:
         args.robots = unique_values(args.robots, "--robots", note)
     if args.presets is not None:
@@ -494,7 +533,7 @@ def run(argv=None) -> int:
         # every field file and every run's configuration is loaded and checked here, before any worker
         tasks = make_tasks(base_doc, args.controllers, args.fields, args.seeds, args.robot_loss, robots,
                            loss_time=args.loss_time, start_box=args.start_box, max_periods=args.max_periods,
-                           presets=args.presets, domains=args.domains)
+                           presets=args.presets, domains=args.domains, comm_radii=args.comm_radius)
         if args.domains:               # bad domains fail here, in one line, before any run
             from ..sim.config import config_from_dict
             from ..sim.simulation import check_config

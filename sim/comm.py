@@ -1,0 +1,125 @@
+"""The communication model of a decentralized swarm: who hears whom, and what it costs.
+
+Robots talk only to neighbours within the communication radius r (``sim.comm_radius``): the graph of a
+round is the *disk graph* of the working robots (an edge between i and j iff |X_i - X_j| <= r; lost robots
+neither send nor receive).  With ``sim.comm_loss`` = q > 0 every link fails for a round with probability q,
+independently, in both directions (an exchange is a handshake: a consensus round needs symmetric weights),
+drawn from the generator the caller passes (the run's own stream of :class:`sim.network.Decentralized`,
+never the motion's).  Connected components of the graph are the groups of robots that can reach each other
+by relaying.
+
+Every message is accounted for by :class:`MessageLog`: a *message* is one broadcast by one robot (heard by
+all its neighbours at once), its size the payload in bytes (float64 numbers, 8 bytes each; integers 4).
+Robots without a neighbour do not broadcast.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import sparse
+from scipy.sparse import csgraph
+from scipy.spatial import cKDTree
+
+__all__ = ["CommGraph", "disk_graph", "MessageLog", "FLOAT_BYTES", "INT_BYTES"]
+
+FLOAT_BYTES = 8
+INT_BYTES = 4
+
+
+@dataclass
+class CommGraph:
+    """An undirected communication graph over n robots: ``edges`` (m, 2) with i < j, ``active`` (n,) bool
+    (robots that take part: working ones)."""
+
+    n: int
+    edges: np.ndarray
+    active: np.ndarray
+    _labels: tuple | None = field(default=None, repr=False)
+
+    @property
+    def degree(self) -> np.ndarray:
+        """(n,) number of neighbours of each robot."""
+        return np.bincount(self.edges.ravel(), minlength=self.n)
+
+    def adjacency(self) -> sparse.csr_matrix:
+        i, j = self.edges[:, 0], self.edges[:, 1]
+        w = np.ones(2 * len(i))
+        return sparse.coo_matrix((w, (np.concatenate([i, j]), np.concatenate([j, i]))), shape=(self.n, self.n)).tocsr()
+
+    def components(self) -> tuple[int, np.ndarray]:
+        """``(count, labels)``: the connected components of the active robots, labels 0 .. count-1 numbered by
+        their lowest robot index; inactive robots get -1."""
+        if self._labels is None:
+            _, lab = csgraph.connected_components(self.adjacency(), directed=False)
+            act = np.flatnonzero(self.active)
+            out = -np.ones(self.n, dtype=np.intp)
+            if act.size:
+                _, first = np.unique(lab[act], return_index=True)     # relabel by first (lowest) member
+                order = np.argsort(first)
+                rank = np.empty(order.size, dtype=np.intp)
+                rank[order] = np.arange(order.size)
+                out[act] = rank[np.searchsorted(np.unique(lab[act]), lab[act])]
+                count = int(order.size)
+            else:
+                count = 0
+            self._labels = (count, out)
+        return self._labels
+
+    def is_complete(self) -> bool:
+        """Every active robot hears every other one directly."""
+        k = int(self.active.sum())
+        return len(self.edges) == k * (k - 1) // 2
+
+    def hops(self, sources) -> np.ndarray:
+        """(len(sources), n) hop counts from each source (inf where unreachable)."""
+        return csgraph.shortest_path(self.adjacency(), directed=False, unweighted=True, indices=np.atleast_1d(sources))
+
+    def drop(self, loss: float, rng: np.random.Generator) -> "CommGraph":
+        """This graph with every edge removed with probability ``loss`` (independently, from ``rng``)."""
+        if loss <= 0 or not len(self.edges):
+            return self
+        keep = rng.random(len(self.edges)) >= loss
+        return CommGraph(self.n, self.edges[keep], self.active)
+
+
+def disk_graph(X: np.ndarray, radius: float, active: np.ndarray | None = None) -> CommGraph:
+    """The disk graph of radius ``radius`` between the ``active`` robots (default all) at positions X (n, 2)."""
+    X = np.asarray(X, dtype=float)
+    n = X.shape[0]
+    active = np.ones(n, bool) if active is None else np.asarray(active, bool)
+    idx = np.flatnonzero(active)
+    if idx.size < 2 or not radius > 0:
+        return CommGraph(n, np.zeros((0, 2), dtype=np.intp), active)
+    if np.isinf(radius):
+        i, j = np.triu_indices(idx.size, 1)
+        pairs = np.column_stack([i, j])
+    else:
+        pairs = cKDTree(X[idx]).query_pairs(float(radius), output_type="ndarray")
+    edges = idx[pairs] if len(pairs) else np.zeros((0, 2), dtype=np.intp)
+    edges = np.sort(edges, axis=1)
+    return CommGraph(n, edges.astype(np.intp), active)
+
+
+class MessageLog:
+    """Counts of messages (broadcasts) and bytes by kind (``density``, ``measurements``, ``plan``, ``stop``)."""
+
+    def __init__(self):
+        self.messages: dict[str, int] = {}
+        self.bytes: dict[str, int] = {}
+
+    def record(self, kind: str, messages: int, nbytes: int) -> None:
+        self.messages[kind] = self.messages.get(kind, 0) + int(messages)
+        self.bytes[kind] = self.bytes.get(kind, 0) + int(nbytes)
+
+    def broadcast(self, kind: str, senders: int, payload_bytes: int) -> None:
+        """``senders`` robots broadcast one message of ``payload_bytes`` each."""
+        self.record(kind, senders, senders * payload_bytes)
+
+    @property
+    def total_messages(self) -> int:
+        return sum(self.messages.values())
+
+    @property
+    def total_bytes(self) -> int:
+        return sum(self.bytes.values())

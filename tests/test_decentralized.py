@@ -1,0 +1,185 @@
+"""The decentralized swarm: communication graph, message accounting, consensus density, the closed loop."""
+from __future__ import annotations
+
+import math
+import warnings
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from swarmfield.control import KernelDensity
+from swarmfield.control.consensus import CosineMoments, PIConsensus, RobotDensities, metropolis_laplacian
+from swarmfield.sim.comm import CommGraph, MessageLog, disk_graph
+
+DOMAIN = (0.0, 20.0, 0.0, 20.0)
+
+
+def test_disk_graph_edges_components_and_loss():
+    X = np.array([[1.0, 1.0], [2.0, 1.0], [3.0, 1.0], [10.0, 10.0], [10.5, 10.0]])
+    g = disk_graph(X, 1.5)
+    assert sorted(map(tuple, g.edges)) == [(0, 1), (1, 2), (3, 4)]
+    count, labels = g.components()
+    assert count == 2 and labels.tolist() == [0, 0, 0, 1, 1]
+    assert not g.is_complete() and disk_graph(X, 100.0).is_complete()
+    alive = np.array([True, False, True, True, True])        # a lost robot relays nothing
+    count, labels = disk_graph(X, 1.5, alive).components()
+    assert count == 3 and labels.tolist() == [0, -1, 1, 2, 2]
+    assert g.hops([0])[0, 2] == 2 and math.isinf(g.hops([0])[0, 3])
+    rng = np.random.default_rng(0)
+    assert len(g.drop(0.0, rng).edges) == 3
+    kept = [len(disk_graph(X, 100.0).drop(0.5, rng).edges) for _ in range(200)]
+    assert 4.0 < np.mean(kept) < 6.0                             # 10 links, each kept with probability 1/2
+
+
+def test_metropolis_laplacian_is_symmetric_with_zero_row_sums():
+    L = metropolis_laplacian(4, np.array([[0, 1], [1, 2]])).toarray()
+    np.testing.assert_allclose(L, L.T)
+    np.testing.assert_allclose(L.sum(axis=1), 0.0, atol=1e-15)
+    # degrees 1, 2, 1, 0: w_01 = w_12 = 1 / (1 + 2)
+    np.testing.assert_allclose(L[0], [1 / 3, -1 / 3, 0, 0])
+    assert np.all(L[3] == 0)
+    ev = np.linalg.eigvalsh(L)
+    assert ev.min() > -1e-12 and ev.max() < 2
+
+
+def test_cosine_moments_average_is_the_centralized_kde():
+    rng = np.random.default_rng(3)
+    X = np.vstack([rng.uniform(0, 7, (60, 2)), rng.uniform(0, 20, (40, 2))])
+    est = KernelDensity(DOMAIN).fit(X)
+    basis = CosineMoments(DOMAIN, 32)
+    z = basis.features(X).mean(axis=0, keepdims=True)
+    assert basis.bandwidth(z, len(X))[0] == pytest.approx(est.bandwidth, rel=1e-12)
+    S = basis.smoothed(z, np.array([est.bandwidth]))
+    P = basis.on_grid(S, 40, 40)[0]
+    ref = est.on_grid(40, 40)
+    assert np.linalg.norm(P - ref) / np.linalg.norm(ref) < 2e-4
+    p, g = RobotDensities(basis, np.repeat(S, len(X), 0), np.full(len(X), est.bandwidth)).evaluate(X)
+    pc, gc = est.evaluate(X)
+    np.testing.assert_allclose(p, pc, atol=2e-4 * pc.max())
+    np.testing.assert_allclose(g, gc, atol=5e-4 * np.abs(gc).max())
+
+
+def test_consensus_on_a_static_connected_graph_converges_to_the_centralized_kde():
+    rng = np.random.default_rng(1)
+    X = rng.uniform(0, 20, (60, 2))
+    g = disk_graph(X, 6.0)
+    assert g.components()[0] == 1
+    L = metropolis_laplacian(len(X), g.edges)
+    basis = CosineMoments(DOMAIN, 24)
+    phi = basis.features(X)
+    pi = PIConsensus(phi, gamma=0.01, gain_p=1.0, gain_i=0.45)
+    for _ in range(2000):
+        pi.step(L)
+    np.testing.assert_allclose(pi.z, np.broadcast_to(phi.mean(axis=0), pi.z.shape), atol=1e-6)
+    h = basis.bandwidth(pi.z, len(X))
+    P = RobotDensities(basis, basis.smoothed(pi.z, h), h).on_grid(40, 40)
+    ref = KernelDensity(DOMAIN).fit(X).on_grid(40, 40)
+    err = np.linalg.norm((P - ref[None]).reshape(len(X), -1), axis=1) / np.linalg.norm(ref)
+    assert err.max() < 1e-3
+
+
+def test_consensus_forgets_a_wrong_start_and_splits_into_component_averages():
+    """PI consensus converges to each component's own average from any initial state."""
+    rng = np.random.default_rng(2)
+    phi = rng.normal(size=(6, 3))
+    pi = PIConsensus(phi, gamma=0.05, gain_p=1.0, gain_i=0.45)
+    pi.z += 5.0                                                   # a wrong start (e.g. robots that left)
+    L = metropolis_laplacian(6, np.array([[0, 1], [1, 2], [3, 4], [4, 5]]))
+    for _ in range(3000):
+        pi.step(L)
+    np.testing.assert_allclose(pi.z[:3], np.broadcast_to(phi[:3].mean(0), (3, 3)), atol=1e-8)
+    np.testing.assert_allclose(pi.z[3:], np.broadcast_to(phi[3:].mean(0), (3, 3)), atol=1e-8)
+
+
+def _fake_sim(X, substeps=1):
+    from swarmfield.sim.config import RunConfig
+    cfg = RunConfig.from_preset("paper", comm_radius=1.5, comm_modes=4, comm_rounds=1, robots=len(X))
+    sim = SimpleNamespace(X=X, alive=np.ones(len(X), bool), t=0.0, free=None,
+                          settings=SimpleNamespace(substeps=substeps), estimate=None)
+    return cfg, sim
+
+
+def test_message_accounting_by_hand():
+    from swarmfield.sim.network import Decentralized
+    X = np.array([[1.0, 1.0], [2.0, 1.0], [3.0, 1.0], [10.0, 10.0]])    # a chain of three and a loner
+    cfg, sim = _fake_sim(X)
+    net = Decentralized(cfg)
+    net.bind(sim)
+    with pytest.warns(UserWarning, match="2 components"):
+        net.start(sim)                        # one round (1 round per sub-step x 1 sub-step)
+    # 3 robots with a neighbour broadcast z and q: 2 x (4 x 4 + 4) numbers of 8 bytes
+    assert net.log.messages == {"density": 3}
+    assert net.log.bytes == {"density": 3 * 2 * 20 * 8}
+    est = net(X + 0.0)                        # new positions: one more round
+    assert net.log.total_messages == 6 and net.log.total_bytes == 6 * 320
+    assert isinstance(est, RobotDensities) and net.components == 2
+    p, _ = est.evaluate(X)
+    assert np.all(np.isfinite(p)) and np.all(p > 0)
+    log = MessageLog()
+    log.broadcast("plan", 5, 100)
+    log.record("stop", 2, 16)
+    assert (log.total_messages, log.total_bytes) == (7, 516)
+
+
+def test_complete_graph_broadcasts_positions_once():
+    from swarmfield.sim.network import Decentralized
+    X = np.array([[1.0, 1.0], [2.0, 1.0], [2.0, 1.5]])
+    cfg, sim = _fake_sim(X)
+    sim.estimate = lambda X_, fresh=False: "centre's KDE"
+    net = Decentralized(cfg)
+    net.bind(sim)
+    net.start(sim)
+    assert net(X + 0.0) == "centre's KDE"                       # everyone hears everyone: the exact estimate
+    assert net.log.messages == {"density": 6} and net.log.bytes == {"density": 6 * 16}
+
+
+#: a small closed loop (as in test_sim): 10 x 10 domain, 24 robots, planner 16 x 16 cells, N = 3, 3 x 3 modes
+SMALL = {
+    "sim": {"robots": 24, "domain": [0.0, 10.0, 0.0, 10.0], "start_box": [0.0, 4.0, 0.0, 4.0],
+            "period": 1.75, "max_periods": 3, "substeps": 4, "seed": 3},
+    "gp": {"length_scale": 1.5},
+    "kde": {"bins": [32, 32]},
+    "planner": {"nx": 16, "ny": 16, "n_intervals": 3, "n_modes_x": 3, "n_modes_y": 3},
+}
+
+
+def _rows(res):
+    return [{k: r[k] for k in r if k not in ("density_error", "components", "comm_bytes")} for r in res.rows]
+
+
+def test_radius_covering_the_domain_is_the_centralized_run_bit_for_bit():
+    from swarmfield.sim import RunConfig, config_from_dict, run_simulation
+    base = config_from_dict(SMALL)
+    central = run_simulation(base)
+    assert "density_error" not in central.rows[0] and central.communication is None
+    wide = run_simulation(base.replace(comm_radius=15.0))          # the diagonal is 14.1 m
+    assert RunConfig.from_preset("paper", comm_radius=math.inf).sim.comm_radius is None
+    assert _rows(wide) == _rows(central)
+    np.testing.assert_array_equal(wide.positions[-1], central.positions[-1])
+    assert all(r["density_error"] == 0.0 and r["components"] == 1 for r in wide.rows)
+    assert wide.communication["bytes_per_robot_per_step"] > 0
+
+
+def test_a_disconnected_swarm_runs_and_warns_once():
+    from swarmfield.sim import config_from_dict, run_simulation
+    cfg = config_from_dict(SMALL, {"max_periods": 2, "comm_radius": 0.3, "comm_loss": 0.2})
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        res = run_simulation(cfg)
+    notes = [str(w.message) for w in seen if "components" in str(w.message)]
+    assert len(notes) == 1 and "split into" in notes[0]
+    assert res.stop_reason in ("max_time", "threshold")
+    assert max(r["components"] for r in res.rows) > 1
+    assert all(np.isfinite(r["density_error"]) for r in res.rows)
+    assert np.all(np.isfinite(res.positions[-1]))
+    assert res.communication["max_components"] > 1
+
+
+@pytest.mark.parametrize("bad", ["0", "-2", "nan"])
+def test_bad_comm_radius_is_one_line(bad, tmp_path, capsys):
+    from swarmfield.cli.simulate_swarm import main
+    assert main(["--comm-radius", bad, "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "comm_radius" in err[0]
+    assert not (tmp_path / "run").exists()
