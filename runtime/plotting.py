@@ -54,7 +54,13 @@ class DrawingProcess:
     return value travel pickled through a pipe (functions by reference: the child is a fork of this
     process).  The child ignores SIGINT (the command handles an interrupt and ends it) and exits when
     the pipe closes; a call whose function raises there raises the same exception here (an OSError of a
-    figure file stays an OSError), and RuntimeError if the process ended."""
+    figure file stays an OSError), and RuntimeError if the process ended.
+
+    The child never outlives this process, whatever ends it (SIGTERM, SIGKILL, a crash): it closes its
+    inherited copy of this end of the pipe (so the pipe closes when this process goes), asks the kernel
+    for SIGKILL when its parent dies (``prctl(PR_SET_PDEATHSIG)`` on Linux, when started from the main
+    thread) and watches the parent from a thread elsewhere.  With it go the descriptors it inherited:
+    an output folder's lock, the caller's pipes."""
 
     def __init__(self, proc, conn):
         self._proc, self._conn = proc, conn
@@ -73,7 +79,10 @@ class DrawingProcess:
 
         ctx = mp.get_context("fork")
         parent, child = ctx.Pipe()
-        proc = ctx.Process(target=_serve, args=(child,), daemon=True, name="swarmfield-drawing")
+        import threading
+        main = threading.current_thread() is threading.main_thread()
+        proc = ctx.Process(target=_serve, args=(child, parent, os.getpid(), main), daemon=True,
+                           name="swarmfield-drawing")
         # the objects alive now are shared with the child page by page until one of the two writes to them; a
         # garbage collection in the child would visit (write to) every one of them and copy their pages
         gc.freeze()
@@ -118,10 +127,40 @@ class DrawingProcess:
         self.close()
 
 
-def _serve(conn) -> None:
+def _die_with_parent(parent_pid: int, pdeathsig: bool) -> None:
+    """End this (forked) process as soon as ``parent_pid`` is gone: PR_SET_PDEATHSIG on Linux (SIGKILL
+    when the forking thread ends), and a watchdog thread everywhere (polls the parent's pid)."""
+    import os
+    import sys
+    import threading
+    import time
+    if pdeathsig and sys.platform.startswith("linux"):
+        try:
+            import ctypes
+            import signal
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)          # PR_SET_PDEATHSIG = 1
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent_pid:                             # the parent died before the request
+        os._exit(1)
+
+    def watch():
+        while True:
+            time.sleep(0.5)
+            if os.getppid() != parent_pid:
+                os._exit(1)
+    threading.Thread(target=watch, name="parent-watchdog", daemon=True).start()
+
+
+def _serve(conn, other=None, parent_pid=None, pdeathsig=False) -> None:
     """The drawing process: load matplotlib, then run (func, args) requests until None or the pipe closes."""
     import signal
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if other is not None:
+        other.close()                 # the parent's end: only the parent may keep the pipe open
+    if parent_pid is not None:
+        _die_with_parent(parent_pid, pdeathsig)
     lean_import()
     while True:
         try:
