@@ -60,10 +60,14 @@ def test_drawing_process_dies_with_its_parent_and_releases_the_lock(tmp_path, si
         assert not _alive(child), "the drawing process outlived its parent"
         fd = os.open(out, os.O_RDONLY | os.O_DIRECTORY)
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)      # the lock went with them
-        except OSError as exc:
-            assert exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN), "OUT is still locked"
-            raise
+            while True:                  # the lock went with them (the kernel may release it a moment later)
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                    break
+                except OSError as exc:
+                    if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN) or time.monotonic() > deadline:
+                        raise AssertionError(f"OUT is still locked: {exc}") from None
+                    time.sleep(0.05)
         finally:
             os.close(fd)
     finally:
