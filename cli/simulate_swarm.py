@@ -13,6 +13,7 @@ contents unless the message says the new run was written).  Publication:
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -67,6 +68,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="decentralized swarm: robots talk only to neighbours within this radius and estimate the "
                         "density by consensus (default: none, the paper's communication centre; inf: the same)")
     p.add_argument("--max-periods", type=int, help="stop after this many re-planning periods T (default 20)")
+    p.add_argument("--noise-sd", type=float, metavar="SD",
+                   help="standard deviation of the measurement noise, in the field's units (sim.noise_variance = SD^2; "
+                        "default the paper's 0.2)")
     p.add_argument("--gif", action="store_true", help="also write animation.gif")
     p.add_argument("--no-figures", action="store_true", help="write no PNG figures")
     p.add_argument("--force", action="store_true", help="write into a non-empty folder that holds no previous run")
@@ -87,7 +91,11 @@ def resolve(args):
                  "robot_loss": getattr(args, "robot_loss", None),
                  "loss_time": getattr(args, "loss_time", None), "diffusion_sigma": getattr(args, "diffusion_sigma", None),
                  "comm_radius": getattr(args, "comm_radius", None),
-                 "start_box": None if getattr(args, "start_box", None) is None else list(args.start_box)}
+                 "start_box": None if getattr(args, "start_box", None) is None else list(args.start_box),
+                 "noise_variance": None if getattr(args, "noise_sd", None) is None else float(args.noise_sd) ** 2}
+    sd = getattr(args, "noise_sd", None)
+    if sd is not None and not (math.isfinite(sd) and sd > 0):
+        raise InputError(f"--noise-sd must be a positive number in the field's units, got {sd:g}")
     for name in ("seed", "robots", "max_periods"):
         v = overrides[name]
         if v is not None and (v < 0 or (v == 0 and name != "seed")):

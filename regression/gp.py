@@ -323,6 +323,8 @@ class GaussianProcess:
         self.n_factorizations = 0
         self.n_woodbury_updates = 0
         self._followers: list[GaussianProcess] = []
+        #: v_y of the first data with ``signal_scale = "data"`` (:mod:`regression.scale`), else None
+        self.data_variance = None
         self._bases: dict = {}      # _PriorBasis by (length scale, prior_truncation)
         self._band_gather = None    # (flat indices, valid) of Sigma's band in the full M x M Sigma
         self._band_offsets = None   # offsets in the band of the 16 x 16 node pairs of a cell
@@ -400,6 +402,8 @@ class GaussianProcess:
         n = y.shape[0]
         if n == 0:
             return
+        if self._n == 0 and self._settings.signal_scale == "data":
+            self._standardize(y)
         for k in range(0, n, _ADD_CHUNK):       # bounded work arrays (~1 KB per point) for huge batches
             self._accumulate(X[k:k + _ADD_CHUNK], y[k:k + _ADD_CHUNK])
         self._n += n
@@ -414,6 +418,15 @@ class GaussianProcess:
                 self._pending_n += n
             else:
                 self._pending, self._pending_n = None, 0
+
+    def _standardize(self, y: np.ndarray) -> None:
+        """``signal_scale = "data"``: s_f^2 = signal_variance x v_y of the first batch (:mod:`regression.scale`);
+        the settings are in field units from here on (``initial_settings`` keeps the relative ones)."""
+        from .scale import reference_variance
+        s = self._settings
+        self.data_variance = reference_variance(y, s.noise_variance)
+        self._settings = dataclasses.replace(s, signal_variance=s.signal_variance * self.data_variance,
+                                             signal_scale="absolute", inducing_spacing=self._spacing)
 
     def _accumulate(self, X: np.ndarray, y: np.ndarray) -> None:
         """Add the points' power-sum features to the per-cell sums (the O(n) part of :meth:`add`)."""
@@ -879,7 +892,7 @@ class GaussianProcess:
         logdet = 2.0 * float(np.sum(np.log(np.diag(chol))))
         return -0.5 * (rr / sn2 - quad + logdet + self._n * math.log(2.0 * math.pi * sn2))
 
-    def fit_hyperparameters(self, signal_variance_bounds=(1e-4, 1e3), length_scale_bounds=None,
+    def fit_hyperparameters(self, signal_variance_bounds=None, length_scale_bounds=None,
                             maxiter: int = 50, prior=None) -> GPSettings:
         """Maximum-likelihood ``signal_variance`` and ``length_scale`` (noise fixed).
 
@@ -887,7 +900,8 @@ class GaussianProcess:
         finite-difference gradients, starting from the current settings; each evaluation costs
         one M x M Cholesky factorisation, whatever the number of observations. The inducing grid
         is kept, so the length scale is bounded below by 1.5 x its spacing (default bounds:
-        ``(1.5 h, max domain side)``). Updates this GP's settings (the posterior is recomputed at
+        ``(1.5 h, max domain side)``; s_f^2 within 1e-4 ... 1e4 times the data's variance,
+        :mod:`regression.scale`). Updates this GP's settings (the posterior is recomputed at
         the next ``predict``) and returns them; the returned settings pin ``inducing_spacing``
         so that a new GP built from them uses the same grid.
 
@@ -900,6 +914,10 @@ class GaussianProcess:
         lo_l = 1.5 * self._spacing
         if length_scale_bounds is None:
             length_scale_bounds = (lo_l, max(x1 - x0, y1 - y0, lo_l * 2))
+        if signal_variance_bounds is None:             # relative to the data's variance (regression.scale)
+            from .scale import SIGNAL_BOUNDS, running_variance
+            v = running_variance(self)
+            signal_variance_bounds = (SIGNAL_BOUNDS[0] * v, SIGNAL_BOUNDS[1] * v)
         bounds = []
         for name, (lo, hi) in (("signal_variance_bounds", signal_variance_bounds),
                                ("length_scale_bounds", length_scale_bounds)):

@@ -25,13 +25,15 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 
 import numpy as np
 from scipy.optimize import minimize
 
 from .gp import _N_POW, _N_POW_Y, GaussianProcess
+from .scale import SIGNAL_BOUNDS, running_variance
 
-__all__ = ["coarsening_factor", "coarsened", "refit", "refit_online"]
+__all__ = ["coarsening_factor", "coarsened", "refit", "refit_online", "length_scale_bounds", "signal_variance_bounds"]
 
 
 def _offset_maps(c: int, n_pow: int) -> np.ndarray:
@@ -83,29 +85,52 @@ def coarsened(gp, factor: int, length_scale: float | None = None):
     return coarse
 
 
-def refit(gp, prior: tuple[float, float, float] | None, maxiter: int, factor: int = 2,
-          signal_variance_bounds=(1e-4, 1e3)):
+def length_scale_bounds(gp, factor: int = 1) -> tuple[float, float]:
+    """(lower, upper) of a learned length scale on gp's grid coarsened ``factor`` times: the shortest
+    length scale the spline grid represents (1.5 x its cell width W; the measurements cannot resolve
+    structure finer than the grid they are binned on either) and the domain's longer side (a longer
+    correlation is indistinguishable from a constant on it)."""
+    c = coarsening_factor(gp, factor)
+    x0, x1, y0, y1 = gp.domain
+    lo = 1.5 * max(max(gp._ax.h, gp._ay.h) * c, gp.settings.resolved_inducing_spacing)
+    return lo, max(x1 - x0, y1 - y0, 2 * lo)
+
+
+def signal_variance_bounds(gp) -> tuple[float, float]:
+    """(lower, upper) of a learned s_f^2: :data:`regression.scale.SIGNAL_BOUNDS` times the data's variance
+    (:func:`regression.scale.running_variance`), so that they follow the field's units."""
+    v = running_variance(gp)
+    return SIGNAL_BOUNDS[0] * v, SIGNAL_BOUNDS[1] * v
+
+
+def refit(gp, prior, maxiter: int, factor: int = 2, signal_variance_bounds=None, step_sd: float | None = None,
+          length_scale_bounds=None):
     """MAP (or ML if ``prior`` is None) (s_f^2, l) from gp's running sums on a grid ``factor`` times
     coarser; returns (s_f^2, l, number of likelihood evaluations).
 
-    ``prior = (s_f^2_0, l_0, sd)``: independent N(log s_f^2_0, sd^2), N(log l_0, sd^2).  The length
-    scale is bounded by (1.5 W, max domain side), W the coarse cell width; the start is gp's current
-    (s_f^2, l) clipped into the bounds.
+    ``prior = (s_f^2_0, l_0, sd)`` or ``(s_f^2_0, l_0, sd_s, sd_l)``: independent N(log s_f^2_0, sd_s^2),
+    N(log l_0, sd_l^2) (log-normal priors).  ``step_sd``: in addition N(log v, step_sd^2) on both, centred on
+    gp's current values v (a soft trust region: a jump by a factor 10 costs (ln 10 / step_sd)^2 / 2 nats of
+    evidence).  Bounds: ``signal_variance_bounds`` (default :func:`signal_variance_bounds`, relative to the
+    data's variance) and ``length_scale_bounds`` (default :func:`length_scale_bounds` of the coarse grid);
+    the start is gp's current (s_f^2, l) clipped into them.
     """
     if gp.n_observations < 2:
         raise ValueError("a hyperparameter refit needs at least two observations")
     c = coarsening_factor(gp, factor)
-    coarse = coarsened(gp, c)
-    x0, x1, y0, y1 = gp.domain
-    lo_l = 1.5 * max(coarse._ax.h, coarse._ay.h)
-    hi_l = max(x1 - x0, y1 - y0, 2 * lo_l)
-    bounds = [(math.log(signal_variance_bounds[0]), math.log(signal_variance_bounds[1])),
-              (math.log(lo_l), math.log(hi_l))]
+    coarse = coarsened(gp, c) if c > 1 else gp
+    lo_l, hi_l = _default_length_bounds(gp, c) if length_scale_bounds is None else length_scale_bounds
+    lo_l = max(float(lo_l), 1.5 * coarse.settings.resolved_inducing_spacing)
+    sv_lo, sv_hi = _signal_bounds(gp) if signal_variance_bounds is None else signal_variance_bounds
+    bounds = [(math.log(sv_lo), math.log(sv_hi)), (math.log(lo_l), math.log(max(hi_l, lo_l * 1.0001)))]
     a, b = coarse._assemble(coarse.prior_mean)
     n = gp.n_observations
+    s = gp.settings
     if prior is not None:
         centre = np.array([math.log(prior[0]), math.log(prior[1])])
-        sd = float(prior[2])
+        sd = np.array([float(prior[2]), float(prior[-1])])
+    if step_sd is not None:
+        here = np.array([math.log(s.signal_variance), math.log(s.length_scale)])
     evals = [0]
 
     def objective(theta):
@@ -116,9 +141,13 @@ def refit(gp, prior: tuple[float, float, float] | None, maxiter: int, factor: in
             return np.inf
         if prior is not None:
             val += 0.5 * float(np.sum(((theta - centre) / sd) ** 2))
-        return val / n
+        if step_sd is not None:
+            val += 0.5 * float(np.sum(((theta - here) / step_sd) ** 2))
+        # + 1/2 log(2 pi s_n^2) per point: the negative log likelihood of the standardized data y / s_n, whose value
+        # (and so L-BFGS-B's relative stopping test) does not depend on the field's units
+        return val / n - unit_shift
 
-    s = gp.settings
+    unit_shift = 0.5 * math.log(2.0 * math.pi * s.noise_variance)
     theta0 = np.array([np.clip(math.log(s.signal_variance), *bounds[0]), np.clip(math.log(s.length_scale), *bounds[1])])
     f0 = objective(theta0)
     res = minimize(objective, theta0, method="L-BFGS-B", bounds=bounds,
@@ -127,12 +156,59 @@ def refit(gp, prior: tuple[float, float, float] | None, maxiter: int, factor: in
     return float(math.exp(theta[0])), float(math.exp(theta[1])), evals[0]
 
 
-def refit_online(gp: GaussianProcess):
-    """One online MAP refit of gp (``settings.learn_hyperparameters``): from the running sums
-    coarsened ``hyper_coarsening`` times, warm start from the current values, prior centred at the
-    construction-time values, ``hyper_maxiter`` iterations.  Updates gp's settings (the posterior is
-    recomputed at the next ``predict``) and returns them."""
+_default_length_bounds = length_scale_bounds
+_signal_bounds = signal_variance_bounds
+
+
+def _prior(gp):
+    """The refit's log-normal prior (s_f^2_0, l_0, sd_s, sd_l) from gp's initial settings: s_f^2_0 in field
+    units, or with ``signal_scale = "data"`` the relative setting times the data's variance now."""
     s0 = gp.initial_settings
-    s2, ell, _ = refit(gp, (s0.signal_variance, s0.length_scale, s0.hyper_prior_sd), s0.hyper_maxiter,
-                       s0.hyper_coarsening)
+    s2 = s0.signal_variance
+    sd_s = s0.hyper_prior_sd
+    if s0.signal_scale == "data":
+        s2 = s0.signal_variance * running_variance(gp)
+        if s0.hyper_prior_sd_signal is not None:
+            sd_s = s0.hyper_prior_sd_signal
+    return s2, s0.length_scale, sd_s, s0.hyper_prior_sd
+
+
+def _at(value: float, bound: float) -> bool:
+    return abs(math.log(value / bound)) < 1e-3
+
+
+def refit_online(gp: GaussianProcess):
+    """One online MAP refit of gp (``settings.learn_hyperparameters``), warm-started from the current
+    values, ``hyper_maxiter`` iterations, with the log-normal prior of :func:`_prior` and, with
+    ``hyper_step_sd``, the soft trust region around the current values (:func:`refit`).
+
+    Multi-resolution: the likelihood is evaluated on the grid coarsened ``hyper_coarsening`` times (exact
+    sufficient statistics, ~30x cheaper); when the learned l sits at that grid's lower bound (1.5 x its
+    cell width) the fit is repeated on the GP's own grid, whose bound is half as long, so that the data
+    decide a length scale below the coarse grid's resolution.  A learned value at a bound of the grid it
+    was fitted on gets a one-line ``UserWarning`` (once per GP and bound).  Updates gp's settings (the
+    posterior is recomputed at the next ``predict``) and returns them."""
+    s0 = gp.initial_settings
+    prior = _prior(gp)
+    c = coarsening_factor(gp, s0.hyper_coarsening)
+    s2, ell, _ = refit(gp, prior, s0.hyper_maxiter, c, step_sd=s0.hyper_step_sd)
+    lo, hi = length_scale_bounds(gp, c)
+    if c > 1 and ell <= lo * 1.02:
+        gp.set_hyperparameters(s2, max(ell, length_scale_bounds(gp, 1)[0]))
+        s2, ell, _ = refit(gp, prior, s0.hyper_maxiter, 1, step_sd=s0.hyper_step_sd)
+        lo, hi = length_scale_bounds(gp, 1)
+    sv_lo, sv_hi = signal_variance_bounds(gp)
+    warned = gp.__dict__.setdefault("_bound_warnings", set())
+    for name, value, bound, side, unit in (("length scale", ell, lo, "lower", " m"), ("length scale", ell, hi, "upper", " m"),
+                                           ("signal variance", s2, sv_lo, "lower", ""),
+                                           ("signal variance", s2, sv_hi, "upper", "")):
+        if _at(value, bound) and (name, side) not in warned:
+            warned.add((name, side))
+            why = {"length scale lower": "the field may have finer structure than the GP's inducing grid resolves "
+                                         "(a smaller gp.length_scale or gp.inducing_spacing refines it)",
+                   "length scale upper": "the data look constant over the domain",
+                   "signal variance lower": "the data look like noise alone",
+                   "signal variance upper": "the data's own variance is far below the fitted signal"}[f"{name} {side}"]
+            warnings.warn(f"learned {name} {value:.4g}{unit} sits at its {side} bound {bound:.4g}{unit}: {why}",
+                          UserWarning, stacklevel=2)
     return gp.set_hyperparameters(s2, ell)

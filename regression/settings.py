@@ -15,6 +15,8 @@ from ..runtime.validation import MAX_MAGNITUDE
 #: factorisation and overflows the float32 variance snapshots of a run).
 MAX_VARIANCE = 1e30
 MAX_SIGNAL_TO_NOISE = 1e10
+#: choices of :attr:`GPSettings.signal_scale`
+SIGNAL_SCALES = ("absolute", "data")
 
 
 def _finite_positive(name: str, value) -> float:
@@ -41,7 +43,8 @@ class GPSettings:
     ----------
     signal_variance
         Prior variance s_f^2 of the latent field; the predictive variance returns to it far
-        from all data.
+        from all data.  In field units squared with ``signal_scale = "absolute"`` (the paper's 0.25);
+        with ``"data"`` a multiple of the data's variance (:attr:`signal_scale`).
     length_scale
         Length scale l of the kernel (same unit as the domain).
     noise_variance
@@ -76,6 +79,22 @@ class GPSettings:
         The refit evaluates the likelihood on a spline grid this many times coarser, with the
         exact sufficient statistics of the data (:mod:`regression.hyper`; ~30x cheaper at 2);
         the learned length scale is then >= 1.5 x the coarse spacing (1.5 m at the defaults).
+    signal_scale
+        ``"absolute"`` (the paper): ``signal_variance`` is in field units squared.  ``"data"``: the GP
+        works on standardized data: ``signal_variance`` (and the centre of the learned s_f^2's prior and its
+        bounds) is a multiple of the data's variance v_y, estimated from the first batch of data (robustly,
+        1.4826 x the median absolute deviation, squared, minus the noise variance) and floored at the noise
+        variance (a flat first batch: the signal is taken as large as the noise); at each online refit the
+        prior centre follows the variance of all data so far (:mod:`regression.hyper`).  A change of units
+        f -> a f + b with the noise sd scaled by |a| then changes nothing but the units of f̄ and V.
+    hyper_step_sd
+        Online refits (:mod:`regression.hyper`) add a log-normal prior of this standard deviation centred
+        on the previous period's (s_f^2, l): one refit cannot move a value by a factor 10 unless the data
+        favour the move by more than (ln 10 / sd)^2 / 2 nats (about 2.7 nats at the default 1.0).  None:
+        no such prior.
+    hyper_prior_sd_signal
+        Standard deviation of the log-normal prior on s_f^2 when ``signal_scale = "data"`` (centred on the
+        data's variance; None: ``hyper_prior_sd``).
     prior_truncation
         Directions of the spline prior whose variance is below this multiple of signal_variance
         are left out of the posterior (products of per-axis eigenvectors: a Karhunen-Loeve
@@ -99,6 +118,9 @@ class GPSettings:
     hyper_maxiter: int = 15
     hyper_coarsening: int = 2
     prior_truncation: float = 1e-5
+    signal_scale: str = "absolute"
+    hyper_step_sd: float | None = None
+    hyper_prior_sd_signal: float | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "signal_variance", _finite_positive("signal_variance", self.signal_variance))
@@ -108,8 +130,10 @@ class GPSettings:
             if getattr(self, name) > MAX_VARIANCE:
                 raise ValueError(f"{name} must be <= {MAX_VARIANCE:g} (variances are stored as float32 in run "
                                  f"snapshots), got {getattr(self, name):g}")
+        if self.signal_scale not in SIGNAL_SCALES:
+            raise ValueError(f"signal_scale must be one of {', '.join(SIGNAL_SCALES)}, got {self.signal_scale!r}")
         ratio = self.signal_variance / self.noise_variance
-        if not 1.0 / MAX_SIGNAL_TO_NOISE <= ratio <= MAX_SIGNAL_TO_NOISE:
+        if self.signal_scale == "absolute" and not 1.0 / MAX_SIGNAL_TO_NOISE <= ratio <= MAX_SIGNAL_TO_NOISE:
             raise ValueError(f"signal_variance / noise_variance = {ratio:.3g} is outside [1e-10, 1e10]: beyond it the "
                              "posterior's Cholesky factorisations lose accuracy (at 1e102 they fail)")
         if self.prior_mean is not None:
@@ -149,6 +173,9 @@ class GPSettings:
         if isinstance(tr, bool) or not isinstance(tr, numbers.Real) or not 0.0 <= float(tr) <= 1e-4:
             raise ValueError(f"prior_truncation must be a number in [0, 1e-4], got {tr!r}")
         object.__setattr__(self, "prior_truncation", float(tr))
+        for name in ("hyper_step_sd", "hyper_prior_sd_signal"):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, _finite_positive(name, getattr(self, name)))
 
     @property
     def resolved_inducing_spacing(self) -> float:

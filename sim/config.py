@@ -397,7 +397,7 @@ class RunConfig:
         if not math.isclose(self.gp.noise_variance, s.noise_variance, rel_tol=1e-12):
             raise ValueError(f"gp.noise_variance ({self.gp.noise_variance:g}) differs from sim.noise_variance "
                              f"({s.noise_variance:g}); set it in [sim] only")
-        if s.gamma >= self.gp.signal_variance:
+        if self.gp.signal_scale == "absolute" and s.gamma >= self.gp.signal_variance:
             raise ValueError(f"sim.gamma ({s.gamma:g}) must be below the GP prior variance gp.signal_variance "
                              f"({self.gp.signal_variance:g}): sup V starts there, so Algorithm 1 would stop before "
                              "the robots move")
@@ -480,6 +480,8 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
     sim_map.update({k: v for k, v in (overrides or {}).items() if v is not None})
     sim = dataclass_from_dict(SimSettings, sim_map, "sim")
     gp_map = dict(doc.get("gp", {}))
+    if (overrides or {}).get("noise_variance") is not None:      # e.g. --noise-sd over a run's config.toml
+        gp_map.pop("noise_variance", None)
     gp_map.setdefault("noise_variance", sim.noise_variance)
     gp = dataclass_from_dict(GPSettings, gp_map, "gp")
     kde = dataclass_from_dict(KDESettings, dict(doc.get("kde", {})), "kde")

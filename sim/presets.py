@@ -95,7 +95,10 @@ PRESETS: dict[str, dict] = {
         # The other maps have the same cells as at 0.5; no effect on the empty rectangle
         "domain": {"min_free_fraction": 0.25},
         # (s_f^2, l) learned once per period by MAP from the GP's running sums (regression.hyper)
-        "gp": {"learn_hyperparameters": True, "hyper_maxiter": 8},
+        # signal_scale "data": the GP works on standardized data (regression.scale): its prior s_f^2 is the first
+        # data's variance (floored at the noise variance) and the learned s_f^2's prior and bounds follow the data's
+        # variance, so that a change of units (a f + b, noise sd x |a|) changes nothing but the units
+        "gp": {"learn_hyperparameters": True, "hyper_maxiter": 8, "signal_scale": "data", "signal_variance": 1.0},
         # a learned s_f^2 changes the scale of V: stop at sup V <= 0.4 s_f^2 and target
         # max(V - 0.2 s_f^2, 0), the paper's 0.1 and 0.05 relative to its s_f^2 = 0.25
         # eta_relative 0.05 (issue 20): keep planning until sup V < 0.05 s_f^2, the map keeps improving

@@ -108,7 +108,7 @@ def _labels(items, builtins) -> dict:
 
 
 def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, loss_time=None, start_box=None,
-               max_periods=4, presets=None, domains=None, comm_radii=None) -> list[dict]:
+               max_periods=4, presets=None, domains=None, comm_radii=None, noise_sd=None) -> list[dict]:
     """The sweep's task dicts: every combination, each with its fully resolved configuration.
 
     ``base_doc`` is a configuration document as written in a TOML file (only the values the user
@@ -116,7 +116,9 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
     ``paper``) is laid under it, so the baselines of a preset share its GP and stopping settings.
     ``domains`` (built-in names or files, :mod:`domain`) adds the domain axis; each task then has
     a ``domain`` label.  ``comm_radii`` (metres; inf = the centralized loop) adds the communication radius
-    (``sim.comm_radius``, :mod:`sim.network`) as an axis; each task then has a ``comm_radius`` label."""
+    (``sim.comm_radius``, :mod:`sim.network`) as an axis; each task then has a ``comm_radius`` label.
+    ``noise_sd``: the measurement noise's standard deviation in field units (``sim.noise_variance =
+    noise_sd^2``; default the configuration's)."""
     from ..sim.config import config_from_dict
     from ..sim.controllers import make_controller
     from ..sim.fields import FIELDS
@@ -145,7 +147,8 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
             src = dom if dom in BUILTIN_DOMAINS else str(Path(dom).resolve())
             doc = {**base_doc, "domain": {**base_doc.get("domain", {}), "source": src}}
             sub = make_tasks(doc, controllers, fields, seeds, losses, robots, loss_time=loss_time,
-                             start_box=start_box, max_periods=max_periods, presets=presets, comm_radii=comm_radii)
+                             start_box=start_box, max_periods=max_periods, presets=presets, comm_radii=comm_radii,
+                             noise_sd=noise_sd)
             for t in sub:
                 t["domain"] = dlabels[dom]
                 if dom not in BUILTIN_DOMAINS:
@@ -185,6 +188,8 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
                             sim["loss_time"] = float(loss_time)
                         if start_box is not None:
                             sim["start_box"] = list(start_box)
+                        if noise_sd is not None:
+                            sim["noise_variance"] = float(noise_sd) ** 2
                         doc = {**base_doc, "sim": sim}
                         cfg = config_from_dict(doc, preset=preset)   # validates every combination up front
                         s = cfg.sim
@@ -446,6 +451,9 @@ def build_parser():
     p.add_argument("--comm-radius", nargs="+", type=float, default=None, metavar="METRES",
                    help="decentralized swarm: communication radii as an axis of the sweep (inf: the paper's "
                         "communication centre); adds comm_radius, density_error, components, comm_bytes to runs.csv")
+    p.add_argument("--noise-sd", type=float, metavar="SD",
+                   help="standard deviation of the measurement noise, in the field's units (default: the "
+                        "configuration's sim.noise_variance, the paper's 0.04 = 0.2^2)")
     p.add_argument("--max-periods", type=int, default=4, metavar="N", help="length of every run in periods T")
     p.add_argument("--times", nargs="+", type=float, default=None, metavar="K",
                    help="RMSE columns at these multiples of T (default 1 2 and --max-periods)")
@@ -501,6 +509,8 @@ def run(argv=None) -> int:
         if not (math.isfinite(t) and 0 < t <= args.max_periods):
             raise InputError(f"--times {t:g}: every time must lie in (0, --max-periods = {args.max_periods}] "
                              "(multiples of T within the runs)")
+    if args.noise_sd is not None and not (math.isfinite(args.noise_sd) and args.noise_sd > 0):
+        raise InputError(f"--noise-sd must be a positive number in the field's units, got {args.noise_sd:g}")
     if args.loss_time is not None and not math.isfinite(args.loss_time):
         raise InputError(f"--loss-time must be a finite time in seconds, got {args.loss_time}")
     # one rule for repeated axis values in every sweep command: dropped, with a one-line note
@@ -533,7 +543,8 @@ def run(argv=None) -> int:
         # every field file and every run's configuration is loaded and checked here, before any worker
         tasks = make_tasks(base_doc, args.controllers, args.fields, args.seeds, args.robot_loss, robots,
                            loss_time=args.loss_time, start_box=args.start_box, max_periods=args.max_periods,
-                           presets=args.presets, domains=args.domains, comm_radii=args.comm_radius)
+                           presets=args.presets, domains=args.domains, comm_radii=args.comm_radius,
+                           noise_sd=args.noise_sd)
         if args.domains:               # bad domains fail here, in one line, before any run
             from ..sim.config import config_from_dict
             from ..sim.simulation import check_config
