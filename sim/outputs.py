@@ -8,7 +8,9 @@
                         read the posterior every step, only one row at t = 0 and one per period;
                         ``metrics_every = 1``: every step at any swarm size
 ``DIR/replans.csv``     one row per planner call: period, t0, sup V, rmse, IPOPT status,
-                        iterations, solve time, objective
+                        iterations, solve time (``solve_time_s``: IPOPT's wall time), the CPU time
+                        of the whole planner call (``solve_cpu_s``: process CPU, the initial guess,
+                        IPOPT and the plan's packaging), objective
 ``DIR/summary.json``    resolved configuration (every setting), seed, field description,
                         ``time_to_threshold`` (null if never reached), ``periods_to_threshold``,
                         final figures, planner statistics, timings (the simulation's phases and
@@ -66,7 +68,7 @@ STAGING = ".simulate-swarm-incomplete"     # where the files of an unfinished ru
 FIGURES = ("panels.png", "convergence.png", "field_error.png", "animation.gif")
 OUTPUT_FILES = ("metrics.csv", "replans.csv", "summary.json", "config.toml", "trajectory.npz") + FIGURES
 REPLAN_COLUMNS = ("period", "t0", "max_variance", "rmse", "status", "success", "iterations", "solve_time_s",
-                  "objective", "symmetric_kl_initial", "symmetric_kl_final")
+                  "solve_cpu_s", "objective", "symmetric_kl_initial", "symmetric_kl_final")
 
 
 # ------------------------------------------------------------------------------ folder handling
