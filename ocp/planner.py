@@ -122,6 +122,9 @@ class ReferencePlanner:
         except RuntimeError as exc:
             reason = re.sub(r"^.*?\.cpp:\d+:\s*", "", str(exc).strip().splitlines()[-1])
             raise ValueError(f"IPOPT rejected the options: {reason}") from None
+        self._nlp_opts = opts
+        self._warm_solver = None        # the same NLP with warm_start_init_point (PlannerSettings.warm_start)
+        self._last_duals = None         # (plan, lam_x, lam_g) of the last IPOPT solve
         self._coarse = None
         if self._coarse_applies():
             # the coarse planner of cold_start = "coarse" (ocp.coarse): built with this one, same settings on half
@@ -277,19 +280,26 @@ class ReferencePlanner:
         par = P.parameters(p0, q, info)
         F, nlp = self.formulation, self.nlp
         x0 = F.initial_point(coef0, p0)
-        t_start = time.perf_counter()
+        solver, args = self.solver, {}
+        duals = self._dual_start(warm_start, t0)
+        if duals is not None:
+            solver, args = self.warm_solver(), {"lam_x0": duals[0], "lam_g0": duals[1]}
+        t_start, c_start = time.perf_counter(), time.process_time()
         with _interrupt_guard() as interrupted:
-            sol = self.solver(x0=x0, p=par, lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg)
+            sol = solver(x0=x0, p=par, lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg, **args)
         if interrupted:
             raise KeyboardInterrupt
         wall = time.perf_counter() - t_start
-        stats = self.solver.stats()
+        cpu = time.process_time() - c_start
+        stats = solver.stats()
         status = stats.get("return_status", "unknown")
         x = np.array(sol["x"]).ravel()
         if status == "Invalid_Option":
             raise PlannerError(f"IPOPT failed: {status} (is linear solver {s.ipopt.linear_solver!r} available? "
                                "the HSL solvers need ipopt.extra.hsllib)", _stats_summary(stats, wall))
         summary = _stats_summary(stats, wall)
+        summary["cpu_time_s"] = cpu
+        summary["warm_start"] = "primal-dual" if duals is not None else ("primal" if warm_start is not None else "none")
         if coarse_summary is not None:
             summary["cold_start"] = coarse_summary
         summary["formulation"] = F.name
@@ -306,7 +316,30 @@ class ReferencePlanner:
                 raise PlannerError(f"IPOPT failed: {status} after {stats.get('iter_count', '?')} iterations", summary)
             coef, objective = used
             summary["status"] = f"{status} (feasible iterate used)"
-        return self._package(p0, q, target, t0, warm_start, coef, objective, summary)
+        plan = self._package(p0, q, target, t0, warm_start, coef, objective, summary)
+        if self.settings.warm_start == "primal-dual" and isinstance(F, SingleShooting) and status in SUCCESS:
+            self._last_duals = (plan, np.array(sol["lam_x"]).ravel(), np.array(sol["lam_g"]).ravel())
+        return plan
+
+    def warm_solver(self):
+        """The IPOPT solver of this NLP that starts from given multipliers (``warm_start_init_point``; built on
+        first use: a solve without them keeps IPOPT's own multiplier initialisation)."""
+        if self._warm_solver is None:
+            opts = {**self._nlp_opts, "ipopt": {**self.ipopt_options, "warm_start_init_point": "yes"}}
+            self._warm_solver = ca.nlpsol("reference_density_warm", "ipopt", self.nlp.nlp, opts)
+        return self._warm_solver
+
+    def _dual_start(self, warm_start, t0):
+        """(lam_x0, lam_g0) for a primal-dual warm start from ``warm_start`` (:mod:`ocp.warmstart`), or None:
+        other settings, another formulation, or a plan that is not this planner's last IPOPT solve."""
+        last = self._last_duals
+        if (self.settings.warm_start != "primal-dual" or warm_start is None or last is None or last[0] is not warm_start
+                or not isinstance(self.formulation, SingleShooting)):
+            return None
+        from .warmstart import g_blocks, shift_blocks, x_blocks
+        P = self.problem
+        shift = int(round((t0 - warm_start.t_start) / self.settings.interval))
+        return (shift_blocks(last[1], x_blocks(P), P.N, shift), shift_blocks(last[2], g_blocks(P), P.N, shift))
 
     def _usable_iterate(self, coef, x0, p0, q):
         """(coef, objective) of IPOPT's last iterate scaled per interval into the speed limit (a scaled

@@ -154,6 +154,82 @@ def test_substeps_respect_cfl():
     assert 2 * (s.interval / (s.substeps - 1)) * (s.v_max + s.upwind_smoothing) / h > s.cfl
 
 
+@pytest.mark.parametrize("speed_limit", ["l1", "norm"])
+@pytest.mark.parametrize("basis", ["sine", "sine-cosine"])
+def test_gradient_substep_rule_keeps_every_admissible_update_non_negative(speed_limit, basis):
+    """substep_rule = "gradient": about half the sub-steps of "sup", and still 1 - dt * outflow >= 0 in every
+    cell (the update is a non-negative combination of old cell values) at the limit's worst coefficients:
+    all of the budget on the steepest mode, and random admissible draws scaled onto the limit."""
+    from swarmfield.ocp.problem import norm_polygon
+    from swarmfield.ocp.transport import FaceBasis, upwind_split
+    kw = dict(domain=(0.0, 20.0, 0.0, 20.0), nx=20, ny=20, n_modes_x=8, n_modes_y=8, v_max=24.0,
+              speed_limit=speed_limit, basis=basis)
+    s, sup = PlannerSettings(substep_rule="gradient", **kw), PlannerSettings(**kw)
+    assert s.substeps <= 0.65 * sup.substeps                 # 1 m cells: the slope I pi / L = 1.26 / m binds
+    fine = {**kw, "nx": 40, "ny": 40}                         # 0.5 m cells: 1 / dx binds, half the sub-steps
+    assert PlannerSettings(substep_rule="gradient", **fine).substeps <= 0.55 * PlannerSettings(**fine).substeps
+    g = TransportProblem(s).grid
+    fb = FaceBasis(g, s.n_modes_x, s.n_modes_y, basis)
+    dt = s.interval / s.substeps
+    rng = np.random.default_rng(0)
+    # (B_x, B_y) on the limit's boundary: l1 B_x + B_y = v; norm: the inscribed polygon's vertices
+    splits = [(1.0, 0.0), (0.5, 0.5), (0.0, 1.0)] if speed_limit == "l1" else \
+        [(np.cos(a), np.sin(a)) for a in np.linspace(0, np.pi / 2, 7)]
+    worst = 0.0
+    for bx, by in splits:
+        cands = []
+        for _ in range(20):
+            c = rng.standard_normal((2, 8, 8)) * rng.random((2, 8, 8)) ** 6
+            cands.append(c)
+        steep = np.zeros((2, 8, 8))
+        steep[0, 7, 0] = steep[1, 0, 7] = 1.0        # the highest mode along each component's own axis
+        cands.append(steep)
+        for c in cands:
+            c = c.copy()
+            c[0] *= bx * s.v_max / max(np.abs(c[0]).sum(), 1e-300)
+            c[1] *= by * s.v_max / max(np.abs(c[1]).sum(), 1e-300)
+            vx, vy = fb.face_velocities(c)
+            (xp, xm), (yp, ym) = upwind_split(vx, s.upwind_smoothing), upwind_split(vy, s.upwind_smoothing)
+            out = np.zeros(g.shape)
+            out[:-1, :] += xp / g.dx                  # x-faces between cells i, i+1: i loses v+, i+1 loses v-
+            out[1:, :] += xm / g.dx
+            out[:, :-1] += yp / g.dy
+            out[:, 1:] += ym / g.dy
+            worst = max(worst, dt * out.max())
+    assert worst <= s.cfl + 1e-9
+    assert worst > 0.5 * s.cfl            # and the rule is not loose by a factor of two
+
+
+def test_shift_blocks_moves_every_interval_major_block():
+    from swarmfield.ocp.warmstart import shift_blocks
+    v = np.concatenate([np.arange(6.0), 10 + np.arange(3.0)])          # blocks of 2 per interval and 1 per interval
+    np.testing.assert_array_equal(shift_blocks(v, [6, 3], 3, 1), [2, 3, 4, 5, 4, 5, 11, 12, 12])
+    np.testing.assert_array_equal(shift_blocks(v, [6, 3], 3, 0), v)
+    np.testing.assert_array_equal(shift_blocks(v, [6, 3], 3, 3), v)
+    with pytest.raises(ValueError):
+        shift_blocks(v, [5, 4], 3, 1)
+
+
+@pytest.mark.parametrize("speed_limit", ["l1", "norm"])
+def test_primal_dual_warm_start_reaches_the_same_optimum(speed_limit):
+    planner = ReferencePlanner(PlannerSettings(**{**SMALL, "speed_limit": speed_limit}, warm_start="primal-dual"))
+    g = planner.grid
+    p0, target = bump(g, 2.5, 2.5, 1.2), bump(g, 7.0, 5.0, 1.2)
+    cold = planner.solve(p0, target)
+    assert cold.meta["solver"]["warm_start"] == "none"
+    tau = planner.settings.interval
+    p1 = cold.density_grid(tau)
+    warm = planner.solve(p1, target, t0=tau, warm_start=cold)
+    assert warm.meta["solver"]["warm_start"] == "primal-dual" and warm.meta["solver"]["cpu_time_s"] > 0
+    primal = ReferencePlanner(PlannerSettings(**{**SMALL, "speed_limit": speed_limit})).solve(
+        p1, target, t0=tau, warm_start=cold)
+    assert primal.meta["solver"]["warm_start"] == "primal"
+    assert warm.meta["objective"] == pytest.approx(primal.meta["objective"], rel=1e-3)
+    # a plan that is not the planner's last solve: the multipliers are not reused
+    other = planner.solve(p1, target, t0=tau, warm_start=cold)
+    assert other.meta["solver"]["warm_start"] == "primal"
+
+
 def test_slack_and_split_speed_limit_forms_reach_the_same_optimum(small_planner):
     g = small_planner.grid
     p0, target = bump(g, 2.5, 2.5, 1.2), bump(g, 7.0, 5.0, 1.2)

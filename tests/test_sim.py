@@ -414,6 +414,10 @@ def test_outputs_of_a_run(small_run, tmp_path):
     assert {"t", "max_variance", "rmse", "tracking_error", "mean_speed", "n_observations"} <= set(rows[0])
     assert len(rows) == len(small_run.rows)
     assert float(rows[-1]["rmse"]) == small_run.rows[-1]["rmse"]          # repr round-trips floats
+    with open(out / "replans.csv") as fh:
+        plans = list(csv.DictReader(fh))
+    # each planner call's CPU time beside IPOPT's wall time
+    assert plans and all(float(r["solve_cpu_s"]) > 0 and float(r["solve_time_s"]) > 0 for r in plans)
     summary = json.loads((out / "summary.json").read_text())
     for key in ("config", "seed", "time_to_threshold", "periods_to_threshold", "final_rmse", "final_max_variance",
                 "planner", "wall_time_s", "versions", "stop_reason", "field"):

@@ -1,0 +1,119 @@
+"""Record the planner calls of a closed-loop run, then replay them with other planner settings.
+
+    python benchmarks/replan_replay.py record CALLS.pkl [--field sinc] [--domain rectangle] [--seed 0] [--periods 3]
+    python benchmarks/replan_replay.py replay CALLS.pkl [--set planner.KEY=VALUE ...] [--ipopt KEY=VALUE ...]
+
+``record`` runs the tuned preset's feedback controller and pickles every ``ReferencePlanner.solve`` call
+(p0, target, t0, whether it was warm-started, the information inputs) with the run's planner settings.
+``replay`` builds a planner from those settings with the changes given (``--set planner.substep_rule=divergence``,
+``--ipopt max_iter=60``), solves the recorded problems in order, each warm-started from its own previous
+plan as in the run, and prints per call the process CPU time, IPOPT's iterations and the optimum
+(docs/results/realtime-plans.md).  The planner's share of a closed-loop run is measured on the same inputs,
+so two settings compare without the run's feedback on the plans; the closed loop checks the rest.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import pickle
+import statistics
+import sys
+import time
+
+
+def record(path, field, domain, seed, periods, preset="tuned"):
+    from swarmfield.ocp import ReferencePlanner
+    from swarmfield.sim.config import RunConfig
+    from swarmfield.sim.loop import run_simulation
+    from swarmfield.sim.simulation import resolve_domain
+    from swarmfield.sim.stopping import make_stop_rule
+    cfg = RunConfig.from_preset(preset).replace(max_periods=periods, field=field, seed=seed)
+    if domain != "rectangle":
+        cfg = dataclasses.replace(cfg, domain=dataclasses.replace(cfg.domain, source=domain))
+    calls = []
+
+    class Recording(ReferencePlanner):
+        def solve(self, p0, target, t0=0.0, warm_start=None, method=None, information=None):
+            calls.append({"p0": p0.copy(), "target": target.copy(), "t0": t0, "warm": warm_start is not None,
+                          "information": information})
+            return super().solve(p0, target, t0=t0, warm_start=warm_start, method=method, information=information)
+
+    from swarmfield.ocp import Grid
+    _, free = resolve_domain(cfg, Grid(cfg.planner.domain, cfg.planner.nx, cfg.planner.ny))
+    planner = Recording(cfg.planner, free=free)
+    run_simulation(cfg, planner=planner, stop_rule=make_stop_rule(cfg.sim, stops=False))
+    with open(path, "wb") as fh:
+        pickle.dump({"settings": planner.settings, "free": free, "calls": calls,
+                     "run": {"field": field, "domain": domain, "seed": seed, "periods": periods}}, fh)
+    print(f"{len(calls)} planner calls recorded in {path}")
+
+
+def _value(text):
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError:
+        return text
+
+
+def replay(path, sets, ipopt_sets, label=""):
+    from swarmfield.ocp import PlannerError, ReferencePlanner
+    with open(path, "rb") as fh:
+        rec = pickle.load(fh)
+    s = rec["settings"]
+    changes = {k.split(".", 1)[1]: _value(v) for k, v in (x.split("=", 1) for x in sets)}
+    ip = {k: _value(v) for k, v in (x.split("=", 1) for x in ipopt_sets)}
+    extra = {k: v for k, v in ip.items() if not hasattr(s.ipopt, k)}
+    ip = {k: v for k, v in ip.items() if hasattr(s.ipopt, k)}
+    if ip or extra:
+        changes["ipopt"] = dataclasses.replace(s.ipopt, **ip, extra={**s.ipopt.extra, **extra})
+    s = dataclasses.replace(s, **changes)
+    planner = ReferencePlanner(s, free=rec["free"])
+    prev, rows = None, []
+    for i, call in enumerate(rec["calls"]):
+        c0, w0 = time.process_time(), time.perf_counter()
+        try:
+            plan = planner.solve(call["p0"], call["target"], t0=call["t0"], warm_start=prev if call["warm"] else None,
+                                 information=call["information"])
+        except PlannerError as exc:
+            rows.append({"call": i, "status": str(exc), "cpu_s": time.process_time() - c0})
+            continue
+        sv = plan.meta["solver"]
+        rows.append({"call": i, "cpu_s": round(time.process_time() - c0, 3), "wall_s": round(time.perf_counter() - w0, 3),
+                     "iterations": sv["iterations"], "status": sv["status"], "objective": plan.meta["objective"],
+                     "kl_final": plan.meta["symmetric_kl_final"], "substeps": plan.meta["substeps"]})
+        prev = plan
+    cpus = [r["cpu_s"] for r in rows]
+    later = cpus[1:] or [0.0]
+    print(json.dumps({"label": label or " ".join(sets + ipopt_sets) or "as recorded", "calls": len(rows),
+                      "substeps": rows[0].get("substeps"), "total_cpu_s": round(sum(cpus), 2),
+                      "first_cpu_s": cpus[0], "later_max_cpu_s": max(later),
+                      "later_median_cpu_s": statistics.median(later),
+                      "iterations": [r.get("iterations") for r in rows],
+                      "objectives": [round(r["objective"], 4) if "objective" in r else None for r in rows]}), flush=True)
+    return rows
+
+
+def main(argv=None) -> int:
+    from swarmfield.runtime.threads import limit_threads
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("mode", choices=("record", "replay"))
+    ap.add_argument("path")
+    ap.add_argument("--field", default="sinc")
+    ap.add_argument("--domain", default="rectangle")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--periods", type=int, default=3)
+    ap.add_argument("--set", dest="sets", action="append", default=[], metavar="planner.KEY=VALUE")
+    ap.add_argument("--ipopt", action="append", default=[], metavar="KEY=VALUE")
+    ap.add_argument("--label", default="")
+    a = ap.parse_args(argv)
+    limit_threads()
+    if a.mode == "record":
+        record(a.path, a.field, a.domain, a.seed, a.periods)
+    else:
+        replay(a.path, a.sets, a.ipopt, a.label)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
