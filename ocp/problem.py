@@ -202,8 +202,14 @@ class TransportProblem:
         if s.objective == "information":
             from .objectives import information_size, information_terms
             self.info = ca.MX.sym("info", information_size(nx, ny))
-            M = ca.horzcat(*states) if self.kernel is None else ca.reshape(Pk, nx, ny * (N + 1))
-            phi = information_terms(M, self.info, nx, ny, tau, s.information_power)     # (1, N + 1)
+            if self.kernel is None:
+                phi = information_terms(ca.horzcat(*states), self.info, nx, ny, tau, s.information_power)  # (1, N+1)
+            else:
+                # the same terms in NumPy with a hand-written reverse sweep (ocp.information_callback): a third
+                # of an IPOPT iteration in CasADi's matrix loops otherwise
+                from .information_callback import InformationTerms, information_callback
+                self._information_fn = information_callback(InformationTerms(nx, ny, N + 1, tau, s.information_power))
+                phi = self._information_fn(ca.reshape(Pk, nx, ny * (N + 1)), self.info)
             trap = np.ones(N + 1)
             trap[[0, -1]] = 0.5
             running = s.information_weight * ca.mtimes(phi, ca.DM(trap))

@@ -171,3 +171,26 @@ def test_objective_scaled_by_the_weight_unless_set():
     a = pl.solve(p0, pf, information=_inputs(g)).meta["objective"]
     b = explicit.solve(p0, pf, information=_inputs(g)).meta["objective"]
     assert a == pytest.approx(b, rel=5e-3)
+
+
+@pytest.mark.parametrize("power", [1.0, 4.0])
+def test_numpy_information_node_equals_the_casadi_graph_with_every_derivative(power):
+    """ocp.information_callback (used with the transport kernels) against ocp.objectives.information_terms:
+    values and reverse derivatives with respect to the densities and every parameter, to round-off."""
+    from swarmfield.ocp.information_callback import InformationTerms, information_callback
+    from swarmfield.ocp.objectives import information_size, information_terms
+    rng = np.random.default_rng(0)
+    nx, ny, ns = 7, 5, 4
+    M = ca.MX.sym("M", nx, ny * ns)
+    info = ca.MX.sym("info", information_size(nx, ny))
+    w = rng.random(ns)
+    outs = []
+    node = information_callback(InformationTerms(nx, ny, ns, 0.3, power))      # kept alive: CasADi holds no reference
+    for phi in (information_terms(M, info, nx, ny, 0.3, power), node(M, info)):
+        J = ca.mtimes(phi, w)
+        outs.append(ca.Function("f", [M, info], [phi, ca.gradient(J, M), ca.gradient(J, info)]))
+    Mv = rng.random((nx, ny * ns))
+    iv = np.concatenate([rng.random(nx * ny) + 0.1, rng.random(nx * nx), rng.random(ny * ny), [3.0]])
+    for graph, node in zip(outs[0](Mv, iv), outs[1](Mv, iv)):
+        graph, node = np.array(graph), np.array(node)
+        np.testing.assert_allclose(node, graph, rtol=1e-12, atol=1e-15 * np.abs(graph).max())
