@@ -229,7 +229,10 @@ def _transport_faces(plan, t, est, rate):
             _POISSON_CACHE.clear()
         solver = _POISSON_CACHE[key] = PoissonFlux(g, free)
     if hasattr(est, "rows"):              # each robot its own estimate (control.consensus.RobotDensities)
-        return _OwnTransport(solver, est, plan.density_grid(t), rate), None
+        each = None                       # robots that hold different plans (sim.network.RobotPlans)
+        if hasattr(plan, "density_grids"):
+            each = lambda rows: plan.density_grids(t, rows)     # noqa: E731
+        return _OwnTransport(solver, est, plan.density_grid(t), rate, each), None
     error = est.on_grid(g.nx, g.ny) - plan.density_grid(t)
     return solver, solver.faces(error, rate)
 
@@ -238,13 +241,15 @@ class _OwnTransport:
     """The transport flux of each robot from its own density estimate: ``at(X, _)`` solves one potential per
     robot (:meth:`control.poisson_flux.PoissonFlux.at_each`) of the error p̂_i - p_r on the plan's grid."""
 
-    def __init__(self, solver, est, p_r, rate):
-        self.solver, self.est, self.p_r, self.rate = solver, est, p_r, rate
+    def __init__(self, solver, est, p_r, rate, each=None):
+        self.solver, self.est, self.p_r, self.rate, self.each = solver, est, p_r, rate, each
 
     def at(self, X, _faces):
         g = self.solver.grid
-        P = self.est.on_grid(g.nx, g.ny, self.est.rows(len(X)))
-        return self.solver.at_each(X, P - self.p_r[None], self.rate)
+        rows = self.est.rows(len(X))
+        P = self.est.on_grid(g.nx, g.ny, rows)
+        p_r = self.p_r[None] if self.each is None else self.each(rows)
+        return self.solver.at_each(X, P - p_r, self.rate)
 
 
 #: robots per block in :func:`tracking_velocity`

@@ -28,8 +28,9 @@ import numpy as np
 
 from ..control.consensus import CosineMoments, PIConsensus, RobotDensities, metropolis_laplacian
 from .comm import FLOAT_BYTES, MessageLog, disk_graph
+from .knowledge import ITEM_BYTES, KnowledgeGroups
 
-__all__ = ["Centralized", "Decentralized", "make_network", "EXTRA_COLUMNS"]
+__all__ = ["Centralized", "Decentralized", "make_network", "EXTRA_COLUMNS", "RobotPlans", "HeldPlan"]
 
 #: metrics.csv columns of a decentralized run, after :data:`sim.metrics.COLUMNS`
 EXTRA_COLUMNS = ("density_error", "components", "comm_bytes")
@@ -49,6 +50,21 @@ class Centralized:
     def estimator(self, sim):
         """What the controllers are given as ``ctx.estimate``: the centre's KDE."""
         return sim.estimate
+
+    def share(self, sim, Xa, y) -> None:
+        """The step's measurements reach the centre's GP."""
+        sim.gp.add(Xa, y)
+
+    def planning_density(self, sim):
+        """The density the reference is planned from: the centre's p̂ on the planner grid."""
+        return sim.p_hat
+
+    def planned(self, sim) -> None:
+        pass
+
+    def robot_plan(self, sim):
+        """The plan the controllers are given: the centre sends its plan to every robot."""
+        return sim.plan
 
     def row(self, sim) -> dict:
         return {}
@@ -78,6 +94,8 @@ class Decentralized:
         self.warned = False
         self._last = None            # (X array, estimate) of the last update
         self._gram = None
+        self.knowledge = KnowledgeGroups(s.robots)
+        self.plan_of = np.full(s.robots, None, dtype=object)     # the plan each robot holds
 
     # ------------------------------------------------------------------ strategy hooks
     def bind(self, sim) -> None:
@@ -98,6 +116,61 @@ class Decentralized:
 
     def estimator(self, sim):
         return self
+
+    def share(self, sim, Xa, y) -> None:
+        """Measurements flooded through each component (:mod:`sim.knowledge`); the designated robot's GP (the
+        run's ``sim.gp``) gets what its component holds and it lacks; at a period's end the designated robot
+        floods sup V and the stop decision through its component."""
+        alive = sim.alive
+        rows = np.flatnonzero(alive)
+        graph = disk_graph(sim.X, self.radius, alive).drop(self.loss, self.rng)
+        count, labels = graph.components()
+        self.note_components(count, sim.t)
+        messages, transfers, missing, rebuild = self.knowledge.share(rows, Xa, y, labels, count)
+        self.log.record("measurements", messages, transfers * ITEM_BYTES)
+        if rebuild:
+            from ..regression import GaussianProcess
+            gs = sim.gp.settings
+            gp = GaussianProcess(sim.config.gp, domain=sim.settings.domain)
+            gp.set_hyperparameters(gs.signal_variance, gs.length_scale)
+            sim.gp = gp
+        kg = self.knowledge
+        n_new = len(y)
+        if missing.size == n_new and n_new and missing[0] == kg.items - n_new and not rebuild:
+            sim.gp.add(Xa, y)                      # the step's own measurements: the centre's map, bit for bit
+        elif missing.size:
+            sim.gp.add(kg.X[missing], kg.y[missing])
+        members = int(kg.main.sum())
+        T = sim.settings.period
+        if sim.t > 0 and abs(sim.t / T - round(sim.t / T)) < 1e-9 and members > 1:
+            self.log.broadcast("stop", members, 2 * FLOAT_BYTES)   # sup V and the decision, flooded once
+
+    def planning_density(self, sim):
+        """The designated robot's own estimate of p̂ on the planner grid (the centre's when it hears everyone)."""
+        est = self(sim.working())
+        if not isinstance(est, RobotDensities):
+            return sim.p_hat
+        g = sim.grid
+        lead = self.knowledge.leader
+        P = est.on_grid(g.nx, g.ny, [lead] if est.index is None else [int(np.searchsorted(est.index, lead))])[0]
+        return g.normalize(P, "the designated robot's density estimate")
+
+    def planned(self, sim) -> None:
+        """The designated robot floods the new plan through the main component; the others keep theirs."""
+        members = self.knowledge.main & sim.alive
+        self.plan_of[members] = sim.plan
+        plan = sim.plan
+        size = sum(np.asarray(getattr(plan, k)).size for k in ("t", "p", "t_intervals", "coef")) * FLOAT_BYTES
+        k = int(members.sum())
+        if k > 1:
+            self.log.broadcast("plan", k, size)
+
+    def robot_plan(self, sim):
+        """Every robot's plan: the current one where it reached, the end of an older one held still elsewhere."""
+        held = self.plan_of[sim.alive]
+        if all(p is sim.plan for p in held):
+            return sim.plan
+        return RobotPlans(self.plan_of, sim.alive, sim.plan, sim.free)
 
     def __call__(self, X, fresh: bool = False):
         """The robots' estimates at positions X (all robots, or the working ones): consensus rounds on the
@@ -200,3 +273,110 @@ class Decentralized:
 def make_network(config):
     """:class:`Centralized` without ``sim.comm_radius``, else :class:`Decentralized`."""
     return Centralized() if config.sim.comm_radius is None else Decentralized(config)
+
+
+class HeldPlan:
+    """The end of a plan, held still: p_r(t_end) and v_r = 0 (what a robot that misses a new plan tracks); a
+    robot that never received a plan holds the uniform density of the free space (``plan`` None, ``like`` a
+    plan for the domain and grid)."""
+
+    def __init__(self, plan, like=None, free=None):
+        self.plan = plan
+        ref = plan if plan is not None else like
+        self.domain, self.grid = ref.domain, ref.grid
+        self.free = getattr(ref, "free", None) if free is None else free
+        self.t_end = None if plan is None else plan.t_end
+
+    def density_and_gradient(self, t, X):
+        if self.plan is not None:
+            return self.plan.density_and_gradient(self.t_end, X)
+        g = self.grid
+        area = g.cell_area * (g.nx * g.ny if self.free is None else int(np.sum(self.free)))
+        return np.full(len(X), 1.0 / area), np.zeros((len(X), 2))
+
+    def density(self, t, X):
+        return self.density_and_gradient(t, X)[0]
+
+    def velocity(self, t, X):
+        return np.zeros((len(X), 2))
+
+    def density_grid(self, t):
+        if self.plan is not None:
+            return self.plan.density_grid(self.t_end)
+        g = self.grid
+        free = np.ones((g.nx, g.ny), bool) if self.free is None else np.asarray(self.free, bool)
+        return np.where(free, 1.0 / (g.cell_area * free.sum()), 0.0)
+
+
+class RobotPlans:
+    """The plans of n robots as one plan-like object (:func:`control.feedback.tracking_velocity` reads it):
+    robot i follows ``plan_of[i]`` when that is the current plan ``current``, else the held end of its own
+    (:class:`HeldPlan`).  Evaluated at the robots' own positions (n rows, or the working robots' rows)."""
+
+    def __init__(self, plan_of, alive, current, free=None):
+        self.current = current
+        self.alive = np.asarray(alive, bool)
+        self.domain, self.grid = current.domain, current.grid
+        self.free = getattr(current, "free", None)
+        self.basis = "held"                          # not a sine series: the compiled kernel steps aside
+        held = {}
+        self.parts = []                              # (plan-like, robot indices)
+        keys = np.array([id(p) for p in plan_of])
+        for key in np.unique(keys):
+            idx = np.flatnonzero(keys == key)
+            p = plan_of[idx[0]]
+            if p is not current:
+                p = held.setdefault(key, HeldPlan(p, like=current))
+            self.parts.append((p, idx))
+        self.n = len(plan_of)
+
+    def _rows(self, m):
+        if m == self.n:
+            return np.arange(m)
+        rows = np.flatnonzero(self.alive)
+        if m != rows.size:
+            raise ValueError(f"plans of {self.n} robots evaluated at {m} points")
+        return rows
+
+    def _each(self, X, fn, width):
+        rows = self._rows(len(X))
+        pos = np.full(self.n, -1)
+        pos[rows] = np.arange(len(rows))
+        outs = None
+        for p, idx in self.parts:
+            k = pos[idx]
+            k = k[k >= 0]
+            if not k.size:
+                continue
+            r = fn(p, X[k])
+            if outs is None:
+                outs = tuple(np.zeros((len(X),) + np.shape(a)[1:]) for a in (r if isinstance(r, tuple) else (r,)))
+            for o, a in zip(outs, r if isinstance(r, tuple) else (r,)):
+                o[k] = a
+        return outs if width > 1 else outs[0]
+
+    def density_and_gradient(self, t, X):
+        return self._each(np.asarray(X, float), lambda p, x: p.density_and_gradient(t, x), 2)
+
+    def density(self, t, X):
+        return self.density_and_gradient(t, X)[0]
+
+    def velocity(self, t, X):
+        return self._each(np.asarray(X, float), lambda p, x: p.velocity(t, x), 1)
+
+    def density_grid(self, t):
+        return self.current.density_grid(t)
+
+    def density_grids(self, t, rows):
+        """(len(rows), nx, ny) the reference density on the grid of each of the robots ``rows``."""
+        out = None
+        rows = np.asarray(rows)
+        for p, idx in self.parts:
+            sel = np.isin(rows, idx)
+            if sel.any():
+                g = p.density_grid(t)
+                if out is None:
+                    out = np.zeros((len(rows),) + g.shape)
+                out[sel] = g
+        return out
+

@@ -276,7 +276,7 @@ class Simulation:
         if not self.posterior_due(j, y.shape[0]):             # posterior not needed now: data only
             tm["dynamics"] += time.perf_counter() - t_dyn
             t_reg = time.perf_counter()
-            self.gp.add(Xa, y)
+            self.network.share(self, Xa, y)
             tm["regression"] += time.perf_counter() - t_reg
             return
         self.p_hat = self._p_hat_grid()
@@ -360,7 +360,7 @@ class Simulation:
         if Xa is None:
             Xa, y = self._pending
         t0 = time.perf_counter()
-        self.gp.add(Xa, y)
+        self.network.share(self, Xa, y)          # to the centre's GP, or the designated robot's
         self.mean, self.var = self.predict()
         self.result.timings["regression"] += time.perf_counter() - t0
 
@@ -422,7 +422,8 @@ class Simulation:
         def make(var):
             if s.target == "reachable":
                 reach = 0.5 * self.config.planner.v_max * s.period if s.reach is None else s.reach   # 2 sd = v_max T
-                return reachable_target_density(var, eta, grid.cell_area, self.p_hat, reach, grid.dx, grid.dy)
+                return reachable_target_density(var, eta, grid.cell_area, self.network.planning_density(self), reach,
+                                                grid.dx, grid.dy)
             return target_density(var, eta, grid.cell_area)
 
         p_f = make(self.var)
@@ -470,7 +471,8 @@ class Simulation:
         res, k, t = self.result, self.period_index, self.t
         t_plan, c_plan = time.perf_counter(), time.process_time()
         try:
-            plan = self.planner.solve(self.p_hat, p_f, t0=t, warm_start=self.plan, **self.information_inputs())
+            plan = self.planner.solve(self.network.planning_density(self), p_f, t0=t, warm_start=self.plan,
+                                      **self.information_inputs())
         except self.planner_error as exc:
             info = dict(getattr(exc, "stats", {}) or {})
             res.replans.append({"period": k, "t0": t, "max_variance": float(self.var.max()), "rmse": res.rows[-1]["rmse"],
@@ -483,6 +485,7 @@ class Simulation:
         res.timings["planner"] += time.perf_counter() - t_plan
         cpu = time.process_time() - c_plan          # the whole call: a coarse start, IPOPT, the packaging
         self.plan = plan
+        self.network.planned(self)                # sent to every robot, or through the main component
         sv = plan.meta.get("solver", {})
         res.replans.append({
             "period": k, "t0": t, "max_variance": float(self.var.max()), "rmse": res.rows[-1]["rmse"],
@@ -563,7 +566,7 @@ class Simulation:
         from .controllers import Context
         return Context(t=self.t, period=self.period_index, X=self.X, alive=self.alive, mean=self.mean,
                        var=self.var, centers=self.centers, domain=self.settings.domain, h=self.h,
-                       plan=self.plan if self.controller.needs_plan else None,
+                       plan=self.network.robot_plan(self) if self.controller.needs_plan else None,
                        estimate=self.network.estimator(self),
                        rng=self.rng, free=self.free, region=self.region)
 
