@@ -11,6 +11,8 @@
                      RMSE x sqrt(|Omega|), the same curve.)
 ``field_error.png``  the paper's Fig. "sinc and prediction error": true field, final prediction and
                      |f - f̄|.
+``communication.png`` a decentralized run (``sim.comm_radius``): the communication graph over p̂ at the
+                     first, a middle and the last re-planning time, robots coloured by component.
 ``animation.gif``    on request: robots over sqrt(V) at every measurement (one figure redrawn per
                      frame, written by Pillow).
 
@@ -31,7 +33,8 @@ import numpy as np
 from ..runtime.atomic import atomic_path
 from ..runtime.plotting import new_figure, plain_log_axis, save_figure
 
-__all__ = ["write_figures", "draw_figure", "make_panels", "make_convergence", "make_field_error", "plot_panels",
+__all__ = ["write_figures", "draw_figure", "make_panels", "make_convergence", "make_field_error", "make_communication",
+           "plot_panels",
            "plot_convergence", "plot_field_error", "write_animation", "panel_snapshots", "FIGURE_FILES"]
 
 PANEL_PERIODS = (0, 1, 3, 4)
@@ -378,6 +381,47 @@ def plot_field_error(result, path):
     return _save(make_field_error(result), path)
 
 
+def make_communication(result):
+    """The communication graph over the density (a decentralized run, ``sim.comm_radius``): at the first, a
+    middle and the last re-planning time, the robots over the swarm's density p̂, an edge between every two
+    working robots within the radius, robots coloured by connected component."""
+    from matplotlib.collections import LineCollection
+
+    from .comm import disk_graph
+
+    dom = result.grid.domain
+    r = result.config.sim.comm_radius
+    snaps = result.snapshots
+    pick = sorted({0, len(snaps) // 2, len(snaps) - 1})
+    ncol = len(pick)
+    slot, size, H = 5.0, 3.2, 4.4
+    fig = _figure(0.5 + ncol * slot, H)
+    alive = result.alive if result.alive is not None else np.ones(len(snaps[0].X), bool)
+    for c, k in enumerate(pick):
+        snap = snaps[k]
+        ax = fig.add_axes([(0.6 + c * slot) / (0.5 + ncol * slot), 0.6 / H, size / (0.5 + ncol * slot), size / H])
+        cax = fig.add_axes([(0.6 + c * slot + size + 0.1) / (0.5 + ncol * slot), 0.9 / H, 0.1 / (0.5 + ncol * slot),
+                            0.8 * size / H])
+        im = _image(ax, snap.p_hat, dom, cmap="Greys")
+        _colorbar(fig, im, cax, "p̂ [1/m²]")
+        live = alive if k == len(snaps) - 1 else np.ones(len(snap.X), bool)
+        g = disk_graph(snap.X, r, live)
+        count, labels = g.components()
+        seg = snap.X[g.edges]
+        ax.add_collection(LineCollection(seg, colors="tab:blue", linewidths=0.5, alpha=0.6))
+        ax.scatter(snap.X[live, 0], snap.X[live, 1], c=labels[live] % 10, cmap="tab10", vmin=0, vmax=9, s=9,
+                   edgecolors="k", linewidths=0.3, zorder=3)
+        ax.set_xlim(dom[0], dom[1]), ax.set_ylim(dom[2], dom[3])
+        ax.set_title(f"t = {snap.t:.2f} s: {count} component{'s' if count != 1 else ''}", y=1.0)
+        _ticks(ax, dom)
+        ax.set_xlabel("x [m]"), ax.set_ylabel("y [m]")
+        _obstacles(ax, result)
+    comm = result.communication or {}
+    fig.suptitle(f"communication graph, r = {r:g} m ({comm.get('bytes_per_robot_per_step', 0) / 1e3:.0f} kB per robot "
+                 "and step) over the swarm's density p̂", y=0.98)
+    return fig
+
+
 def write_figures(result, out, progress=None, timings: dict | None = None, drawer=None) -> list:
     """The three PNG figures; returns their file names.  ``progress(name)`` before each; ``timings``: filled
     with each figure's wall time [s].  ``drawer``: a :class:`runtime.plotting.DrawingProcess` that draws
@@ -385,7 +429,8 @@ def write_figures(result, out, progress=None, timings: dict | None = None, drawe
     import time
 
     out = Path(out)
-    for name in FIGURE_FILES:
+    names = FIGURE_FILES + (("communication.png",) if getattr(result, "communication", None) else ())
+    for name in names:
         if progress is not None:
             progress(name)
         t0 = time.perf_counter()
@@ -395,12 +440,13 @@ def write_figures(result, out, progress=None, timings: dict | None = None, drawe
             draw_figure(result, name, out)
         if timings is not None:
             timings[name] = time.perf_counter() - t0
-    return list(FIGURE_FILES)
+    return list(names)
 
 
 def draw_figure(result, name: str, out) -> str:
     """Draw and save the figure ``name`` (one of :data:`FIGURE_FILES`) into the folder ``out``."""
-    make = dict(zip(FIGURE_FILES, (make_panels, make_convergence, make_field_error)))[name]
+    make = dict(zip(FIGURE_FILES + ("communication.png",),
+                    (make_panels, make_convergence, make_field_error, make_communication)))[name]
     _save(make(result), Path(out) / name)
     return name
 

@@ -160,7 +160,9 @@ class Decentralized:
         members = self.knowledge.main & sim.alive
         self.plan_of[members] = sim.plan
         plan = sim.plan
-        size = sum(np.asarray(getattr(plan, k)).size for k in ("t", "p", "t_intervals", "coef")) * FLOAT_BYTES
+        # what a robot needs to rebuild p_r and v_r by the planner's own (deterministic) transport: the initial
+        # density on the planner grid, the interval times and the velocity coefficients
+        size = (np.asarray(plan.p[0]).size + np.asarray(plan.t_intervals).size + np.asarray(plan.coef).size) * FLOAT_BYTES
         k = int(members.sum())
         if k > 1:
             self.log.broadcast("plan", k, size)

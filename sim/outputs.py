@@ -65,7 +65,7 @@ __all__ = ["MARKER", "STAGING", "OUTPUT_FILES", "output_folder", "check_output_d
 PROG = "simulate-swarm"
 MARKER = ".simulate-swarm"                 # the manifest of the published run (runtime.publish)
 STAGING = ".simulate-swarm-incomplete"     # where the files of an unfinished run are kept
-FIGURES = ("panels.png", "convergence.png", "field_error.png", "animation.gif")
+FIGURES = ("panels.png", "convergence.png", "field_error.png", "communication.png", "animation.gif")
 OUTPUT_FILES = ("metrics.csv", "replans.csv", "summary.json", "config.toml", "trajectory.npz") + FIGURES
 REPLAN_COLUMNS = ("period", "t0", "max_variance", "rmse", "status", "success", "iterations", "solve_time_s",
                   "solve_cpu_s", "objective", "symmetric_kl_initial", "symmetric_kl_final")

@@ -183,3 +183,46 @@ def test_bad_comm_radius_is_one_line(bad, tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "comm_radius" in err[0]
     assert not (tmp_path / "run").exists()
+
+
+def test_measurements_flood_components_and_the_map_gets_what_its_component_holds():
+    from swarmfield.sim.knowledge import KnowledgeGroups
+    kg = KnowledgeGroups(4)
+    rows = np.arange(4)
+    # step 1: components {0, 1, 2} and {3}: robots 0-2 each receive the two items of the others
+    msgs, transfers, missing, rebuild = kg.share(rows, np.ones((4, 2)), np.arange(4.0), np.array([0, 0, 0, 1]), 2)
+    assert (msgs, transfers, rebuild) == (3, 6, False)
+    assert missing.tolist() == [0, 1, 2] and kg.leader == 0            # the main component is the largest
+    # step 2: robot 3 joins: it receives 3 old + 3 new items, the others its old item and the step's new ones
+    msgs, transfers, missing, rebuild = kg.share(rows, np.ones((4, 2)), np.arange(4.0), np.array([0, 0, 0, 0]), 1)
+    assert transfers == 3 * (1 + 3) + (3 + 3) and msgs == 4
+    assert missing.tolist() == [3, 4, 5, 6, 7] and not rebuild
+    assert len(set(kg.group.tolist())) == 1
+    # step 3: a split keeps the data; the map follows the previous main's majority
+    msgs, transfers, missing, _ = kg.share(rows, np.ones((4, 2)), np.arange(4.0), np.array([0, 1, 1, 1]), 2)
+    assert missing.tolist() == [9, 10, 11] and kg.leader == 1 and (msgs, transfers) == (3, 6)
+
+
+def test_robots_that_miss_a_plan_hold_the_end_of_theirs():
+    from swarmfield.sim.network import HeldPlan, RobotPlans
+
+    class Plan:
+        def __init__(self, level):
+            self.level, self.domain, self.grid, self.free, self.t_end = level, DOMAIN, None, None, 7.0
+
+        def density_and_gradient(self, t, X):
+            return np.full(len(X), self.level + t), np.zeros((len(X), 2))
+
+        def velocity(self, t, X):
+            return np.ones((len(X), 2))
+
+    old, new = Plan(1.0), Plan(2.0)
+    plans = RobotPlans(np.array([new, old, new], dtype=object), np.ones(3, bool), new)
+    X = np.zeros((3, 2))
+    p, _ = plans.density_and_gradient(8.0, X)
+    assert p.tolist() == [10.0, 8.0, 10.0]                                # the old plan frozen at its end
+    assert plans.velocity(8.0, X).tolist() == [[1, 1], [0, 0], [1, 1]]
+    alive = np.array([True, True, False])
+    p, _ = RobotPlans(np.array([new, old, new], dtype=object), alive, new).density_and_gradient(8.0, X[:2])
+    assert p.tolist() == [10.0, 8.0]
+    assert HeldPlan(old).velocity(0.0, X).tolist() == [[0, 0]] * 3
