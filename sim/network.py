@@ -66,6 +66,10 @@ class Centralized:
         """The plan the controllers are given: the centre sends its plan to every robot."""
         return sim.plan
 
+    def observe(self, sim) -> None:
+        """After a measurement with the posterior: the controller reads it (the centre's map, all robots)."""
+        sim.controller.observe(sim.context())
+
     def row(self, sim) -> dict:
         return {}
 
@@ -96,6 +100,9 @@ class Decentralized:
         self._gram = None
         self.knowledge = KnowledgeGroups(s.robots)
         self.plan_of = np.full(s.robots, None, dtype=object)     # the plan each robot holds
+        self.heard_var: list = []                                # variance maps broadcast so far (greedy)
+        self.var_of = np.full(s.robots, -1)                      # the newest of them each robot heard
+        self.labels = (1, np.zeros(s.robots, dtype=np.intp))     # components at the last measurement
 
     # ------------------------------------------------------------------ strategy hooks
     def bind(self, sim) -> None:
@@ -126,6 +133,7 @@ class Decentralized:
         graph = disk_graph(sim.X, self.radius, alive).drop(self.loss, self.rng)
         count, labels = graph.components()
         self.note_components(count, sim.t)
+        self.labels = (count, labels)
         messages, transfers, missing, rebuild = self.knowledge.share(rows, Xa, y, labels, count)
         self.log.record("measurements", messages, transfers * ITEM_BYTES)
         if rebuild:
@@ -166,6 +174,41 @@ class Decentralized:
         k = int(members.sum())
         if k > 1:
             self.log.broadcast("plan", k, size)
+
+    def observe(self, sim) -> None:
+        """The controller reads the posterior.  ``greedy`` on local knowledge: its goals are chosen per connected
+        component, from the newest variance map any member heard (the main component's: the designated robot's
+        current map, broadcast every step; a fragment's: the last one that reached it), and announced within the
+        component (16 bytes per goal and member).  Other controllers read the designated robot's map."""
+        ctrl = sim.controller
+        ctx = sim.context()
+        if getattr(ctrl, "name", "") != "greedy":
+            return ctrl.observe(ctx)
+        import dataclasses
+        nx, ny = sim.grid.nx, sim.grid.ny
+        main = self.knowledge.main & sim.alive
+        if not self.heard_var or self.heard_var[-1] is not sim.var:
+            self.heard_var.append(sim.var)
+        latest = len(self.heard_var) - 1
+        self.var_of[main] = latest
+        k = int(main.sum())
+        if k > 1:
+            self.log.broadcast("map", k, nx * ny * FLOAT_BYTES)
+        count, labels = self.labels
+        if count <= 1:
+            self.log.broadcast("goals", k * k if k > 1 else 0, 2 * FLOAT_BYTES)
+            return ctrl.observe(ctx)
+        for c in range(count):
+            members = labels == c
+            m = int(members.sum())
+            if not m:
+                continue
+            version = int(self.var_of[members].max())
+            self.var_of[members] = version
+            var = self.heard_var[version] if version >= 0 else np.full((nx, ny), float(sim.gp.initial_settings.signal_variance))
+            if m > 1:
+                self.log.broadcast("goals", m * m, 2 * FLOAT_BYTES)
+            ctrl.observe(dataclasses.replace(ctx, alive=sim.alive & members, var=var))
 
     def robot_plan(self, sim):
         """Every robot's plan: the current one where it reached, the end of an older one held still elsewhere."""

@@ -283,7 +283,7 @@ class Simulation:
         tm["dynamics"] += time.perf_counter() - t_dyn
         self.regress(Xa, y)
         self._notify("measured")
-        self.controller.observe(self.context())
+        self.network.observe(self)                # the controller reads the posterior (per component if local)
 
     def replan_due(self, j: int) -> bool:
         """Whether the receding horizon (``sim.replan_every``) re-plans after measurement step ``j`` of the

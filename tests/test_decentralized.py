@@ -226,3 +226,18 @@ def test_robots_that_miss_a_plan_hold_the_end_of_theirs():
     p, _ = RobotPlans(np.array([new, old, new], dtype=object), alive, new).density_and_gradient(8.0, X[:2])
     assert p.tolist() == [10.0, 8.0]
     assert HeldPlan(old).velocity(0.0, X).tolist() == [[0, 0]] * 3
+
+
+def test_greedy_on_local_knowledge():
+    """Greedy picks its goals per component from the variance map its members heard; one component: as before."""
+    from swarmfield.sim import config_from_dict, run_simulation
+    cfg = config_from_dict(SMALL, {"controller": "greedy", "max_periods": 2})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        central = run_simulation(cfg)
+        wide = run_simulation(cfg.replace(comm_radius=15.0))
+        local = run_simulation(cfg.replace(comm_radius=1.0))
+    assert _rows(wide) == _rows(central)
+    kinds = local.communication["bytes_by_kind"]
+    assert kinds["map"] > 0 and kinds["goals"] > 0 and local.communication["max_components"] > 1
+    assert np.all(np.isfinite(local.positions[-1]))
