@@ -67,6 +67,9 @@ autosummary_imported_members = False
 autodoc_default_options = {"members": True, "undoc-members": False, "show-inheritance": True}
 autodoc_member_order = "bysource"
 autodoc_typehints = "description"
+# types go next to the parameters a docstring describes; a dataclass's fields are documented one by one
+# (``#:`` comments), not repeated as a bare "Parameters" list of its __init__
+autodoc_typehints_description_target = "documented"
 autodoc_typehints_format = "short"
 autodoc_preserve_defaults = True
 autodoc_inherit_docstrings = False

@@ -16,9 +16,9 @@ from __future__ import annotations
 
 #: status -> (short word, one-clause meaning)
 MEANINGS = {
-    "Solve_Succeeded": ("solved", "converged to the strict tolerance (tol)"),
-    "Solved_To_Acceptable_Level": ("acceptable", "converged to the tolerance the settings ask for (acceptable_tol); "
-                                                 "a normal result, not a failure"),
+    "Solve_Succeeded": ("solved", "converged to the strict tolerance, tol"),
+    "Solved_To_Acceptable_Level": ("acceptable", "converged to the tolerance the settings ask for, "
+                                                 "a normal result and not a failure"),
     "Maximum_Iterations_Exceeded": ("iteration limit", "stopped at max_iter before converging"),
     "Maximum_CpuTime_Exceeded": ("time limit", "stopped at the CPU-time limit before converging"),
     "Maximum_WallTime_Exceeded": ("time limit", "stopped at the wall-time limit before converging"),

@@ -80,9 +80,9 @@ class Context:
     estimate: object = None
     #: the run's random generator (drawing from it changes the run's random stream)
     rng: object = None
-    #: (nx, ny) bool, the planner cells that are free and reachable (None: the empty rectangle)
+    #: (nx, ny) bool, the planner cells that are free and reachable (None on the empty rectangle)
     free: np.ndarray | None = None
-    #: the ``domain.Domain`` of the run (None: the empty rectangle)
+    #: the ``domain.Domain`` of the run (None on the empty rectangle)
     region: object = None
 
 
@@ -101,7 +101,7 @@ class Controller:
 
     #: the name under which :func:`register` makes the controller available to the commands
     name = "base"
-    #: whether the loop plans a reference for it every period (``ctx.plan``); False: no planner is built
+    #: whether the loop plans a reference for it every period (``ctx.plan``); if False, no planner is built
     needs_plan = False
 
     def __init__(self, config):

@@ -45,13 +45,13 @@ class SimulationResult:
     config: RunConfig
     #: the true field the robots measured (:class:`sim.fields.Field`)
     field: Field
-    #: the planner's grid (``ocp.Grid``): the cells on which V, f̄, the metrics and the plans live
+    #: the planner's grid (``ocp.Grid``), the cells on which V, f̄, the metrics and the plans live
     grid: object
     #: (nx, ny) the true field on the grid's cell centres (what the RMSE compares f̄ with)
     f_true: np.ndarray
-    #: one dict per metrics row: t, sup V, RMSE, tracking error, ... (``sim.metrics.COLUMNS``; ``metrics.csv``)
+    #: one dict per metrics row with t, sup V, RMSE, tracking error, ... (``sim.metrics.COLUMNS``; ``metrics.csv``)
     rows: list = dc_field(default_factory=list)
-    #: one dict per planner call: time, status, iterations, solve time, objective (``replans.csv``)
+    #: one dict per planner call with its time, status, iterations, solve time, objective (``replans.csv``)
     replans: list = dc_field(default_factory=list)
     #: :class:`Snapshot` at t = 0, T, 2T, ... and at the end (what ``panels.png`` draws)
     snapshots: list = dc_field(default_factory=list)
@@ -65,7 +65,7 @@ class SimulationResult:
     mean: np.ndarray | None = None
     #: (nx, ny) the final GP variance V on the grid
     var: np.ndarray | None = None
-    #: why the run ended: "threshold", "max_time", "variance_below_eta" or "planner_failed" ("running" before)
+    #: why the run ended, "threshold", "max_time", "variance_below_eta" or "planner_failed" ("running" before)
     stop_reason: str = "running"
     #: the planner's error message when ``stop_reason == "planner_failed"``, else None
     error: str | None = None
@@ -79,9 +79,9 @@ class SimulationResult:
     alive: np.ndarray | None = None
     #: seconds spent in the planner, the regression and the dynamics
     timings: dict = dc_field(default_factory=lambda: {"planner": 0.0, "regression": 0.0, "dynamics": 0.0})
-    #: (nx, ny) bool, the free planner cells the swarm can reach (None: the empty rectangle)
+    #: (nx, ny) bool, the free planner cells the swarm can reach (None on the empty rectangle)
     free: np.ndarray | None = None
-    #: the ``domain.Domain`` of the run (None: the empty rectangle)
+    #: the ``domain.Domain`` of the run (None on the empty rectangle)
     region: object = None
     #: messages and bytes of a decentralized run (``sim.comm_radius``, :mod:`sim.network`); None with the centre
     communication: dict | None = None

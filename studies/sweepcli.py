@@ -120,6 +120,14 @@ def _f(v, fmt):
         return str(v)
 
 
+def status_legend(statuses) -> list[str]:
+    """Markdown lines below the table: what each solver status in it means (:mod:`ocp.status`)."""
+    from ..ocp.status import explain_status
+    seen = sorted({str(s) for s in statuses if s})
+    known = [s for s in seen if explain_status(s) != s]
+    return ["", "Statuses: " + "; ".join(explain_status(s) for s in known) + "."] if known else []
+
+
 SWEEP_OUTPUTS = ("study.csv", "study.md", "study_scaling.png", "study_time_objective.png", "study.png")
 
 
@@ -143,6 +151,7 @@ def write_sweep_outputs(rows, out: Path) -> list[Path]:
                      f"{_f(r.get('build_s'), '.2f')} | {_f(r.get('solve_s'), '.2f')} | {_f(r.get('solve_cpu_s'), '.2f')} | "
                      f"{r.get('iterations', '')} | {status} | {_f(r.get('objective'), '.5g')} | {_f(r.get('kl_final'), '.4f')} | "
                      f"{_f(r.get('peak_rss_mb'), '.0f')} |")
+    lines += status_legend(r.get("status", "") for r in rows if not r.get("error"))
     groups = _groups(rows)
     if any(len({c for c, _, _ in pts}) > 1 for pts in groups.values()):
         lines += ["", "| method / transport | time-vs-cells exponent |", "|---|---|"]

@@ -104,3 +104,11 @@ def test_summary_explains_the_travel_time_column():
     table = summary_table([(task, rows)], 0.1, [1.0])
     assert "runs faster than the travel-time limit" in table.splitlines()[0]
     assert "no robot can have measured every cell sooner" in table.splitlines()[-1]
+
+
+def test_solver_study_table_explains_its_statuses():
+    from swarmfield.studies.sweepcli import status_legend
+    legend = status_legend(["Solve_Succeeded", "Solved_To_Acceptable_Level", "Solve_Succeeded", "", "Odd"])
+    assert legend[1].startswith("Statuses: Solve_Succeeded (solved: converged to the strict tolerance, tol); "
+                                "Solved_To_Acceptable_Level (acceptable: converged to the tolerance the settings ask for")
+    assert status_legend(["Odd"]) == []

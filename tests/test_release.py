@@ -142,3 +142,22 @@ def test_the_bibtex_reader_refuses_what_bibtex_refuses():
 def test_readme_and_docs_home_link_the_paper():
     for page in (ROOT / "README.md", ROOT / "docs" / "index.md"):
         assert f"https://arxiv.org/abs/{ARXIV}" in page.read_text(), page.name
+
+
+def test_what_the_docs_build_writes_is_ignored_by_git():
+    """The documentation build writes generated files (the import graph, --help texts, the gallery,
+    the API pages) only where git ignores them, so building the docs leaves ``git status`` unchanged
+    (.ci/run checks the real build)."""
+    import shutil
+    import subprocess
+    import pytest
+    if shutil.which("git") is None or not (ROOT / ".git").exists():
+        pytest.skip("not a git checkout")
+    conf = (ROOT / "docs" / "conf.py").read_text()
+    assert 'DOCS / "_generated" / "imports.png"' in conf and '"commands" / "_help"' in conf
+    written = ["docs/_generated/imports.png", "docs/commands/_help/simulate-swarm.txt", "docs/_build/html/index.html",
+               "docs/auto_examples/index.rst", "docs/api/generated/swarmfield.sim.rst", "docs/sg_execution_times.rst"]
+    for path in written:
+        assert subprocess.run(["git", "check-ignore", "-q", path], cwd=ROOT).returncode == 0, f"{path} is not ignored"
+    tracked = subprocess.run(["git", "ls-files", "docs"], cwd=ROOT, capture_output=True, text=True).stdout.split()
+    assert not [t for t in tracked if t.startswith(("docs/_generated/", "docs/commands/_help/", "docs/_build/"))]
