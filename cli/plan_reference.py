@@ -187,10 +187,11 @@ def check_start_box(args, grid) -> None:
 
 
 def domain_problem(args, grid, p0, target):
-    """``(free, p0, target, warnings)`` with obstacles: the cells free by the free-area rule and connected
-    (through faces) to the initial density's support (the default scenario: the start box [0, 7]^2, which must
+    """``(free, walls, p0, target, warnings)`` with obstacles: the cells free by the free-area rule and connected
+    (through the faces no wall closes; ``walls`` the closed faces, :meth:`domain.Domain.closed_faces`) to the
+    initial density's support (the default scenario: the start box [0, 7]^2, which must
     be free); both densities zeroed on the other cells and renormalised.  Unreachable free cells are
-    excluded; ``warnings`` (one line each: their area, thin walls, repaired polygons) are for the caller to
+    excluded; ``warnings`` (one line each: their area, repaired polygons) are for the caller to
     print once every input has passed its checks, so that a bad input is one line."""
     from ..domain import make_domain
     f = args.min_free_fraction
@@ -210,8 +211,8 @@ def domain_problem(args, grid, p0, target):
                                  f"{suggestion}, or give one on the free space with --initial")
             free = dom.reachable_cells(classified, box)
         else:
-            from scipy import ndimage
-            lab, _ = ndimage.label(classified)
+            from ..domain.cells import face_components
+            lab, _ = face_components(classified, *(dom.closed_faces(classified) or (None, None)))
             ids = np.unique(lab[classified & (p0 > 1e-3 * p0.max())])
             free = np.isin(lab, ids[ids > 0])
     except ValueError as exc:
@@ -224,18 +225,14 @@ def domain_problem(args, grid, p0, target):
     if lost.any():
         notes.append(f"domain {dom.name}: {lost.sum() * grid.cell_area:g} m^2 of free space "
                      f"({int(lost.sum())} cells) cannot be reached from the initial density; it is excluded")
-    walled = dom.walled_faces(free)
-    if walled:
-        notes.append(f"domain {dom.name}: a wall thinner than a planner cell divides free cells at {walled} faces "
-                     "or cells; the plan moves mass through it (refine the grid: cells at most twice as wide as "
-                     "the wall)")
+    walls = dom.closed_faces(free)
     out = []
     for arr, name in ((p0, "initial density"), (target, "target density")):
         a = np.where(free, arr, 0.0)
         if not a.sum() > 0:
             raise InputError(f"{name} has no mass on the free cells of domain {dom.name}")
         out.append(a / (a.sum() * grid.cell_area))
-    return free, out[0], out[1], notes
+    return free, walls, out[0], out[1], notes
 
 
 def check_output(path: Path, suffix: str, what: str):
@@ -300,9 +297,9 @@ def run(argv=None) -> int:
 
     free, notes = None, []
     if getattr(args, "domain", None) is not None:
-        free, p0, target, notes = domain_problem(args, grid, p0, target)
+        free, walls, p0, target, notes = domain_problem(args, grid, p0, target)
         try:
-            planner = ReferencePlanner(settings, free=free)
+            planner = ReferencePlanner(settings, free=free, walls=walls)
         except TypeError:
             raise InputError("this planner (ocp.ReferencePlanner) does not support obstacles yet") from None
     else:

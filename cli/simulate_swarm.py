@@ -228,8 +228,8 @@ def _run(argv=None) -> int:
             import warnings
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                _, free = resolve_domain(config, Grid(config.planner.domain, config.planner.nx, config.planner.ny))
-            planner = make_planner(config.planner, free)
+                region, free = resolve_domain(config, Grid(config.planner.domain, config.planner.nx, config.planner.ny))
+            planner = make_planner(config.planner, free, None if region is None else region.closed_faces(free))
         except ValueError as exc:
             raise InputError(f"planner: {exc}") from None
     try:

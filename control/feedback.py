@@ -222,12 +222,14 @@ def _transport_faces(plan, t, est, rate):
     from .poisson_flux import PoissonFlux
     g = plan.grid
     free = plan.free
-    key = (tuple(g.domain), g.nx, g.ny, None if free is None else np.asarray(free, dtype=bool).tobytes())
+    walls = getattr(plan, "walls", None)
+    key = (tuple(g.domain), g.nx, g.ny, None if free is None else np.asarray(free, dtype=bool).tobytes(),
+           None if walls is None else b"".join(np.asarray(w, dtype=bool).tobytes() for w in walls))
     solver = _POISSON_CACHE.get(key)
     if solver is None:
         if len(_POISSON_CACHE) >= 8:
             _POISSON_CACHE.clear()
-        solver = _POISSON_CACHE[key] = PoissonFlux(g, free)
+        solver = _POISSON_CACHE[key] = PoissonFlux(g, free, walls)
     if hasattr(est, "rows"):              # each robot its own estimate (control.consensus.RobotDensities)
         each = None                       # robots that hold different plans (sim.network.RobotPlans)
         if hasattr(plan, "density_grids"):

@@ -31,7 +31,8 @@ density-control work on swarms; here an added term of the paper's law, beta = 0 
 
 Discretisation.  On the planner's grid (cell centres, :class:`ocp.grid.Grid`, blocked cells of
 an irregular domain excluded) the five-point finite-volume Laplacian with zero flux through every
-face to a blocked cell or a wall, the same faces as the planner's transport (:mod:`ocp.mask`):
+face to a blocked cell or a wall and through every face a wall thinner than a cell closes, the same
+faces as the planner's transport (:mod:`ocp.mask`):
 
     (L psi)_c = sum over open faces f of c (psi_n(f) - psi_c) / h_f^2,
 
@@ -53,15 +54,36 @@ from scipy.sparse.linalg import splu
 __all__ = ["PoissonFlux"]
 
 
+def _components(free, open_x, open_y):
+    """``(labels, n)`` of the free cells connected through open faces (``scipy.ndimage.label`` with face
+    connectivity when every face between free cells is open)."""
+    if np.array_equal(open_x, free[:-1, :] & free[1:, :]) and np.array_equal(open_y, free[:, :-1] & free[:, 1:]):
+        return ndimage.label(free)
+    from scipy.sparse import csgraph
+    nx, ny = free.shape
+    idx = np.arange(nx * ny).reshape(nx, ny)
+    r = np.concatenate([idx[:-1, :][open_x], idx[:, :-1][open_y]])
+    c = np.concatenate([idx[1:, :][open_x], idx[:, 1:][open_y]])
+    g = sparse.csr_matrix((np.ones(len(r)), (r, c)), shape=(nx * ny, nx * ny))
+    _, comp = csgraph.connected_components(g, directed=False)
+    comp = comp.reshape(nx, ny)
+    ids = np.unique(comp[free])
+    labels = np.zeros((nx, ny), dtype=int)
+    labels[free] = np.searchsorted(ids, comp[free]) + 1
+    return labels, len(ids)
+
+
 class PoissonFlux:
     """The flux beta grad psi of the module docstring on one grid and free-cell mask.
 
     ``grid`` is an :class:`ocp.grid.Grid` (domain, nx, ny); ``free`` (nx, ny) bool or None for the
-    empty rectangle.  :meth:`faces` solves for the face fluxes of an error field, :meth:`at`
+    empty rectangle; ``walls`` optional closed faces ``(closed_x (nx-1, ny), closed_y (nx, ny-1))``
+    between free cells (walls thinner than a cell, :mod:`ocp.mask`): no flux through them, as through
+    the faces to blocked cells.  :meth:`faces` solves for the face fluxes of an error field, :meth:`at`
     evaluates them at points.
     """
 
-    def __init__(self, grid, free=None):
+    def __init__(self, grid, free=None, walls=None):
         self.grid = grid
         nx, ny = grid.nx, grid.ny
         free = np.ones((nx, ny), dtype=bool) if free is None else np.asarray(free, dtype=bool)
@@ -73,7 +95,10 @@ class PoissonFlux:
         # faces between two free cells, per axis: ox (nx-1, ny), oy (nx, ny-1)
         self.open_x = free[:-1, :] & free[1:, :]
         self.open_y = free[:, :-1] & free[:, 1:]
-        labels, n_comp = ndimage.label(free)                 # face (4-) connectivity
+        if walls is not None:
+            self.open_x = self.open_x & ~np.asarray(walls[0], dtype=bool)
+            self.open_y = self.open_y & ~np.asarray(walls[1], dtype=bool)
+        labels, n_comp = _components(free, self.open_x, self.open_y)      # through the open faces
         self._labels = labels
         self._n_comp = n_comp
         self._sizes = np.bincount(labels.ravel(), minlength=n_comp + 1).astype(float)

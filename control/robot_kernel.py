@@ -625,6 +625,8 @@ def tracking_velocity(X: np.ndarray, plan, t: float, est, settings, stir_pattern
             return None
         keep += [tfx, tfy]
         q.TFX, q.TFY = _ptr(tfx), _ptr(tfy)
+    if getattr(plan, "walls", None) is not None:
+        return None                  # closed faces between free cells: the NumPy law (ReferencePlan handles them)
     if getattr(plan, "free", None) is not None:
         if g.nx < 2 or g.ny < 2:
             return None

@@ -25,56 +25,6 @@ def cell_fractions(free_pixels: np.ndarray, extent, nx: int, ny: int) -> np.ndar
     return area / (((x1 - x0) / nx) * ((y1 - y0) / ny))
 
 
-def _pieces(block: np.ndarray):
-    """``(labels, n)`` of the face-connected pieces of free pixels of ``block``, or None if there are fewer
-    than two (nothing for a wall to divide)."""
-    if block.all():                      # most cells: nothing to label
-        return None
-    from scipy import ndimage
-    lab, n = ndimage.label(block)
-    return (lab, n) if n >= 2 else None
-
-
-def _split(block: np.ndarray) -> bool:
-    """True if the free pixels of ``block`` (a cell's pixels) fall into two or more face-connected pieces of
-    at least a quarter of them each: a wall cuts the cell."""
-    return _split_around(block, (slice(None), slice(None)))
-
-
-def _divided(block: np.ndarray, cut: int) -> bool:
-    """True if a wall divides the two cells ``block[:cut]`` and ``block[cut:]`` (their pixels, the face between
-    them across the first axis): no face-connected piece of free pixels holds a quarter of each cell's free
-    pixels."""
-    return _apart(block, [(slice(None, cut), slice(None)), (slice(cut, None), slice(None))])
-
-
-def _apart(block: np.ndarray, cells) -> bool:
-    """True if no face-connected piece of the free pixels of ``block`` holds a quarter of the free pixels of
-    each of ``cells`` (index pairs of slices into ``block``)."""
-    pieces = _pieces(block)
-    if pieces is None:
-        return False
-    lab, n = pieces
-    held = []
-    for c in cells:
-        sizes = np.bincount(lab[c].ravel(), minlength=n + 1)[1:]
-        held.append(sizes >= 0.25 * max(sizes.sum(), 1))
-    return not np.any(np.logical_and.reduce(held))
-
-
-def _split_around(hood: np.ndarray, cell) -> bool:
-    """True if the free pixels of the cell ``hood[cell]`` fall into two or more pieces of at least a quarter of
-    them each that stay apart within the neighbourhood ``hood`` (the cell and the cells around it): a robot
-    in one piece cannot reach the other nearby, so a wall cuts the cell; a post inside it does not."""
-    pieces = _pieces(hood)
-    if pieces is None:
-        return False
-    lab, n = pieces
-    own = lab[cell]
-    sizes = np.bincount(own.ravel(), minlength=n + 1)[1:]
-    return int(np.sum(sizes >= 0.25 * max(sizes.sum(), 1))) >= 2
-
-
 def _connected_to_box(mask: np.ndarray, extent, box) -> np.ndarray:
     """The True entries of ``mask`` (a raster of ``extent``) connected through faces (4-connectivity) to a True
     entry whose area overlaps ``box`` = (x0, x1, y0, y1)."""
@@ -97,3 +47,74 @@ def _grid_shape(g, extent):
         return int(g.nx), int(g.ny)
     nx, ny = (int(v) for v in g)
     return nx, ny
+
+
+def kept_pieces(fine: np.ndarray, bx: np.ndarray, by: np.ndarray) -> np.ndarray:
+    """(Nx, Ny) bool: in every planner cell (pixel bounds ``bx``, ``by``) the largest face-connected piece of its
+    free pixels ``fine`` -- the part of the cell the planner's cell stands for.  A cell a wall cuts in two keeps
+    one side: the other side's pixels still belong to the free space (the robots use them), but no planner face
+    opens into them, so mass cannot cross the wall inside the cell."""
+    from scipy import ndimage
+    out = np.zeros_like(fine, dtype=bool)
+    for i in range(len(bx) - 1):
+        for j in range(len(by) - 1):
+            block = fine[bx[i]:bx[i + 1], by[j]:by[j + 1]]
+            if block.all() or not block.any():
+                out[bx[i]:bx[i + 1], by[j]:by[j + 1]] = block
+                continue
+            lab, n = ndimage.label(block)
+            if n == 1:
+                out[bx[i]:bx[i + 1], by[j]:by[j + 1]] = block
+                continue
+            sizes = np.bincount(lab.ravel(), minlength=n + 1)
+            sizes[0] = 0
+            out[bx[i]:bx[i + 1], by[j]:by[j + 1]] = lab == int(np.argmax(sizes))
+    return out
+
+
+def open_faces(kept: np.ndarray, bx: np.ndarray, by: np.ndarray):
+    """``(open_x (nx-1, ny), open_y (nx, ny-1))`` bool: a face between two cells is open iff a kept pixel of one
+    cell touches a kept pixel of the other across it (:func:`kept_pieces`), i.e. the free space crosses the
+    face at the geometry's own resolution."""
+    cx = kept[bx[1:-1] - 1, :] & kept[bx[1:-1], :]              # (nx-1, Ny): pixel pairs across each x face
+    cy = kept[:, by[1:-1] - 1] & kept[:, by[1:-1]]              # (Nx, ny-1)
+    return (np.logical_or.reduceat(cx, by[:-1], axis=1), np.logical_or.reduceat(cy, bx[:-1], axis=0))
+
+
+def face_components(free: np.ndarray, closed_x=None, closed_y=None) -> tuple[np.ndarray, int]:
+    """``(labels, n)`` of the free cells connected through open faces (faces between two free cells that no wall
+    closes); labels 1..n on free cells, 0 on blocked ones (as ``scipy.ndimage.label`` with face connectivity,
+    which it equals without walls)."""
+    from scipy import ndimage, sparse
+    from scipy.sparse import csgraph
+    free = np.asarray(free, bool)
+    if closed_x is None or not (np.any(closed_x) or np.any(closed_y)):
+        return ndimage.label(free)
+    nx, ny = free.shape
+    idx = np.arange(nx * ny).reshape(nx, ny)
+    ox = free[:-1, :] & free[1:, :] & ~np.asarray(closed_x, bool)
+    oy = free[:, :-1] & free[:, 1:] & ~np.asarray(closed_y, bool)
+    r = np.concatenate([idx[:-1, :][ox], idx[:, :-1][oy]])
+    c = np.concatenate([idx[1:, :][ox], idx[:, 1:][oy]])
+    g = sparse.csr_matrix((np.ones(len(r)), (r, c)), shape=(nx * ny, nx * ny))
+    _, comp = csgraph.connected_components(g, directed=False)
+    comp = comp.reshape(nx, ny)
+    ids = np.unique(comp[free])
+    lab = np.zeros((nx, ny), int)
+    lab[free] = np.searchsorted(ids, comp[free]) + 1
+    return lab, len(ids)
+
+
+def connected_to_box(mask: np.ndarray, extent, box, closed_x=None, closed_y=None) -> np.ndarray:
+    """:func:`_connected_to_box` through the faces that no wall closes."""
+    if closed_x is None:
+        return _connected_to_box(mask, extent, box)
+    x0, x1, y0, y1 = extent
+    nx, ny = mask.shape
+    bx0, bx1, by0, by1 = box
+    xs, ys = np.linspace(x0, x1, nx + 1), np.linspace(y0, y1, ny + 1)
+    inx = (xs[1:] > bx0) & (xs[:-1] < bx1)
+    iny = (ys[1:] > by0) & (ys[:-1] < by1)
+    lab, _ = face_components(mask, closed_x, closed_y)
+    ids = np.unique(lab[np.ix_(inx, iny)])
+    return np.isin(lab, ids[ids > 0])

@@ -19,7 +19,8 @@ What the rest of the toolkit gets from a Domain:
                        equation") reflected at obstacle boundaries and walls (mirror reflection, as
                        :func:`domain.walls.reflect` does at the walls); robots never enter an obstacle.
 ``sample(n, box, rng)``  n positions uniform on ``box`` intersected with the free space.
-``reachable_cells(grid, box)``  the free cells connected (through faces) to the start box (and reached by the robots).
+``reachable_cells(free, box)``  the free cells connected (through open faces) to the start box (and reached by the robots).
+``closed_faces(free)``  the faces between free cells that a wall thinner than a cell closes.
 
 The classification rule
 -----------------------
@@ -27,12 +28,22 @@ A planner cell is **free iff its free-area fraction is at least** ``min_free_fra
 default; ``[domain] min_free_fraction`` in a configuration).  The fraction is exact: for rasters
 it is the overlap area of the pixels with the cell, for polygons the area of the intersection.  At
 0.5 a cell is free when most of it is free, so the planner's free area equals the true free area
-up to half a cell along each boundary; a door or channel narrower than two planner cells may close
-at that resolution (the robots still pass it: they move at the geometry's resolution).  Below a
-fraction of 0.5 a cell also has to be in one piece: a cell whose free pixels a wall cuts into two
-pieces of a quarter or more each stays blocked, so a low ``min_free_fraction`` keeps the cells around
-small obstacles (trees, posts) without opening walls to the planner.  :meth:`Domain.walled_faces`
-counts the places where a wall thinner than a cell still divides free cells (warned about by the runs).
+up to half a cell along each boundary; a lower fraction keeps more of the partly covered cells
+around small obstacles (trees, posts, a shore).  The fraction decides how much area the planner
+sees, not which free cells are connected: that is decided by the walls below.  (A door or channel
+narrower than a cell whose cells all fall below the fraction still closes at that resolution; the
+robots still pass it.)
+
+Walls
+-----
+Which faces between two free planner cells are open is decided at the geometry's own resolution
+(:meth:`Domain.closed_faces`, :meth:`Domain.topology_raster`): each free cell stands for the largest
+face-connected piece of its free pixels (a cell a wall cuts in two keeps one side), and a face is
+open iff a pixel of one cell's piece touches a pixel of the other's across it.  A wall thinner than
+a planner cell therefore closes every face it crosses, wherever it lies inside the cells, and a door
+opens the faces it spans.  The closed faces go to the planner's transport (:mod:`ocp.mask`), the
+feedback's transport term (:mod:`control.poisson_flux`), the KDE (:mod:`control.kde`), the geodesic
+distances (:class:`domain.geodesic.GeodesicGrid`) and the connectivity of the reachable cells.
 
 Reflection at obstacles
 -----------------------
@@ -53,7 +64,7 @@ from dataclasses import dataclass, field as dc_field
 
 import numpy as np
 
-from .cells import (_apart, _connected_to_box, _divided, _grid_shape, _split, _split_around, cell_fractions)
+from .cells import _connected_to_box, _grid_shape, cell_fractions, connected_to_box, kept_pieces, open_faces
 from .common import _extent, _need
 from .edges import _EdgeIndex, _merged_faces, _walls
 
@@ -103,6 +114,7 @@ class Domain:
         self._clear_flat = self._clear.ravel()
         self._index = _EdgeIndex(self.edges, self.extent)
         self._kernel = None                      # domain.kernel's arrays, made on first use
+        self._topology: dict = {}                # (nx, ny) -> kept pieces of the cells and their pixel bounds
         if not (st != 0).any():
             raise ValueError(f"domain {self.name}: no free cell (the whole extent is an obstacle)")
 
@@ -254,17 +266,7 @@ class Domain:
         the module docstring).  ``grid_or_shape``: an ``ocp.Grid`` (its domain must be the extent) or (nx, ny)."""
         nx, ny = _grid_shape(grid_or_shape, self.extent)
         frac = self.cell_free_fraction(nx, ny)
-        free = frac >= min_free_fraction * (1 - 1e-12)
-        low = free & (frac < 0.5)
-        if low.any() and not self.is_rectangle:
-            # below half free, a cell counts only if a wall does not cut its free part in two (so that a low
-            # min_free_fraction keeps the cells around small obstacles without opening walls to the planner)
-            fine = self.free_pixels
-            bx, by = self._pixel_bounds(nx, ny)
-            for i, j in zip(*np.nonzero(low)):
-                if _split(fine[bx[i]:bx[i + 1], by[j]:by[j + 1]]):
-                    free[i, j] = False
-        return free
+        return frac >= min_free_fraction * (1 - 1e-12)
 
     def _pixel_bounds(self, nx: int, ny: int):
         """Pixel index bounds (nx + 1,), (ny + 1,) of the cells of an nx x ny grid of the extent."""
@@ -315,42 +317,68 @@ class Domain:
             reach = cell_fractions(self._reachable(fine, start_box), self.extent, nx, ny)
             total = cell_fractions(fine, self.extent, nx, ny)
             free = free & (reach >= 0.5 * total) & (reach > 0)
+            walls = self.closed_faces(free)
+            if walls is not None:
+                return connected_to_box(free, self.extent, start_box, *walls)
         return _connected_to_box(free, self.extent, start_box)
 
-    def walled_faces(self, free: np.ndarray) -> int:
-        """Number of places where a wall at the map's own resolution divides free planner cells of ``free``
-        (nx, ny) that the planner treats as connected: faces between two free cells where no connected piece of
-        free pixels holds a quarter of each cell's free pixels, and free cells whose own free pixels fall into
-        two pieces of at least a quarter each -- both within the cells themselves and still within the cells
-        around them (a robot cannot go round the obstacle nearby).  The planner (and the feedback's transport
-        term) move mass through such a face or cell, the robots cannot: a wall thinner than a planner cell
-        that leaves the cells mostly free; a post smaller than a cell is no wall."""
+    def topology_raster(self, nx: int, ny: int):
+        """``(fine, bx, by)``: free pixels that decide which planner faces are open, at the geometry's own
+        resolution, and the pixel bounds (nx + 1,), (ny + 1,) of the nx x ny cells.  Rasters: their own pixels
+        (each repeated k times per axis if a cell would otherwise get none).  Polygons: k x k pixels per cell
+        (k >= 8), a pixel free iff its centre is inside and the boundary stays more than half a pixel diagonal
+        from it, so that a wall thinner than a pixel still blocks the pixels it crosses (their chain blocks
+        face-connectivity: it is the supercover of the wall's edges)."""
+        Nx, Ny = self.state.shape
+        if self.geometry is None:
+            fine = self.state == 1
+            k = max(1, int(math.ceil(nx / Nx)), int(math.ceil(ny / Ny)))
+            if k > 1:
+                fine = np.repeat(np.repeat(fine, k, axis=0), k, axis=1)
+            bx = np.round(np.linspace(0, fine.shape[0], nx + 1)).astype(int)
+            by = np.round(np.linspace(0, fine.shape[1], ny + 1)).astype(int)
+            return fine, bx, by
+        import shapely
+        k = max(8, int(math.ceil(max(Nx / nx, Ny / ny))))
+        x0, x1, y0, y1 = self.extent
+        Mx, My = nx * k, ny * k
+        px, py = (x1 - x0) / Mx, (y1 - y0) / My
+        XC, YC = np.meshgrid(x0 + (np.arange(Mx) + 0.5) * px, y0 + (np.arange(My) + 0.5) * py, indexing="ij")
+        inside = shapely.contains_xy(self.geometry, XC.ravel(), YC.ravel())
+        fine = np.zeros(Mx * My, bool)
+        pts = np.flatnonzero(inside)
+        if len(pts):
+            d = shapely.distance(self.geometry.boundary, shapely.points(XC.ravel()[pts], YC.ravel()[pts]))
+            fine[pts] = d > 0.5 * math.hypot(px, py) * (1 + 1e-9)
+        return fine.reshape(Mx, My), np.arange(nx + 1) * k, np.arange(ny + 1) * k
+
+    def _kept(self, nx: int, ny: int):
+        """``(kept, bx, by)`` of :func:`domain.cells.kept_pieces` on :meth:`topology_raster`, cached per grid."""
+        key = (int(nx), int(ny))
+        if key not in self._topology:
+            if len(self._topology) > 8:
+                self._topology.clear()
+            fine, bx, by = self.topology_raster(nx, ny)
+            self._topology[key] = (kept_pieces(fine, bx, by), bx, by)
+        return self._topology[key]
+
+    def closed_faces(self, free: np.ndarray):
+        """Walls at the geometry's own resolution on the planner grid of ``free`` (nx, ny): ``(closed_x (nx-1, ny),
+        closed_y (nx, ny-1))`` bool, True at a face between two free cells that the free space does not cross
+        (module docstring, "Walls"), or None when there is none.  The planner's transport, the feedback's
+        transport term, the KDE and the geodesic distances carry nothing through a closed face."""
         free = np.asarray(free, bool)
         if self.is_rectangle:
-            return 0
-        fine = self.free_pixels
-        bx, by = self._pixel_bounds(*free.shape)
-        nx, ny = free.shape
-        count = 0
-        # faces between free cells along x; along y they are the x faces of the transposed rasters.  Divided
-        # within the two cells, and still apart within the cells around them (a robot cannot go round the
-        # obstacle nearby: a wall, not a post)
-        for cells, pixels, (b0, b1), (n0, n1) in ((free, fine, (bx, by), (nx, ny)),
-                                                  (free.T, fine.T, (by, bx), (ny, nx))):
-            for i, j in zip(*np.nonzero(cells[:-1] & cells[1:])):
-                if not _divided(pixels[b0[i]:b0[i + 2], b1[j]:b1[j + 1]], b0[i + 1] - b0[i]):
-                    continue
-                i0, i1, j0, j1 = b0[max(i - 1, 0)], b0[min(i + 3, n0)], b1[max(j - 1, 0)], b1[min(j + 2, n1)]
-                a = (slice(b0[i] - i0, b0[i + 1] - i0), slice(b1[j] - j0, b1[j + 1] - j0))
-                b = (slice(b0[i + 1] - i0, b0[i + 2] - i0), a[1])
-                count += _apart(pixels[i0:i1, j0:j1], [a, b])
-        for i, j in zip(*np.nonzero(free)):                       # cells split by a wall inside them
-            if not _split(fine[bx[i]:bx[i + 1], by[j]:by[j + 1]]):
-                continue
-            i0, i1, j0, j1 = bx[max(i - 1, 0)], bx[min(i + 2, nx)], by[max(j - 1, 0)], by[min(j + 2, ny)]
-            count += _split_around(fine[i0:i1, j0:j1], (slice(bx[i] - i0, bx[i + 1] - i0),
-                                                       slice(by[j] - j0, by[j + 1] - j0)))
-        return count
+            return None
+        kept, bx, by = self._kept(*free.shape)
+        ox, oy = open_faces(kept, bx, by)
+        cx = free[:-1, :] & free[1:, :] & ~ox
+        cy = free[:, :-1] & free[:, 1:] & ~oy
+        if not (cx.any() or cy.any()):
+            return None
+        cx.setflags(write=False)
+        cy.setflags(write=False)
+        return cx, cy
 
     def box_is_free(self, box) -> bool:
         """True iff the whole box lies in the free space (checked at the fine raster, exact for polygons)."""

@@ -7,11 +7,14 @@ import numpy as np
 
 from .common import _extent
 
-def geodesic_graph(free: np.ndarray, dx: float, dy: float):
+
+def geodesic_graph(free: np.ndarray, dx: float, dy: float, walls=None):
     """Sparse graph of the free cells with a 16-neighbour stencil: the 8 neighbours and the 8 knight
     moves (±1, ±2), (±2, ±1); a move is an edge only if every cell of the block it spans is free (no
-    corner cutting).  Weights are the centre-to-centre distances.  The stencil's worst direction is
-    about 2.7 % longer than the straight line (8 neighbours alone: 8.2 %)."""
+    corner cutting) and no closed face of ``walls`` = (closed_x (nx-1, ny), closed_y (nx, ny-1)) lies
+    inside the block (a wall thinner than a cell is crossed through its doors only).  Weights are the
+    centre-to-centre distances.  The stencil's worst direction is about 2.7 % longer than the straight
+    line (8 neighbours alone: 8.2 %)."""
     from scipy import sparse
     free = np.asarray(free, bool)
     nx, ny = free.shape
@@ -29,6 +32,15 @@ def geodesic_graph(free: np.ndarray, dx: float, dy: float):
             for b in range(abs(dj) + 1):
                 bb = b if dj >= 0 else -b
                 ok &= free[a:a + nx - di, j_lo + bb:j_lo + bb + ny - abs(dj)]
+        if walls is not None:                 # no closed face inside the block (rows p..p+di, columns k..k+|dj|)
+            cx, cy = walls
+            m = abs(dj)
+            for a in range(di):
+                for b in range(m + 1):
+                    ok &= ~cx[a:a + nx - di, b:b + ny - m]
+            for a in range(di + 1):
+                for b in range(m):
+                    ok &= ~cy[a:a + nx - di, b:b + ny - m]
         rows.append(idx[ia, ja][ok])
         cols.append(idx[ib, jb][ok])
         w.append(np.full(int(ok.sum()), math.hypot(di * dx, dj * dy)))
@@ -42,15 +54,17 @@ class GeodesicGrid:
     Dijkstra on :func:`geodesic_graph` (scipy.sparse.csgraph); rows are cached per source cell.
     Error against the true geodesic distance: exact along the stencil's directions, at most about
     2.7 % longer in between, plus O(cell) at obstacle corners (paths run through free cell centres).
-    ``next_hop`` follows the stencil, so a hop may be a knight move (two cells away)."""
+    ``next_hop`` follows the stencil, so a hop may be a knight move (two cells away).  ``walls``: closed faces
+    between free cells (:meth:`domain.Domain.closed_faces`), crossed by no path."""
 
-    def __init__(self, free: np.ndarray, extent):
+    def __init__(self, free: np.ndarray, extent, walls=None):
         self.free = np.asarray(free, bool)
+        self.walls = None if walls is None else tuple(np.asarray(w, bool) for w in walls)
         self.extent = _extent(extent)
         nx, ny = self.free.shape
         x0, x1, y0, y1 = self.extent
         self.dx, self.dy = (x1 - x0) / nx, (y1 - y0) / ny
-        self.graph = geodesic_graph(self.free, self.dx, self.dy)
+        self.graph = geodesic_graph(self.free, self.dx, self.dy, self.walls)
         xc = x0 + (np.arange(nx) + 0.5) * self.dx
         yc = y0 + (np.arange(ny) + 0.5) * self.dy
         XC, YC = np.meshgrid(xc, yc, indexing="ij")

@@ -84,7 +84,7 @@ class GRGSolver:
         else:
             backend = "compiled" if K.compiled_available() else "numpy"
             self.kernel = K.TransportKernel(g.nx, g.ny, P.N, P.n_sub, P.dt / g.dx, P.dt / g.dy,
-                                            s.upwind_smoothing, backend, free=P.free)
+                                            s.upwind_smoothing, backend, free=P.free, walls=P.walls)
         #: free-cell weights of the KL sums (ocp.mask): blocked cells contribute nothing
         self._w_cell = None if P.free is None else P.free.ravel(order="F").astype(float)
         self._traj = None

@@ -542,11 +542,12 @@ class TransportKernel:
 
     ``free``: optional free-cell mask (nx, ny) (:mod:`ocp.mask`); the kernel multiplies the split face
     velocities v+, v- by the face masks (1 open, 0 closed: zero flux as at the walls), and the
-    face-velocity adjoint by the same masks.  Without a mask the masks are ones (multiplying by 1.0 is
+    face-velocity adjoint by the same masks; ``walls`` (closed faces between free cells) close faces the same
+    way.  Without a mask the masks are ones (multiplying by 1.0 is
     exact: the rectangle's results are unchanged bit for bit)."""
 
     def __init__(self, nx: int, ny: int, n_intervals: int, substeps: int, rx: float, ry: float, eps: float,
-                 backend: str = "compiled", free=None, scheme: str = "upwind"):
+                 backend: str = "compiled", free=None, scheme: str = "upwind", walls=None):
         if backend not in ("compiled", "numpy"):
             raise ValueError(f"kernel backend must be 'compiled' or 'numpy', got {backend!r}")
         if scheme not in ("upwind", "muscl"):
@@ -563,9 +564,10 @@ class TransportKernel:
         self.n_cell = self.nx * self.ny
         self.n_fx = (self.nx - 1) * self.ny
         self.n_fy = self.nx * (self.ny - 1)
-        from .mask import check_free, face_masks
+        from .mask import check_free, check_walls, face_masks
         self.free = check_free(free, (self.nx, self.ny), "kernel free-cell mask")
-        open_x, open_y = face_masks(self.free)
+        self.walls = check_walls(walls, (self.nx, self.ny), "kernel walls")
+        open_x, open_y = face_masks(self.free, self.walls)
         # column-major face vectors, as vx and vy
         self.mask_x = np.ones(self.n_fx) if open_x is None else np.ascontiguousarray(open_x.ravel(order="F"))
         self.mask_y = np.ones(self.n_fy) if open_y is None else np.ascontiguousarray(open_y.ravel(order="F"))

@@ -12,6 +12,11 @@ keeps p = 0 for ever, and mass is conserved to round-off.  The positivity/CFL ar
 :attr:`ocp.settings.PlannerSettings.substeps` is unchanged: closing faces only removes outflow terms,
 every update stays a non-negative combination of old values.
 
+Walls thinner than a cell: ``walls = (closed_x (nx-1, ny), closed_y (nx, ny-1))`` bool marks faces between
+two free cells that an obstacle crosses at the geometry's own resolution (:meth:`domain.Domain.closed_faces`);
+they are closed exactly like the faces to a blocked cell (the same masks, so conservation and positivity
+hold as above).  None (default) = no such face.
+
 Costs: the KL terms of eq. "optimization problem" sum over free cells only; the target floor
 q = (1 - beta) p_f + beta / |free area| applies on free cells, q = 0 on blocked cells (which contribute
 nothing).  Densities given to the planner must be zero on blocked cells (up to round-off:
@@ -51,13 +56,45 @@ def check_free(free, shape: tuple[int, int], name: str = "free") -> np.ndarray |
     return out
 
 
-def face_masks(free: np.ndarray | None):
+def check_walls(walls, shape: tuple[int, int], name: str = "walls"):
+    """Validate closed faces ``(closed_x (nx-1, ny), closed_y (nx, ny-1))`` (bool or 0/1) of an nx x ny grid.
+    Returns read-only bool copies, or None for None or when no face is closed."""
+    if walls is None:
+        return None
+    nx, ny = shape
+    try:
+        cx, cy = walls
+        cx, cy = np.asarray(cx), np.asarray(cy)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a pair (closed_x ({nx - 1}, {ny}), closed_y ({nx}, {ny - 1})) of bool arrays") from None
+    out = []
+    for a, want, what in ((cx, (nx - 1, ny), "closed_x"), (cy, (nx, ny - 1), "closed_y")):
+        if a.shape != want:
+            raise ValueError(f"{name}: {what} has shape {a.shape}, expected {want} for a {nx} x {ny} grid")
+        if a.dtype != np.bool_ and (a.dtype.kind not in "biuf" or not np.all(np.isin(a, (0, 1)))):
+            raise ValueError(f"{name}: {what} must be bool or 0/1")
+        b = np.array(a, dtype=bool, copy=True)
+        b.setflags(write=False)
+        out.append(b)
+    if not (out[0].any() or out[1].any()):
+        return None
+    return out[0], out[1]
+
+
+def face_masks(free: np.ndarray | None, walls=None):
     """(open_x (nx-1, ny), open_y (nx, ny-1)) float 0/1 masks of the interior faces (a face is open iff
-    both neighbouring cells are free), or (None, None) without a mask."""
-    if free is None:
+    both neighbouring cells are free and no wall closes it), or (None, None) without a mask and walls."""
+    if free is None and walls is None:
         return None, None
-    f = np.asarray(free, dtype=bool)
-    return (f[:-1, :] & f[1:, :]).astype(float), (f[:, :-1] & f[:, 1:]).astype(float)
+    if free is None:
+        cx, cy = walls
+        f = np.ones((cx.shape[0] + 1, cx.shape[1]), dtype=bool)
+    else:
+        f = np.asarray(free, dtype=bool)
+    ox, oy = f[:-1, :] & f[1:, :], f[:, :-1] & f[:, 1:]
+    if walls is not None:
+        ox, oy = ox & ~np.asarray(walls[0], bool), oy & ~np.asarray(walls[1], bool)
+    return ox.astype(float), oy.astype(float)
 
 
 def free_area(grid: Grid, free: np.ndarray | None) -> float:

@@ -14,6 +14,8 @@ key              shape            meaning
 ``target``       (nx, ny)         the target density p_f used
 ``free``         (nx, ny) bool    free cells of an irregular domain (obstacles False); absent for the
                                   empty rectangle (:mod:`ocp.mask`); ``p`` is 0 on blocked cells
+``closed_x``     (nx-1, ny) bool  faces between free cells closed by a wall thinner than a cell (x faces);
+``closed_y``     (nx, ny-1) bool  the same for the y faces; both absent when no face is closed
 ``meta``         () str           JSON: settings, solver status, iterations, timings, costs, versions
 ===============  ===============  ==============================================================
 
@@ -23,8 +25,9 @@ cell centres (constant beyond the outermost centres, i.e. zero normal derivative
 Outside ``[t[0], t[-1]]`` the plan is held: first/last density, zero velocity after the end.
 With a free-cell mask, ``p_r`` is 0 at points in blocked cells and, in free cells, the bilinear
 interpolant over the free cells of the stencil only (weights renormalised: an obstacle acts like the
-outer walls, no ramp down towards it); ``v_r`` is the smooth series everywhere (the swarm side handles
-obstacles).
+outer walls, no ramp down towards it); ``v_r`` is the series with its normal component faded to zero at
+faces towards blocked cells.  Closed faces (``walls``) act the same way: a stencil corner across a closed
+face does not enter p_r, and v_r's normal component fades to zero at the closed face.
 """
 from __future__ import annotations
 
@@ -41,7 +44,7 @@ from .grid import Grid
 
 KEYS = ("domain", "t", "p", "t_intervals", "coef", "target", "meta")
 #: keys a plan file may carry in addition (older plans lack them and still load)
-OPTIONAL_KEYS = ("free",)
+OPTIONAL_KEYS = ("free", "closed_x", "closed_y")
 
 
 @dataclass
@@ -57,6 +60,9 @@ class ReferencePlan:
     meta: dict = field(default_factory=dict)
     #: free-cell mask (nx, ny) bool of an irregular domain, None for the empty rectangle
     free: np.ndarray | None = None
+    #: closed faces ``(closed_x (nx-1, ny), closed_y (nx, ny-1))`` bool between free cells (walls thinner than a
+    #: cell, :mod:`ocp.mask`), None when there is none
+    walls: tuple | None = None
 
     def __post_init__(self):
         # real numbers only: a complex, boolean or text array is refused, never cast (finiteness below)
@@ -108,6 +114,12 @@ class ReferencePlan:
                 raise ValueError(str(exc) if str(exc).startswith("plan") else f"plan: {exc}") from None
             if np.any(self.p[:, ~self.free] != 0) or np.any(self.target[~self.free] != 0):
                 raise ValueError("plan: density or target is non-zero in blocked cells (free == False)")
+        if self.walls is not None:
+            from .mask import check_walls
+            try:
+                self.walls = check_walls(self.walls, self.p.shape[1:], "plan: walls")
+            except ValueError as exc:
+                raise ValueError(str(exc) if str(exc).startswith("plan") else f"plan: {exc}") from None
 
     # ------------------------------------------------------------------ properties
     @property
@@ -163,7 +175,7 @@ class ReferencePlan:
         # beyond the outermost centres the interpolant is constant: zero normal derivative
         inx = ((pts[:, 0] - g.domain[0]) / g.dx - 0.5 > 0) & ((pts[:, 0] - g.domain[0]) / g.dx - 0.5 < g.nx - 1)
         iny = ((pts[:, 1] - g.domain[2]) / g.dy - 0.5 > 0) & ((pts[:, 1] - g.domain[2]) / g.dy - 0.5 < g.ny - 1)
-        if self.free is not None:
+        if self.free is not None or self.walls is not None:
             return self._bilinear_free(g, pts, i0, j0, sx, sy, (f00, f10, f01, f11), inx, iny, gradient)
         val = (1 - sx) * (1 - sy) * f00 + sx * (1 - sy) * f10 + (1 - sx) * sy * f01 + sx * sy * f11
         if not gradient:
@@ -175,8 +187,21 @@ class ReferencePlan:
     def _bilinear_free(self, g, pts, i0, j0, sx, sy, f, inx, iny, gradient):
         """Bilinear interpolation over the free corners of the stencil (weights renormalised), 0 in blocked
         cells: val = sum_k w_k m_k f_k / sum_k w_k m_k, its gradient by the quotient rule."""
-        fr = self.free
+        fr = self._free_or_all()
         m = [fr[i0, j0], fr[i0 + 1, j0], fr[i0, j0 + 1], fr[i0 + 1, j0 + 1]]
+        ci, cj, _, _ = self.cells(pts)
+        if self.walls is not None:
+            # a corner counts only if the point's own cell reaches it through open faces inside the stencil
+            cx, cy = self.walls
+            a, b = ci - i0, cj - j0                            # the point's corner of the stencil (0 or 1 per axis)
+            ox = (~cx[i0, j0], ~cx[i0, j0 + 1])                # the stencil's x faces: rows j0 and j0 + 1
+            oy = (~cy[i0, j0], ~cy[i0 + 1, j0])                # its y faces: columns i0 and i0 + 1
+            own_row, other_row = np.where(b == 0, ox[0], ox[1]), np.where(b == 0, ox[1], ox[0])
+            own_col, other_col = np.where(a == 0, oy[0], oy[1]), np.where(a == 0, oy[1], oy[0])
+            diag = (own_row & other_col) | (own_col & other_row)
+            for k, (ki, kj) in enumerate(((0, 0), (1, 0), (0, 1), (1, 1))):
+                da, db = ki != a, kj != b
+                m[k] = m[k] & np.select([~da & ~db, da & ~db, ~da & db], [np.ones_like(diag), own_row, own_col], diag)
         m = [a.astype(float) for a in m]
         w = [(1 - sx) * (1 - sy), sx * (1 - sy), (1 - sx) * sy, sx * sy]
         dwx = [-(1 - sy), (1 - sy), -sy, sy]           # d w_k / d sx
@@ -185,7 +210,6 @@ class ReferencePlan:
         den = sum(wk * mk for wk, mk in zip(w, m))
         # the cell holding the point: blocked -> 0; free -> it is a corner of the stencil with weight > 0
         # (or the point sits on a face, where the renormalised value is that of the free side)
-        ci, cj, _, _ = self.cells(pts)
         inside = fr[ci, cj] & (den > 0)
         safe = np.where(inside, den, 1.0)
         val = np.where(inside, num / safe, 0.0)
@@ -197,6 +221,12 @@ class ReferencePlan:
             dden = sum(d * mk for d, mk in zip(dw, m))
             out.append(np.where(inside, (dnum * safe - num * dden) / (safe * safe), 0.0) / step * ok)
         return val, np.column_stack(out)
+
+    def _free_or_all(self) -> np.ndarray:
+        """The free-cell mask, all True without one (a plan with walls on the open rectangle)."""
+        if self.free is not None:
+            return self.free
+        return np.ones(self.p.shape[1:], dtype=bool)
 
     def cells(self, points: np.ndarray):
         """(ci, cj, sx, sy) of points (n, 2): the grid cell holding each point (clipped to the grid) and the
@@ -230,7 +260,7 @@ class ReferencePlan:
         if k is None:
             return np.zeros_like(pts)
         v = velocity_at(self.coef[k], tuple(self.domain), pts, self.basis)
-        if self.free is not None:
+        if self.free is not None or self.walls is not None:
             v = self._fade_at_obstacles(pts, v)
         return v
 
@@ -244,13 +274,22 @@ class ReferencePlan:
         vanishes at the obstacle's face and is the series' value one cell away, continuous across open faces.
         Points in blocked cells keep the series."""
         g = self.grid
-        fr = self.free
+        fr = self._free_or_all()
         ci, cj, sx, sy = self.cells(pts)
         here = fr[ci, cj]
-        left = np.where(ci > 0, fr[np.maximum(ci - 1, 0), cj], True) | ~here
-        right = np.where(ci < g.nx - 1, fr[np.minimum(ci + 1, g.nx - 1), cj], True) | ~here
-        down = np.where(cj > 0, fr[ci, np.maximum(cj - 1, 0)], True) | ~here
-        up = np.where(cj < g.ny - 1, fr[ci, np.minimum(cj + 1, g.ny - 1)], True) | ~here
+        lo_i, hi_i = np.maximum(ci - 1, 0), np.minimum(ci + 1, g.nx - 1)
+        lo_j, hi_j = np.maximum(cj - 1, 0), np.minimum(cj + 1, g.ny - 1)
+        left = np.where(ci > 0, fr[lo_i, cj], True)
+        right = np.where(ci < g.nx - 1, fr[hi_i, cj], True)
+        down = np.where(cj > 0, fr[ci, lo_j], True)
+        up = np.where(cj < g.ny - 1, fr[ci, hi_j], True)
+        if self.walls is not None:          # a closed face is a wall too (x face i sits between cells i, i + 1)
+            cx, cy = self.walls
+            left = left & ~np.where(ci > 0, cx[np.minimum(lo_i, g.nx - 2), cj], False)
+            right = right & ~np.where(ci < g.nx - 1, cx[np.minimum(ci, g.nx - 2), cj], False)
+            down = down & ~np.where(cj > 0, cy[ci, np.minimum(lo_j, g.ny - 2)], False)
+            up = up & ~np.where(cj < g.ny - 1, cy[ci, np.minimum(cj, g.ny - 2)], False)
+        left, right, down, up = left | ~here, right | ~here, down | ~here, up | ~here
         out = np.array(v, dtype=float, copy=True)
         out[:, 0] *= (1.0 - sx) * left + sx * right
         out[:, 1] *= (1.0 - sy) * down + sy * up
@@ -268,6 +307,8 @@ class ReferencePlan:
         arrays = {k: getattr(self, k) for k in KEYS if k != "meta"}
         if self.free is not None:
             arrays["free"] = np.asarray(self.free, dtype=bool)
+        if self.walls is not None:
+            arrays["closed_x"], arrays["closed_y"] = (np.asarray(w, dtype=bool) for w in self.walls)
         arrays["meta"] = np.array(json.dumps(self.meta, default=_json_default))
         with atomic_path(path, ".npz") as tmp:
             np.savez(tmp, **arrays)
@@ -293,6 +334,10 @@ class ReferencePlan:
                 data.update({k: z[k] for k in OPTIONAL_KEYS if k in z.files})
             except Exception as exc:
                 raise ValueError(f"cannot read plan file {path}: {exc}") from None
+        if ("closed_x" in data) != ("closed_y" in data):
+            raise ValueError(f"plan file {path} has only one of closed_x and closed_y")
+        if "closed_x" in data:
+            data["walls"] = (data.pop("closed_x"), data.pop("closed_y"))
         try:
             meta = json.loads(str(data.pop("meta")))
         except json.JSONDecodeError as exc:

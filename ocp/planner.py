@@ -54,11 +54,13 @@ class ReferencePlanner:
     ``free``: optional free-cell mask, array (nx, ny) of bool or 0/1 (x first, True = free cell), at
     least one free cell; None (default) = the empty rectangle, today's problem unchanged.
     ``formulation``: how the problem becomes an NLP (:mod:`ocp.formulations`; default
-    ``settings.formulation``).
+    ``settings.formulation``).  ``walls``: optional closed faces ``(closed_x (nx-1, ny), closed_y (nx, ny-1))``
+    between free cells, walls thinner than a cell (:mod:`ocp.mask`, :meth:`domain.Domain.closed_faces`): no
+    flux through them; the plan carries them (``ReferencePlan.walls``).
     """
 
     def __init__(self, settings: PlannerSettings | None = None, free=None,
-                 formulation: Formulation | str | None = None):
+                 formulation: Formulation | str | None = None, walls=None):
         self.settings = settings or PlannerSettings()
         if self.settings.reference_speed is not None:     # the plan's own bound (PlannerSettings.reference_speed)
             self.settings = dataclasses.replace(self.settings, v_max=self.settings.reference_speed,
@@ -77,13 +79,13 @@ class ReferencePlanner:
                 f"the exact Hessian is dense in the {n_coef} velocity coefficients (N x 2 x I x J) and takes minutes "
                 f"to hours beyond {MAX_EXACT_HESSIAN_COEFFICIENTS}; use hessian_approximation='limited-memory' or "
                 "fewer intervals/modes (README, 'Solver study')")
-        if free is not None and not isinstance(self.formulation, SingleShooting):
+        if (free is not None or walls is not None) and not isinstance(self.formulation, SingleShooting):
             raise ValueError(f"obstacles (free=) are posed in the single-shooting formulation only, not "
                              f"{self.formulation.name!r} (its own costs and steps know no mask)")
         if s.method == "ipopt":               # a missing solver library fails here, not in (or after) the solve
             check_linear_solver(s.ipopt)
         t0 = time.perf_counter()
-        self.problem = TransportProblem(self.settings, free)
+        self.problem = TransportProblem(self.settings, free, walls)
         self.nlp = self.formulation.build(self.problem)
         opts = {"ipopt": self.settings.ipopt.options(), "print_time": False, "record_time": True,
                 "error_on_fail": False}
@@ -181,6 +183,11 @@ class ReferencePlanner:
         """The free-cell mask (nx, ny) bool, read-only, or None for the empty rectangle."""
         return self.problem.free
 
+    @property
+    def walls(self):
+        """The closed faces ``(closed_x, closed_y)`` (read-only bool), or None when no face is closed."""
+        return self.problem.walls
+
     # ------------------------------------------------------------------ initial guesses
     def initial_coefficients(self, warm_start: ReferencePlan | None, t0: float) -> np.ndarray:
         """Cold start: zero velocity.  Warm start: the previous plan's coefficients shifted by the
@@ -202,6 +209,10 @@ class ReferencePlanner:
         mine, theirs = self.free, getattr(warm_start, "free", None)
         if (mine is None) != (theirs is None) or (mine is not None and not np.array_equal(mine, theirs)):
             raise ValueError("warm-start plan was planned with a different free-cell mask (obstacles) than this planner's")
+        mine, theirs = self.walls, getattr(warm_start, "walls", None)
+        if (mine is None) != (theirs is None) or (mine is not None and not all(
+                np.array_equal(a, b) for a, b in zip(mine, theirs))):
+            raise ValueError("warm-start plan was planned with different walls (closed faces) than this planner's")
         shift = int(round((t0 - warm_start.t_start) / self.settings.interval))
         if shift <= 0 or shift >= P.N:
             return prev.copy()
@@ -402,13 +413,15 @@ class ReferencePlanner:
             **({"speed_limit": s.speed_limit, "face_speed_max": [float(v) for v in _face_max(P, coef)]}
                if s.speed_limit != "l1" else {}),
             **({"free_cells": int(np.count_nonzero(self.free))} if self.free is not None else {}),
+            **({"closed_faces": int(sum(np.count_nonzero(w) for w in self.walls))} if self.walls is not None else {}),
             "distribution": distribution(),
             "versions": _versions(),
         }
         t_snap = t0 + np.arange(snapshots.shape[0]) * P.dt
         t_int = t0 + np.arange(P.N + 1) * s.interval
         return ReferencePlan(domain=np.array(g.domain), t=t_snap, p=snapshots, t_intervals=t_int,
-                             coef=coef, target=target, meta=meta, free=self.free)
+                             coef=coef, target=target, meta=meta, free=self.free,
+                             walls=self.walls)
 
 
 def plan_reference(p0, target, settings: PlannerSettings | None = None, t0: float = 0.0,

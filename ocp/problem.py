@@ -32,7 +32,7 @@ import numpy as np
 
 from .grid import Grid
 from .settings import PlannerSettings
-from .mask import check_free, face_masks, floor_free, log_target
+from .mask import check_free, check_walls, face_masks, floor_free, log_target
 from .transport import FaceBasis, simulate
 
 
@@ -65,14 +65,16 @@ class TransportProblem:
     ``free``: optional free-cell mask (nx, ny), True = free (:mod:`ocp.mask`): zero flux
     through every face next to a blocked cell (the split face velocities times the face masks, in the
     graph and in the kernels) and the KL terms summed over free cells only.  None = the empty
-    rectangle, the graph of the unmasked problem unchanged."""
+    rectangle, the graph of the unmasked problem unchanged.  ``walls``: optional closed faces between free
+    cells (walls thinner than a cell, :func:`ocp.mask.check_walls`), closed in the graph and the kernels too."""
 
-    def __init__(self, settings: PlannerSettings, free=None):
+    def __init__(self, settings: PlannerSettings, free=None, walls=None):
         s = settings
         self.settings = s
         self.grid = Grid(s.domain, s.nx, s.ny)
         g = self.grid
         self.free = check_free(free, g.shape)
+        self.walls = check_walls(walls, g.shape)
         self.basis = FaceBasis(g, s.n_modes_x, s.n_modes_y, s.basis)
         self.N, self.I, self.J = s.n_intervals, s.n_modes_x, s.n_modes_y
         self.n_coef = self.N * 2 * self.I * self.J
@@ -128,7 +130,7 @@ class TransportProblem:
         vxm = vxp - vx
         vyp = 0.5 * (vy + ca.sqrt(vy * vy + eps * eps))
         vym = vyp - vy
-        open_x, open_y = face_masks(self.free)
+        open_x, open_y = face_masks(self.free, self.walls)
         if open_x is not None:           # closed faces: no flux (ocp.mask); the rectangle's graph is unchanged
             Mx, My = ca.DM(open_x), ca.DM(open_y)
             vxp, vxm, vyp, vym = vxp * Mx, vxm * Mx, vyp * My, vym * My
@@ -191,6 +193,7 @@ class TransportProblem:
             # interval-boundary snapshots out; reverse mode runs the kernel's hand-written adjoint
             from .kernel import TransportKernel, transport_callback
             self.kernel = TransportKernel(nx, ny, N, self.n_sub, rx, ry, eps, backend=self.transport, free=self.free,
+                                          walls=self.walls,
                                           scheme=s.scheme)
             self._transport_fn = transport_callback(self.kernel)
             VX = ca.horzcat(*[ca.vec(ca.mtimes([Sxf, ax_l, Syc_T])) for ax_l, _ in coefs])
@@ -347,7 +350,7 @@ class TransportProblem:
         """Density at every sub-step (N n_sub + 1, nx, ny) under ``coef``, with this problem's kernel."""
         if self.kernel is None:
             return simulate(p0, coef, self.grid, self.settings.interval, self.n_sub, self.settings.upwind_smoothing,
-                            self.settings.basis, self.settings.scheme, self.free)
+                            self.settings.basis, self.settings.scheme, self.free, self.walls)
         VX, VY = self.face_velocities(coef)
         traj = self.kernel.forward(VX, VY, np.asarray(p0, dtype=float).ravel(order="F"))
         return traj.reshape(-1, self.grid.ny, self.grid.nx).transpose(0, 2, 1).copy()

@@ -20,7 +20,7 @@ import numpy as np
 
 from .basis import check_basis, factor_matrix, sine_matrix
 from .grid import Grid
-from .mask import check_free, face_masks
+from .mask import check_free, check_walls, face_masks
 
 
 class FaceBasis:
@@ -131,10 +131,11 @@ CFL_FACTOR = {"upwind": 1.0, "muscl": 1.5}
 
 
 def simulate(p0: np.ndarray, coef: np.ndarray, grid: Grid, interval: float, substeps: int, eps: float,
-             basis: str = "sine", scheme: str = "upwind", free=None) -> np.ndarray:
+             basis: str = "sine", scheme: str = "upwind", free=None, walls=None) -> np.ndarray:
     """Density snapshots (N * substeps + 1, nx, ny) under the piecewise-constant velocity ``coef``
-    of ``basis`` (:mod:`ocp.basis`); ``free`` an optional free-cell mask (nx, ny) (:mod:`ocp.mask`)."""
-    open_x, open_y = face_masks(check_free(free, grid.shape))
+    of ``basis`` (:mod:`ocp.basis`); ``free`` an optional free-cell mask (nx, ny), ``walls`` optional
+    closed faces (:mod:`ocp.mask`)."""
+    open_x, open_y = face_masks(check_free(free, grid.shape), check_walls(walls, grid.shape))
     coef = np.asarray(coef, dtype=float)
     basis = FaceBasis(grid, coef.shape[2], coef.shape[3], basis)
     step = STEPS[scheme]
@@ -152,14 +153,14 @@ def simulate(p0: np.ndarray, coef: np.ndarray, grid: Grid, interval: float, subs
 
 
 def advect_field(p0: np.ndarray, grid: Grid, velocity, t_end: float, cfl: float = 0.9, eps: float = 0.0,
-                 scheme: str = "upwind", free=None) -> np.ndarray:
+                 scheme: str = "upwind", free=None, walls=None) -> np.ndarray:
     """Transport p0 for time t_end under a steady velocity field ``velocity(x, y) -> (vx, vy)``.
 
     Used by the convergence tests (translation, solid-body rotation); the velocity is sampled on
     the interior faces and the step obeys the same CFL rule as the planner; ``free`` an optional
-    free-cell mask (:mod:`ocp.mask`).
+    free-cell mask and ``walls`` optional closed faces (:mod:`ocp.mask`).
     """
-    open_x, open_y = face_masks(check_free(free, grid.shape))
+    open_x, open_y = face_masks(check_free(free, grid.shape), check_walls(walls, grid.shape))
     Xf, Ycx = np.meshgrid(grid.xf[1:-1], grid.yc, indexing="ij")
     Xcy, Yf = np.meshgrid(grid.xc, grid.yf[1:-1], indexing="ij")
     vx = velocity(Xf, Ycx)[0]

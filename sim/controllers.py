@@ -84,6 +84,9 @@ class Context:
     free: np.ndarray | None = None
     #: the ``domain.Domain`` of the run (None on the empty rectangle)
     region: object = None
+    #: closed faces (closed_x (nx-1, ny), closed_y (nx, ny-1)) between free cells: walls thinner than a cell
+    #: (:meth:`domain.Domain.closed_faces`), None when there is none
+    walls: tuple | None = None
 
 
 class Controller:
@@ -256,7 +259,7 @@ class GreedyController(Controller):
         self.geo = None
         if ctx.free is not None:
             from ..domain import GeodesicGrid
-            self.geo = GeodesicGrid(ctx.free, ctx.domain)
+            self.geo = GeodesicGrid(ctx.free, ctx.domain, ctx.walls)
             self.goal_cells = self.geo.cell_of(ctx.X)
         self.observe(ctx)
 
@@ -393,7 +396,7 @@ class LawnmowerController(Controller):
         cut into their free runs, swept back and forth, and consecutive runs (and the approach from
         the start) are joined by geodesic paths through the free cells."""
         from ..domain import GeodesicGrid
-        geo = self.geo = GeodesicGrid(ctx.free, ctx.domain)
+        geo = self.geo = GeodesicGrid(ctx.free, ctx.domain, ctx.walls)
         self.region = ctx.region
         free = geo.free
         nx, ny = free.shape

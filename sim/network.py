@@ -330,6 +330,7 @@ class HeldPlan:
         ref = plan if plan is not None else like
         self.domain, self.grid = ref.domain, ref.grid
         self.free = getattr(ref, "free", None) if free is None else free
+        self.walls = getattr(ref, "walls", None)
         self.t_end = None if plan is None else plan.t_end
 
     def density_and_gradient(self, t, X):
@@ -363,6 +364,7 @@ class RobotPlans:
         self.alive = np.asarray(alive, bool)
         self.domain, self.grid = current.domain, current.grid
         self.free = getattr(current, "free", None)
+        self.walls = getattr(current, "walls", None)
         self.basis = "held"                          # not a sine series: the compiled kernel steps aside
         held = {}
         self.parts = []                              # (plan-like, robot indices)

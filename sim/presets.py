@@ -85,13 +85,13 @@ PRESETS: dict[str, dict] = {
         # (docs/results/domains.md: the floor's threshold reached in 3 T instead of never); no effect
         # on the empty rectangle
         "kde": {"bandwidth": 1.0, "obstacles": "reflect"},
-        # a planner cell with obstacles is free from a quarter free area on (0.5 in the paper preset), if a wall
-        # does not cut its free part in two (sim.domain, "The classification rule"): the ring of partly covered
+        # a planner cell with obstacles is free from a quarter free area on (0.5 in the paper preset; walls close
+        # faces whatever the fraction: domain.domain, "Walls"): the ring of partly covered
         # cells around small or curved obstacles (trees, rocks, a shore) stays in the plan, the target and sup V
         # instead of a blocked halo.  Measured with greedy judged on the same cells (docs/results/domains.md,
         # "The free fraction"): the unseen orchard GP sample 1.62 -> 1.25 T, sinc 1.88 -> 1.75 T (four seeds;
         # its cells are the same from 0.05 to 0.35); a blind map of boulders 1.44 -> 1.31 / 1.75 -> 1.81 T.
-        # 0.05 opened faces across boulders (Domain.walled_faces: 4 on that map), 0.25 none on any map.
+        # (Measured before walls closed faces at the map's resolution, with a rule that blocked cut cells.)
         # The other maps have the same cells as at 0.5; no effect on the empty rectangle
         "domain": {"min_free_fraction": 0.25},
         # (s_f^2, l) learned once per period by MAP from the GP's running sums (regression.hyper)

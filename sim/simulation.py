@@ -153,13 +153,15 @@ class Simulation:
         grid = planner.grid if planner is not None else Grid(config.planner.domain, config.planner.nx,
                                                               config.planner.ny)
         self.region, self.free = resolve_domain(config, grid, domain)
+        # walls thinner than a planner cell: faces between free cells they close (domain.Domain.closed_faces)
+        self.walls = None if self.region is None else self.region.closed_faces(self.free)
         if self.controller.needs_plan:
             from ..ocp import PlannerError
             self.planner_error = PlannerError
             if planner is None:
-                planner = make_planner(config.planner, self.free)
+                planner = make_planner(config.planner, self.free, self.walls)
             grid = planner.grid
-            check_planner_free(planner, self.free)
+            check_planner_free(planner, self.free, self.walls)
         if tuple(grid.domain) != tuple(s.domain):
             raise ValueError(f"planner grid domain {grid.domain} differs from sim.domain {s.domain}")
         self.planner, self.grid = planner, grid
@@ -182,7 +184,8 @@ class Simulation:
         self.gp = GaussianProcess(config.gp, domain=s.domain)
         self.estimate = LatestEstimate(KernelDensity(domain=s.domain, bandwidth=config.kde.bandwidth,
                                                      bins=config.kde.bins, free=self.free,
-                                                     obstacle_kernel=config.kde.obstacles), config.kde.hold_substeps)
+                                                     obstacle_kernel=config.kde.obstacles, walls=self.walls),
+                                       config.kde.hold_substeps)
         self.result = SimulationResult(config=config, field=self.field, grid=grid, f_true=f_true)
         self.result.free = self.free
         self.result.region = self.region
@@ -568,7 +571,7 @@ class Simulation:
                        var=self.var, centers=self.centers, domain=self.settings.domain, h=self.h,
                        plan=self.network.robot_plan(self) if self.controller.needs_plan else None,
                        estimate=self.network.estimator(self),
-                       rng=self.rng, free=self.free, region=self.region)
+                       rng=self.rng, free=self.free, region=self.region, walls=self.walls)
 
     def _notify(self, event: str) -> None:
         for r in self.recorders:
@@ -606,31 +609,31 @@ def resolve_domain(config: RunConfig, grid, domain=None):
         if ds.unreachable == "refuse":
             raise ValueError(msg + " (domain.unreachable = \"refuse\")")
         warnings.warn(msg + "; it is excluded from the planner, sup V, RMSE and the target", UserWarning, stacklevel=3)
-    walled = region.walled_faces(reach)
-    if walled:
-        warnings.warn(f"domain {region.name}: a wall thinner than a planner cell ({grid.dx:g} x {grid.dy:g} m) "
-                      f"divides free planner cells at {walled} faces or cells; the planner and the feedback's "
-                      "transport term move mass through it and the robots cannot follow: refine the planner grid "
-                      "([planner] nx, ny; cells at most twice as wide as the wall), draw the walls at least a "
-                      f"cell thick, or, for small obstacles such as posts, raise [domain] min_free_fraction (now "
-                      f"{ds.min_free_fraction:g}) so that the cells they cut are blocked", UserWarning, stacklevel=3)
     return region, reach
 
 
-def make_planner(settings, free):
-    """``ocp.ReferencePlanner(settings)``, with the free-cell mask when there are obstacles."""
+def make_planner(settings, free, walls=None):
+    """``ocp.ReferencePlanner(settings)``, with the free-cell mask when there are obstacles (and the closed
+    faces of walls thinner than a cell, ``walls``)."""
     from ..ocp import ReferencePlanner
-    if free is None:
+    if free is None and walls is None:
         return ReferencePlanner(settings)
     try:
+        if walls is not None:
+            return ReferencePlanner(settings, free=free, walls=walls)
         return ReferencePlanner(settings, free=free)
     except TypeError:
         raise ValueError("this planner (ocp.ReferencePlanner) does not support obstacles (no 'free' argument); "
                          "use a controller without a plan (diffusion, coverage, greedy, lawnmower)") from None
 
 
-def check_planner_free(planner, free) -> None:
-    """A prebuilt planner must have been built with the run's free cells."""
+def check_planner_free(planner, free, walls=None) -> None:
+    """A prebuilt planner must have been built with the run's free cells (and walls)."""
+    pw = getattr(planner, "walls", None)
+    if (walls is None) != (pw is None) or (walls is not None and not all(
+            np.array_equal(np.asarray(a, bool), np.asarray(b, bool)) for a, b in zip(walls, pw))):
+        raise ValueError("the planner's walls (closed faces) differ from the run's domain (build it with "
+                         "ReferencePlanner(settings, free=..., walls=domain.closed_faces(free)))")
     pf = getattr(planner, "free", None)
     if free is None and pf is None:
         return

@@ -240,7 +240,7 @@ def farthest_distance(points, box) -> float:
     return float(np.hypot(dx, dy).max())
 
 
-def travel_time_limit(config, points=None, speed: float | None = None, free=None) -> float:
+def travel_time_limit(config, points=None, speed: float | None = None, free=None, walls=None) -> float:
     """Earliest measurement time at which a robot can have measured at every cell centre: the
     distance from ``sim.start_box`` to the farthest cell centre (``points``; default the planner
     grid's) over ``speed`` (default the fastest speed limit of the controllers, max(planner.v_max,
@@ -250,12 +250,17 @@ def travel_time_limit(config, points=None, speed: float | None = None, free=None
     ``free`` (bool (nx, ny), the planner cells a run with obstacles maps): the distance is then
     geodesic, around the obstacles (:class:`domain.GeodesicGrid`, from the free cells whose
     centres lie in the start box to the farthest free cell; paths through cell centres, so it is
-    exact to about a cell)."""
+    exact to about a cell).  Walls thinner than a cell (``walls``, closed faces; by default those of
+    ``config.domain.source`` on the grid of ``free``, :meth:`domain.Domain.closed_faces`) are crossed
+    through their doors only."""
     s = config.sim
     v = float(max(config.planner.v_max, config.feedback.v_max) if speed is None else speed)
     if free is not None:
-        from ..domain import GeodesicGrid
-        geo = GeodesicGrid(free, s.domain)
+        from ..domain import GeodesicGrid, make_domain
+        if walls is None and config.domain.source:
+            region = make_domain(config.domain.source, s.domain)
+            walls = None if region is None else region.closed_faces(free)
+        geo = GeodesicGrid(free, s.domain, walls)
         bx0, bx1, by0, by1 = s.start_box
         c = geo.centers
         inside = (c[:, 0] >= bx0) & (c[:, 0] <= bx1) & (c[:, 1] >= by0) & (c[:, 1] <= by1) & geo.free.ravel()

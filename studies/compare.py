@@ -78,7 +78,6 @@ def run_task(task: dict) -> list[dict]:
     # the configuration's own stop rule, recorded at every measurement; the run itself never stops at it
     with warnings.catch_warnings():    # the domain's warnings: said once by make_tasks, not by every run
         warnings.filterwarnings("ignore", message=".*cannot be reached", category=UserWarning)
-        warnings.filterwarnings("ignore", message=".*a wall thinner than a planner cell", category=UserWarning)
         res = run_simulation(cfg, stop_rule=make_stop_rule(cfg.sim, stops=False))
     T = cfg.sim.period
     label = {k: task[k] for k in ("preset", "controller", "field", "seed", "robot_loss", "robots")}

@@ -651,9 +651,10 @@ def test_stop_rule_scale_reaches_the_information_objective_with_obstacles():
 
 
 @pytest.mark.parametrize("wall", [(9.95, 10.05), (9.7, 9.8)])
-def test_a_wall_thinner_than_a_planner_cell_is_warned_about(tmp_path, wall):
+def test_a_wall_thinner_than_a_planner_cell_closes_the_faces_it_crosses(tmp_path, wall):
     """A 0.1 m wall with a door above it, on a cell face or inside a cell column: the planner's cells stay free
-    on both sides, so the run warns (domain.Domain.walled_faces); thick walls and open maps do not."""
+    on both sides, and the 30 faces along the wall are closed (domain.Domain.closed_faces), without a warning;
+    the built-in maps (walls at least a cell thick) have no such face."""
     from swarmfield.ocp import Grid
     from swarmfield.sim.simulation import resolve_domain
     n = 400
@@ -662,21 +663,25 @@ def test_a_wall_thinner_than_a_planner_cell_is_warned_about(tmp_path, wall):
     free = ~((X > wall[0]) & (X < wall[1]) & (Y < 15))
     np.savez(tmp_path / "thin.npz", free=free, extent=np.array(EXT))
     grid = Grid(EXT, 40, 40)
-    # 30 faces along the wall, less the one at its end, where a robot goes round it within the next cells
-    with pytest.warns(UserWarning, match=r"a wall thinner than a planner cell .* divides free planner cells at 29 "):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
         region, reach = resolve_domain(_cfg("diffusion", source=str(tmp_path / "thin.npz")), grid)
-    assert reach.all()                          # the planner sees no obstacle at all
+    assert reach.all()                          # every cell is free and reachable (through the door)
+    cx, cy = region.closed_faces(reach)
+    assert cx.sum() == 30 and not cy.any()
+    assert (cx[18, :30] | cx[19, :30]).all() and not cx[:, 30:].any()
     for name in ("floor", "harbour", "lake"):
         d = BUILTIN_DOMAINS[name]()
-        assert d.walled_faces(d.free_cells((40, 40))) == 0
+        assert d.closed_faces(d.free_cells((40, 40))) is None
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         resolve_domain(_cfg("diffusion", source="floor"), grid)
 
 
 @needs_mask_planner
-def test_plan_reference_warns_about_a_thin_wall(tmp_path, capsys):
+def test_plan_reference_closes_a_thin_wall(tmp_path, capsys):
     from swarmfield.cli.plan_reference import main
+    from swarmfield.ocp.plan import ReferencePlan
     n = 400
     xc = (np.arange(n) + 0.5) * 20 / n
     X, Y = np.meshgrid(xc, xc, indexing="ij")
@@ -684,12 +689,18 @@ def test_plan_reference_warns_about_a_thin_wall(tmp_path, capsys):
     code = main(["--domain", str(tmp_path / "thin.npz"), "--out", str(tmp_path / "plan.npz"), "--intervals", "4",
                  "--modes", "4", "4", "--max-iter", "60"])
     err = capsys.readouterr().err
-    assert code in (0, 1) and "a wall thinner than a planner cell divides free cells at 29 faces" in err
+    assert code in (0, 1) and "wall" not in err
+    if code == 0:
+        plan = ReferencePlan.load(tmp_path / "plan.npz")
+        assert plan.walls is not None and plan.walls[0].sum() == 30
 
 
-def test_a_low_free_fraction_keeps_cells_around_small_obstacles_but_not_cells_cut_by_a_wall():
-    """min_free_fraction below 0.5: a cell mostly covered by a round obstacle becomes free, a cell cut in two
-    by a 0.3 m wall (40 % free, in two pieces) stays blocked; at the default 0.5 nothing changes."""
+def test_a_low_free_fraction_keeps_cells_around_small_obstacles_and_walls_stay_closed():
+    """min_free_fraction below 0.5: a cell mostly covered by a round obstacle becomes free, and so do the cells
+    a 0.3 m wall cuts in two (20 % free on each side), but each keeps one side only: the faces across the wall
+    stay closed, so the fraction changes the planner's area, not its connectivity; at the default 0.5 nothing
+    changes."""
+    from swarmfield.domain.cells import face_components
     n = 400
     xc = (np.arange(n) + 0.5) * 20 / n
     X, Y = np.meshgrid(xc, xc, indexing="ij")
@@ -701,16 +712,26 @@ def test_a_low_free_fraction_keeps_cells_around_small_obstacles_but_not_cells_cu
     default = d.free_cells((40, 40))
     assert not default[30, 10] and not default[19, 5]
     low = d.free_cells((40, 40), 0.05)
-    assert low[30, 10]                                          # around the post: one piece, free
-    assert not low[19, 5] and not low[19, :30].any()            # cut by the wall: blocked along it
+    assert low[30, 10] and low[19, :30].all()
     assert np.array_equal(low & (frac >= 0.5), default)
-    assert d.walled_faces(low) == 0
+    cx, cy = d.closed_faces(low)
+    assert (cx[18, :30] ^ cx[19, :30]).all()                    # one side of each cut cell is kept
+    for mask in (default, low):                                 # one component (the door), the same at any fraction
+        walls = d.closed_faces(mask)
+        lab, count = face_components(mask, *(walls or (None, None)))
+        assert count == 1
+        no_door = np.array(mask)
+        no_door[:, 30:] = False
+        lab, count = face_components(no_door, *(walls or (None, None)))
+        assert count == 2                                       # without the door: left and right apart
 
 
-def test_posts_smaller_than_a_cell_are_not_walls():
-    """80 posts of radius 0.3 m: at a free fraction of 0.25 some 0.5 m cells keep free pieces on both sides of a
-    post, but a robot goes round the post within the neighbouring cells -- no wall, no warning (21 "walled"
-    faces and cells before the neighbourhood test).  A thin wall of the same width still counts."""
+def test_posts_smaller_than_a_cell_do_not_divide_the_free_space():
+    """80 posts of radius 0.3 m: at a free fraction of 0.25 every free cell stays connected to the others (a
+    post closes at most the faces it covers; robots and mass go round it); a thin wall of the same width
+    closes the faces along it, so the geodesic distance across it is the way round its end."""
+    from swarmfield.domain import GeodesicGrid
+    from swarmfield.domain.cells import face_components
     n = 400
     xc = (np.arange(n) + 0.5) * 20 / n
     X, Y = np.meshgrid(xc, xc, indexing="ij")
@@ -724,7 +745,13 @@ def test_posts_smaller_than_a_cell_are_not_walls():
         free &= np.hypot(X - c[0], Y - c[1]) >= 0.3
         placed += 1
     d = Domain.from_raster(free, EXT, name="posts")
-    assert d.walled_faces(d.free_cells((40, 40), 0.25)) == 0
+    cells = d.free_cells((40, 40), 0.25)
+    assert face_components(cells, *(d.closed_faces(cells) or (None, None)))[1] == 1
     wall = free & ~((X > 9.7) & (X < 9.8) & (Y > 2) & (Y < 12))               # plus a 0.1 m wall, 10 m long
     d = Domain.from_raster(wall, EXT, name="posts and a wall")
-    assert d.walled_faces(d.free_cells((40, 40), 0.25)) >= 15
+    cells = d.free_cells((40, 40), 0.25)
+    walls = d.closed_faces(cells)
+    assert walls is not None and walls[0].sum() >= 18
+    geo = GeodesicGrid(cells, EXT, walls)
+    a, b = geo.cell_of([[9.25, 7.25], [10.25, 7.25]])
+    assert geo.distances([a])[0, b] > 9.0                     # round an end of the wall, ~5 m away
