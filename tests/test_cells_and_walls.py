@@ -63,3 +63,179 @@ def test_plan_reference_start_box(tmp_path, capsys):
     assert plan.p.shape[1:] == (10, 10)
     code = main(small + ["--start-box", "12", "25", "12", "19", "--out", str(tmp_path / "bad.npz")])
     assert code == 2 and "--start-box" in capsys.readouterr().err and not (tmp_path / "bad.npz").exists()
+
+
+# ----------------------------------------------------------------------------------------- walls
+from swarmfield.domain import Domain, GeodesicGrid            # noqa: E402
+from swarmfield.ocp import kernel as K                         # noqa: E402
+from swarmfield.ocp.problem import TransportProblem            # noqa: E402
+from swarmfield.ocp.transport import simulate                  # noqa: E402
+
+EXT = (0.0, 20.0, 0.0, 20.0)
+BACKENDS = ["numpy"] + (["compiled"] if K.compiled_available() else [])
+
+
+def thin_wall_domain(x0=9.85, x1=10.15, door=(15.0, 16.2)):
+    """[0, 20]^2 with a 0.3 m wall across x = 10 and a 1.2 m door in it (0.05 m pixels)."""
+    n = 400
+    xc = (np.arange(n) + 0.5) * 20 / n
+    X, Y = np.meshgrid(xc, xc, indexing="ij")
+    free = ~((X > x0) & (X < x1) & ~((Y > door[0]) & (Y < door[1])))
+    return Domain.from_raster(free, EXT, name="thin wall", start_box=(0.0, 7.0, 0.0, 7.0))
+
+
+def small_walls(nx=12, ny=10):
+    """No blocked cell; the x faces between columns 5 and 6 closed except rows 7-9 (a door)."""
+    cx = np.zeros((nx - 1, ny), bool)
+    cx[5, :7] = True
+    return np.ones((nx, ny), bool), (cx, np.zeros((nx, ny - 1), bool))
+
+
+SMALL = dict(domain=(0.0, 12.0, 0.0, 10.0), nx=12, ny=10, horizon=3.0, n_intervals=3, n_modes_x=3, n_modes_y=3,
+             v_max=2.0)
+
+
+def left_bump(g):
+    X, Y = np.meshgrid(g.xc, g.yc, indexing="ij")
+    return g.normalize(np.where(X < 6, np.exp(-((X - 4) ** 2 + (Y - 2) ** 2) / 2.0), 0.0) + 1e-9 * (X < 6))
+
+
+def test_a_thin_wall_closes_planner_faces_at_the_geometry_resolution():
+    d = thin_wall_domain()
+    free = d.free_cells((40, 40))
+    assert free.all()                                      # 0.3 m in 0.5 m cells: every cell stays free
+    cx, cy = d.closed_faces(free)
+    assert cx.sum() == 37 and not cy.any() and not cx[:, 30:33].any()      # closed along the wall, open in the door
+    for f in (0.05, 0.25, 0.5):                            # the fraction changes no face: the same walls
+        cells = d.free_cells((40, 40), f)
+        w = d.closed_faces(cells)
+        assert np.array_equal(w[0] & cells[:-1] & cells[1:], cx & cells[:-1] & cells[1:])
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_closed_face_carries_no_mass_in_any_transport_and_mass_is_conserved(backend):
+    free, walls = small_walls()
+    s = PlannerSettings(**SMALL, transport="casadi")
+    P = TransportProblem(s, free, walls)
+    g = P.grid
+    rng = np.random.default_rng(0)
+    coef = 0.5 * rng.standard_normal((P.N, 2, P.I, P.J))
+    coef[:, 0, 0, 0] = 1.5                                # a drift towards +x, into the wall
+    p0 = left_bump(g)
+    ref = simulate(p0, coef, g, s.interval, P.n_sub, s.upwind_smoothing, free=free, walls=walls)
+    plain = simulate(p0, coef, g, s.interval, P.n_sub, s.upwind_smoothing)
+    np.testing.assert_allclose(ref.sum(axis=(1, 2)) * g.cell_area, 1.0, rtol=0, atol=1e-13)    # conserved
+    # right of the wall and far from the door (rows 0-3): mass only by going round through the door
+    far = np.zeros(g.shape, bool)
+    far[6:, :3] = True
+    assert ref[P.n_sub][far].sum() * g.cell_area < 1e-12 < plain[P.n_sub][far].sum() * g.cell_area
+    kern = K.TransportKernel(g.nx, g.ny, P.N, P.n_sub, P.dt / g.dx, P.dt / g.dy, s.upwind_smoothing, backend,
+                             free=free, walls=walls)
+    VX, VY = P.face_velocities(coef)
+    traj = kern.forward(VX, VY, p0.ravel(order="F")).reshape(-1, g.ny, g.nx).transpose(0, 2, 1)
+    np.testing.assert_allclose(traj, ref, rtol=0, atol=1e-15)
+    q = np.array(P.interval_map(p0, coef[0, 0], coef[0, 1]))            # the CasADi graph, one interval
+    np.testing.assert_allclose(q, ref[P.n_sub], rtol=0, atol=1e-14)
+    from swarmfield.ocp.grg import GRGSolver
+    grg = GRGSolver(TransportProblem(PlannerSettings(**SMALL, transport=backend, method="grg"), free, walls))
+    np.testing.assert_array_equal(grg.kernel.mask_x, kern.mask_x)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_kernel_adjoint_with_closed_faces_against_finite_differences(backend):
+    free, walls = small_walls()
+    s = PlannerSettings(**SMALL, transport="casadi")
+    P = TransportProblem(s, free, walls)
+    g = P.grid
+    kern = K.TransportKernel(g.nx, g.ny, P.N, P.n_sub, P.dt / g.dx, P.dt / g.dy, s.upwind_smoothing, backend,
+                             free=free, walls=walls)
+    rng = np.random.default_rng(1)
+    VX, VY = P.face_velocities(0.4 * rng.standard_normal((P.N, 2, P.I, P.J)))
+    p = left_bump(g).ravel(order="F")
+    lam = rng.standard_normal((P.N + 1, g.nx * g.ny))
+
+    def L(vx, vy, pp):
+        return float(np.sum(kern.snapshots(kern.forward(vx, vy, pp)) * lam))
+
+    gx, gy, g0 = kern.adjoint(VX, VY, kern.forward(VX, VY, p), lam)
+    closed = np.flatnonzero(walls[0].ravel(order="F"))
+    assert np.all(gx[:, closed] == 0)                     # a closed face's velocity does nothing
+    h = 1e-6
+    for arr, grad in ((VX, gx), (VY, gy), (p, g0)):
+        for _ in range(5):
+            idx = tuple(int(rng.integers(0, n)) for n in arr.shape)
+            e = np.zeros_like(arr)
+            e[idx] = h
+            up = [VX + e if arr is VX else VX, VY + e if arr is VY else VY, p + e if arr is p else p]
+            dn = [VX - e if arr is VX else VX, VY - e if arr is VY else VY, p - e if arr is p else p]
+            fd = (L(*up) - L(*dn)) / (2 * h)
+            assert grad[idx] == pytest.approx(fd, rel=1e-6, abs=1e-8 * np.abs(grad).max())
+
+
+def test_the_plan_and_the_feedback_flux_respect_a_closed_face(tmp_path):
+    from swarmfield.control.poisson_flux import PoissonFlux
+    from swarmfield.ocp.plan import ReferencePlan
+    from swarmfield.ocp.planner import ReferencePlanner
+    free, walls = small_walls()
+    s = PlannerSettings(**SMALL, transport="numpy")
+    g = Grid(s.domain, s.nx, s.ny)
+    planner = ReferencePlanner(s, free=free, walls=walls)
+    X, Y = np.meshgrid(g.xc, g.yc, indexing="ij")
+    target = g.normalize(np.exp(-((X - 9) ** 2 + (Y - 2) ** 2) / 2.0))
+    plan = planner.solve(left_bump(g), target)
+    assert plan.walls is not None and np.array_equal(plan.walls[0], walls[0])
+    plan.save(tmp_path / "plan.npz")
+    back = ReferencePlan.load(tmp_path / "plan.npz")
+    assert np.array_equal(back.walls[0], walls[0]) and np.array_equal(back.walls[1], walls[1])
+    # v_r's normal component vanishes on the closed face x = 6 (rows 0-6), not in the door
+    pts = np.array([[6.0, 1.5], [6.0, 4.5], [6.0, 8.5]])
+    v = plan.velocity(0.5, pts)
+    assert v[0, 0] == 0 and v[1, 0] == 0
+    # p_r just left of the wall does not mix in the cells right of it
+    d = plan.density_grid(0.0)
+    assert plan.density(0.0, np.array([[5.99, 2.5]]))[0] == pytest.approx(
+        float(np.interp(2.5, g.yc, d[5])), rel=1e-9)
+    # the feedback's transport flux: zero through every closed face, the error moved through the door
+    pf = PoissonFlux(g, free, walls)
+    e = np.where(X < 6, 1.0, -1.0)
+    fx, fy = pf.faces(e, 1.0)
+    assert np.all(fx[1:-1][walls[0]] == 0) and np.abs(fx[1:-1][5, 7:]).min() > 0
+    assert np.all(pf.at(np.array([[6.0, 2.5], [6.0, 5.5]]), (fx, fy))[:, 0] == 0)
+    plain = PoissonFlux(g, free).faces(e, 1.0)[0]
+    assert np.abs(plain[1:-1][walls[0]]).min() > 0
+
+
+def test_the_kde_does_not_smooth_across_a_closed_face():
+    from swarmfield.control.kde import KernelDensity
+    d = thin_wall_domain()
+    free = d.free_cells((40, 40))
+    walls = d.closed_faces(free)
+    rng = np.random.default_rng(0)
+    X = np.column_stack([rng.uniform(8.5, 9.8, 200), rng.uniform(2.0, 8.0, 200)])   # just left of the wall
+    for kernel in ("renormalise", "reflect"):              # walls: the free-space heat kernel either way
+        est = KernelDensity(EXT, bandwidth=1.0, free=free, obstacle_kernel=kernel, walls=walls).fit(X)
+        p = est.on_grid(40, 40)
+        assert p.sum() * 0.25 == pytest.approx(1.0, rel=1e-9)
+        assert p[20:, :20].sum() * 0.25 < 1e-6            # nothing behind the wall (the door is at y = 15)
+    plain = KernelDensity(EXT, bandwidth=1.0, free=free).fit(X).on_grid(40, 40)
+    assert plain[20:, :20].sum() * 0.25 > 0.05
+
+
+def test_geodesics_and_the_travel_time_limit_go_through_the_door(tmp_path):
+    from swarmfield.sim.stopping import travel_time_limit
+    d = thin_wall_domain()
+    free = d.free_cells((40, 40))
+    walls = d.closed_faces(free)
+    geo = GeodesicGrid(free, EXT, walls)
+    a, b = geo.cell_of([[9.25, 2.25], [10.75, 2.25]])
+    # round through the door (y = 15 to 16.2): up 13 m and down again, plus the 1.5 m across
+    assert geo.distances([a])[0, b] == pytest.approx(2 * 13.0 + 1.5, rel=0.06)
+    assert GeodesicGrid(free, EXT).distances([a])[0, b] == pytest.approx(1.5)
+    np.savez(tmp_path / "wall.npz", free=d.state == 1, extent=np.array(EXT))
+    cfg = config_from_dict({"domain": {"source": str(tmp_path / "wall.npz")}})
+    limit = travel_time_limit(cfg, speed=1.0, free=free)
+    # a pixel-level geodesic: from the start box [0, 7]^2 up to the door and down to the far corner (20, 0)
+    pixel = np.hypot(10.0 - 7.0, 15.0 - 7.0) + np.hypot(20.0 - 10.0, 15.0)
+    assert pixel - 1.0 <= limit <= pixel * 1.03 + 1.0
+    assert travel_time_limit(cfg, speed=1.0, free=free, walls=None) == limit           # walls from the domain
+    assert limit > 1.2 * np.hypot(13.0, 13.0)              # not the straight line to (19.75, 19.75)
