@@ -251,8 +251,10 @@ class Simulation:
         if self.out_of_time():
             return self.stop("max_time")
         p_f = self.target()
-        if p_f is None and self.controller.needs_plan:     # nothing left to plan for (the baselines go on)
-            return self.stop("variance_below_eta")
+        if p_f is None and self.controller.needs_plan:     # V <= eta everywhere: keep measuring (as the baselines do)
+            p_f = self.target(keep_measuring=True)
+            if p_f is None:                                # V = 0 everywhere: nothing at all left to learn
+                return self.stop("variance_below_eta")
         snap.target = p_f
         if self.controller.needs_plan and not self.replan(p_f, snap):
             return self.stop("planner_failed")
@@ -300,6 +302,8 @@ class Simulation:
         (recorded in ``result.replans``): the plan in force stays, it covers the rest of the period.
         p̂ and V are the step's own: :meth:`posterior_due` is true at every step that re-plans."""
         p_f = self.target()
+        if p_f is None:
+            p_f = self.target(keep_measuring=True)
         if p_f is None:
             return
         if not self.replan(p_f, None):
@@ -413,14 +417,18 @@ class Simulation:
         self.result.stop_reason = reason
         return False
 
-    def target(self):
+    def target(self, keep_measuring: bool = False):
         """p_f = max(V - eta, 0) / int (or the reachable variant); None if V <= eta everywhere.
+
+        ``keep_measuring``: eta = 0, i.e. p_f ∝ V (the variance the stop rule judges by): once V <= eta
+        everywhere the swarm is sent on towards the largest remaining variance instead of stopping, until
+        the stop rule or ``max_periods`` ends the run (so that maps are compared at equal times).
 
         When V <= eta everywhere but the stop rule judges by a larger variance (``robust``: V at the shorter
         length scale l_c, :meth:`stop_rule_variance`), p_f is made from that one: a long length scale learned
         in a smooth region must not end the run ("nothing left to plan for") before the rule is met."""
         s, grid = self.settings, self.grid
-        eta = self.stop_rule.tolerance(self.gp)
+        eta = 0.0 if keep_measuring else self.stop_rule.tolerance(self.gp)
 
         def make(var):
             if s.target == "reachable":
@@ -429,8 +437,9 @@ class Simulation:
                                                 grid.dx, grid.dy)
             return target_density(var, eta, grid.cell_area)
 
-        p_f = make(self.var)
-        if p_f is None:
+        judged = self.stop_rule_variance() if keep_measuring else None
+        p_f = make(self.var if judged is None else judged)
+        if p_f is None and not keep_measuring:
             judged = self.stop_rule_variance()
             if judged is not None:
                 p_f = make(judged)
