@@ -170,11 +170,16 @@ def headline(result) -> list[str]:
         return []
     T = result.config.sim.period
     first, last = rows[0], rows[-1]
+    from ..sim.stopping import make_stop_rule
     thr = last.get("threshold", result.config.sim.gamma)
     ttt = result.time_to_threshold
+    hit = result.threshold_row
     when = (f"at or below it from t = {ttt:.2f} s ({ttt / T:.2f} T)" if ttt is not None else "never at or below it")
+    if hit is not None and hit.get("threshold") is not None and hit["threshold"] != thr:
+        when += f" (threshold there {hit['threshold']:.4g})"
+    rule = make_stop_rule(result.config.sim).describe()
     return [f"{PROG}: sup V {first['max_variance']:.4f} -> {last['max_variance']:.4f} "
-            f"(threshold {thr:.4g}), {when}; stopped at t = {last['t']:.2f} s: "
+            f"(threshold {thr:.4g}: {rule}), {when}; stopped at t = {last['t']:.2f} s: "
             f"{STOP_REASONS.get(result.stop_reason, result.stop_reason)}",
             f"{PROG}: mean V {first['mean_variance']:.4f} -> {last['mean_variance']:.4f}; RMSE of the estimate "
             f"{first['rmse']:.4f} at t = 0 -> {last['rmse']:.4f} at t = {last['t']:.2f} s; "

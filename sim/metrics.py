@@ -13,7 +13,10 @@ p_f and the reference p_r live; 40 x 40 cells of 0.5 m by default):
 ``n_observations``  number of measurements in the data set
 ``signal_variance``, ``length_scale``  the GP hyperparameters in use (learned once per period with
                     ``gp.learn_hyperparameters``)
-``threshold``       the stopping threshold in effect (sim.stopping): sim.gamma, or gamma_relative * signal_variance (scaled down by the robust rule)
+``threshold``       the stopping threshold in effect, in field units squared (sim.stopping): sim.gamma, or
+                    gamma_relative * signal_variance (scaled down by the robust rule)
+``coverage``        the fraction of cells whose true value lies in the 95 % band f̄ ± 1.96 sqrt(V)
+                    (calibration of the GP's uncertainty; about 0.95 for a well-calibrated GP)
 
 With obstacles (:mod:`domain`) every field figure is taken over the free cells the swarm can
 reach only (``free``): sup V, mean V, RMSE (mean over free cells) and the L2 error (sum over free
@@ -23,11 +26,11 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["COLUMNS", "rmse", "l2_norm", "max_variance"]
+__all__ = ["COLUMNS", "rmse", "l2_norm", "max_variance", "band_coverage"]
 
 #: Column order of ``metrics.csv``.
 COLUMNS = ("step", "t", "period", "max_variance", "mean_variance", "rmse", "l2_error", "tracking_error",
-           "mean_speed", "n_observations", "signal_variance", "length_scale", "threshold")
+           "mean_speed", "n_observations", "signal_variance", "length_scale", "threshold", "coverage")
 
 
 def rmse(f_true: np.ndarray, f_bar: np.ndarray, free: np.ndarray | None = None) -> float:
@@ -36,6 +39,18 @@ def rmse(f_true: np.ndarray, f_bar: np.ndarray, free: np.ndarray | None = None) 
     if free is not None:
         d = d[np.asarray(free, bool)]
     return float(np.sqrt(np.mean(d * d)))
+
+
+def band_coverage(f_true: np.ndarray, f_bar: np.ndarray, var: np.ndarray, free: np.ndarray | None = None,
+                  z: float = 1.96) -> float:
+    """Fraction of cells (the ``free`` ones if a mask is given) with |f - f̄| <= z sqrt(V): the coverage of the
+    GP's central band (95 % at the default z)."""
+    d = np.abs(np.asarray(f_true, float) - np.asarray(f_bar, float))
+    s = z * np.sqrt(np.maximum(np.asarray(var, float), 0.0))
+    if free is not None:
+        m = np.asarray(free, bool)
+        d, s = d[m], s[m]
+    return float(np.mean(d <= s))
 
 
 def l2_norm(values: np.ndarray, cell_area: float, free: np.ndarray | None = None) -> float:

@@ -13,6 +13,9 @@
                         IPOPT and the plan's packaging), objective
 ``DIR/summary.json``    resolved configuration (every setting), seed, field description,
                         ``time_to_threshold`` (null if never reached), ``periods_to_threshold``,
+                        the threshold actually applied in field units squared (``threshold`` at the end,
+                        ``threshold_at_reach`` where sup V first reached it) and what it is relative to
+                        (``threshold_rule``),
                         final figures, planner statistics, timings (the simulation's phases and
                         ``output_timings_s``: the writing of each figure), wall time, package versions,
                         the BLAS/OpenMP thread pools (``threads``, :mod:`runtime.threads`)
@@ -150,6 +153,14 @@ def _motion(result) -> dict:
             "robots_alive": int(np.sum(alive)), "robots": int(len(alive))}
 
 
+def _threshold_rule(settings) -> str:
+    from .stopping import make_stop_rule
+    try:
+        return make_stop_rule(settings).describe()
+    except ValueError:           # pragma: no cover - an unknown rule is refused before a run
+        return str(settings.stop_rule)
+
+
 def summary_dict(result, files=(), extra: dict | None = None) -> dict:
     cfg = result.config
     s = cfg.sim
@@ -167,6 +178,10 @@ def summary_dict(result, files=(), extra: dict | None = None) -> dict:
         "time_to_threshold": result.time_to_threshold,
         "periods_to_threshold": result.periods_to_threshold,
         "gamma": s.gamma,
+        # the threshold actually applied, in field units squared: at the end, and where sup V first reached it
+        "threshold": final.get("threshold"),
+        "threshold_at_reach": None if result.threshold_row is None else result.threshold_row.get("threshold"),
+        "threshold_rule": _threshold_rule(s),
         "period": s.period,
         "periods_run": len({r["period"] for r in result.replans if r.get("success")}) if result.replans or not rows
         else int(rows[-1]["period"]) + (1 if len(rows) > 1 else 0),
@@ -175,7 +190,7 @@ def summary_dict(result, files=(), extra: dict | None = None) -> dict:
         "stop_time": final.get("t"),
         "final": {k: final.get(k) for k in ("t", "rmse", "l2_error", "max_variance", "mean_variance",
                                             "tracking_error", "mean_speed", "n_observations", "signal_variance",
-                                            "length_scale", "threshold")},
+                                            "length_scale", "threshold", "coverage")},
         "stop_rule": s.stop_rule,
         "final_rmse": final.get("rmse"),
         "final_max_variance": final.get("max_variance"),

@@ -37,7 +37,7 @@ def progress_lines(config, prog: str = "swarmfield", stream=None, done_suffix: s
                      if info.get("learned") else "")
             thr = info.get("threshold")
             say(f"t = {info['t']:7.2f} s ({info['t'] / T:4.1f} T)  sup V = {info['max_variance']:.4f}"
-                + (f" (stop at {thr:.4g})" if thr is not None else "") + hyper +
+                + (f" (threshold now {thr:.4g})" if thr is not None else "") + hyper +
                 f"  rmse = {info['rmse']:.4f}  planner: {words}, {info['iterations']} it, "
                 f"{info['solve_time_s']:.2f} s")
         elif info["event"] == "done":

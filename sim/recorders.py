@@ -23,7 +23,7 @@ import time
 
 import numpy as np
 
-from .metrics import l2_norm, max_variance, rmse
+from .metrics import band_coverage, l2_norm, max_variance, rmse
 from .network import EXTRA_COLUMNS
 
 __all__ = ["Recorder", "MetricsRecorder", "CallbackRecorder"]
@@ -76,7 +76,7 @@ class MetricsRecorder(Recorder):
                 "mean_variance": float(var.mean() if free is None else var[free].mean()),
                 "rmse": rmse(res.f_true, mean, free), "l2_error": l2_norm(mean - res.f_true, grid.cell_area, free),
                 "signal_variance": gp.settings.signal_variance, "length_scale": gp.settings.length_scale,
-                "threshold": sim.stop_rule.threshold(gp)}
+                "threshold": sim.stop_rule.threshold(gp), "coverage": band_coverage(res.f_true, mean, var, free)}
 
     def _record(self, sim, p_r) -> None:
         res, gp, grid = sim.result, sim.gp, sim.grid
@@ -97,7 +97,7 @@ class MetricsRecorder(Recorder):
 #: key order of a metrics row (as before the posterior columns were factored out)
 ROW_ORDER = ("step", "t", "period", "max_variance", "mean_variance", "rmse", "l2_error", "tracking_error",
              "mean_speed", "n_observations", "alive", "path_length", "energy", "signal_variance", "length_scale",
-             "threshold")
+             "threshold", "coverage")
 
 
 class CallbackRecorder(Recorder):

@@ -87,13 +87,19 @@ class SimulationResult:
     communication: dict | None = None
 
     @property
-    def time_to_threshold(self) -> float | None:
-        """First measurement time with sup V <= gamma (the row's threshold), or None."""
+    def threshold_row(self) -> dict | None:
+        """The first metrics row with sup V <= its threshold, or None."""
         g = self.config.sim.gamma
         for r in self.rows:
             if r["max_variance"] <= r.get("threshold", g):
-                return float(r["t"])
+                return r
         return None
+
+    @property
+    def time_to_threshold(self) -> float | None:
+        """First measurement time with sup V <= gamma (the row's threshold), or None."""
+        r = self.threshold_row
+        return None if r is None else float(r["t"])
 
     @property
     def periods_to_threshold(self) -> float | None:

@@ -92,6 +92,10 @@ class StopRule:
     def tolerance(self, gp) -> float:
         raise NotImplementedError
 
+    def describe(self) -> str:
+        """What the threshold is, in words (summary.json's ``threshold_rule``, the headline)."""
+        return self.name
+
     def reached(self, var: np.ndarray, gp) -> bool:
         """Algorithm 1's test sup V <= gamma, on the cells the run maps."""
         return self.stops and float(np.max(var)) <= self.threshold(gp)
@@ -108,6 +112,9 @@ class AbsoluteThreshold(StopRule):
     def tolerance(self, gp) -> float:
         return self.settings.eta
 
+    def describe(self) -> str:
+        return f"sim.gamma = {self.settings.gamma:g}, in field units squared"
+
 
 class RelativeThreshold(StopRule):
     """sup V <= ``sim.gamma_relative`` x s_f^2 at the current (possibly learned) signal variance;
@@ -120,6 +127,9 @@ class RelativeThreshold(StopRule):
 
     def tolerance(self, gp) -> float:
         return self.settings.eta_relative * gp.settings.signal_variance
+
+    def describe(self) -> str:
+        return f"{self.settings.gamma_relative:g} x the GP's current signal variance s_f^2"
 
 
 class RobustThreshold(RelativeThreshold):
@@ -135,6 +145,11 @@ class RobustThreshold(RelativeThreshold):
         self.signal_floor = float(getattr(settings, "stop_signal_floor", 0.0))
         self._gp, self._twins = None, {}
         self.last_check_variance = None
+
+    def describe(self) -> str:
+        lc = "the prior length scale" if self.check_length_scale is None else f"{self.check_length_scale:g} m"
+        return (f"{self.settings.gamma_relative:g} x the GP's current signal variance s_f^2, lowered where the "
+                f"variance at min(l, {lc}) is larger")
 
     def check_scale(self, gp) -> float:
         """l_c = min(l, stop_length_scale), raised to the shortest length scale gp's inducing grid

@@ -7,7 +7,7 @@ Dask cluster with ``--scheduler``; resumable: a restarted sweep skips the runs s
 
 ``runs.csv``      tidy: one row per run and measurement time (preset, controller, field, seed,
                   robot_loss, robots, t, t_T = t/T, max_variance, threshold, rmse, alive, path_length,
-                  energy, signal_variance, length_scale, ...)
+                  energy, signal_variance, length_scale, coverage, ...)
 ``summary.md``    Markdown table, one line per (field, robots, robot loss, controller): median and
                   [min-max] over seeds of the time to sup V <= gamma (in periods T; also the median
                   with never = ∞, and the count of runs before the travel-time limit, which ends
@@ -25,8 +25,11 @@ recorded per row (``threshold``) and only read the time off the metrics, so that
 scored at the same times.  summary.md also gives the median time with never-reached runs counted as
 ∞, the number of runs that reached the threshold before the physical travel-time limit (the time the
 fastest robot needs from the start box to the farthest cell centre, rounded up to a measurement), and
-that limit as a reference row per scenario.  A feedback run stops early only if sup V falls below eta (nothing left
-to plan for); its last estimate then stands for the later times.
+that limit as a reference row per scenario.  Once sup V falls below eta (nothing left to plan for) the feedback swarm
+keeps measuring towards the largest variance, so every controller's map is compared at the same times; a run that
+stops anyway (V = 0, a planner failure) has its last estimate stand for the later times, marked † in summary.md.
+Judged by the map as well: the time until the RMSE first falls below 1.5 and 1.25 times the scenario's best final
+RMSE, and the 95 % band coverage (``coverage`` in runs.csv) where sup V first reached the threshold.
 """
 from __future__ import annotations
 
@@ -47,7 +50,7 @@ from ..runtime.publish import OutputFolder
 PROG = "compare-controllers"
 ROW_COLUMNS = ("preset", "controller", "field", "seed", "robot_loss", "robots", "step", "t", "t_T", "max_variance",
                "threshold", "rmse", "alive", "path_length", "energy", "n_observations", "signal_variance",
-               "length_scale", "stop_reason")
+               "length_scale", "coverage", "stop_reason")
 KEYS = ("field", "robots", "robot_loss", "preset", "controller")
 #: with a domain axis (--domains): the extra column of runs.csv and the first key of summary.md
 DOMAIN_KEYS = ("domain",) + KEYS
@@ -89,7 +92,7 @@ def run_task(task: dict) -> list[dict]:
              "threshold": r["threshold"],
              "rmse": r["rmse"], "alive": r["alive"], "path_length": r["path_length"], "energy": r["energy"],
              "n_observations": r["n_observations"], "signal_variance": r["signal_variance"],
-             "length_scale": r["length_scale"], "stop_reason": res.stop_reason,
+             "length_scale": r["length_scale"], "coverage": r.get("coverage"), "stop_reason": res.stop_reason,
              **({"density_error": r.get("density_error", 0.0), "components": r.get("components", 1),
                  "comm_bytes": r.get("comm_bytes", 0)} if comm else {})} for r in res.rows]
 
@@ -298,17 +301,50 @@ def _travel_limit_T(task) -> float | None:
     return None if lim is None else lim / task["config"]["sim"]["period"]
 
 
+#: the map-quality times of summary.md: until the RMSE first falls below these multiples of the scenario's best
+#: final RMSE
+MAP_FACTORS = (1.5, 1.25)
+
+
+def best_final_rmse(runs) -> dict:
+    """``{scenario: the smallest final RMSE of any of its runs}`` (every controller, preset and seed of the same
+    [domain,] field, robots and loss): the map the sweep shows can be made there."""
+    keys = _keys(runs)[:-2]
+    best: dict = {}
+    for task, rows in runs:
+        if rows and rows[-1].get("rmse") is not None and math.isfinite(rows[-1]["rmse"]):
+            sc = tuple(task.get(k) for k in keys)
+            best[sc] = min(best.get(sc, math.inf), rows[-1]["rmse"])
+    return best
+
+
+def time_to_rmse(rows, level: float) -> float | None:
+    """The first t_T at which a run's RMSE is <= ``level`` (None if never)."""
+    return next((r["t_T"] for r in rows if r.get("rmse") is not None and r["rmse"] <= level), None)
+
+
+def coverage_at_stop(rows, gamma: float) -> float | None:
+    """The 95 % band coverage of a run where sup V first reached its threshold (where its stop rule would
+    stop it), or at its end if never."""
+    hit = next((r for r in rows if r["max_variance"] <= r.get("threshold", gamma)), rows[-1] if rows else None)
+    return None if hit is None else hit.get("coverage")
+
+
 def summary_table(runs, gamma: float, times) -> str:
     """Markdown table (deterministic: sorted keys, formatted numbers) of ``runs = [(task, rows), ...]``.
 
     Per ([domain,] field, robots, loss, preset, controller): the time to each run's own threshold over the
     runs that reached it (median [min–max], "(k/n never)"), the median with never-reached runs
     counted as ∞, how many runs reached it before the physical travel-time limit
-    (:func:`sim.stopping.travel_time_limit`, the fastest of the scenario's controllers), RMSE, path
-    length, energy.  Each scenario ends with a reference row holding that travel-time limit."""
+    (:func:`sim.stopping.travel_time_limit`, the fastest of the scenario's controllers), RMSE (marked † where a
+    run had stopped before that time and its last estimate stands), the times until the RMSE first falls below
+    1.5 and 1.25 times the scenario's best final RMSE (:func:`best_final_rmse`), the 95 % band coverage where
+    sup V first reached the threshold (:func:`coverage_at_stop`), that best RMSE, path length, energy.  Each scenario ends with a reference row holding that travel-time limit."""
     dom = _keys(runs) is DOMAIN_KEYS
     head = (["domain"] if dom else []) + ["field", "robots", "loss", "preset", "controller", "sup V ≤ γ at [T]", "median, never = ∞ [T]",
-            "runs faster than the travel-time limit"] + [f"RMSE at {t:g}T" for t in times] + ["path length [m]", "energy [m²/s]"]
+            "runs faster than the travel-time limit"] + [f"RMSE at {t:g}T" for t in times] + \
+        [f"RMSE ≤ {k:g}× best at [T]" for k in MAP_FACTORS] + ["95 % band coverage at the stop", "best final RMSE",
+                                                              "path length [m]", "energy [m²/s]"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     order = {}
     for task, _ in runs:
@@ -321,6 +357,7 @@ def summary_table(runs, gamma: float, times) -> str:
             sc = tuple(task.get(k) for k in _keys(runs)[:-2])
             limits[sc] = min(limits.get(sc, math.inf), lim)
     keys = sorted(groups, key=lambda k: (*k[:-2], order[k[-2], k[-1]]))
+    best = best_final_rmse(runs)
     for i, key in enumerate(keys):
         grp = groups[key]
         sc = key[:-2]                      # the scenario: [domain,] field, robots, loss
@@ -337,7 +374,19 @@ def summary_table(runs, gamma: float, times) -> str:
         cells = ([key[0]] if dom else []) + [key[-5], str(key[-4]), f"{100 * key[-3]:.0f} %", key[-2], key[-1], tcell,
                                               _median_never_inf(ttt), "—" if limit is None else f"{early}/{len(grp)}"]
         for t in times:
-            cells.append(_stat([(_value_at(rows, t) or {}).get("rmse") for _, rows in grp]))
+            cell = _stat([(_value_at(rows, t) or {}).get("rmse") for _, rows in grp])
+            if any(rows and rows[-1]["t_T"] < t - 1e-9 for _, rows in grp):
+                cell += " †"                # a run had stopped: its last estimate stands for this time
+            cells.append(cell)
+        b = best.get(sc)
+        for k in MAP_FACTORS:
+            hits = [time_to_rmse(rows, k * b) if b is not None else None for _, rows in grp]
+            cell = _stat([x for x in hits if x is not None], "{:.2f}")
+            never = sum(x is None for x in hits)
+            cells.append(cell + (f" ({never}/{len(grp)} never)" if never and cell != "—" else
+                                 (" (never)" if never else "")))
+        cells.append(_stat([coverage_at_stop(rows, gamma) for _, rows in grp], "{:.2f}"))
+        cells.append("—" if b is None else f"{b:.4g}")
         cells.append(_stat([rows[-1]["path_length"] for _, rows in grp], "{:.1f}"))
         cells.append(_stat([rows[-1]["energy"] for _, rows in grp], "{:.1f}"))
         lines.append("| " + " | ".join(cells) + " |")
@@ -637,7 +686,12 @@ def _sweep_and_publish(args, argv, tasks, gamma, times, folder, client=None) -> 
         write_atomic(stage / "summary.md", f"Command: `{cmd}`\n\nγ is each configuration's own stopping threshold "
                      f"(sim.gamma = {gamma:g}, or sim.gamma_relative × the GP's current s_f² with "
                      f"sim.stop_rule = relative, tightened by the variance at the prior length scale with "
-                     f"robust; sim.stopping).  Median [min–max] over seeds {args.seeds}; runs of "
+                     f"robust; sim.stopping), in field units squared; runs.csv records it per row (threshold).  "
+                     f"Judged by the map: \"RMSE ≤ k× best\" is the first time the RMSE falls below k times the best "
+                     f"final RMSE of any run of the scenario (its own column), \"95 % band coverage\" the fraction of "
+                     f"cells whose true value lies in f̄ ± 1.96 √V where sup V first reached γ (at the end if never); "
+                     f"† marks an RMSE taken before its time because a run had stopped (its last estimate stands).  "
+                     f"Median [min–max] over seeds {args.seeds}; runs of "
                      f"{args.max_periods} T = {args.max_periods * tasks[0]['config']['sim']['period']:g} s.\n\n{table}")
         if not args.no_plots:
             plots.extend(write_plots(runs, stage / "plots", gamma))

@@ -110,3 +110,39 @@ def test_feedback_keeps_measuring_when_nothing_is_left_to_plan_for():
     res = run_simulation(config_from_dict(copy.deepcopy(SMALL)))
     assert res.stop_reason == "max_time"
     assert res.rows[-1]["t"] == pytest.approx(3 * 1.75)
+
+
+def _fake(controller, rmses, stop_at=None):
+    task = {"preset": "tuned", "controller": controller, "field": "f", "robots": 100, "robot_loss": 0.0, "seed": 0,
+            "config": {"sim": {"period": 7.0}}}
+    n = len(rmses) if stop_at is None else stop_at
+    rows = [{"t_T": k / 4, "max_variance": 0.05 if k >= 2 else 0.2, "threshold": 0.1, "rmse": rmses[k],
+             "coverage": 0.5 + 0.1 * k, "path_length": 1.0, "energy": 1.0} for k in range(n)]
+    return task, rows
+
+
+def test_summary_judges_by_the_map_and_marks_values_of_stopped_runs():
+    """Times until the RMSE falls below 1.5x and 1.25x the scenario's best final RMSE, the band coverage where
+    sup V first reached the threshold, and † where a stopped run's last estimate stands in for a later time."""
+    from swarmfield.studies.compare import summary_table
+    runs = [_fake("greedy", [1.0, 0.5, 0.3, 0.2, 0.1]), _fake("feedback", [1.0, 0.2, 0.14, 0.13, 0.12], stop_at=3)]
+    table = summary_table(runs, 0.1, [1.0])
+    head = table.splitlines()[0].split(" | ")
+    cells = {ln.split(" | ")[4]: dict(zip(head, ln.split(" | "))) for ln in table.splitlines()[2:]}
+    g, f = cells["greedy"], cells["feedback"]
+    assert g["best final RMSE"] == f["best final RMSE"] == "0.1"
+    assert g["RMSE ≤ 1.5× best at [T]"] == "1.00" and g["RMSE ≤ 1.25× best at [T]"] == "1.00"
+    assert f["RMSE ≤ 1.5× best at [T]"] == "0.50" and f["RMSE ≤ 1.25× best at [T]"] == "— (never)"
+    assert g["95 % band coverage at the stop"] == f["95 % band coverage at the stop"] == "0.70"
+    assert f["RMSE at 1T"].endswith("†") and not g["RMSE at 1T"].endswith("†")
+
+
+def test_summary_json_records_the_threshold_applied_and_what_it_is_relative_to():
+    from swarmfield.sim.outputs import summary_dict
+    doc = copy.deepcopy(SMALL)
+    doc["sim"].update(gamma=0.1, eta=0.05, max_periods=1, controller="greedy", stop_rule="relative")
+    res = run_simulation(config_from_dict(doc))
+    s = summary_dict(res)
+    assert s["threshold"] == pytest.approx(res.rows[-1]["threshold"])
+    assert "signal variance" in s["threshold_rule"]
+    assert 0.0 <= s["final"]["coverage"] <= 1.0
