@@ -136,11 +136,9 @@ def with_domain(config, source):
         return config
     if source not in BUILTIN_DOMAINS and source != "":
         check_path(source, "domain file")
-        p = Path(source)
-        if not p.exists():
-            raise ValueError(f"domain {source!r} is neither a built-in domain ({', '.join(BUILTIN_DOMAINS)}) "
-                             "nor an existing file")
-        source = str(p.resolve())
+        from ..domain import check_source
+        check_source(source)                  # missing, a folder, unreadable: one line
+        source = str(Path(source).resolve())
     return dataclasses.replace(config, domain=dataclasses.replace(config.domain, source=source))
 
 

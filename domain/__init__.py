@@ -10,6 +10,7 @@ Modules, one concept each:
 ``geodesic``  geodesic distances between planner cells (:class:`GeodesicGrid`)
 ``builtin``   the built-in maps (``harbour``, ``floor``, ``lake``)
 ``loaders``   domain files (.npz, .png, .tif, .geojson) and :func:`make_domain`
+``limits``    how large a domain file may be (pixels, vertices, nesting) before it is refused
 ``settings``  the ``[domain]`` table of a configuration (:class:`DomainSettings`)
 
 The package imports only :mod:`runtime` (and NumPy, SciPy, optionally shapely, Pillow, tifffile); the
@@ -20,8 +21,8 @@ from .cells import cell_fractions
 from .common import MissingExtra
 from .domain import Domain
 from .geodesic import GeodesicGrid, geodesic_graph
-from .loaders import load_domain, make_domain
+from .loaders import check_source, load_domain, make_domain
 from .settings import DomainSettings
 
-__all__ = ["Domain", "DomainSettings", "BUILTIN_DOMAINS", "load_domain", "make_domain", "MissingExtra",
+__all__ = ["Domain", "DomainSettings", "BUILTIN_DOMAINS", "load_domain", "make_domain", "check_source", "MissingExtra",
            "cell_fractions", "geodesic_graph", "GeodesicGrid"]

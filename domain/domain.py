@@ -166,9 +166,17 @@ class Domain:
         XC, YC = np.meshgrid(xc, yc, indexing="ij")
         shapely.prepare(geom)
         inside = shapely.contains_xy(geom, XC.ravel(), YC.ravel()).reshape(Nx, Ny)
-        dist = shapely.distance(geom.boundary, shapely.points(XC.ravel(), YC.ravel())).reshape(Nx, Ny)
+        # pixels within half a diagonal of the boundary are mixed: dwithin on the prepared boundary (the same
+        # test as distance <= r, ~30x faster on long rings), in slices so that Ctrl-C acts between them
+        boundary = geom.boundary
+        shapely.prepare(boundary)
+        r = 0.5 * math.hypot(px, py) * (1 + 1e-9)
+        near = np.zeros(Nx * Ny, bool)
+        pts = shapely.points(XC.ravel(), YC.ravel())
+        for k in range(0, len(pts), 4096):
+            near[k:k + 4096] = shapely.dwithin(boundary, pts[k:k + 4096], r)
         state = np.where(inside, 1, 0).astype(np.int8)
-        state[dist <= 0.5 * math.hypot(px, py) * (1 + 1e-9)] = 2
+        state[near.reshape(Nx, Ny)] = 2
         segs = []
         for poly in shapely.get_parts(geom):
             for ring in [poly.exterior, *poly.interiors]:
@@ -249,17 +257,22 @@ class Domain:
         return self._clear_flat[i * Ny + j]
 
     def cell_free_fraction(self, nx: int, ny: int) -> np.ndarray:
-        """Free-area fraction of each cell of an nx x ny grid of the extent (exact)."""
+        """Free-area fraction of each cell of an nx x ny grid of the extent (exact; polygons: remembered
+        per grid, computed in slices so that Ctrl-C acts between them)."""
         if self.geometry is None:
             return cell_fractions(self.state == 1, self.extent, nx, ny)
-        import shapely
-        x0, x1, y0, y1 = self.extent
-        xs, ys = np.linspace(x0, x1, nx + 1), np.linspace(y0, y1, ny + 1)
-        XA, YA = np.meshgrid(xs[:-1], ys[:-1], indexing="ij")
-        XB, YB = np.meshgrid(xs[1:], ys[1:], indexing="ij")
-        boxes = shapely.box(XA.ravel(), YA.ravel(), XB.ravel(), YB.ravel())
-        area = shapely.area(shapely.intersection(boxes, self.geometry)).reshape(nx, ny)
-        return np.clip(area / ((xs[1] - xs[0]) * (ys[1] - ys[0])), 0.0, 1.0)
+        memo = self.__dict__.setdefault("_fractions", {})
+        if (nx, ny) not in memo:
+            import shapely
+            x0, x1, y0, y1 = self.extent
+            xs, ys = np.linspace(x0, x1, nx + 1), np.linspace(y0, y1, ny + 1)
+            XA, YA = np.meshgrid(xs[:-1], ys[:-1], indexing="ij")
+            XB, YB = np.meshgrid(xs[1:], ys[1:], indexing="ij")
+            boxes = shapely.box(XA.ravel(), YA.ravel(), XB.ravel(), YB.ravel())
+            area = np.concatenate([shapely.area(shapely.intersection(boxes[k:k + ny], self.geometry))
+                                   for k in range(0, len(boxes), ny)]).reshape(nx, ny)
+            memo[(nx, ny)] = np.clip(area / ((xs[1] - xs[0]) * (ys[1] - ys[0])), 0.0, 1.0)
+        return memo[(nx, ny)].copy()
 
     def free_cells(self, grid_or_shape, min_free_fraction: float = 0.5) -> np.ndarray:
         """(nx, ny) bool: planner cells whose free-area fraction is >= ``min_free_fraction`` (the rule of

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import math
+import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +13,10 @@ import numpy as np
 from .builtin import BUILTIN_DOMAINS
 from .common import MissingExtra, _extent, _need
 from .domain import Domain
+from .limits import MAX_NESTING, check_pixels, check_vertices
+
+#: what a damaged archive raises while it is read (a truncated .npz: BadZipFile, zlib.error, EOFError)
+_ARCHIVE_ERRORS = (OSError, EOFError, ValueError, zipfile.BadZipFile, zlib.error, KeyError)
 
 #: Image values at or above this fraction of the full scale are free (light), below blocked (dark).
 LIGHT = 0.5
@@ -79,8 +85,10 @@ def _image_to_free(a: np.ndarray, nodata=None, what="image") -> np.ndarray:
 def _load_npz(path: Path, sim_extent):
     try:
         z = np.load(path, allow_pickle=False)
-    except (OSError, EOFError, ValueError) as exc:   # ValueError: pickled data, e.g. a text file
-        raise ValueError(f"domain file {path} is not a mask (.npz): not a NumPy archive "
+    except PermissionError as exc:
+        raise ValueError(f"cannot read domain file {path}: {exc.strerror or exc}") from None
+    except _ARCHIVE_ERRORS as exc:   # ValueError: pickled data, e.g. a text file; BadZipFile: truncated
+        raise ValueError(f"domain file {path} is not a mask (.npz): not a NumPy archive, or a damaged one "
                          f"({exc.__class__.__name__})") from None
     if not isinstance(z, np.lib.npyio.NpzFile):      # a single .npy array under an .npz name
         raise ValueError(f"domain file {path} is not a mask (.npz): it holds a single array, not an archive with "
@@ -89,12 +97,16 @@ def _load_npz(path: Path, sim_extent):
         with z:
             if "free" not in z.files:
                 raise ValueError(f"domain file {path} is not a mask: no array 'free' (found {', '.join(z.files) or 'none'})")
+            shape = _npz_shape(z, "free")            # from the member's header: nothing decompressed yet
+            if len(shape) == 2:
+                check_pixels(path, shape[0], shape[1])
             free = np.asarray(z["free"])
             ext = z["extent"] if "extent" in z.files else sim_extent
-    except (OSError, EOFError, ValueError) as exc:
+    except _ARCHIVE_ERRORS as exc:
         if str(exc).startswith("domain file"):
             raise
-        raise ValueError(f"domain file {path} is not a mask (.npz): {exc or exc.__class__.__name__}") from None
+        raise ValueError(f"domain file {path} is not a mask (.npz), or a damaged one: "
+                         f"{exc or exc.__class__.__name__}") from None
     if ext is None:
         raise ValueError(f"domain file {path} has no 'extent' and no simulation domain was given")
     try:
@@ -105,17 +117,24 @@ def _load_npz(path: Path, sim_extent):
     return Domain.from_raster(free, ext, name=path.stem)
 
 
+def _npz_shape(z, name: str) -> tuple:
+    """Shape of the array ``name`` of an open .npz, read from its header (the data stays compressed)."""
+    with z.zip.open(name + ".npy") as fh:
+        version = np.lib.format.read_magic(fh)
+        read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+        shape, _, _ = read(fh)
+    return tuple(shape)
+
+
 def _load_png(path: Path, sim_extent):
     PIL = _need("PIL.Image", "pillow", "a .png domain")
+    from .limits import max_pixels
+    bomb = PIL.MAX_IMAGE_PIXELS
+    PIL.MAX_IMAGE_PIXELS = max(bomb or 0, max_pixels())    # ours is the limit (checked before decoding)
     try:
-        with PIL.open(path) as im:
-            if im.mode in ("P", "PA"):
-                im = im.convert("RGBA")
-            elif im.mode not in ("1", "L", "LA", "RGB", "RGBA", "I;16", "I", "F"):
-                im = im.convert("RGBA")
-            a = np.asarray(im)
-    except Exception as exc:  # noqa: BLE001 -- PIL raises many kinds
-        raise ValueError(f"domain file {path} is not an image: {exc}") from None
+        a = _decode_png(PIL, path)
+    finally:
+        PIL.MAX_IMAGE_PIXELS = bomb
     if a.dtype == np.int32 and a.max() <= 65535:
         a = a.astype(np.uint16)
     free = _image_to_free(a, what=f"domain file {path}")
@@ -124,6 +143,26 @@ def _load_png(path: Path, sim_extent):
         raise ValueError(f"domain file {path}: no extent (give {path.with_suffix('.json').name} with "
                          '{"extent": [x0, x1, y0, y1]})')
     return Domain.from_raster(free, ext, name=path.stem)
+
+
+def _decode_png(PIL, path: Path) -> np.ndarray:
+    """The image's pixels; its size is checked against the pixel limit before it is decoded."""
+    try:
+        with PIL.open(path) as im:
+            check_pixels(path, *im.size)
+            if im.mode in ("P", "PA"):
+                im = im.convert("RGBA")
+            elif im.mode not in ("1", "L", "LA", "RGB", "RGBA", "I;16", "I", "F"):
+                im = im.convert("RGBA")
+            return np.asarray(im)
+    except PermissionError as exc:
+        raise ValueError(f"cannot read domain file {path}: {exc.strerror or exc}") from None
+    except ValueError as exc:
+        if str(exc).startswith("domain file"):
+            raise
+        raise ValueError(f"domain file {path} is not an image: {exc}") from None
+    except Exception as exc:  # noqa: BLE001 -- PIL raises many kinds
+        raise ValueError(f"domain file {path} is not an image: {exc}") from None
 
 
 def _load_tif(path: Path, sim_extent):
@@ -140,10 +179,17 @@ def _load_tif(path: Path, sim_extent):
         import rasterio
         try:
             with rasterio.open(path) as ds:
+                check_pixels(path, ds.width, ds.height)
+                if ds.crs is not None and ds.crs.is_geographic:
+                    raise ValueError(_geographic(path, str(ds.crs)))
                 a = ds.read()
                 nodata = ds.nodata
                 b = ds.bounds
                 ext = None if ds.transform.is_identity else (b.left, b.right, b.bottom, b.top)
+        except ValueError as exc:
+            if str(exc).startswith("domain file"):
+                raise
+            raise ValueError(f"domain file {path} is not a GeoTIFF: {exc}") from None
         except Exception as exc:  # noqa: BLE001
             raise ValueError(f"domain file {path} is not a GeoTIFF: {exc}") from None
     else:
@@ -158,8 +204,12 @@ def _load_tif(path: Path, sim_extent):
                 if not len(tf.pages):
                     raise ValueError("no readable image in it")
                 page = tf.pages[0]
-                a = page.asarray()
                 tags = page.tags
+                check_pixels(path, int(page.imagewidth), int(page.imagelength))
+                crs = _geotiff_geographic(tags.get(34735))
+                if crs is not None:
+                    raise ValueError(_geographic(path, crs))
+                a = page.asarray()
                 scale = tags.get(33550)
                 tie = tags.get(33922)
                 nd = tags.get(42113)
@@ -188,6 +238,12 @@ def _load_tif(path: Path, sim_extent):
                         ext = (x0, x0 + W * m[0], y1 + H * m[5], y1)
         except MissingExtra:
             raise
+        except PermissionError as exc:
+            raise ValueError(f"cannot read domain file {path}: {exc.strerror or exc}") from None
+        except ValueError as exc:
+            if str(exc).startswith("domain file"):
+                raise
+            raise ValueError(f"domain file {path} is not a GeoTIFF: {exc}") from None
         except Exception as exc:  # noqa: BLE001 -- tifffile raises many kinds
             raise ValueError(f"domain file {path} is not a GeoTIFF: {exc}") from None
         finally:
@@ -204,36 +260,99 @@ def _load_tif(path: Path, sim_extent):
     return Domain.from_raster(free, ext, name=path.stem)
 
 
-def _load_geojson(path: Path, sim_extent):
-    shapely = _need("shapely", "shapely", "a GeoJSON domain")
-    from shapely.geometry import shape
-    try:
-        doc = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ValueError(f"domain file {path} is not GeoJSON: {exc}") from None
-    geoms = []
+def _geographic(path, crs: str) -> str:
+    return (f"domain file {path}: its coordinates are geographic ({crs}: longitude and latitude in degrees), "
+            "but a domain is in metres; reproject the map to a projected CRS first (e.g. its UTM zone: "
+            "gdalwarp -t_srs EPSG:326NN in.tif out.tif, or ogr2ogr -t_srs EPSG:326NN out.geojson in.geojson)")
 
-    def collect(obj):
+
+#: GeoTIFF GeoKeys: GTModelTypeGeoKey (1 projected, 2 geographic, 3 geocentric), GeographicTypeGeoKey,
+#: ProjectedCSTypeGeoKey
+_MODEL_TYPE, _GEOGRAPHIC_TYPE, _PROJECTED_TYPE = 1024, 2048, 3072
+
+
+def _geotiff_geographic(tag) -> str | None:
+    """The geographic CRS a GeoKeyDirectoryTag declares (e.g. "EPSG:4326"), None if projected or unknown."""
+    if tag is None:
+        return None
+    try:
+        v = [int(x) for x in tag.value]
+        keys = {v[k]: (v[k + 1], v[k + 3]) for k in range(4, 4 + 4 * v[3], 4) if k + 3 < len(v)}
+    except (TypeError, ValueError, IndexError):
+        return None
+    model = keys.get(_MODEL_TYPE, (None, None))[1]
+    geo = keys.get(_GEOGRAPHIC_TYPE)
+    code = geo[1] if geo is not None and geo[0] == 0 else None       # location 0: the value is in the entry
+    if model == 2 or (model is None and geo is not None and _PROJECTED_TYPE not in keys):
+        return f"EPSG:{code}" if code and code != 32767 else "a geographic CRS"
+    return None
+
+
+#: GeoJSON "crs" names of geographic coordinate systems (the 2008 GeoJSON form; RFC 7946 drops the member)
+_GEOGRAPHIC_NAMES = ("CRS84", "EPSG::4326", "EPSG:4326", "EPSG::4258", "EPSG:4258", "EPSG::4269", "EPSG:4269")
+
+
+def _geojson_objects(doc, path):
+    """The geometries of a GeoJSON document, walked without recursion; nesting deeper than MAX_NESTING and
+    anything that is not a polygon raise ``ValueError``.  Returns ``(objects, vertices)``."""
+    out, vertices = [], 0
+    stack = [(doc, 0)]
+    while stack:
+        obj, depth = stack.pop()
+        if depth > MAX_NESTING:
+            raise ValueError(f"domain file {path}: collections nested deeper than {MAX_NESTING} levels")
         if not isinstance(obj, dict) or "type" not in obj:
             raise ValueError(f"domain file {path} is not a polygon GeoJSON (an object without 'type')")
         t = obj["type"]
         if t == "FeatureCollection":
-            for f in obj.get("features") or []:
-                collect(f)
+            stack.extend((f, depth + 1) for f in reversed(obj.get("features") or []))
         elif t == "Feature":
             if obj.get("geometry") is not None:
-                collect(obj["geometry"])
+                stack.append((obj["geometry"], depth + 1))
         elif t == "GeometryCollection":
-            for g in obj.get("geometries") or []:
-                collect(g)
+            stack.extend((g, depth + 1) for g in reversed(obj.get("geometries") or []))
         elif t in ("Polygon", "MultiPolygon"):
+            coords = obj.get("coordinates")
             try:
-                geoms.append(shape(obj))
-            except Exception as exc:  # noqa: BLE001
-                raise ValueError(f"domain file {path}: bad {t}: {exc}") from None
+                rings = coords if t == "Polygon" else [r for p in coords for r in p]
+                vertices += sum(len(r) for r in rings)
+            except TypeError:
+                pass                                  # shapely says what is wrong with it
+            out.append(obj)
         else:
             raise ValueError(f"domain file {path}: geometry type {t} is not a Polygon or MultiPolygon")
-    collect(doc)
+    return out, vertices
+
+
+def _load_geojson(path: Path, sim_extent):
+    shapely = _need("shapely", "shapely", "a GeoJSON domain")
+    from shapely.geometry import shape
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ValueError(f"cannot read domain file {path}: {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"domain file {path} is not GeoJSON: {exc}") from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"domain file {path} is not GeoJSON: {exc}") from None
+    except RecursionError:
+        raise ValueError(f"domain file {path}: nested too deeply to read (arrays or objects in each other "
+                         f"thousands of levels deep)") from None
+    del text
+    crs = doc.get("crs") if isinstance(doc, dict) else None
+    name = str(((crs or {}).get("properties") or {}).get("name", "")) if isinstance(crs, dict) else ""
+    if any(name.upper().endswith(g) for g in _GEOGRAPHIC_NAMES):
+        raise ValueError(_geographic(path, name))
+    objects, vertices = _geojson_objects(doc, path)
+    check_vertices(path, vertices)                   # before shapely builds anything
+    geoms = []
+    for obj in objects:
+        try:
+            geoms.append(shape(obj))
+        except Exception as exc:  # noqa: BLE001
+            raise ValueError(f"domain file {path}: bad {obj['type']}: {exc}") from None
     if not geoms:
         raise ValueError(f"domain file {path} is not a polygon GeoJSON: no Polygon or MultiPolygon in it")
     for g in geoms:
@@ -259,20 +378,40 @@ LOADERS = {".npz": _load_npz, ".png": _load_png, ".tif": _load_tif, ".tiff": _lo
            ".geojson": _load_geojson, ".json": _load_geojson}
 
 
+def check_source(path) -> None:
+    """``ValueError`` (one line) unless ``path`` is a domain file this process can read: missing, a
+    folder, or behind a folder it may not enter or read."""
+    path = Path(path)
+    try:
+        if not path.exists():
+            raise ValueError(f"domain {str(path)!r} is neither a built-in domain ({', '.join(BUILTIN_DOMAINS)}) "
+                             "nor an existing file")
+        if not path.is_file():
+            raise ValueError(f"domain file {path} is a folder")
+        with open(path, "rb"):
+            pass
+    except OSError as exc:                        # a folder on the way that this user may not enter
+        raise ValueError(f"cannot read domain file {path}: {exc.strerror or exc}") from None
+
+
 def load_domain(path, sim_extent=None) -> Domain:
     """Read a domain file: ``.npz`` mask, ``.png`` image, ``.tif`` GeoTIFF or ``.geojson`` polygons
     (module docstring of :mod:`domain.domain` and docs/guide/domains.md).  ``sim_extent`` is used when
     the file itself gives none, and otherwise must equal the file's extent."""
     path = Path(path)
-    if not path.exists():
-        raise ValueError(f"domain {str(path)!r} is neither a built-in domain ({', '.join(BUILTIN_DOMAINS)}) "
-                         "nor an existing file")
-    if not path.is_file():
-        raise ValueError(f"domain file {path} is a folder")
+    check_source(path)
     ext = path.suffix.lower()
     if ext not in LOADERS:
         raise ValueError(f"domain file {path} is not a mask, image or polygon file: use .npz, .png, .tif or .geojson")
-    dom = LOADERS[ext](path, None if sim_extent is None else _extent(sim_extent))
+    try:
+        dom = LOADERS[ext](path, None if sim_extent is None else _extent(sim_extent))
+    except OSError as exc:
+        raise ValueError(f"cannot read domain file {path}: {exc.strerror or exc}") from None
+    except MemoryError:
+        raise ValueError(f"domain file {path} is too large to load in this machine's memory; downsample or "
+                         "simplify the map") from None
+    except RecursionError:
+        raise ValueError(f"domain file {path}: nested too deeply to read") from None
     if sim_extent is not None:
         check_extent(dom, sim_extent)
     if dom.geometry is None:                   # a raster: its pixels should be about square
@@ -307,7 +446,10 @@ def make_domain(source, sim_extent=None) -> Domain | None:
     key = None
     if isinstance(source, (str, Path)) and str(source):
         p = Path(str(source))
-        stamp = p.stat().st_mtime_ns if str(source) not in BUILTIN_DOMAINS and p.is_file() else None
+        try:
+            stamp = p.stat().st_mtime_ns if str(source) not in BUILTIN_DOMAINS and p.is_file() else None
+        except OSError as exc:
+            raise ValueError(f"cannot read domain file {source}: {exc.strerror or exc}") from None
         key = (str(source), stamp, None if sim_extent is None else tuple(float(v) for v in sim_extent))
         if key in _CACHE:
             return _CACHE[key]

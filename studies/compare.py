@@ -139,12 +139,10 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
     if domains:
         from ..domain import BUILTIN_DOMAINS
         dlabels = _labels(domains, BUILTIN_DOMAINS)
+        from ..domain import check_source
         for dom in domains:
-            if dom not in BUILTIN_DOMAINS and Path(dom).is_dir():
-                raise ValueError(f"domain file {dom} is a folder")
-            if dom not in BUILTIN_DOMAINS and not Path(dom).is_file():
-                raise ValueError(f"domain {dom!r} is neither a built-in domain ({', '.join(BUILTIN_DOMAINS)}) "
-                                 "nor an existing file")
+            if dom not in BUILTIN_DOMAINS:
+                check_source(dom)             # missing, a folder, unreadable: one line
         for dom in domains:
             src = dom if dom in BUILTIN_DOMAINS else str(Path(dom).resolve())
             doc = {**base_doc, "domain": {**base_doc.get("domain", {}), "source": src}}
