@@ -53,9 +53,10 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--w-v", type=float, help="velocity weight (default 0.01)")
     g.add_argument("--v-max", type=float, help="speed limit: sum |a| per interval [m/s] (default 3)")
     g.add_argument("--target-floor", type=float, help="uniform fraction mixed into the target (default 0.05)")
-    g.add_argument("--basis", choices=["sine", "sine-cosine"],
-                   help="velocity basis: sine (the paper's, default) or sine-cosine (only the normal component "
-                        "vanishes on the walls)")
+    g.add_argument("--basis", choices=["sine", "sine-cosine", "free-space"],
+                   help="velocity basis: sine (the paper's, default), sine-cosine (only the normal component "
+                        "vanishes on the walls) or free-space (gradients of the Neumann eigenfunctions of the free "
+                        "cells: modes that follow rooms and doors)")
     g.add_argument("--speed-limit", choices=["l1", "norm", "face"],
                    help="l1: sum |a| <= v_max (the paper's, default); norm: (sum|a_x|, sum|a_y|) in the disc of "
                         "radius v_max; face: pointwise face bounds (slow)")

@@ -25,6 +25,16 @@ between-face factor of the face limit also holds (a cosine series of degree J - 
 ny cell centres is an even trigonometric polynomial on 2 ny equispaced points of its period, so
 the Ehlich--Zeller factor sec(pi (J - 1) / 2 ny) <= sec(pi J / 2 ny) applies).
 
+``basis = "free-space"`` (beyond the paper) is made of the free space itself: the gradients of the
+lowest eigenfunctions phi_m of the Neumann Laplacian on the free planner cells (zero flux through the
+walls, the faces to blocked cells and the closed faces of walls thinner than a cell), v_x from the
+x-derivatives and v_y from the y-derivatives of the first I J eigenfunctions that have one, each
+normalised to a largest face value of 1 (:class:`ocp.transport.FaceBasis`).  On the empty rectangle the
+eigenfunctions are cos(i pi x~) cos(j pi y~) and their derivatives are the sine-cosine series above; with
+obstacles the slow modes follow the rooms and doors, so a few coefficients move mass around a wall.  It
+is defined by face values on the planner's grid, so a plan of this basis stores its face velocities
+(``face_vx``, ``face_vy``) and v_r is the staggered interpolation of them (:mod:`ocp.plan`).
+
 The basis is separable, so on a tensor grid v_d = X_d A_d Y_d^T with X_d[k, i] the x-factor of
 component d at x_k (sine for d = x, cosine for d = y in the sine-cosine basis):
 O(I J (nx + ny) + nx ny min(I, J)) per component instead of a dense (nx ny) x (I J) product.
@@ -68,14 +78,74 @@ def _cosine_rows(xi: np.ndarray, n_modes: int) -> np.ndarray:
 
 
 #: the velocity bases; a plan without ``meta["basis"]`` is "sine"
+#: the closed-form series (evaluated anywhere by :func:`velocity_at`)
 BASES = ("sine", "sine-cosine")
+#: bases given by face values on one grid and free space (:class:`ocp.transport.FaceBasis`), not by a
+#: closed-form series: a plan of such a basis carries its face velocities
+FACE_BASES = ("free-space",)
+#: every basis a planner accepts
+ALL_BASES = BASES + FACE_BASES
 
 
 def check_basis(basis) -> str:
     """``basis`` if it names a known basis, else ``ValueError`` listing them."""
-    if not isinstance(basis, str) or basis not in BASES:
-        raise ValueError(f"unknown velocity basis {basis!r}; known: {', '.join(BASES)}")
+    if not isinstance(basis, str) or basis not in ALL_BASES:
+        raise ValueError(f"unknown velocity basis {basis!r}; known: {', '.join(ALL_BASES)}")
     return basis
+
+
+def neumann_gradients(grid, n_modes: int, free=None, walls=None):
+    """``(Bx (n_fx, n_modes), By (n_fy, n_modes))``: the face-normal gradients of the lowest eigenfunctions of the
+    Neumann Laplacian on the free cells (faces between free cells not closed by ``walls`` are open), column-major
+    face order (as ``ravel(order="F")`` of (nx-1, ny) and (nx, ny-1)).  Column m of Bx is the x-derivative of
+    the m-th eigenfunction whose x-derivative does not vanish, scaled to a largest absolute face value of 1;
+    likewise By.  Closed faces carry 0."""
+    from scipy import sparse
+    from scipy.sparse.linalg import eigsh
+    nx, ny = grid.nx, grid.ny
+    fr = np.ones((nx, ny), bool) if free is None else np.asarray(free, bool)
+    ox, oy = fr[:-1, :] & fr[1:, :], fr[:, :-1] & fr[:, 1:]
+    if walls is not None:
+        ox, oy = ox & ~np.asarray(walls[0], bool), oy & ~np.asarray(walls[1], bool)
+    idx = -np.ones((nx, ny), np.int64)
+    idx[fr] = np.arange(int(fr.sum()))
+    m = int(fr.sum())
+    rows, cols, vals = [], [], []
+    for open_, (si, sj), h in ((ox, (1, 0), grid.dx), (oy, (0, 1), grid.dy)):
+        i, j = np.nonzero(open_)
+        a, b = idx[i, j], idx[i + si, j + sj]
+        w = np.full(a.size, 1.0 / (h * h))
+        rows += [a, b, a, b]
+        cols += [b, a, a, b]
+        vals += [-w, -w, w, w]
+    L = sparse.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m, m))
+    k = min(m - 1, 3 * n_modes + 8)
+    if k < m - 1 and m > 400:
+        lam, vec = eigsh(L, k=k, sigma=-1e-3 * min(1 / grid.dx ** 2, 1 / grid.dy ** 2), which="LM")
+    else:
+        lam, vec = np.linalg.eigh(L.toarray())
+    order = np.argsort(lam)
+    lam, vec = lam[order], vec[:, order]
+    out = []
+    for open_, (si, sj), h in ((ox, (1, 0), grid.dx), (oy, (0, 1), grid.dy)):
+        G = []
+        i, j = np.nonzero(open_)
+        for c in range(vec.shape[1]):
+            if lam[c] < 1e-9 * max(lam[-1], 1e-300):
+                continue                                   # constants (one per connected part)
+            phi = np.zeros((nx, ny))
+            phi[fr] = vec[:, c]
+            gface = np.zeros(open_.shape)
+            gface[i, j] = (phi[i + si, j + sj] - phi[i, j]) / h
+            top = np.abs(gface).max()
+            if top > 1e-8 * np.abs(vec[:, c]).max() / h:
+                G.append((gface / top).ravel(order="F"))
+            if len(G) == n_modes:
+                break
+        while len(G) < n_modes:                            # fewer free cells than modes: zero columns
+            G.append(np.zeros(open_.size))
+        out.append(np.column_stack(G))
+    return out[0], out[1]
 
 
 def _rows(kind: str, xi: np.ndarray, n_modes: int) -> np.ndarray:

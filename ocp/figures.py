@@ -35,12 +35,14 @@ def make_plan_figure(plan: ReferencePlan, n_snapshots: int = 4, arrows: int = 12
         im = ax.imshow(plan.density_grid(t).T, origin="lower", extent=g.domain, vmin=0, vmax=vmax, cmap="viridis")
         k = plan.interval_index(min(t, np.nextafter(plan.t_end, -np.inf)))
         XA, YA = np.meshgrid(xa, ya, indexing="ij")
-        if plan.free is None:
+        if plan.free is None and plan.face_velocity is None:
             v = velocity_on_grid(plan.coef[k], g.domain, xa, ya, plan.basis)
         else:
             pts = np.column_stack([XA.ravel(), YA.ravel()])
             ci, cj, _, _ = plan.cells(pts)
-            vel = plan.velocity(plan.t_intervals[k], pts) * plan.free[ci, cj][:, None]
+            vel = plan.velocity(plan.t_intervals[k], pts)
+            if plan.free is not None:
+                vel = vel * plan.free[ci, cj][:, None]
             v = (vel[:, 0].reshape(XA.shape), vel[:, 1].reshape(XA.shape))
         ax.quiver(XA, YA, v[0], v[1], color="w", angles="xy", zorder=3)
         ax.set_title(f"p_r, v_r at t = {t:.2f} s", y=1.0, fontsize=10)

@@ -16,6 +16,8 @@ key              shape            meaning
                                   empty rectangle (:mod:`ocp.mask`); ``p`` is 0 on blocked cells
 ``closed_x``     (nx-1, ny) bool  faces between free cells closed by a wall thinner than a cell (x faces);
 ``closed_y``     (nx, ny-1) bool  the same for the y faces; both absent when no face is closed
+``face_vx``      (N, nx-1, ny)    the "free-space" basis only: v_r's x component on the interior x faces,
+``face_vy``      (N, nx, ny-1)    and its y component on the y faces, per interval (:mod:`ocp.basis`)
 ``meta``         () str           JSON: settings, solver status, iterations, timings, costs, versions
 ===============  ===============  ==============================================================
 
@@ -44,7 +46,7 @@ from .grid import Grid
 
 KEYS = ("domain", "t", "p", "t_intervals", "coef", "target", "meta")
 #: keys a plan file may carry in addition (older plans lack them and still load)
-OPTIONAL_KEYS = ("free", "closed_x", "closed_y")
+OPTIONAL_KEYS = ("free", "closed_x", "closed_y", "face_vx", "face_vy")
 
 
 @dataclass
@@ -63,6 +65,8 @@ class ReferencePlan:
     #: closed faces ``(closed_x (nx-1, ny), closed_y (nx, ny-1))`` bool between free cells (walls thinner than a
     #: cell, :mod:`ocp.mask`), None when there is none
     walls: tuple | None = None
+    #: the "free-space" basis: (face_vx (N, nx-1, ny), face_vy (N, nx, ny-1)), v_r on the faces per interval
+    face_velocity: tuple | None = None
 
     def __post_init__(self):
         # real numbers only: a complex, boolean or text array is refused, never cast (finiteness below)
@@ -114,6 +118,17 @@ class ReferencePlan:
                 raise ValueError(str(exc) if str(exc).startswith("plan") else f"plan: {exc}") from None
             if np.any(self.p[:, ~self.free] != 0) or np.any(self.target[~self.free] != 0):
                 raise ValueError("plan: density or target is non-zero in blocked cells (free == False)")
+        from .basis import FACE_BASES
+        if self.basis in FACE_BASES:
+            N, (nx, ny) = self.coef.shape[0], self.p.shape[1:]
+            fv = self.face_velocity
+            if fv is None or len(fv) != 2:
+                raise ValueError(f"plan: the {self.basis!r} basis needs face_vx and face_vy")
+            fx, fy = (real_array(a, "plan: face velocity") for a in fv)
+            if fx.shape != (N, nx - 1, ny) or fy.shape != (N, nx, ny - 1):
+                raise ValueError(f"plan: face_vx / face_vy must have shapes {(N, nx - 1, ny)} and {(N, nx, ny - 1)}, "
+                                 f"got {fx.shape} and {fy.shape}")
+            self.face_velocity = (fx, fy)
         if self.walls is not None:
             from .mask import check_walls
             try:
@@ -259,10 +274,28 @@ class ReferencePlan:
         k = self.interval_index(real_scalar(t, "time t"))
         if k is None:
             return np.zeros_like(pts)
+        if self.face_velocity is not None:
+            return self._staggered(k, pts)
         v = velocity_at(self.coef[k], tuple(self.domain), pts, self.basis)
         if self.free is not None or self.walls is not None:
             v = self._fade_at_obstacles(pts, v)
         return v
+
+    def _staggered(self, k: int, pts: np.ndarray) -> np.ndarray:
+        """v_r of a face basis: the x component linear in x between the holding cell's two x faces, the y
+        component linear in y between its y faces (0 on the outer walls; closed faces carry 0 already)."""
+        g = self.grid
+        fx, fy = self.face_velocity
+        ci, cj, sx, sy = self.cells(pts)
+        vx = np.zeros((g.nx + 1, g.ny))
+        vy = np.zeros((g.nx, g.ny + 1))
+        vx[1:-1], vy[:, 1:-1] = fx[k], fy[k]
+        out = np.empty((len(pts), 2))
+        out[:, 0] = (1.0 - sx) * vx[ci, cj] + sx * vx[ci + 1, cj]
+        out[:, 1] = (1.0 - sy) * vy[ci, cj] + sy * vy[ci, cj + 1]
+        if self.free is not None:
+            out[~self.free[ci, cj]] = 0.0
+        return out
 
     def _fade_at_obstacles(self, pts: np.ndarray, v: np.ndarray) -> np.ndarray:
         """v_r with its normal component faded to zero at every face between a free and a blocked cell.
@@ -309,6 +342,8 @@ class ReferencePlan:
             arrays["free"] = np.asarray(self.free, dtype=bool)
         if self.walls is not None:
             arrays["closed_x"], arrays["closed_y"] = (np.asarray(w, dtype=bool) for w in self.walls)
+        if self.face_velocity is not None:
+            arrays["face_vx"], arrays["face_vy"] = self.face_velocity
         arrays["meta"] = np.array(json.dumps(self.meta, default=_json_default))
         with atomic_path(path, ".npz") as tmp:
             np.savez(tmp, **arrays)
@@ -338,6 +373,10 @@ class ReferencePlan:
             raise ValueError(f"plan file {path} has only one of closed_x and closed_y")
         if "closed_x" in data:
             data["walls"] = (data.pop("closed_x"), data.pop("closed_y"))
+        if ("face_vx" in data) != ("face_vy" in data):
+            raise ValueError(f"plan file {path} has only one of face_vx and face_vy")
+        if "face_vx" in data:
+            data["face_velocity"] = (data.pop("face_vx"), data.pop("face_vy"))
         try:
             meta = json.loads(str(data.pop("meta")))
         except json.JSONDecodeError as exc:

@@ -148,7 +148,7 @@ class ReferencePlanner:
         mode = s.resolved_cold_start
         if s.cold_start == "auto" and self.problem.free is not None:
             mode = "zero"        # obstacles: measured mixed (MUSCL rooms 0.83x, pillars 1.22x): an option there
-        return (mode == "coarse" and s.method == "ipopt" and s.objective == "symmetric-kl"
+        return (mode == "coarse" and s.method == "ipopt" and s.objective == "symmetric-kl" and s.basis != "free-space"
                 and isinstance(self.formulation, SingleShooting))
 
     def _coarse_coefficients(self, p0: np.ndarray, target: np.ndarray):
@@ -182,6 +182,14 @@ class ReferencePlanner:
     def free(self) -> np.ndarray | None:
         """The free-cell mask (nx, ny) bool, read-only, or None for the empty rectangle."""
         return self.problem.free
+
+    def _face_velocity(self, coef):
+        """(face_vx (N, nx-1, ny), face_vy (N, nx, ny-1)) of a face basis (``"free-space"``), else None."""
+        B = self.problem.basis
+        if B.dense is None:
+            return None
+        vel = [B.face_velocities(c) for c in np.asarray(coef)]
+        return np.stack([v[0] for v in vel]), np.stack([v[1] for v in vel])
 
     @property
     def walls(self):
@@ -421,7 +429,7 @@ class ReferencePlanner:
         t_int = t0 + np.arange(P.N + 1) * s.interval
         return ReferencePlan(domain=np.array(g.domain), t=t_snap, p=snapshots, t_intervals=t_int,
                              coef=coef, target=target, meta=meta, free=self.free,
-                             walls=self.walls)
+                             walls=self.walls, face_velocity=self._face_velocity(coef))
 
 
 def plan_reference(p0, target, settings: PlannerSettings | None = None, t0: float = 0.0,

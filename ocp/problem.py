@@ -75,7 +75,7 @@ class TransportProblem:
         g = self.grid
         self.free = check_free(free, g.shape)
         self.walls = check_walls(walls, g.shape)
-        self.basis = FaceBasis(g, s.n_modes_x, s.n_modes_y, s.basis)
+        self.basis = FaceBasis(g, s.n_modes_x, s.n_modes_y, s.basis, self.free, self.walls)
         self.N, self.I, self.J = s.n_intervals, s.n_modes_x, s.n_modes_y
         self.n_coef = self.N * 2 * self.I * self.J
         self.n_sub = s.substeps
@@ -124,8 +124,13 @@ class TransportProblem:
         p = ca.MX.sym("p", nx, ny)
         ax = ca.MX.sym("ax", I, J)
         ay = ca.MX.sym("ay", I, J)
-        vx = ca.mtimes([Sxf, ax, Syc_T])       # (nx-1, ny)
-        vy = ca.mtimes([Sxc, ay, Syf_T])       # (nx, ny-1)
+        if self.basis.dense is None:
+            vx = ca.mtimes([Sxf, ax, Syc_T])       # (nx-1, ny)
+            vy = ca.mtimes([Sxc, ay, Syf_T])       # (nx, ny-1)
+        else:                                      # the free-space basis: dense face matrices (ocp.basis)
+            Bx, By = (ca.DM(B) for B in self.basis.dense)
+            vx = ca.reshape(ca.mtimes(Bx, ca.vec(ax)), nx - 1, ny)
+            vy = ca.reshape(ca.mtimes(By, ca.vec(ay)), nx, ny - 1)
         vxp = 0.5 * (vx + ca.sqrt(vx * vx + eps * eps))
         vxm = vxp - vx
         vyp = 0.5 * (vy + ca.sqrt(vy * vy + eps * eps))
@@ -196,8 +201,13 @@ class TransportProblem:
                                           walls=self.walls,
                                           scheme=s.scheme)
             self._transport_fn = transport_callback(self.kernel)
-            VX = ca.horzcat(*[ca.vec(ca.mtimes([Sxf, ax_l, Syc_T])) for ax_l, _ in coefs])
-            VY = ca.horzcat(*[ca.vec(ca.mtimes([Sxc, ay_l, Syf_T])) for _, ay_l in coefs])
+            if self.basis.dense is None:
+                VX = ca.horzcat(*[ca.vec(ca.mtimes([Sxf, ax_l, Syc_T])) for ax_l, _ in coefs])
+                VY = ca.horzcat(*[ca.vec(ca.mtimes([Sxc, ay_l, Syf_T])) for _, ay_l in coefs])
+            else:
+                Bx, By = (ca.DM(B) for B in self.basis.dense)
+                VX = ca.horzcat(*[ca.mtimes(Bx, ca.vec(ax_l)) for ax_l, _ in coefs])
+                VY = ca.horzcat(*[ca.mtimes(By, ca.vec(ay_l)) for _, ay_l in coefs])
             Pk = self._transport_fn(VX, VY, ca.vec(p0))
             states = [ca.reshape(Pk[:, k], nx, ny) for k in range(N + 1)]
         # the cost's extra parameters (objective "information": V0, spread matrices, rate; ocp.objectives)

@@ -11,7 +11,7 @@ import types
 import typing
 from dataclasses import dataclass, field
 
-from .basis import BASES
+from .basis import ALL_BASES as BASES
 
 
 #: IPOPT's linear solvers; the CasADi wheel ships MUMPS (and SPRAL on Linux x86_64); the HSL
@@ -184,7 +184,8 @@ class PlannerSettings:
     #: <= sqrt(B_x^2 + B_y^2) <= v_max, with up to sqrt 2 more coefficient budget than "l1"
     speed_limit: str = "l1"
     #: velocity basis (:mod:`ocp.basis`): "sine" (the paper's: both components vanish on every wall) or
-    #: "sine-cosine" (only the normal component vanishes); recorded as the plan's meta["basis"]
+    #: "sine-cosine" (only the normal component vanishes) or "free-space" (gradients of the Neumann Laplacian's
+    #: eigenfunctions on the free cells: modes that follow rooms and doors); recorded as the plan's meta["basis"]
     basis: str = "sine"
     speed_limit_safety: float = 1.0     # extra margin on top of kappa (PlannerSettings.face_speed_bound)
     ipopt: IpoptSettings = field(default_factory=IpoptSettings)
@@ -309,6 +310,11 @@ class PlannerSettings:
         if not (isinstance(self.speed_limit_safety, (int, float)) and math.isfinite(self.speed_limit_safety)
                 and self.speed_limit_safety >= 1):
             raise ValueError(f"planner.speed_limit_safety must be a number >= 1, got {self.speed_limit_safety!r}")
+        if self.basis == "free-space" and (self.method != "ipopt" or self.formulation != "single-shooting"
+                                           or self.speed_limit == "face"):
+            raise ValueError("planner.basis = 'free-space' is solved with method 'ipopt', formulation "
+                             "'single-shooting' and speed_limit 'l1' or 'norm' (its dense face matrices are not "
+                             "in GRG, the other formulations or the face limit)")
         if self.speed_limit != "l1" and self.speed_limit_form != "split":
             raise ValueError(f"planner.speed_limit = {self.speed_limit!r} needs speed_limit_form = 'split'")
         if self.transport not in TRANSPORTS:

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .basis import check_basis, factor_matrix, sine_matrix
+from .basis import FACE_BASES, check_basis, factor_matrix, neumann_gradients, sine_matrix
 from .grid import Grid
 from .mask import check_free, check_walls, face_masks
 
@@ -31,10 +31,17 @@ class FaceBasis:
     other way round.  Hence the face matrices are sines and the cell matrices follow the basis.
     """
 
-    def __init__(self, grid: Grid, n_modes_x: int, n_modes_y: int, basis: str = "sine"):
+    def __init__(self, grid: Grid, n_modes_x: int, n_modes_y: int, basis: str = "sine", free=None, walls=None):
         x0, x1, y0, y1 = grid.domain
         self.grid = grid
         self.basis = check_basis(basis)
+        #: a face basis (``"free-space"``): dense face matrices Bx (n_fx, I J), By (n_fy, I J) acting on the
+        #: column-major vec of each component's (I, J) coefficients; None for the separable series
+        self.dense = None
+        self.shape = (n_modes_x, n_modes_y)
+        if basis in FACE_BASES:
+            self.dense = neumann_gradients(grid, n_modes_x * n_modes_y, free, walls)
+            basis = "sine-cosine"         # the separable matrices below are unused; kept for their shapes
         tangential = "sin" if basis == "sine" else "cos"
         self.Sx_face = sine_matrix(grid.xf[1:-1], n_modes_x, grid.lx, x0)                   # (nx-1, I)
         self.Sx_cell = factor_matrix(tangential, grid.xc, n_modes_x, grid.lx, x0)           # (nx, I)
@@ -43,6 +50,12 @@ class FaceBasis:
 
     def face_velocities(self, coef_k: np.ndarray):
         """(vx on interior x-faces (nx-1, ny), vy on interior y-faces (nx, ny-1)) from coef_k (2, I, J)."""
+        if self.dense is not None:
+            g = self.grid
+            Bx, By = self.dense
+            vx = (Bx @ np.asarray(coef_k[0]).ravel(order="F")).reshape((g.nx - 1, g.ny), order="F")
+            vy = (By @ np.asarray(coef_k[1]).ravel(order="F")).reshape((g.nx, g.ny - 1), order="F")
+            return vx, vy
         vx = self.Sx_face @ coef_k[0] @ self.Sy_cell.T
         vy = self.Sx_cell @ coef_k[1] @ self.Sy_face.T
         return vx, vy
@@ -137,7 +150,7 @@ def simulate(p0: np.ndarray, coef: np.ndarray, grid: Grid, interval: float, subs
     closed faces (:mod:`ocp.mask`)."""
     open_x, open_y = face_masks(check_free(free, grid.shape), check_walls(walls, grid.shape))
     coef = np.asarray(coef, dtype=float)
-    basis = FaceBasis(grid, coef.shape[2], coef.shape[3], basis)
+    basis = FaceBasis(grid, coef.shape[2], coef.shape[3], basis, free, walls)
     step = STEPS[scheme]
     dt = interval / substeps
     out = np.empty((coef.shape[0] * substeps + 1,) + grid.shape)

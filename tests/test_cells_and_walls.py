@@ -239,3 +239,50 @@ def test_geodesics_and_the_travel_time_limit_go_through_the_door(tmp_path):
     assert pixel - 1.0 <= limit <= pixel * 1.03 + 1.0
     assert travel_time_limit(cfg, speed=1.0, free=free, walls=None) == limit           # walls from the domain
     assert limit > 1.2 * np.hypot(13.0, 13.0)              # not the straight line to (19.75, 19.75)
+
+
+# ----------------------------------------------------------------------------------------- free-space basis
+def test_the_free_space_basis_on_the_rectangle_is_the_sine_cosine_series():
+    """On the empty rectangle the discrete Neumann eigenfunctions are cosine products, so their face gradients
+    lie in the span of the sine-cosine basis sampled on the faces (exactly, to round-off)."""
+    from swarmfield.ocp.transport import FaceBasis
+    g = Grid((0.0, 12.0, 0.0, 10.0), 12, 10)
+    fs = FaceBasis(g, 3, 3, "free-space")
+    Bx, By = fs.dense
+    assert Bx.shape == (11 * 10, 9) and np.abs(Bx).max() == pytest.approx(1.0)
+    sc = FaceBasis(g, 8, 8, "sine-cosine")
+    Sx = np.column_stack([np.outer(sc.Sx_face[:, i], sc.Sy_cell[:, j]).ravel(order="F")
+                          for i in range(8) for j in range(8)])
+    resid = Bx - Sx @ np.linalg.lstsq(Sx, Bx, rcond=None)[0]
+    assert np.abs(resid).max() < 1e-9
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_free_space_plan_closes_walls_and_keeps_its_face_velocities(backend, tmp_path):
+    from swarmfield.ocp.plan import ReferencePlan
+    from swarmfield.ocp.planner import ReferencePlanner
+    free, walls = small_walls()
+    kw = dict(SMALL, basis="free-space")
+    ref = TransportProblem(PlannerSettings(**kw, transport="casadi"), free, walls)
+    fast = TransportProblem(PlannerSettings(**kw, transport=backend), free, walls)
+    g = ref.grid
+    rng = np.random.default_rng(2)
+    coef = 0.3 * rng.standard_normal((ref.N, 2, ref.I, ref.J))
+    p0 = left_bump(g)
+    a, b = ref.trajectory(p0, coef), fast.trajectory(p0, coef)
+    np.testing.assert_allclose(b, a, rtol=0, atol=1e-14)
+    q = np.array(ref.interval_map(p0, coef[0, 0], coef[0, 1]))
+    np.testing.assert_allclose(q, a[ref.n_sub], rtol=0, atol=1e-14)
+    vx, _ = ref.basis.face_velocities(coef[0])
+    assert np.all(vx[walls[0]] == 0)                      # closed faces carry nothing in this basis either
+    X, Y = np.meshgrid(g.xc, g.yc, indexing="ij")
+    plan = ReferencePlanner(PlannerSettings(**kw, transport=backend), free=free, walls=walls).solve(
+        p0, g.normalize(np.exp(-((X - 9) ** 2 + (Y - 8) ** 2) / 2.0)))
+    plan.save(tmp_path / "fs.npz")
+    back = ReferencePlan.load(tmp_path / "fs.npz")
+    assert back.basis == "free-space"
+    fx = back.face_velocity[0][0]
+    pts = np.array([[3.0, 4.5], [6.0, 8.5]])               # on x faces: (column 2, row 4) and (column 5, row 8)
+    np.testing.assert_allclose(back.velocity(back.t_intervals[0], pts)[:, 0], [fx[2, 4], fx[5, 8]], rtol=1e-12)
+    with pytest.raises(ValueError, match="free-space"):
+        PlannerSettings(basis="free-space", method="grg")
