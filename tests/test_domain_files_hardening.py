@@ -73,17 +73,27 @@ def test_a_domain_file_this_user_may_not_read_is_one_line(tmp_path):
         drop = ["setpriv", "--inh-caps=-dac_override,-dac_read_search", "--bounding-set=-dac_override,-dac_read_search"] \
             if os.geteuid() == 0 else []
         out = tmp_path / "out"
-        for mod, argv in (("swarmfield.cli.simulate_swarm", ["--domain", str(folder / "m.npz"), "--out", str(out),
-                                                              "--controller", "lawnmower", "--no-figures"]),
-                          ("swarmfield.studies.compare", ["--controllers", "lawnmower", "--domains",
-                                                          str(folder / "m.npz"), "--out", str(out)]),
-                          ("swarmfield.cli.plan_reference", ["--domain", str(folder / "m.npz"), "--out",
-                                                             str(tmp_path / "p.npz")])):
-            code = f"import sys; from {mod} import main; sys.exit(main({argv!r}))"
-            res = subprocess.run(drop + [sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
-            lines = [ln for ln in res.stderr.strip().splitlines() if ln.strip()]
-            assert res.returncode == 2 and len(lines) == 1 and "Permission denied" in lines[0], (mod, res.stderr)
-            assert not out.exists()
+        dom = str(folder / "m.npz")
+        code = ("import io, sys, contextlib\n"
+                "from swarmfield.cli.simulate_swarm import main as s\n"
+                "from swarmfield.studies.compare import main as c\n"
+                "from swarmfield.cli.plan_reference import main as p\n"
+                f"for main, argv in ((s, ['--domain', {dom!r}, '--out', {str(out)!r}, '--controller', 'lawnmower']),\n"
+                f"                   (c, ['--controllers', 'lawnmower', '--domains', {dom!r}, '--out', {str(out)!r}]),\n"
+                f"                   (p, ['--domain', {dom!r}, '--out', {str(tmp_path / 'p.npz')!r}])):\n"
+                "    err = io.StringIO()\n"
+                "    with contextlib.redirect_stderr(err):\n"
+                "        code = main(argv)\n"
+                "    print(code, repr(err.getvalue()))\n")
+        res = subprocess.run(drop + [sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+        assert res.returncode == 0, res.stderr
+        results = res.stdout.strip().splitlines()
+        assert len(results) == 3, res.stdout
+        for line in results:
+            rc, err = line.split(" ", 1)
+            lines = [ln for ln in eval(err).strip().splitlines() if ln.strip()]
+            assert rc == "2" and len(lines) == 1 and "Permission denied" in lines[0], line
+        assert not out.exists() and not (tmp_path / "p.npz").exists()
     finally:
         os.chmod(folder, 0o700)
 
