@@ -118,3 +118,47 @@ def connected_to_box(mask: np.ndarray, extent, box, closed_x=None, closed_y=None
     lab, _ = face_components(mask, closed_x, closed_y)
     ids = np.unique(lab[np.ix_(inx, iny)])
     return np.isin(lab, ids[ids > 0])
+
+
+def keep_doors(cells: np.ndarray, candidates: np.ndarray, frac: np.ndarray, closed_x, closed_y) -> np.ndarray:
+    """``cells`` (free by the fraction rule) plus the fewest-cost ``candidates`` (cells with a free piece below the
+    fraction) that join parts of ``cells`` which the free space connects: within each connected part of
+    ``cells | candidates`` (through the faces not in ``closed_x`` / ``closed_y``), the parts of ``cells`` are joined
+    one by one along the cheapest path (cost 1 - fraction + 0.01 per added cell, Dijkstra), so a door whose cells
+    all fall below the fraction stays open.  Returns a new mask."""
+    from scipy import sparse
+    from scipy.sparse.csgraph import dijkstra
+    cells = np.asarray(cells, bool)
+    full = cells | np.asarray(candidates, bool)
+    if np.array_equal(full, cells):
+        return cells
+    nx, ny = full.shape
+    lab_full, n_full = face_components(full, closed_x, closed_y)
+    out = cells.copy()
+    lab, _ = face_components(out, closed_x, closed_y)
+    need = [c for c in range(1, n_full + 1) if len(np.unique(lab[(lab_full == c) & out])) > 1]
+    if not need:
+        return out
+    idx = np.arange(nx * ny).reshape(nx, ny)
+    cx = full[:-1, :] & full[1:, :] & (True if closed_x is None else ~np.asarray(closed_x, bool))
+    cy = full[:, :-1] & full[:, 1:] & (True if closed_y is None else ~np.asarray(closed_y, bool))
+    a = np.concatenate([idx[:-1, :][cx], idx[:, :-1][cy]])
+    b = np.concatenate([idx[1:, :][cx], idx[:, 1:][cy]])
+    cost = np.where(cells, 1e-6, 1.0 - np.clip(frac, 0.0, 1.0) + 0.01).ravel()   # entering a cell costs this
+    g = sparse.csr_matrix((np.concatenate([cost[b], cost[a]]), (np.concatenate([a, b]), np.concatenate([b, a]))),
+                          shape=(nx * ny, nx * ny))
+    for comp in need:
+        while True:
+            lab, _ = face_components(out, closed_x, closed_y)
+            parts = [p for p in np.unique(lab[(lab_full == comp) & out]) if p > 0]
+            if len(parts) < 2:
+                break
+            sizes = [int((lab == p).sum()) for p in parts]
+            src = np.flatnonzero((lab == parts[int(np.argmax(sizes))]).ravel())
+            dist, pred, _ = dijkstra(g, indices=src, min_only=True, return_predecessors=True)
+            others = np.flatnonzero(((lab > 0) & (lab_full == comp) & (lab != parts[int(np.argmax(sizes))])).ravel())
+            node = others[np.argmin(dist[others])]
+            while node >= 0:                    # back along the cheapest path to the part it started from
+                out.flat[node] = True
+                node = pred[node]
+    return out

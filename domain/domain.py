@@ -30,9 +30,9 @@ it is the overlap area of the pixels with the cell, for polygons the area of the
 0.5 a cell is free when most of it is free, so the planner's free area equals the true free area
 up to half a cell along each boundary; a lower fraction keeps more of the partly covered cells
 around small obstacles (trees, posts, a shore).  The fraction decides how much area the planner
-sees, not which free cells are connected: that is decided by the walls below.  (A door or channel
-narrower than a cell whose cells all fall below the fraction still closes at that resolution; the
-robots still pass it.)
+sees, not which free cells are connected: that is decided by the walls below, and a door or channel
+whose cells all fall below the fraction keeps the fewest of them that join what it joins
+(:func:`domain.cells.keep_doors`).
 
 Walls
 -----
@@ -64,7 +64,8 @@ from dataclasses import dataclass, field as dc_field
 
 import numpy as np
 
-from .cells import _connected_to_box, _grid_shape, cell_fractions, connected_to_box, kept_pieces, open_faces
+from .cells import (_connected_to_box, _grid_shape, cell_fractions, connected_to_box, keep_doors, kept_pieces,
+                    open_faces)
 from .common import _extent, _need
 from .edges import _EdgeIndex, _merged_faces, _walls
 
@@ -276,10 +277,22 @@ class Domain:
 
     def free_cells(self, grid_or_shape, min_free_fraction: float = 0.5) -> np.ndarray:
         """(nx, ny) bool: planner cells whose free-area fraction is >= ``min_free_fraction`` (the rule of
-        the module docstring).  ``grid_or_shape``: an ``ocp.Grid`` (its domain must be the extent) or (nx, ny)."""
+        the module docstring), plus the fewest cells below it that keep open a passage the free space has
+        (a door whose cells all fall below the fraction: :func:`domain.cells.keep_doors`).
+        ``grid_or_shape``: an ``ocp.Grid`` (its domain must be the extent) or (nx, ny)."""
         nx, ny = _grid_shape(grid_or_shape, self.extent)
         frac = self.cell_free_fraction(nx, ny)
-        return frac >= min_free_fraction * (1 - 1e-12)
+        cells = frac >= min_free_fraction * (1 - 1e-12)
+        if self.is_rectangle:
+            return cells
+        kept, _, _ = self._kept(nx, ny)
+        _, bx, by = self._kept(nx, ny)
+        has = np.add.reduceat(np.add.reduceat(kept.astype(np.int64), bx[:-1], axis=0), by[:-1], axis=1) > 0
+        candidates = has & ~cells
+        if not candidates.any():
+            return cells
+        walls = self.closed_faces(cells | candidates)
+        return keep_doors(cells, candidates, frac, *(walls or (None, None)))
 
     def _pixel_bounds(self, nx: int, ny: int):
         """Pixel index bounds (nx + 1,), (ny + 1,) of the cells of an nx x ny grid of the extent."""

@@ -286,3 +286,19 @@ def test_a_free_space_plan_closes_walls_and_keeps_its_face_velocities(backend, t
     np.testing.assert_allclose(back.velocity(back.t_intervals[0], pts)[:, 0], [fx[2, 4], fx[5, 8]], rtol=1e-12)
     with pytest.raises(ValueError, match="free-space"):
         PlannerSettings(basis="free-space", method="grg")
+
+
+def test_the_free_fraction_never_closes_a_door():
+    """A 1 m wall with a 0.3 m door that straddles two cell rows (30 % free each): at any min_free_fraction the
+    cells the door needs stay free, so the room behind the wall stays reachable."""
+    n = 400
+    xc = (np.arange(n) + 0.5) * 20 / n
+    X, Y = np.meshgrid(xc, xc, indexing="ij")
+    d = Domain.from_raster(~((X > 9.5) & (X < 10.5) & ~((Y > 9.85) & (Y < 10.15))), EXT, start_box=(0, 7, 0, 7))
+    frac = d.cell_free_fraction(40, 40)
+    assert frac[19, 19] == pytest.approx(0.3) and frac[20, 20] == pytest.approx(0.3)
+    for f in (0.05, 0.25, 0.5, 0.9):
+        cells = d.free_cells((40, 40), f)
+        reach = d.reachable_cells(cells, (0, 7, 0, 7))
+        assert reach[21:].sum() == (frac[21:] >= f * (1 - 1e-12)).sum() > 0      # the whole room behind the wall
+        assert (cells & ~(frac >= f * (1 - 1e-12))).sum() <= 4                  # the door's cells at most
