@@ -89,3 +89,20 @@ def test_the_check_finds_tracker_talk_and_spares_colours_and_entities():
     found = [m.group() for m in TRACKER.finditer(
         "a (issue 20) and issue-10 preset, Issues 17 / 21 and #21; not #555555, &#8212; or tissue 3")]
     assert found == ["issue 20", "issue-10", "Issues 17", "#21"], found
+
+
+def test_every_built_in_controller_is_documented_where_the_others_are():
+    """--help of simulate-swarm, the controllers guide and the command page name every built-in controller."""
+    from swarmfield.sim.controllers import CONTROLLERS
+    names = [n for n, cls in CONTROLLERS.items() if cls.__module__.startswith("swarmfield.")]
+    assert {"feedback", "greedy", "lawnmower", "ergodic"} <= set(names)
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf), contextlib.suppress(SystemExit):
+        import_module(COMMANDS["simulate-swarm"]).main(["--help"])
+    helptext = " ".join(buf.getvalue().split())
+    guide = (ROOT / "docs" / "guide" / "controllers.md").read_text()
+    page = (ROOT / "docs" / "commands" / "simulate-swarm.md").read_text()
+    for name in names:
+        assert re.search(rf"\b{re.escape(name)}\b(?!-)", helptext), f"simulate-swarm --help does not describe {name}"
+        assert f"`{name}`" in guide, f"docs/guide/controllers.md has no row for {name}"
+        assert re.search(rf"\b{re.escape(name)}\b", page), f"docs/commands/simulate-swarm.md does not name {name}"
