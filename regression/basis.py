@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from .kernels import squared_exponential_1d
+from .kernels import kernel_1d
 
 #: ``w_p(t) = sum_a BASIS_COEF[p, a] t^a`` for the four uniform cubic B-splines over a cell.
 BASIS_COEF = np.array(
@@ -94,8 +94,10 @@ class SplineAxis:
             out[rows, i + p] = w[:, p]
         return out
 
-    def prior_factor(self, length_scale: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(Kc, lam, vec)``: the projected unit SE factor and its eigen-decomposition
+    def prior_factor(self, length_scale: float, kernel: str = "squared-exponential") -> tuple[np.ndarray, np.ndarray,
+                                                                                              np.ndarray]:
+        """``(Kc, lam, vec)``: the projected unit kernel factor (SE, or a Matérn factor of
+        :mod:`regression.kernels`) and its eigen-decomposition
         ``Kc = vec diag(lam) vec^T`` with the eigenvalues in decreasing order (round-off negative
         ones set to zero).
 
@@ -103,7 +105,7 @@ class SplineAxis:
         prior factor ``vec sqrt(lam)`` from it and drops the directions of negligible variance.
         Cached per length scale (the hyperparameter fit evaluates a handful).
         """
-        key = float(length_scale)
+        key = float(length_scale) if kernel == "squared-exponential" else (kernel, float(length_scale))
         hit = self._prior_cache.get(key)
         if hit is not None:
             return hit
@@ -113,7 +115,7 @@ class SplineAxis:
         wq = np.tile(0.5 * self.h * gw, self.n_cells)
         bq = self.design_matrix(xq) * wq[:, None]          # rows: quadrature points, weighted
         gram = self.design_matrix(xq).T @ bq                # int B B^T
-        load = bq.T @ squared_exponential_1d(xq, xq, key) @ bq
+        load = bq.T @ kernel_1d(xq, xq, float(length_scale), kernel) @ bq
         ginv_load = np.linalg.solve(gram, load)
         kc = np.linalg.solve(gram, ginv_load.T)
         kc = 0.5 * (kc + kc.T)

@@ -126,6 +126,13 @@ from ..runtime.validation import real_array
 from .basis import BASIS_COEF, PRODUCT_COEF, SplineAxis, bspline_weights
 from .settings import GPSettings
 
+
+def kernel_key(settings: GPSettings, length_scale: float, length_scale_y: float | None = None):
+    """:attr:`GPSettings.kernel_key` of ``settings``' kernel at the length scales (l_x, l_y) (l_y = l_x if None)."""
+    if settings.kernel == "squared-exponential" and length_scale_y is None:
+        return float(length_scale)
+    return (settings.kernel, float(length_scale), float(length_scale if length_scale_y is None else length_scale_y))
+
 _N_POW = 7            # powers t^0 .. t^6 of the products w_p w_r
 _N_POW_Y = 4          # powers t^0 .. t^3 of the weights w_p
 _PREDICT_CHUNK = 4096
@@ -501,15 +508,21 @@ class GaussianProcess:
         return np.bincount(self._idx_b, weights=bl.reshape(-1) / self._settings.noise_variance,
                            minlength=self._n_nodes)
 
-    def _prior_basis(self, length_scale: float) -> _PriorBasis:
-        """The (cached) :class:`_PriorBasis` of a length scale at this GP's ``prior_truncation``."""
+    def _prior_basis(self, length_scale) -> _PriorBasis:
+        """The (cached) :class:`_PriorBasis` of a length scale (or a ``GPSettings.kernel_key``: kernel and
+        per-axis length scales) at this GP's ``prior_truncation``."""
         tol = self._settings.prior_truncation
-        key = (float(length_scale), tol)
+        key = (length_scale if isinstance(length_scale, tuple) else float(length_scale), tol)
         hit = self._bases.get(key)
         if hit is not None:
             return hit
-        kcx, lx, vx = self._ax.prior_factor(length_scale)
-        kcy, ly, vy = self._ay.prior_factor(length_scale)
+        if isinstance(length_scale, tuple):
+            kernel, l_x, l_y = length_scale
+            kcx, lx, vx = self._ax.prior_factor(l_x, kernel)
+            kcy, ly, vy = self._ay.prior_factor(l_y, kernel)
+        else:
+            kcx, lx, vx = self._ax.prior_factor(length_scale)
+            kcy, ly, vy = self._ay.prior_factor(length_scale)
         # a product direction of variance lx_i ly_j (unit s_f^2) adds at most that to the prior variance of f(x)
         # (|phi(x)| <= 1): dropping those below tol changes the prior covariance of f by at most tol s_f^2
         kept = np.multiply.outer(lx, ly) > tol if tol > 0 else np.multiply.outer(lx > 0, ly > 0)
@@ -640,7 +653,7 @@ class GaussianProcess:
         """(m, mu, band of Sigma, kcx, kcy) for the current data, hyperparameters and prior mean."""
         s = self._settings
         mean = self.prior_mean
-        hyper = (s.signal_variance, s.length_scale, s.noise_variance)
+        hyper = (s.signal_variance, s.kernel_key, s.noise_variance)
         cov = self._cov
         if cov is None or cov.hyper != hyper or cov.version != self._version:
             cov = self._update_covariance(hyper)
@@ -843,18 +856,22 @@ class GaussianProcess:
         if not (math.isfinite(ell) and ell >= 1.5 * self._spacing * (1 - 1e-12)):
             raise ValueError(f"length_scale must be finite and >= 1.5 x inducing spacing = "
                              f"{1.5 * self._spacing:g}, got {length_scale!r}")
-        return self._lml(s2, ell, *self._assemble(self.prior_mean))
+        key = dataclasses.replace(s, length_scale=ell, inducing_spacing=self._spacing).kernel_key
+        return self._lml(s2, key, *self._assemble(self.prior_mean))
 
     @property
     def initial_settings(self) -> GPSettings:
         """The settings this GP was built with (the prior centre of online refits)."""
         return self._initial_settings
 
-    def set_hyperparameters(self, signal_variance: float, length_scale: float) -> GPSettings:
-        """Replace (s_f^2, l), keeping the inducing grid; the posterior is recomputed at the next
-        :meth:`predict`.  Returns the new settings."""
+    def set_hyperparameters(self, signal_variance: float, length_scale: float,
+                            length_scale_y: float | None = None) -> GPSettings:
+        """Replace (s_f^2, l) (and l_y of an anisotropic kernel, kept if None), keeping the inducing grid; the
+        posterior is recomputed at the next :meth:`predict`.  Returns the new settings."""
+        ly = self._settings.length_scale_y if length_scale_y is None else float(length_scale_y)
         self._settings = dataclasses.replace(self._settings, signal_variance=float(signal_variance),
-                                             length_scale=float(length_scale), inducing_spacing=self._spacing)
+                                             length_scale=float(length_scale), length_scale_y=ly,
+                                             inducing_spacing=self._spacing)
         return self._settings
 
     def follower(self, signal_variance: float | None = None, length_scale: float | None = None) -> "GaussianProcess":
@@ -936,7 +953,7 @@ class GaussianProcess:
             psd = float(prior[2])
 
         def objective(theta):
-            val = -self._lml(math.exp(theta[0]), math.exp(theta[1]), a, b)
+            val = -self._lml(math.exp(theta[0]), kernel_key(self._settings, math.exp(theta[1])), a, b)
             if prior is not None:
                 val += 0.5 * float(np.sum(((theta - c) / psd) ** 2))
             return val / n

@@ -30,7 +30,7 @@ import warnings
 import numpy as np
 from scipy.optimize import minimize
 
-from .gp import _N_POW, _N_POW_Y, GaussianProcess
+from .gp import _N_POW, _N_POW_Y, GaussianProcess, kernel_key
 from .scale import SIGNAL_BOUNDS, running_variance
 
 __all__ = ["coarsening_factor", "coarsened", "refit", "refit_online", "length_scale_bounds", "signal_variance_bounds"]
@@ -67,7 +67,8 @@ def coarsened(gp, factor: int, length_scale: float | None = None):
     spacing = max(wx, wy)
     s = gp.settings
     ell = max(s.length_scale if length_scale is None else float(length_scale), 1.5 * spacing)
-    coarse = GaussianProcess(dataclasses.replace(s, length_scale=ell, inducing_spacing=spacing,
+    ell_y = None if s.length_scale_y is None else max(s.length_scale_y, 1.5 * spacing)
+    coarse = GaussianProcess(dataclasses.replace(s, length_scale=ell, length_scale_y=ell_y, inducing_spacing=spacing,
                                                  learn_hyperparameters=False), gp.domain)
     if (coarse._ax.n_cells, coarse._ay.n_cells) != (ax.n_cells // c, ay.n_cells // c):   # pragma: no cover
         raise RuntimeError("coarse grid does not align with the fine one")
@@ -106,14 +107,15 @@ def signal_variance_bounds(gp) -> tuple[float, float]:
 def refit(gp, prior, maxiter: int, factor: int = 2, signal_variance_bounds=None, step_sd: float | None = None,
           length_scale_bounds=None):
     """MAP (or ML if ``prior`` is None) (s_f^2, l) from gp's running sums on a grid ``factor`` times
-    coarser; returns (s_f^2, l, number of likelihood evaluations).
+    coarser; returns (s_f^2, l, number of likelihood evaluations), or (s_f^2, l_x, l_y, evaluations) when gp's
+    kernel has a length scale per axis (``GPSettings.length_scale_y``).
 
     ``prior = (s_f^2_0, l_0, sd)`` or ``(s_f^2_0, l_0, sd_s, sd_l)``: independent N(log s_f^2_0, sd_s^2),
-    N(log l_0, sd_l^2) (log-normal priors).  ``step_sd``: in addition N(log v, step_sd^2) on both, centred on
-    gp's current values v (a soft trust region: a jump by a factor 10 costs (ln 10 / step_sd)^2 / 2 nats of
-    evidence).  Bounds: ``signal_variance_bounds`` (default :func:`signal_variance_bounds`, relative to the
-    data's variance) and ``length_scale_bounds`` (default :func:`length_scale_bounds` of the coarse grid);
-    the start is gp's current (s_f^2, l) clipped into them.
+    N(log l_0, sd_l^2) (log-normal priors; on l_y too, centred on the initial l_y).  ``step_sd``: in addition
+    N(log v, step_sd^2) on each, centred on gp's current values v (a soft trust region: a jump by a factor 10
+    costs (ln 10 / step_sd)^2 / 2 nats of evidence).  Bounds: ``signal_variance_bounds`` (default
+    :func:`signal_variance_bounds`, relative to the data's variance) and ``length_scale_bounds`` (default
+    :func:`length_scale_bounds` of the coarse grid); the start is gp's current values clipped into them.
     """
     if gp.n_observations < 2:
         raise ValueError("a hyperparameter refit needs at least two observations")
@@ -122,21 +124,29 @@ def refit(gp, prior, maxiter: int, factor: int = 2, signal_variance_bounds=None,
     lo_l, hi_l = _default_length_bounds(gp, c) if length_scale_bounds is None else length_scale_bounds
     lo_l = max(float(lo_l), 1.5 * coarse.settings.resolved_inducing_spacing)
     sv_lo, sv_hi = _signal_bounds(gp) if signal_variance_bounds is None else signal_variance_bounds
-    bounds = [(math.log(sv_lo), math.log(sv_hi)), (math.log(lo_l), math.log(max(hi_l, lo_l * 1.0001)))]
+    s = gp.settings
+    ard = s.length_scale_y is not None
+    lb = (math.log(lo_l), math.log(max(hi_l, lo_l * 1.0001)))
+    bounds = [(math.log(sv_lo), math.log(sv_hi)), lb] + ([lb] if ard else [])
     a, b = coarse._assemble(coarse.prior_mean)
     n = gp.n_observations
-    s = gp.settings
+    current = [s.signal_variance, s.length_scale] + ([s.length_scale_y] if ard else [])
     if prior is not None:
-        centre = np.array([math.log(prior[0]), math.log(prior[1])])
-        sd = np.array([float(prior[2]), float(prior[-1])])
+        l0 = float(prior[1])
+        ly0 = gp.initial_settings.length_scale_y or l0
+        centre = np.log([float(prior[0]), l0] + ([ly0] if ard else []))
+        sd = np.array([float(prior[2])] + [float(prior[-1])] * (2 if ard else 1))
     if step_sd is not None:
-        here = np.array([math.log(s.signal_variance), math.log(s.length_scale)])
+        here = np.log(current)
     evals = [0]
+
+    def key(theta):
+        return kernel_key(s, math.exp(theta[1]), math.exp(theta[2]) if ard else None)
 
     def objective(theta):
         evals[0] += 1
         try:
-            val = -coarse._lml(math.exp(theta[0]), math.exp(theta[1]), a, b)
+            val = -coarse._lml(math.exp(theta[0]), key(theta), a, b)
         except np.linalg.LinAlgError:
             return np.inf
         if prior is not None:
@@ -148,12 +158,12 @@ def refit(gp, prior, maxiter: int, factor: int = 2, signal_variance_bounds=None,
         return val / n - unit_shift
 
     unit_shift = 0.5 * math.log(2.0 * math.pi * s.noise_variance)
-    theta0 = np.array([np.clip(math.log(s.signal_variance), *bounds[0]), np.clip(math.log(s.length_scale), *bounds[1])])
+    theta0 = np.array([np.clip(math.log(v), *bd) for v, bd in zip(current, bounds)])
     f0 = objective(theta0)
     res = minimize(objective, theta0, method="L-BFGS-B", bounds=bounds,
                    options={"maxiter": int(maxiter), "eps": 1e-6, "ftol": 1e-7})
     theta = res.x if np.all(np.isfinite(res.x)) and res.fun <= f0 else theta0
-    return float(math.exp(theta[0])), float(math.exp(theta[1])), evals[0]
+    return (*(float(math.exp(t)) for t in theta), evals[0])
 
 
 _default_length_bounds = length_scale_bounds
@@ -191,15 +201,19 @@ def refit_online(gp: GaussianProcess):
     s0 = gp.initial_settings
     prior = _prior(gp)
     c = coarsening_factor(gp, s0.hyper_coarsening)
-    s2, ell, _ = refit(gp, prior, s0.hyper_maxiter, c, step_sd=s0.hyper_step_sd)
+    s2, ell, *rest = refit(gp, prior, s0.hyper_maxiter, c, step_sd=s0.hyper_step_sd)
+    ell_y = rest[0] if len(rest) == 2 else None
     lo, hi = length_scale_bounds(gp, c)
-    if c > 1 and ell <= lo * 1.02:
-        gp.set_hyperparameters(s2, max(ell, length_scale_bounds(gp, 1)[0]))
-        s2, ell, _ = refit(gp, prior, s0.hyper_maxiter, 1, step_sd=s0.hyper_step_sd)
+    if c > 1 and min(ell, ell_y or ell) <= lo * 1.02:
+        fine = length_scale_bounds(gp, 1)[0]
+        gp.set_hyperparameters(s2, max(ell, fine), None if ell_y is None else max(ell_y, fine))
+        s2, ell, *rest = refit(gp, prior, s0.hyper_maxiter, 1, step_sd=s0.hyper_step_sd)
+        ell_y = rest[0] if len(rest) == 2 else None
         lo, hi = length_scale_bounds(gp, 1)
     sv_lo, sv_hi = signal_variance_bounds(gp)
     warned = gp.__dict__.setdefault("_bound_warnings", set())
-    for name, value, bound, side, unit in (("length scale", ell, lo, "lower", " m"), ("length scale", ell, hi, "upper", " m"),
+    short, long_ = min(ell, ell_y or ell), max(ell, ell_y or ell)
+    for name, value, bound, side, unit in (("length scale", short, lo, "lower", " m"), ("length scale", long_, hi, "upper", " m"),
                                            ("signal variance", s2, sv_lo, "lower", ""),
                                            ("signal variance", s2, sv_hi, "upper", "")):
         if _at(value, bound) and (name, side) not in warned:
@@ -211,4 +225,4 @@ def refit_online(gp: GaussianProcess):
                    "signal variance upper": "the data's own variance is far below the fitted signal"}[f"{name} {side}"]
             warnings.warn(f"learned {name} {value:.4g}{unit} sits at its {side} bound {bound:.4g}{unit}: {why}",
                           UserWarning, stacklevel=2)
-    return gp.set_hyperparameters(s2, ell)
+    return gp.set_hyperparameters(s2, ell, ell_y)

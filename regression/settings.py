@@ -79,6 +79,16 @@ class GPSettings:
         The refit evaluates the likelihood on a spline grid this many times coarser, with the
         exact sufficient statistics of the data (:mod:`regression.hyper`; ~30x cheaper at 2);
         the learned length scale is then >= 1.5 x the coarse spacing (1.5 m at the defaults).
+    kernel
+        ``"squared-exponential"`` (the paper's), ``"matern52"`` or ``"matern32"``: the one-dimensional factor of
+        the separable kernel (:mod:`regression.kernels`; Matérn for fields rougher than the squared exponential's
+        infinitely smooth samples).  The planner's information objective keeps its squared-exponential spread.
+        The rougher kernels need a finer inducing grid for the same accuracy: against the exact GP (l = 1.5,
+        ``tests/test_kernels.py``) the mean is within 1e-2 at h = l/3 for Matérn 5/2 (the default h = l/2: 1e-2 too)
+        and at h = l/5 for Matérn 3/2 (3e-2 at l/3).
+    length_scale_y
+        Length scale along y (ARD: anisotropic, axis-aligned); None: ``length_scale`` on both axes.  Learned
+        along with ``length_scale`` when set.
     signal_scale
         ``"absolute"`` (the paper): ``signal_variance`` is in field units squared.  ``"data"``: the GP
         works on standardized data: ``signal_variance`` (and the centre of the learned s_f^2's prior and its
@@ -119,6 +129,8 @@ class GPSettings:
     hyper_coarsening: int = 2
     prior_truncation: float = 1e-5
     signal_scale: str = "absolute"
+    kernel: str = "squared-exponential"
+    length_scale_y: float | None = None
     hyper_step_sd: float | None = None
     hyper_prior_sd_signal: float | None = None
 
@@ -130,6 +142,11 @@ class GPSettings:
             if getattr(self, name) > MAX_VARIANCE:
                 raise ValueError(f"{name} must be <= {MAX_VARIANCE:g} (variances are stored as float32 in run "
                                  f"snapshots), got {getattr(self, name):g}")
+        from .kernels import KERNELS
+        if self.kernel not in KERNELS:
+            raise ValueError(f"kernel must be one of {', '.join(KERNELS)}, got {self.kernel!r}")
+        if self.length_scale_y is not None:
+            object.__setattr__(self, "length_scale_y", _finite_positive("length_scale_y", self.length_scale_y))
         if self.signal_scale not in SIGNAL_SCALES:
             raise ValueError(f"signal_scale must be one of {', '.join(SIGNAL_SCALES)}, got {self.signal_scale!r}")
         ratio = self.signal_variance / self.noise_variance
@@ -148,9 +165,9 @@ class GPSettings:
             object.__setattr__(self, "prior_mean", m)
         if self.inducing_spacing is not None:
             h = _finite_positive("inducing_spacing", self.inducing_spacing)
-            if h > self.length_scale / 1.5 * (1.0 + 1e-12):
+            if h > self.shortest_length_scale / 1.5 * (1.0 + 1e-12):
                 raise ValueError(
-                    f"inducing_spacing must be <= length_scale / 1.5 = {self.length_scale / 1.5:g} "
+                    f"inducing_spacing must be <= length_scale / 1.5 = {self.shortest_length_scale / 1.5:g} "
                     f"for an accurate kernel approximation, got {h:g}")
             object.__setattr__(self, "inducing_spacing", h)
         mip = self.max_inducing_points
@@ -179,5 +196,19 @@ class GPSettings:
 
     @property
     def resolved_inducing_spacing(self) -> float:
-        """The requested inducing-grid spacing, ``length_scale / 2`` when unset."""
-        return self.inducing_spacing if self.inducing_spacing is not None else self.length_scale / 2.0
+        """The requested inducing-grid spacing, ``min(length scales) / 2`` when unset."""
+        return self.inducing_spacing if self.inducing_spacing is not None else self.shortest_length_scale / 2.0
+
+    @property
+    def shortest_length_scale(self) -> float:
+        """min(length_scale, length_scale_y)."""
+        return self.length_scale if self.length_scale_y is None else min(self.length_scale, self.length_scale_y)
+
+    @property
+    def kernel_key(self):
+        """What the prior of the spline coefficients depends on besides s_f^2: the length scale (the paper's
+        isotropic squared exponential, a float) or ``(kernel, l_x, l_y)``."""
+        if self.kernel == "squared-exponential" and self.length_scale_y is None:
+            return self.length_scale
+        return (self.kernel, self.length_scale,
+                self.length_scale if self.length_scale_y is None else self.length_scale_y)

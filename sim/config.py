@@ -149,6 +149,9 @@ class SimSettings:
                     signal weaker than half the noise's standard deviation) is judged as if it were that
                     large -- the rule then asks for the measurements such a field needs, not the tens per
                     patch that 0.4 s_f^2 asks for under the noise; 0: none (sim.stopping)
+    map_rmse_relative  "robust": also require the GP's own expected RMSE over the cells, sqrt(mean V), to be at most
+                    this fraction of s_f (the field's standard deviation as the GP sees it): the map is good, not
+                    only no cell unvisited (default 0: off; the tuned preset 0.3)
     eta_relative    with stop_rule "relative", the target's tolerance is eta_relative * s_f^2 (default
                     0.2 = the paper's 0.05 / 0.25); below gamma_relative
     max_periods     stop after this many re-planning periods even if sup V > gamma
@@ -218,6 +221,7 @@ class SimSettings:
     eta_relative: float = 0.2
     stop_length_scale: float | None = None
     stop_signal_floor: float = 0.25
+    map_rmse_relative: float = 0.0
     allow_long_run: bool = False
     diffusion_sigma: float = 3.0
     greedy_radius: float = 5.0
@@ -253,6 +257,7 @@ class SimSettings:
         if self.stop_length_scale is not None:
             set_("stop_length_scale", _number("stop_length_scale", self.stop_length_scale, positive=True))
         set_("stop_signal_floor", _number("stop_signal_floor", self.stop_signal_floor, nonneg=True))
+        set_("map_rmse_relative", _number("map_rmse_relative", self.map_rmse_relative, nonneg=True))
         set_("gamma_relative", _number("gamma_relative", self.gamma_relative, nonneg=True))
         set_("eta_relative", _number("eta_relative", self.eta_relative, nonneg=True))
         if not self.gamma_relative < 1.0:

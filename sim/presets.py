@@ -110,7 +110,9 @@ PRESETS: dict[str, dict] = {
         # replan_every 2 (issue 20): re-plan every 2 measurement steps (T/4) on a receding horizon T from the
         # current p̂ and GP variance, so that a hole the swarm's paths left is planned for at once instead of
         # at the next period start (docs/design/receding-horizon.md, docs/results/tuned-preset.md)
-        "sim": {"stop_rule": "robust", "eta_relative": 0.05, "replan_every": 2},
+        # map_rmse_relative 0.3: the robust rule also asks for the GP's expected RMSE sqrt(mean V) <= 0.3 s_f, so that
+        # it fires only when the map is good (sim.stopping, "The map condition"; docs/results/map-quality.md)
+        "sim": {"stop_rule": "robust", "eta_relative": 0.05, "replan_every": 2, "map_rmse_relative": 0.3},
     },
 }
 

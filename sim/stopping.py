@@ -51,6 +51,13 @@ s_f'^2 = floor x s_n^2 (the same data and length scales, V' from one more follow
 measurements a field of that variance would need, about six per patch at the default.  Above the floor
 nothing changes.
 
+The map condition (``sim.map_rmse_relative`` = q > 0, the tuned preset's 0.3).  sup V says that no cell is
+unvisited, not that the map is good: at sup V = 0.4 s_f^2 the expected RMSE of a calibrated GP may still be
+0.6 s_f.  The mean of V over the cells is the GP's own expected squared error of the map, so the rule also asks
+for sqrt(mean V) <= q s_f (s_f at the signal floor for a signal under the noise): the run stops when the GP
+itself expects an RMSE of at most q times the field's standard deviation.  It is folded into the reported
+threshold as the level sup V must reach, sup V * q^2 s_f^2 / mean V, when that is lower.
+
 The reported threshold (``threshold`` in the run's rows and in compare-controllers' runs.csv) is the
 level sup V_(s_f^2, l) must reach for both conditions to hold:
 gamma_r s_f^2 * min(1, sup V / sup V_c), and at the floor sup V * gamma_r s_f'^2 / max(sup V', sup V'_c).
@@ -148,8 +155,10 @@ class RobustThreshold(RelativeThreshold):
 
     def describe(self) -> str:
         lc = "the prior length scale" if self.check_length_scale is None else f"{self.check_length_scale:g} m"
+        q = float(getattr(self.settings, "map_rmse_relative", 0.0))
         return (f"{self.settings.gamma_relative:g} x the GP's current signal variance s_f^2, lowered where the "
-                f"variance at min(l, {lc}) is larger")
+                f"variance at min(l, {lc}) is larger" +
+                (f" or the expected RMSE sqrt(mean V) is above {q:g} s_f" if q > 0 else ""))
 
     def check_scale(self, gp) -> float:
         """l_c = min(l, stop_length_scale), raised to the shortest length scale gp's inducing grid
@@ -191,6 +200,21 @@ class RobustThreshold(RelativeThreshold):
         return floor if floor > gp.settings.signal_variance else None
 
     def threshold(self, gp):
+        thr = self._variance_threshold(gp)
+        q = float(getattr(self.settings, "map_rmse_relative", 0.0))
+        if q <= 0.0 or self.points is None:
+            return thr
+        # the map condition: sqrt(mean V) <= q s_f (s_f at the floor for a signal under the noise), folded into the
+        # level sup V must reach (V scaled by c meets it for c <= target / mean V)
+        v = gp.predict(self.points)[1]
+        mean_v, sup_v = float(v.mean()), float(v.max())
+        s2 = max(gp.settings.signal_variance, self.signal_floor * gp.settings.noise_variance)
+        target = q * q * s2
+        if mean_v <= target or mean_v <= 0.0:
+            return thr
+        return min(thr, sup_v * target / mean_v)
+
+    def _variance_threshold(self, gp):
         base = super().threshold(gp)
         if self.points is None:          # unbound (e.g. sim.loop.stop_threshold): the relative level,
             self.last_check_variance = None      # an upper bound of the robust one

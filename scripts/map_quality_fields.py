@@ -1,0 +1,45 @@
+"""The fields of docs/results/map-quality.md: fine structure, anisotropy and a hotspot in other units.
+
+    python scripts/map_quality_fields.py OUTDIR
+
+writes, on the paper's [0, 20]^2 at 0.05 m (.npz field files, :func:`swarmfield.sim.fields.save_npz_field`):
+
+``fine.npz``       a squared-exponential GP sample, l = 0.8 m, sd 1, mean 0 (random Fourier features)
+``aniso.npz``      a GP sample with l = 3 m along a direction 30 degrees from x and 0.8 m across it
+``hotspot.npz``    400 + 1000 exp(-|x - (14, 13)|^2 / (2 1.2^2)): a leak in ppm on a flat background (run it with
+                   --noise-sd 5, a sensor's ppm)
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from swarmfield.sim.fields import save_npz_field
+
+
+def _features(rng, n, scale_x, scale_y, angle):
+    w = rng.standard_normal((n, 2)) / np.array([scale_x, scale_y])
+    c, s = np.cos(angle), np.sin(angle)
+    return w @ np.array([[c, s], [-s, c]]), rng.uniform(0, 2 * np.pi, n)
+
+
+def main(out: Path) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    h = 0.05
+    xs = np.arange(0, 20 + h / 2, h)
+    X, Y = np.meshgrid(xs, xs, indexing="ij")
+    P = np.column_stack([X.ravel(), Y.ravel()])
+    ext = (0.0, 20.0, 0.0, 20.0)
+    for name, (lx, ly, ang, seed) in {"fine": (0.8, 0.8, 0.0, 5), "aniso": (3.0, 0.8, np.pi / 6, 6)}.items():
+        rng = np.random.default_rng(seed)
+        w, b = _features(rng, 3000, lx, ly, ang)
+        f = np.sqrt(2.0 / len(b)) * np.cos(P @ w.T + b).sum(axis=1)
+        save_npz_field(out / f"{name}.npz", f.reshape(X.shape), ext)
+    hot = 400.0 + 1000.0 * np.exp(-((X - 14.0) ** 2 + (Y - 13.0) ** 2) / (2 * 1.2 ** 2))
+    save_npz_field(out / "hotspot.npz", hot, ext)
+
+
+if __name__ == "__main__":
+    main(Path(sys.argv[1] if len(sys.argv) > 1 else "fields"))
