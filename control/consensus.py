@@ -43,7 +43,7 @@ import math
 import numpy as np
 from scipy import sparse
 
-__all__ = ["CosineMoments", "PIConsensus", "RobotDensities", "metropolis_laplacian", "MOMENTS"]
+__all__ = ["CosineMoments", "PIConsensus", "RobotDensities", "metropolis_laplacian", "neighbour_kde", "MOMENTS"]
 
 #: extra averaged quantities after the K x K cosine moments: x, y, x², y² (scaled to the domain)
 MOMENTS = 4
@@ -190,6 +190,36 @@ class PIConsensus:
         return z
 
 
+def neighbour_kde(X: np.ndarray, edges: np.ndarray, h: np.ndarray, domain, n_total: int, rows=None):
+    """Each robot's reflected Gaussian KDE (eq. "KDE", the Neumann image kernel of :mod:`control.kde`) and its
+    gradient at its own position, summed over itself and its neighbours ``edges`` (m, 2) only, divided by
+    ``n_total``: (p (k,), grad (k, 2)) for the robots ``rows`` (default all).  The centralized KDE up to the
+    kernels of robots beyond the radius r, each below exp(-r^2 / (2 h^2)) of its peak (3e-4 at r = 4 h); a
+    robot's images across the walls and the corners (nine terms) count as in the image kernel."""
+    X = np.asarray(X, dtype=float)
+    n = X.shape[0]
+    rows = np.arange(n) if rows is None else np.asarray(rows)
+    x0, x1, y0, y1 = (float(v) for v in domain)
+    e = np.asarray(edges, dtype=np.intp).reshape(-1, 2)
+    src = np.concatenate([e[:, 0], e[:, 1], np.arange(n)])     # i hears j (both ways) and itself
+    dst = np.concatenate([e[:, 1], e[:, 0], np.arange(n)])
+    hi = np.asarray(h, dtype=float)[src]
+    xi, yi = X[src, 0], X[src, 1]
+    p = np.zeros(n)
+    g = np.zeros((n, 2))
+    for xj in (X[dst, 0], 2 * x0 - X[dst, 0], 2 * x1 - X[dst, 0]):
+        dx = xi - xj
+        wx = np.exp(-0.5 * (dx / hi) ** 2)
+        for yj in (X[dst, 1], 2 * y0 - X[dst, 1], 2 * y1 - X[dst, 1]):
+            dy = yi - yj
+            k = wx * np.exp(-0.5 * (dy / hi) ** 2) / (2 * np.pi * hi * hi)
+            p += np.bincount(src, k, minlength=n)
+            g[:, 0] += np.bincount(src, -k * dx / (hi * hi), minlength=n)
+            g[:, 1] += np.bincount(src, -k * dy / (hi * hi), minlength=n)
+    # d/dX_i of the images: the image of j moves with j, not with i, so the gradient in x_i is -dx/h^2 k
+    return p[rows] / n_total, g[rows] / n_total
+
+
 class RobotDensities:
     """The density estimates of n robots: robot i's series ``S[i]`` (K x K) and bandwidth ``h[i]``.
 
@@ -198,8 +228,12 @@ class RobotDensities:
     are those of :class:`control.kde.DensityEstimate`, so :func:`control.feedback.tracking_velocity` takes it
     in place of one."""
 
-    def __init__(self, basis: CosineMoments, S: np.ndarray, h: np.ndarray, index=None, free=None, scale=None):
+    def __init__(self, basis: CosineMoments, S: np.ndarray, h: np.ndarray, index=None, free=None, scale=None,
+                 local=None):
         self.basis, self.S, self.h = basis, S, h
+        #: optional (p (n,), grad (n, 2), use (n,) bool): a robot's own value and gradient from its neighbours'
+        #: positions (:func:`neighbour_kde`), used instead of the series where ``use``
+        self.local = local
         self.domain = basis.domain
         self.index = None if index is None else np.asarray(index)
         self.free = free
@@ -222,6 +256,10 @@ class RobotDensities:
         p, g = self.basis.evaluate(self.S[r], X)
         if self.scale is not None:
             p, g = p * self.scale[r], g * self.scale[r][:, None]
+        if self.local is not None:
+            lp, lg, use = self.local
+            u = use[r]
+            p, g = np.where(u, lp[r], p), np.where(u[:, None], lg[r], g)
         return p, g
 
     def on_grid(self, nx: int, ny: int, rows=None) -> np.ndarray:

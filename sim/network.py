@@ -26,11 +26,14 @@ import warnings
 
 import numpy as np
 
-from ..control.consensus import CosineMoments, PIConsensus, RobotDensities, metropolis_laplacian
+from ..control.consensus import CosineMoments, PIConsensus, RobotDensities, metropolis_laplacian, neighbour_kde
 from .comm import FLOAT_BYTES, MessageLog, disk_graph
 from .knowledge import ITEM_BYTES, KnowledgeGroups
 
 __all__ = ["Centralized", "Decentralized", "make_network", "EXTRA_COLUMNS", "RobotPlans", "HeldPlan"]
+
+#: a robot's own p̂ comes from its neighbours' positions when the radius is at least this many bandwidths
+LOCAL_RADIUS = 3.0
 
 #: metrics.csv columns of a decentralized run, after :data:`sim.metrics.COLUMNS`
 EXTRA_COLUMNS = ("density_error", "components", "comm_bytes")
@@ -91,7 +94,7 @@ class Decentralized:
         self.fixed_bandwidth = config.kde.bandwidth
         self.rng = np.random.default_rng([s.seed, 0xC077])      # message loss: never the motion's stream
         self.log = MessageLog()
-        self.state_bytes = 2 * self.basis.size * FLOAT_BYTES     # z and the integral state q
+        self.state_bytes = (2 * self.basis.size + 2) * FLOAT_BYTES   # z, the integral state q and the position
         self.pi = None
         self.max_components = 0
         self.components = 1
@@ -256,27 +259,39 @@ class Decentralized:
             est = sim.estimate(X)
             self._last = (X, est)
             return est
+        g = graph
         for r in range(self.rounds if rounds is None else rounds):
             g = graph.drop(self.loss, self.rng)
             self.pi.step(metropolis_laplacian(graph.n, g.edges), phi if r == 0 else None, alive)
             self.log.broadcast("density", int((g.degree > 0).sum()), self.state_bytes)
-        est = self.estimates(rows)
+        est = self.estimates(rows, full, g.edges)
         self._last = (X, est)
         return est
 
-    def estimates(self, rows=None) -> RobotDensities:
-        """:class:`control.consensus.RobotDensities` of every robot from its consensus state."""
+    def estimates(self, rows=None, X=None, edges=None) -> RobotDensities:
+        """:class:`control.consensus.RobotDensities` of every robot from its consensus state; where the radius is
+        at least :data:`LOCAL_RADIUS` bandwidths, a robot's own p̂ and ∇p̂ are the kernel sum over the positions
+        its neighbours sent (:func:`control.consensus.neighbour_kde`), the centralized values up to kernels
+        beyond the radius (below exp(-4.5) = 1 % of a kernel's peak each)."""
         z = self.pi.z
+        n_work = int(self.sim.alive.sum())
         if self.fixed_bandwidth is not None:
             h = np.full(z.shape[0], float(self.fixed_bandwidth))
         else:
-            h = self.basis.bandwidth(z, int(self.sim.alive.sum()))
+            h = self.basis.bandwidth(z, n_work)
+        local = None
+        use = self.radius >= LOCAL_RADIUS * h
+        if X is not None and use.any():
+            p, g = neighbour_kde(X, edges, h, self.basis.domain, n_work)
+            local = (p, g, use & self.sim.alive)
         S = self.basis.smoothed(z, h)
         scale = None
         if self._gram is not None:
             mass = np.einsum("ikl,kl->i", S, self._gram)
             scale = 1.0 / np.where(mass > 0, mass, 1.0)
-        return RobotDensities(self.basis, S, h, index=rows, free=self.sim.free, scale=scale)
+        if local is not None and scale is not None:
+            local = (local[0] * scale, local[1] * scale[:, None], local[2])
+        return RobotDensities(self.basis, S, h, index=rows, free=self.sim.free, scale=scale, local=local)
 
     def note_components(self, count: int, t: float) -> None:
         self.components = count

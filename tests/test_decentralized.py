@@ -60,6 +60,17 @@ def test_cosine_moments_average_is_the_centralized_kde():
     np.testing.assert_allclose(g, gc, atol=5e-4 * np.abs(gc).max())
 
 
+def test_neighbour_kde_is_the_centralized_kde_at_the_robots():
+    from swarmfield.control.consensus import neighbour_kde
+    rng = np.random.default_rng(0)
+    X = np.vstack([rng.uniform(0, 20, (150, 2)), rng.uniform(0, 2, (30, 2))])    # a crowd in a corner
+    est = KernelDensity(DOMAIN, bandwidth=1.0, bins=(512, 512)).fit(X)
+    p, g = neighbour_kde(X, disk_graph(X, 5.0).edges, np.full(len(X), 1.0), DOMAIN, len(X))
+    pc, gc = est.evaluate(X)
+    np.testing.assert_allclose(p, pc, atol=1e-4 * pc.max())
+    np.testing.assert_allclose(g, gc, atol=2e-4 * np.abs(gc).max())
+
+
 def test_consensus_on_a_static_connected_graph_converges_to_the_centralized_kde():
     rng = np.random.default_rng(1)
     X = rng.uniform(0, 20, (60, 2))
@@ -108,11 +119,11 @@ def test_message_accounting_by_hand():
     net.bind(sim)
     with pytest.warns(UserWarning, match="2 components"):
         net.start(sim)                        # one round (1 round per sub-step x 1 sub-step)
-    # 3 robots with a neighbour broadcast z and q: 2 x (4 x 4 + 4) numbers of 8 bytes
+    # 3 robots with a neighbour broadcast z, q and their position: 2 x (4 x 4 + 4) + 2 numbers of 8 bytes
     assert net.log.messages == {"density": 3}
-    assert net.log.bytes == {"density": 3 * 2 * 20 * 8}
+    assert net.log.bytes == {"density": 3 * (2 * 20 + 2) * 8}
     est = net(X + 0.0)                        # new positions: one more round
-    assert net.log.total_messages == 6 and net.log.total_bytes == 6 * 320
+    assert net.log.total_messages == 6 and net.log.total_bytes == 6 * 336
     assert isinstance(est, RobotDensities) and net.components == 2
     p, _ = est.evaluate(X)
     assert np.all(np.isfinite(p)) and np.all(p > 0)
@@ -241,3 +252,14 @@ def test_greedy_on_local_knowledge():
     kinds = local.communication["bytes_by_kind"]
     assert kinds["map"] > 0 and kinds["goals"] > 0 and local.communication["max_components"] > 1
     assert np.all(np.isfinite(local.positions[-1]))
+
+
+def test_compare_controllers_sweeps_the_radius_like_any_axis(tmp_path):
+    from swarmfield.studies.compare import controller_label, main, make_tasks
+    tasks = make_tasks({}, ["feedback", "lawnmower"], ["sinc"], [0], [0.0], [100], comm_radii=[4.0, math.inf])
+    assert [(t["controller"], t["comm_radius"]) for t in tasks] == [("feedback", "4"), ("lawnmower", "4"),
+                                                                    ("feedback", "inf"), ("lawnmower", "inf")]
+    assert [t["config"]["sim"]["comm_radius"] for t in tasks] == [4.0, 4.0, None, None]
+    assert controller_label(tasks[0]) == "feedback r=4"
+    assert main(["--comm-radius", "0", "--out", str(tmp_path / "c")]) == 2
+    assert not (tmp_path / "c").exists()
