@@ -77,6 +77,20 @@ MAX_BOUNCES = 8
 POLYGON_RASTER = 256
 
 
+def _near_boundary(geometry, x, y, r: float) -> np.ndarray:
+    """Whether each point (x, y) lies within ``r`` of the boundary of ``geometry``: ``dwithin`` on the
+    prepared boundary (the same test as ``distance <= r``, ~30x faster on rings of many vertices), in
+    slices so that Ctrl-C acts between them."""
+    import shapely
+    boundary = geometry.boundary
+    shapely.prepare(boundary)
+    pts = shapely.points(x, y)
+    out = np.zeros(len(pts), bool)
+    for k in range(0, len(pts), 4096):
+        out[k:k + 4096] = shapely.dwithin(boundary, pts[k:k + 4096], r)
+    return out
+
+
 @dataclass(eq=False)
 class Domain:
     """Free space inside the rectangle ``extent``; see the module docstring.
@@ -167,15 +181,8 @@ class Domain:
         XC, YC = np.meshgrid(xc, yc, indexing="ij")
         shapely.prepare(geom)
         inside = shapely.contains_xy(geom, XC.ravel(), YC.ravel()).reshape(Nx, Ny)
-        # pixels within half a diagonal of the boundary are mixed: dwithin on the prepared boundary (the same
-        # test as distance <= r, ~30x faster on long rings), in slices so that Ctrl-C acts between them
-        boundary = geom.boundary
-        shapely.prepare(boundary)
-        r = 0.5 * math.hypot(px, py) * (1 + 1e-9)
-        near = np.zeros(Nx * Ny, bool)
-        pts = shapely.points(XC.ravel(), YC.ravel())
-        for k in range(0, len(pts), 4096):
-            near[k:k + 4096] = shapely.dwithin(boundary, pts[k:k + 4096], r)
+        # pixels within half a diagonal of the boundary are mixed
+        near = _near_boundary(geom, XC.ravel(), YC.ravel(), 0.5 * math.hypot(px, py) * (1 + 1e-9))
         state = np.where(inside, 1, 0).astype(np.int8)
         state[near.reshape(Nx, Ny)] = 2
         segs = []
@@ -258,8 +265,11 @@ class Domain:
         return self._clear_flat[i * Ny + j]
 
     def cell_free_fraction(self, nx: int, ny: int) -> np.ndarray:
-        """Free-area fraction of each cell of an nx x ny grid of the extent (exact; polygons: remembered
-        per grid, computed in slices so that Ctrl-C acts between them)."""
+        """Free-area fraction of each cell of an nx x ny grid of the extent (exact up to rounding; polygons:
+        remembered per grid).  Polygons are cut into the grid's columns first (``clip_by_rect``), so each
+        cell meets only the vertices of its column (~70x faster at 100 000 vertices than intersecting
+        every cell with the whole geometry, the same fractions to ~1e-14), one column at a time so that
+        Ctrl-C acts between them."""
         if self.geometry is None:
             return cell_fractions(self.state == 1, self.extent, nx, ny)
         memo = self.__dict__.setdefault("_fractions", {})
@@ -267,11 +277,11 @@ class Domain:
             import shapely
             x0, x1, y0, y1 = self.extent
             xs, ys = np.linspace(x0, x1, nx + 1), np.linspace(y0, y1, ny + 1)
-            XA, YA = np.meshgrid(xs[:-1], ys[:-1], indexing="ij")
-            XB, YB = np.meshgrid(xs[1:], ys[1:], indexing="ij")
-            boxes = shapely.box(XA.ravel(), YA.ravel(), XB.ravel(), YB.ravel())
-            area = np.concatenate([shapely.area(shapely.intersection(boxes[k:k + ny], self.geometry))
-                                   for k in range(0, len(boxes), ny)]).reshape(nx, ny)
+            area = np.empty((nx, ny))
+            for i in range(nx):
+                column = shapely.clip_by_rect(self.geometry, xs[i], y0, xs[i + 1], y1)
+                boxes = shapely.box(np.full(ny, xs[i]), ys[:-1], np.full(ny, xs[i + 1]), ys[1:])
+                area[i] = shapely.area(shapely.intersection(boxes, column))
             memo[(nx, ny)] = np.clip(area / ((xs[1] - xs[0]) * (ys[1] - ys[0])), 0.0, 1.0)
         return memo[(nx, ny)].copy()
 
@@ -374,8 +384,8 @@ class Domain:
         fine = np.zeros(Mx * My, bool)
         pts = np.flatnonzero(inside)
         if len(pts):
-            d = shapely.distance(self.geometry.boundary, shapely.points(XC.ravel()[pts], YC.ravel()[pts]))
-            fine[pts] = d > 0.5 * math.hypot(px, py) * (1 + 1e-9)
+            fine[pts] = ~_near_boundary(self.geometry, XC.ravel()[pts], YC.ravel()[pts],
+                                        0.5 * math.hypot(px, py) * (1 + 1e-9))
         return fine.reshape(Mx, My), np.arange(nx + 1) * k, np.arange(ny + 1) * k
 
     def _kept(self, nx: int, ny: int):

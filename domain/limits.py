@@ -6,8 +6,8 @@ reasonably needs is refused *before* it is decoded, with one line that says how 
 * a raster (``.npz`` mask, ``.png``, ``.tif``) of more than :data:`MAX_PIXELS` pixels (default 16
   million, 4000 x 4000: about 0.6 GB at the peak of loading); raise with the environment variable
   ``SWARMFIELD_DOMAIN_MAX_PIXELS``;
-* a GeoJSON with more than :data:`MAX_VERTICES` polygon vertices (default 100 000); raise with
-  ``SWARMFIELD_DOMAIN_MAX_VERTICES``;
+* a GeoJSON with more than :data:`MAX_VERTICES` polygon vertices (default one million: ~7 s of CPU and
+  a few hundred MB to load); raise with ``SWARMFIELD_DOMAIN_MAX_VERTICES``;
 * GeoJSON nested deeper than :data:`MAX_NESTING` levels (collections in collections) is refused.
 
 The environment is read at each load (worker processes of a sweep inherit it).  A file above a fifth
@@ -22,7 +22,7 @@ __all__ = ["MAX_PIXELS", "MAX_VERTICES", "MAX_NESTING", "max_pixels", "max_verti
            "check_vertices", "note_large"]
 
 MAX_PIXELS = 16_000_000
-MAX_VERTICES = 100_000
+MAX_VERTICES = 1_000_000
 MAX_NESTING = 64
 
 _NOTED: set = set()
