@@ -84,7 +84,7 @@ class Context:
     free: np.ndarray | None = None
     #: the ``domain.Domain`` of the run (None on the empty rectangle)
     region: object = None
-    #: closed faces (closed_x (nx-1, ny), closed_y (nx, ny-1)) between free cells: walls thinner than a cell
+    #: closed faces (closed_x (nx-1, ny), closed_y (nx, ny-1)) between free cells, walls thinner than a cell
     #: (:meth:`domain.Domain.closed_faces`), None when there is none
     walls: tuple | None = None
 

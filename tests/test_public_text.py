@@ -106,3 +106,34 @@ def test_every_built_in_controller_is_documented_where_the_others_are():
         assert re.search(rf"\b{re.escape(name)}\b(?!-)", helptext), f"simulate-swarm --help does not describe {name}"
         assert f"`{name}`" in guide, f"docs/guide/controllers.md has no row for {name}"
         assert re.search(rf"\b{re.escape(name)}\b", page), f"docs/commands/simulate-swarm.md does not name {name}"
+
+
+#: a colon outside ``literals`` and roles: napoleon would read the text before it as the field's type
+_TYPE_COLON = re.compile(r":(\s|$)")
+_LITERALS = re.compile(r"``.*?``|:[\w:+-]+:`[^`]*`|`[^`]*`")
+
+
+def test_extension_api_fields_read_as_descriptions():
+    """The fields of Context, SimulationResult and Snapshot are documented by ``#:`` comments whose first
+    line has no colon outside literals (napoleon would take what precedes it for a type, and a type such
+    as "(nx, ny)" is an ambiguous cross-reference that fails the documentation build)."""
+    bad = []
+    for rel, classes in (("sim/controllers.py", {"Context"}), ("sim/result.py", {"SimulationResult", "Snapshot"})):
+        path = ROOT / rel
+        lines = path.read_text().splitlines()
+        for node in ast.parse(path.read_text()).body:
+            if not (isinstance(node, ast.ClassDef) and node.name in classes):
+                continue
+            fields = [s for s in node.body if isinstance(s, ast.AnnAssign)]
+            assert fields, node.name
+            for f in fields:
+                above = lines[f.lineno - 2].strip()
+                i = f.lineno - 2
+                while i > 0 and lines[i - 1].strip().startswith("#:"):
+                    i -= 1
+                first = lines[i].strip()
+                if not above.startswith("#:"):
+                    bad.append(f"{rel}:{f.lineno}: {node.name}.{f.target.id} has no #: description")
+                elif _TYPE_COLON.search(_LITERALS.sub("", first[2:])):
+                    bad.append(f"{rel}:{i + 1}: {node.name}.{f.target.id}: a colon in {first!r}")
+    assert not bad, "\n".join(bad)
