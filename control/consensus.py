@@ -178,8 +178,9 @@ class PIConsensus:
         phi = self.phi if phi is None else np.asarray(phi, dtype=float)
         if phi.shape != self.z.shape:
             raise ValueError(f"phi must have shape {self.z.shape}, got {phi.shape}")
-        Lz = laplacian @ self.z
-        Lq = laplacian @ self.q
+        d = self.z.shape[1]
+        LzLq = laplacian @ np.hstack([self.z, self.q])       # one product for both states
+        Lz, Lq = LzLq[:, :d], LzLq[:, d:]
         z = self.z + (phi - self.phi) + self.gamma * (phi - self.z) - self.gain_p * Lz - self.gain_i * Lq
         q = self.q + self.gain_i * Lz
         if active is not None and not np.all(active):

@@ -259,10 +259,14 @@ class Decentralized:
             est = sim.estimate(X)
             self._last = (X, est)
             return est
-        g = graph
+        g, lap = graph, None
         for r in range(self.rounds if rounds is None else rounds):
             g = graph.drop(self.loss, self.rng)
-            self.pi.step(metropolis_laplacian(graph.n, g.edges), phi if r == 0 else None, alive)
+            if lap is None or g is not graph:             # the same graph every round without message loss
+                lap = metropolis_laplacian(graph.n, g.edges)
+                if lap.nnz > 0.05 * graph.n * graph.n:      # a dense graph (a crowded start): BLAS is faster
+                    lap = lap.toarray()
+            self.pi.step(lap, phi if r == 0 else None, alive)
             self.log.broadcast("density", int((g.degree > 0).sum()), self.state_bytes)
         est = self.estimates(rows, full, g.edges)
         self._last = (X, est)
