@@ -106,6 +106,9 @@ class Controller:
     name = "base"
     #: whether the loop plans a reference for it every period (``ctx.plan``); if False, no planner is built
     needs_plan = False
+    #: whether it reads the density estimate p̂ (``ctx.estimate``): a decentralized swarm (:mod:`sim.network`) runs
+    #: the density consensus only for such controllers and those that need a plan
+    reads_density = False
 
     def __init__(self, config):
         self.config = config
@@ -199,6 +202,7 @@ class CoverageController(Controller):
     """The feedback law towards the uniform density (p_r = 1/|Ω|, v_r = 0): no planner."""
 
     name = "coverage"
+    reads_density = True
 
     def __init__(self, config):
         super().__init__(config)

@@ -117,9 +117,17 @@ class Decentralized:
             Cy = np.cos(np.outer(y0 + (np.arange(g.ny) + 0.5) * g.dy - y0, self.basis.wy))
             self._gram = Cx.T @ sim.free.astype(float) @ Cy * g.cell_area
 
+    def uses_density(self, sim) -> bool:
+        """Whether the robots need density estimates: for the controller's law or for the plan's p̂."""
+        c = sim.controller
+        return bool(c.needs_plan or getattr(c, "reads_density", False))
+
     def start(self, sim) -> None:
         """Deployment: every robot starts from its own moments and runs one measurement period's worth of
-        rounds (``comm_rounds`` x ``substeps``) before the first plan."""
+        rounds (``comm_rounds`` x ``substeps``) before the first plan (only if the controller needs densities:
+        the lawnmower, greedy, ergodic and diffusion need none)."""
+        if not self.uses_density(sim):
+            return
         X = sim.X
         self.pi = PIConsensus(self.basis.features(X), gamma=0.01, gain_p=1.0, gain_i=0.45)
         self.update(X, rounds=self.rounds * sim.settings.substeps)
@@ -319,13 +327,14 @@ class Decentralized:
         return float(np.mean(num) / max(math.sqrt(float((ref * ref).sum())), 1e-300))
 
     def row(self, sim) -> dict:
-        return {"density_error": self.density_error(sim), "components": self.components,
+        derr = self.density_error(sim) if self.pi is not None else math.nan
+        return {"density_error": derr, "components": self.components,
                 "comm_bytes": self.log.total_bytes}
 
     def summary(self, sim) -> dict:
         steps = max(sim.step_index, 1)
         robots = max(int(sim.alive.sum()), 1)
-        rows = [r for r in sim.result.rows if "density_error" in r]
+        rows = [r for r in sim.result.rows if math.isfinite(r.get("density_error", math.nan))]
         return {"comm_radius_m": self.radius, "message_loss": self.loss, "rounds_per_substep": self.rounds,
                 "modes": self.basis.modes, "bytes_per_robot_per_step": self.log.total_bytes / (robots * steps),
                 "messages": self.log.total_messages, "bytes": self.log.total_bytes,

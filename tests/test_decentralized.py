@@ -107,7 +107,8 @@ def _fake_sim(X, substeps=1):
     from swarmfield.sim.config import RunConfig
     cfg = RunConfig.from_preset("paper", comm_radius=1.5, comm_modes=4, comm_rounds=1, robots=len(X))
     sim = SimpleNamespace(X=X, alive=np.ones(len(X), bool), t=0.0, free=None,
-                          settings=SimpleNamespace(substeps=substeps), estimate=None)
+                          settings=SimpleNamespace(substeps=substeps), estimate=None,
+                          controller=SimpleNamespace(needs_plan=True))
     return cfg, sim
 
 
@@ -251,6 +252,7 @@ def test_greedy_on_local_knowledge():
     assert _rows(wide) == _rows(central)
     kinds = local.communication["bytes_by_kind"]
     assert kinds["map"] > 0 and kinds["goals"] > 0 and local.communication["max_components"] > 1
+    assert "density" not in kinds and all(math.isnan(r["density_error"]) for r in local.rows)   # greedy needs no p̂
     assert np.all(np.isfinite(local.positions[-1]))
 
 
