@@ -19,7 +19,6 @@ from setuptools.command.build_ext import build_ext
 from setuptools.command.build_py import build_py
 
 ROOT = Path(__file__).resolve().parent
-SKIP = {"tests", "docs", "benchmarks", "examples", "scripts", "build", "dist"}
 
 
 def _cbuild():
@@ -29,13 +28,18 @@ def _cbuild():
     return mod
 
 
+def _package_dirs():
+    """The folders of the installed subpackages (pyproject's ``packages``: ``swarmfield.ocp`` is ``ocp/``)."""
+    import tomllib
+    with open(ROOT / "pyproject.toml", "rb") as fh:
+        packages = tomllib.load(fh)["tool"]["setuptools"]["packages"]
+    return [ROOT.joinpath(*p.split(".")[1:]) for p in packages if "." in p]
+
+
 def _kernels():
     """``[(name, source, smoke), ...]`` of every ``CLibrary(...)`` defined with literal strings."""
     found = []
-    for path in sorted(ROOT.rglob("*.py")):
-        rel = path.relative_to(ROOT).parts
-        if rel[0] in SKIP or rel[0].startswith(".") or len(rel) == 1:
-            continue
+    for path in sorted(p for d in _package_dirs() for p in d.glob("*.py")):
         text = path.read_text(encoding="utf-8")
         if "CLibrary(" not in text:
             continue
