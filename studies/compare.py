@@ -79,9 +79,12 @@ def run_task(task: dict) -> list[dict]:
     import warnings
     cfg = config_from_dict(task["config"])
     # the configuration's own stop rule, recorded at every measurement; the run itself never stops at it
-    with warnings.catch_warnings():    # the domain's warnings: said once by make_tasks, not by every run
+    with warnings.catch_warnings(record=True) as seen:    # the domain's warnings: said once by make_tasks
+        warnings.simplefilter("default")
         warnings.filterwarnings("ignore", message=".*cannot be reached", category=UserWarning)
         res = run_simulation(cfg, stop_rule=make_stop_rule(cfg.sim, stops=False))
+    for w in seen:                     # e.g. a learned hyperparameter at its bound: one line, naming the run
+        print(f"{PROG}: warning: {describe_run(task)}: {w.message}", file=sys.stderr)
     T = cfg.sim.period
     label = {k: task[k] for k in ("preset", "controller", "field", "seed", "robot_loss", "robots")}
     for k in ("domain", "comm_radius"):
