@@ -7,6 +7,10 @@
   with a density floor and speed saturation (see that module for what they do to the
   stability results).
 
+* :mod:`control.consensus` -- distributed density estimation: every robot's own p̂ and ∇p̂ from its
+  neighbours' messages (PI dynamic average consensus on the cosine moments of the positions), for a
+  swarm without a communication centre.
+
 * :mod:`control.robot_kernel` -- the per-robot work of a feedback sub-step (KDE binning, p_hat, p_r,
   v_r, the law, the Euler--Maruyama step) in compiled C loops for large swarms, with the NumPy code
   as the reference and the fallback.

@@ -13,6 +13,10 @@
   ``Controller`` subclass
 * :mod:`sim.tracking` -- the feedback law alone towards a given plan (Theorems "Exponential
   stability" and "ISS" at the particle level)
+* :mod:`sim.comm`, :mod:`sim.network`, :mod:`sim.knowledge` -- a decentralized swarm (``sim.comm_radius``):
+  the communication graph and message accounting, the communication strategy of the loop (the paper's
+  centre, or robots that talk to neighbours), measurements relayed through components and the designated
+  robot's map
 * :mod:`sim.metrics`, :mod:`sim.outputs`, :mod:`sim.figures` -- metrics.csv, summary.json, figures
 
     from swarmfield.sim import RunConfig, run_simulation
