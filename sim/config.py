@@ -201,6 +201,9 @@ class SimSettings:
     comm_loss       probability that a link fails for one message round (0 default)
     comm_rounds     consensus rounds of the density estimate per Euler sub-step (default 4)
     comm_modes      cosine modes per axis of the consensus density estimate (default 24; control.consensus)
+    comm_anchor     re-anchor the consensus at every measurement to each component's exact moment average,
+                    from the positions that come with the relayed measurements (default true; false: the
+                    consensus alone)
     """
 
     robots: int = 100
@@ -238,6 +241,7 @@ class SimSettings:
     comm_loss: float = 0.0
     comm_rounds: int = 4
     comm_modes: int = 24
+    comm_anchor: bool = True
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -290,6 +294,8 @@ class SimSettings:
         if not self.comm_loss < 1:
             raise ValueError(f"sim.comm_loss must be a probability below 1, got {self.comm_loss:g}")
         set_("comm_rounds", _integer("comm_rounds", self.comm_rounds, 1))
+        if not isinstance(self.comm_anchor, bool):
+            raise ValueError(f"sim.comm_anchor must be true or false, got {self.comm_anchor!r}")
         set_("comm_modes", _integer("comm_modes", self.comm_modes, 2))
         if self.comm_modes > 256:
             raise ValueError(f"sim.comm_modes must be at most 256, got {self.comm_modes}")

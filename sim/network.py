@@ -100,6 +100,8 @@ class Decentralized:
         self.components = 1
         self.warned = False
         self._last = None            # (X array, estimate) of the last update
+        self._used = None            # (X array, estimate) the controller used last
+        self.anchored = bool(s.comm_anchor)
         self._gram = None
         self.knowledge = KnowledgeGroups(s.robots)
         self.plan_of = np.full(s.robots, None, dtype=object)     # the plan each robot holds
@@ -147,6 +149,8 @@ class Decentralized:
         self.labels = (count, labels)
         messages, transfers, missing, rebuild = self.knowledge.share(rows, Xa, y, labels, count)
         self.log.record("measurements", messages, transfers * ITEM_BYTES)
+        if self.pi is not None and self.anchored:
+            self.anchor(sim, labels, count)
         if rebuild:
             from ..regression import GaussianProcess
             gs = sim.gp.settings
@@ -166,7 +170,7 @@ class Decentralized:
 
     def planning_density(self, sim):
         """The designated robot's own estimate of p̂ on the planner grid (the centre's when it hears everyone)."""
-        est = self(sim.working())
+        est = self.current(sim.working())
         if not isinstance(est, RobotDensities):
             return sim.p_hat
         g = sim.grid
@@ -230,10 +234,33 @@ class Decentralized:
 
     def __call__(self, X, fresh: bool = False):
         """The robots' estimates at positions X (all robots, or the working ones): consensus rounds on the
-        graph of X, once per new position array (as :class:`sim.simulation.LatestEstimate`)."""
+        graph of X, once per new position array (as :class:`sim.simulation.LatestEstimate`).  This is what the
+        controllers call; the estimates they used last are kept for ``density_error``."""
+        est = self.current(X)
+        self._used = (X, est)
+        return est
+
+    def current(self, X):
+        """The estimates at X, updating the consensus once per new position array."""
         if self._last is not None and X is self._last[0]:
             return self._last[1]
         return self.update(X)
+
+    def anchor(self, sim, labels: np.ndarray, count: int) -> None:
+        """Re-anchor the consensus at a measurement: every robot of a component received the measurements of
+        all its members, positions included, so each sets z to its component's exact moment average (and
+        q = 0); the consensus then tracks the motion until the next measurement."""
+        alive = sim.alive & (labels >= 0)
+        phi = self.basis.features(sim.X)
+        lab = np.where(alive, labels, count)
+        sums = np.zeros((count + 1, phi.shape[1]))
+        np.add.at(sums, lab, phi)
+        size = np.bincount(lab, minlength=count + 1).astype(float)
+        mean = sums / np.maximum(size, 1.0)[:, None]
+        self.pi.z[alive] = mean[lab[alive]]
+        self.pi.q[alive] = 0.0
+        self.pi.phi[alive] = phi[alive]
+        self._last = None
 
     # ------------------------------------------------------------------ the protocol
     def positions(self, X) -> tuple[np.ndarray, np.ndarray | None]:
@@ -315,14 +342,17 @@ class Decentralized:
 
     # ------------------------------------------------------------------ outputs
     def density_error(self, sim) -> float:
-        """Mean over the working robots of ||p̂_i - p̂||_L2 / ||p̂||_L2 on the planner grid."""
-        est = self(sim.working())
+        """Mean over the working robots of ||p̂_i - p̂||_L2 / ||p̂||_L2 on the planner grid, p̂_i the estimates the
+        controller used last (at the last sub-step; at the start the first ones) and p̂ the centralized KDE of
+        the same positions."""
+        X, est = self._used if self._used is not None else (sim.working(), self.current(sim.working()))
         if not isinstance(est, RobotDensities):
             return 0.0
         g = sim.grid
         rows = np.flatnonzero(sim.alive)
         P = est.on_grid(g.nx, g.ny, rows)
-        ref = sim.p_hat
+        Xw = X if X.shape[0] == rows.size else X[rows]
+        ref = g.normalize(sim.estimate.kde.fit(Xw).on_grid(g.nx, g.ny), "KDE of the robots")
         num = np.sqrt(((P - ref[None]) ** 2).sum(axis=(1, 2)))
         return float(np.mean(num) / max(math.sqrt(float((ref * ref).sum())), 1e-300))
 

@@ -265,3 +265,19 @@ def test_compare_controllers_sweeps_the_radius_like_any_axis(tmp_path):
     assert controller_label(tasks[0]) == "feedback r=4"
     assert main(["--comm-radius", "0", "--out", str(tmp_path / "c")]) == 2
     assert not (tmp_path / "c").exists()
+
+
+def test_anchoring_sets_each_component_to_its_exact_average():
+    from swarmfield.sim.network import Decentralized
+    X = np.array([[1.0, 1.0], [2.0, 1.0], [3.0, 1.0], [10.0, 10.0]])
+    cfg, sim = _fake_sim(X)
+    net = Decentralized(cfg)
+    net.bind(sim)
+    with pytest.warns(UserWarning):
+        net.start(sim)
+    sim.X = X + 0.5                                              # the robots moved; then they measured
+    net.anchor(sim, np.array([0, 0, 0, 1]), 2)
+    phi = net.basis.features(sim.X)
+    np.testing.assert_allclose(net.pi.z[:3], np.broadcast_to(phi[:3].mean(0), (3, phi.shape[1])), atol=1e-14)
+    np.testing.assert_allclose(net.pi.z[3], phi[3], atol=1e-14)
+    assert np.all(net.pi.q == 0)
