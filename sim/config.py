@@ -202,8 +202,8 @@ class SimSettings:
     comm_rounds     consensus rounds of the density estimate per Euler sub-step (default 4)
     comm_modes      cosine modes per axis of the consensus density estimate (default 24; control.consensus)
     comm_anchor     re-anchor the consensus at every measurement to each component's exact moment average,
-                    from the positions that come with the relayed measurements (default true; false: the
-                    consensus alone)
+                    from the positions that come with the relayed measurements (default false: the consensus
+                    alone)
     """
 
     robots: int = 100
@@ -241,7 +241,7 @@ class SimSettings:
     comm_loss: float = 0.0
     comm_rounds: int = 4
     comm_modes: int = 24
-    comm_anchor: bool = True
+    comm_anchor: bool = False
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
