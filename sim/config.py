@@ -204,6 +204,9 @@ class SimSettings:
     comm_anchor     re-anchor the consensus at every measurement to each component's exact moment average,
                     from the positions that come with the relayed measurements (default false: the consensus
                     alone)
+    comm_density    "consensus" (default): PI consensus rounds on the cosine moments; "relayed": no rounds, each
+                    robot's moments are its component's exact average at the last measurement (from the relayed
+                    measurements' positions) corrected by its own and its neighbours' moves since (sim.network)
     """
 
     robots: int = 100
@@ -242,6 +245,7 @@ class SimSettings:
     comm_rounds: int = 4
     comm_modes: int = 24
     comm_anchor: bool = False
+    comm_density: str = "consensus"
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -294,6 +298,8 @@ class SimSettings:
         if not self.comm_loss < 1:
             raise ValueError(f"sim.comm_loss must be a probability below 1, got {self.comm_loss:g}")
         set_("comm_rounds", _integer("comm_rounds", self.comm_rounds, 1))
+        if self.comm_density not in ("consensus", "relayed"):
+            raise ValueError(f"sim.comm_density must be 'consensus' or 'relayed', got {self.comm_density!r}")
         if not isinstance(self.comm_anchor, bool):
             raise ValueError(f"sim.comm_anchor must be true or false, got {self.comm_anchor!r}")
         set_("comm_modes", _integer("comm_modes", self.comm_modes, 2))

@@ -25,6 +25,7 @@ import math
 import warnings
 
 import numpy as np
+from scipy import sparse
 
 from ..control.consensus import CosineMoments, PIConsensus, RobotDensities, metropolis_laplacian, neighbour_kde
 from .comm import FLOAT_BYTES, MessageLog, disk_graph
@@ -101,7 +102,10 @@ class Decentralized:
         self.warned = False
         self._last = None            # (X array, estimate) of the last update
         self._used = None            # (X array, estimate) the controller used last
-        self.anchored = bool(s.comm_anchor)
+        self.relayed = s.comm_density == "relayed"
+        self.anchored = bool(s.comm_anchor) or self.relayed
+        self._anchor_phi = None
+        self._anchor_size = None
         self._gram = None
         self.knowledge = KnowledgeGroups(s.robots)
         self.plan_of = np.full(s.robots, None, dtype=object)     # the plan each robot holds
@@ -260,6 +264,8 @@ class Decentralized:
         self.pi.z[alive] = mean[lab[alive]]
         self.pi.q[alive] = 0.0
         self.pi.phi[alive] = phi[alive]
+        self._anchor_phi = phi.copy()
+        self._anchor_size = size[lab]
         self._last = None
 
     # ------------------------------------------------------------------ the protocol
@@ -294,6 +300,15 @@ class Decentralized:
             est = sim.estimate(X)
             self._last = (X, est)
             return est
+        if self.relayed and self._anchor_phi is not None:
+            # the component's average at the last measurement, plus the moves of the robot and its neighbours
+            # since, which it hears now (positions, 16 bytes a robot)
+            self.log.broadcast("density", int((graph.degree > 0).sum()), 2 * FLOAT_BYTES)
+            A = graph.adjacency() + sparse.identity(graph.n, format="csr")
+            z = self.pi.z + (A @ (phi - self._anchor_phi)) / self._anchor_size[:, None]
+            est = self.estimates(rows, full, graph.edges, z)
+            self._last = (X, est)
+            return est
         g, lap = graph, None
         for r in range(self.rounds if rounds is None else rounds):
             g = graph.drop(self.loss, self.rng)
@@ -307,12 +322,12 @@ class Decentralized:
         self._last = (X, est)
         return est
 
-    def estimates(self, rows=None, X=None, edges=None) -> RobotDensities:
+    def estimates(self, rows=None, X=None, edges=None, z=None) -> RobotDensities:
         """:class:`control.consensus.RobotDensities` of every robot from its consensus state; where the radius is
         at least :data:`LOCAL_RADIUS` bandwidths, a robot's own p̂ and ∇p̂ are the kernel sum over the positions
         its neighbours sent (:func:`control.consensus.neighbour_kde`), the centralized values up to kernels
         beyond the radius (below exp(-4.5) = 1 % of a kernel's peak each)."""
-        z = self.pi.z
+        z = self.pi.z if z is None else z
         n_work = int(self.sim.alive.sum())
         if self.fixed_bandwidth is not None:
             h = np.full(z.shape[0], float(self.fixed_bandwidth))

@@ -281,3 +281,32 @@ def test_anchoring_sets_each_component_to_its_exact_average():
     np.testing.assert_allclose(net.pi.z[:3], np.broadcast_to(phi[:3].mean(0), (3, phi.shape[1])), atol=1e-14)
     np.testing.assert_allclose(net.pi.z[3], phi[3], atol=1e-14)
     assert np.all(net.pi.q == 0)
+
+
+def test_relayed_estimate_is_exact_at_the_measurement_and_follows_neighbours():
+    """comm_density = "relayed": the component's average at the last measurement plus the moves a robot hears."""
+    from swarmfield.ocp import Grid
+    from swarmfield.sim.config import RunConfig
+    from swarmfield.sim.network import Decentralized
+    rng = np.random.default_rng(0)
+    X = rng.uniform(0, 20, (80, 2))
+    cfg = RunConfig.from_preset("paper", comm_radius=4.0, robots=80, comm_density="relayed", comm_modes=32)
+    kde = KernelDensity(DOMAIN, bandwidth=1.5)
+    sim = SimpleNamespace(X=X, alive=np.ones(80, bool), t=0.0, free=None, settings=SimpleNamespace(substeps=8),
+                          estimate=SimpleNamespace(kde=kde), controller=SimpleNamespace(needs_plan=True),
+                          grid=Grid(DOMAIN, 40, 40))
+    net = Decentralized(cfg)
+    net.bind(sim)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        net.start(sim)
+        count, labels = disk_graph(X, 4.0).components()
+        net.anchor(sim, labels, count)
+        before = net.log.bytes["density"]
+        est = net(X + 0.0)
+    senders = int((disk_graph(X, 4.0).degree > 0).sum())
+    assert net.log.bytes["density"] - before == senders * 16         # positions only, no consensus rounds
+    z = net.basis.features(X)[labels == labels[0]].mean(0)
+    h = est.h[0]
+    P = net.basis.on_grid(net.basis.smoothed(z[None], np.array([h])), 40, 40)[0]
+    np.testing.assert_allclose(est.on_grid(40, 40, [0])[0], P, atol=1e-12)
