@@ -55,6 +55,10 @@ PRESETS: dict[str, dict] = {
             # 1.00 -> 0.85 of theirs on the tuning maps (8, 12, 16, 24, 32 tried), 1.07 -> 0.87 on four maps drawn
             # afterwards, 0.89 -> 0.83 on the rectangle's held-out fields; the planner 1.7x per plan
             "reference_speed": 24.0,
+            # count the transport's sub-steps by the velocity's slope (PlannerSettings.substep_rule): 45 instead of
+            # 89 per interval at 24 m/s, the same positivity guarantee; with the information terms in NumPy
+            # (ocp.information_callback) a re-plan costs 0.4x the CPU (docs/results/realtime-plans.md)
+            "substep_rule": "gradient",
             # a re-plan is replaced T/4 later: stop once the objective has changed by less than 1e-4 (relative)
             # for 5 iterations with the dual infeasibility under 1e-2 (IPOPT's objective-change test) instead of
             # driving it under 1e-3. Plans within 0.2 % of the tighter optimum, 30-50 % fewer iterations (per
