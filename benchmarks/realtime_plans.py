@@ -34,7 +34,7 @@ def one(field, domain, seed, controller, config, periods):
     hit = next((row["t"] / T for row in r.rows if row["max_variance"] <= row["threshold"]), None)
     rm2 = next((row["rmse"] for row in r.rows if abs(row["t"] - 2 * T) < 1e-6), None)
     plans = [p for p in r.replans if p.get("success")]
-    cpus = [p["solve_cpu_s"] for p in plans]
+    cpus = [p.get("solve_cpu_s", p["solve_time_s"]) for p in plans]    # older versions: wall time only
     interval = cfg.sim.replan_every * cfg.sim.dt if cfg.sim.replan_every else T
     out = {"field": field, "domain": domain, "seed": seed, "controller": controller, "config": config,
            "cpu_s": round(cpu, 2), "wall_s": round(wall, 2), "planner_wall_s": round(r.timings.get("planner", 0.0), 2),

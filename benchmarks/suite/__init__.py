@@ -1,0 +1,1 @@
+"""The swarmfield benchmark suite for airspeed velocity (asv): see docs/results/benchmarks.md, "Running the suite"."""

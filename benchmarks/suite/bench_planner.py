@@ -1,0 +1,69 @@
+"""The reference-density planner: the paper's first plan, a warm re-plan, the tuned preset's plans."""
+from __future__ import annotations
+
+from .common import TIMER, first_step, limit_threads, tuned_planner_settings
+
+
+class PaperPlan:
+    """40 x 40, N = 12, I = J = 8, the paper's settings (``python benchmarks/plan_reference.py`` in more detail)."""
+
+    timer = TIMER
+    number = 1
+    repeat = 3
+    warmup_time = 0.0
+
+    def setup(self):
+        limit_threads()
+        from swarmfield.ocp import PlannerSettings, ReferencePlanner
+        self.planner = ReferencePlanner(PlannerSettings())
+        self.p0, self.target, self.extra = first_step(self.planner.grid, "symmetric-kl")
+        self.cold = self.planner.solve(self.p0, self.target)
+        tau = self.planner.settings.interval
+        self.p1 = self.cold.density_grid(tau)
+        self.tau = tau
+
+    def time_cold_solve(self):
+        self.planner.solve(self.p0, self.target)
+
+    def time_warm_replan_one_interval_later(self):
+        self.planner.solve(self.p1, self.target, t0=self.tau, warm_start=self.cold)
+
+    def track_cold_iterations(self):
+        return self.planner.solve(self.p0, self.target).meta["solver"]["iterations"]
+
+    track_cold_iterations.unit = "iterations"
+
+    def peakmem_build_and_solve(self):
+        from swarmfield.ocp import PlannerSettings, ReferencePlanner
+        ReferencePlanner(PlannerSettings()).solve(self.p0, self.target)
+
+
+class TunedPlan:
+    """The tuned preset's planner (information objective, 24 m/s reference, norm limit): its first plan and a
+    re-plan T/4 later, the receding horizon's interval (``benchmarks/realtime_plans.py`` in a closed loop)."""
+
+    timer = TIMER
+    number = 1
+    repeat = 2
+    warmup_time = 0.0
+    timeout = 300
+
+    def setup(self):
+        limit_threads()
+        from swarmfield.ocp import ReferencePlanner
+        self.planner = ReferencePlanner(tuned_planner_settings())
+        self.p0, self.target, self.extra = first_step(self.planner.grid, "information")
+        self.first = self.planner.solve(self.p0, self.target, **self.extra)
+        self.t1 = 3 * self.planner.settings.interval          # sim.replan_every 2 x dt 0.875 s = T/4
+        self.p1 = self.first.density_grid(self.t1)
+
+    def time_first_plan(self):
+        self.planner.solve(self.p0, self.target, **self.extra)
+
+    def time_replan_quarter_period_later(self):
+        self.planner.solve(self.p1, self.target, t0=self.t1, warm_start=self.first, **self.extra)
+
+    def track_first_plan_iterations(self):
+        return self.first.meta["solver"]["iterations"]
+
+    track_first_plan_iterations.unit = "iterations"
