@@ -56,7 +56,7 @@ def _value(text):
         return text
 
 
-def replay(path, sets, ipopt_sets, label=""):
+def replay(path, sets, ipopt_sets, label="", calls=None):
     from swarmfield.ocp import PlannerError, ReferencePlanner
     with open(path, "rb") as fh:
         rec = pickle.load(fh)
@@ -70,7 +70,7 @@ def replay(path, sets, ipopt_sets, label=""):
     s = dataclasses.replace(s, **changes)
     planner = ReferencePlanner(s, free=rec["free"])
     prev, rows = None, []
-    for i, call in enumerate(rec["calls"]):
+    for i, call in enumerate(rec["calls"][:calls]):
         c0, w0 = time.process_time(), time.perf_counter()
         try:
             plan = planner.solve(call["p0"], call["target"], t0=call["t0"], warm_start=prev if call["warm"] else None,
@@ -106,12 +106,13 @@ def main(argv=None) -> int:
     ap.add_argument("--set", dest="sets", action="append", default=[], metavar="planner.KEY=VALUE")
     ap.add_argument("--ipopt", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--label", default="")
+    ap.add_argument("--calls", type=int, default=None, help="replay only the first CALLS calls")
     a = ap.parse_args(argv)
     limit_threads()
     if a.mode == "record":
         record(a.path, a.field, a.domain, a.seed, a.periods)
     else:
-        replay(a.path, a.sets, a.ipopt, a.label)
+        replay(a.path, a.sets, a.ipopt, a.label, a.calls)
     return 0
 
 
