@@ -2,6 +2,7 @@
 
     python benchmarks/replan_replay.py record CALLS.pkl [--field sinc] [--domain rectangle] [--seed 0] [--periods 3]
     python benchmarks/replan_replay.py replay CALLS.pkl [--set planner.KEY=VALUE ...] [--ipopt KEY=VALUE ...]
+    python benchmarks/replan_replay.py replay CALLS.pkl --variants VARIANTS.json     # several, one process
 
 ``record`` runs the tuned preset's feedback controller and pickles every ``ReferencePlanner.solve`` call
 (p0, target, t0, whether it was warm-started, the information inputs) with the run's planner settings.
@@ -10,6 +11,8 @@
 plan as in the run, and prints per call the process CPU time, IPOPT's iterations and the optimum
 (docs/results/realtime-plans.md).  The planner's share of a closed-loop run is measured on the same inputs,
 so two settings compare without the run's feedback on the plans; the closed loop checks the rest.
+``--variants``: a JSON list of ``{"label": ..., "set": ["planner.KEY=VALUE", ...], "ipopt": ["KEY=VALUE", ...]}``
+replayed one after the other in this process (ratios from one run).
 """
 from __future__ import annotations
 
@@ -107,12 +110,18 @@ def main(argv=None) -> int:
     ap.add_argument("--ipopt", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--label", default="")
     ap.add_argument("--calls", type=int, default=None, help="replay only the first CALLS calls")
+    ap.add_argument("--variants", default=None, help="JSON file: a list of {label, set, ipopt} replayed in turn")
     a = ap.parse_args(argv)
     limit_threads()
     if a.mode == "record":
         record(a.path, a.field, a.domain, a.seed, a.periods)
     else:
-        replay(a.path, a.sets, a.ipopt, a.label, a.calls)
+        if a.variants:
+            with open(a.variants) as fh:
+                for v in json.load(fh):
+                    replay(a.path, v.get("set", []), v.get("ipopt", []), v.get("label", ""), a.calls)
+        else:
+            replay(a.path, a.sets, a.ipopt, a.label, a.calls)
     return 0
 
 
