@@ -125,7 +125,7 @@ class ReferencePlanner:
             reason = re.sub(r"^.*?\.cpp:\d+:\s*", "", str(exc).strip().splitlines()[-1])
             raise ValueError(f"IPOPT rejected the options: {reason}") from None
         self._nlp_opts = opts
-        self._warm_solver = None        # the same NLP with warm_start_init_point (PlannerSettings.warm_start)
+        self._solvers = {}              # the same NLP with other IPOPT options: (option, value) pairs -> solver
         self._last_duals = None         # (plan, lam_x, lam_g) of the last IPOPT solve
         self._coarse = None
         if self._coarse_applies():
@@ -299,10 +299,13 @@ class ReferencePlanner:
         par = P.parameters(p0, q, info)
         F, nlp = self.formulation, self.nlp
         x0 = F.initial_point(coef0, p0)
-        solver, args = self.solver, {}
+        args, changes = {}, {}
         duals = self._dual_start(warm_start, t0)
         if duals is not None:
-            solver, args = self.warm_solver(), {"lam_x0": duals[0], "lam_g0": duals[1]}
+            args, changes = {"lam_x0": duals[0], "lam_g0": duals[1]}, {"warm_start_init_point": "yes"}
+        if warm_start is not None and s.replan_max_iter is not None:
+            changes["max_iter"] = int(s.replan_max_iter)
+        solver = self.solver_with(**changes)
         t_start, c_start = time.perf_counter(), time.process_time()
         with _interrupt_guard() as interrupted:
             sol = solver(x0=x0, p=par, lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg, **args)
@@ -340,13 +343,18 @@ class ReferencePlanner:
             self._last_duals = (plan, np.array(sol["lam_x"]).ravel(), np.array(sol["lam_g"]).ravel())
         return plan
 
-    def warm_solver(self):
-        """The IPOPT solver of this NLP that starts from given multipliers (``warm_start_init_point``; built on
-        first use: a solve without them keeps IPOPT's own multiplier initialisation)."""
-        if self._warm_solver is None:
-            opts = {**self._nlp_opts, "ipopt": {**self.ipopt_options, "warm_start_init_point": "yes"}}
-            self._warm_solver = ca.nlpsol("reference_density_warm", "ipopt", self.nlp.nlp, opts)
-        return self._warm_solver
+    def solver_with(self, **changes):
+        """The IPOPT solver of this NLP with some options changed (built on first use and kept; IPOPT's options are
+        fixed when a solver is built): ``warm_start_init_point`` for a primal-dual warm start, ``max_iter`` of a
+        re-plan (``PlannerSettings.replan_max_iter``).  No changes: :attr:`solver`."""
+        changes = {k: v for k, v in changes.items() if self.ipopt_options.get(k) != v}
+        if not changes:
+            return self.solver
+        key = tuple(sorted(changes.items()))
+        if key not in self._solvers:
+            opts = {**self._nlp_opts, "ipopt": {**self.ipopt_options, **changes}}
+            self._solvers[key] = ca.nlpsol("reference_density_" + str(len(self._solvers)), "ipopt", self.nlp.nlp, opts)
+        return self._solvers[key]
 
     def _dual_start(self, warm_start, t0):
         """(lam_x0, lam_g0) for a primal-dual warm start from ``warm_start`` (:mod:`ocp.warmstart`), or None:

@@ -243,9 +243,16 @@ class PlannerSettings:
     #: solve, shifted the same way (``warm_start_init_point``; single shooting with IPOPT, when the warm-start
     #: plan is that solve's)
     warm_start: str = "primal"
+    #: IPOPT's iteration limit for a solve from a warm-start plan (a re-plan of the closed loop); None (default):
+    #: ``ipopt.max_iter`` as for every solve.  A re-plan has to be ready within its interval (the tuned preset:
+    #: 100 against the first plan's 150; docs/results/realtime-plans.md); with ``accept_feasible_iterate`` a
+    #: re-plan stopped there keeps its last feasible iterate
+    replan_max_iter: int | None = None
 
     def __post_init__(self):
         _check_formulation(self)
+        if self.replan_max_iter is not None:
+            _positive_int(self, "replan_max_iter")
         if self.warm_start not in ("primal", "primal-dual"):
             raise ValueError(f"planner.warm_start must be 'primal' or 'primal-dual', got {self.warm_start!r}")
         if self.cold_start not in ("auto", "zero", "coarse"):

@@ -66,11 +66,12 @@ PRESETS: dict[str, dict] = {
             # time to the threshold on 48 cases (tuning, blind and held-out maps, the rectangle) summed to the
             # same 61.375 T, 8 faster, 6 slower; RMSE at 2T 0.98x (docs/results/planner-obstacles.md,
             # "The tuned preset's plans: an objective-change stop")
-            # max_iter 100 (IPOPT's 500): bounds every plan, the first one included (200-310 iterations before), so
-            # that a re-plan takes at most its interval T/4 of CPU (~11-14 ms an iteration at 40 x 40); a plan
-            # stopped there keeps its feasible iterate (accept_feasible_iterate), and a re-plan replaces it T/4
-            # later (docs/results/realtime-plans.md)
-            "ipopt": {"acceptable_tol": 1e-2, "acceptable_obj_change_tol": 1e-4, "max_iter": 100},
+            # max_iter 150 (IPOPT's 500) and 100 for a re-plan (planner.replan_max_iter): bound every plan, the first
+            # one included (200-310 iterations before), so that a re-plan takes at most its interval T/4 of CPU
+            # (11-14 ms an iteration at 40 x 40); a plan stopped there keeps its feasible iterate
+            # (accept_feasible_iterate), and a re-plan replaces it T/4 later (docs/results/realtime-plans.md)
+            "ipopt": {"acceptable_tol": 1e-2, "acceptable_obj_change_tol": 1e-4, "max_iter": 150},
+            "replan_max_iter": 100,
         },
         "feedback": {
             # the robots' speed limit of the baselines (planner.v_max), not the paper's 4 m/s

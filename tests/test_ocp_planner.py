@@ -337,3 +337,19 @@ def test_objective_change_stop_is_off_by_default_and_passed_to_ipopt_when_set():
     a, b = base.solve(p0, target), loose.solve(p0, target)
     assert b.meta["solver"]["iterations"] <= a.meta["solver"]["iterations"]
     assert b.meta["objective"] == pytest.approx(a.meta["objective"], rel=1e-2)
+
+
+def test_replan_max_iter_limits_warm_started_solves_only():
+    s = PlannerSettings(**SMALL, replan_max_iter=3, accept_feasible_iterate=True)
+    planner = ReferencePlanner(s)
+    g = planner.grid
+    p0, target = bump(g, 2.5, 2.5, 1.2), bump(g, 7.0, 5.0, 1.2)
+    cold = planner.solve(p0, target)
+    assert cold.meta["solver"]["iterations"] > 3
+    tau = s.interval
+    p1 = cold.density_grid(tau)
+    warm = planner.solve(p1, bump(g, 3.0, 6.0, 1.0), t0=tau, warm_start=cold)
+    assert warm.meta["solver"]["iterations"] <= 3
+    assert planner.solve(p1, target).meta["solver"]["iterations"] > 3      # a cold solve keeps ipopt.max_iter
+    with pytest.raises(ValueError, match="replan_max_iter"):
+        PlannerSettings(replan_max_iter=0)
