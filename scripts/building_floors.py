@@ -141,7 +141,8 @@ def run_one(floor: str, controller: str, seed: int, preset: str, periods: int, c
             "rooms": len(info["rooms"]), "rooms_3_by_2T": sum(v >= 3 for v in v2.values()),
             "rooms_3_by_3T": sum(v >= 3 for v in v3.values()), "fewest_2T": min(v2.values()),
             "fewest_3T": min(v3.values()), "travel_limit_T": limit / T, "stop_reason": res.stop_reason,
-            "wall_s": round(res.wall_time, 1), "visits_2T": json.dumps(v2)}
+            "wall_s": round(res.wall_time, 1), "visits_2T": json.dumps(v2),
+            "curve": json.dumps([[round(r["t"] / T, 4), r["max_variance"], r["threshold"], r["rmse"]] for r in res.rows])}
 
 
 def run(args) -> int:
@@ -154,7 +155,7 @@ def run(args) -> int:
             for seed in args.seeds:
                 row = run_one(floor, controller, seed, args.preset, args.periods, args.cell_size, out)
                 rows.append(row)
-                print(json.dumps({k: v for k, v in row.items() if k != "visits_2T"}), flush=True)
+                print(json.dumps({k: v for k, v in row.items() if k not in ("visits_2T", "curve")}), flush=True)
                 with open(args.csv, "w", newline="") as fh:
                     w = csv.DictWriter(fh, fieldnames=list(rows[0]))
                     w.writeheader()
@@ -174,11 +175,13 @@ def plot(args) -> int:
         info = _rooms(out, name)
         ext = info["extent"]
         dom = make_domain(str(out / f"{name}.geojson"), ext)
-        nx = int(round((ext[1] - ext[0]) / args.cell_size))
-        ny = int(round((ext[3] - ext[2]) / args.cell_size))
-        free = dom.free_cells((nx, ny))
+        from swarmfield.ocp.settings import grid_cells
+        nx, ny = grid_cells(ext, cell_size=args.cell_size)
+        free = dom.free_cells((nx, ny), args.fraction)
         fine = dom.free_pixels
         ax.imshow(~fine.T, origin="lower", extent=ext, cmap="Greys", vmin=0, vmax=1.6, interpolation="nearest")
+        ax.imshow(np.ma.masked_where(free.T, np.ones(free.T.shape)), origin="lower", extent=ext, cmap="Blues",
+                  vmin=0, vmax=4, alpha=0.6, interpolation="nearest")
         walls = dom.closed_faces(free)
         dx, dy = (ext[1] - ext[0]) / nx, (ext[3] - ext[2]) / ny
         if walls is not None:
@@ -192,7 +195,8 @@ def plot(args) -> int:
             ax.text(0.5 * (a + b), 0.5 * (c + d), room, ha="center", va="center", fontsize=6, color="0.3")
         a, b, c, d = info["start_box"]
         ax.add_patch(Rectangle((a, c), b - a, d - c, fill=False, ec="tab:blue", lw=1.0, ls="--"))
-        ax.set_title(f"{name}: {nx} x {ny} cells of {args.cell_size:g} m; closed faces in red", fontsize=9)
+        ax.set_title(f"{name}: {nx} x {ny} cells of {(ext[1] - ext[0]) / nx:g} m, free from {args.fraction:g}; "
+                     "blocked cells blue, closed faces red", fontsize=9)
         ax.set_xlim(ext[0], ext[1])
         ax.set_ylim(ext[2], ext[3])
         ax.set_aspect("equal")
@@ -218,7 +222,8 @@ def main(argv=None) -> int:
     r.add_argument("--csv", default="buildings.csv")
     p = sub.add_parser("plot")
     p.add_argument("--maps", default=str(OUT))
-    p.add_argument("--cell-size", type=float, default=0.5)
+    p.add_argument("--cell-size", type=float, default=None, help="default: 40 cells along the longer side")
+    p.add_argument("--fraction", type=float, default=0.25, help="min_free_fraction (the tuned preset's 0.25)")
     p.add_argument("--png", default=str(OUT / "floors.png"))
     args = ap.parse_args(argv)
     if args.cmd == "maps":
