@@ -231,11 +231,14 @@ def _obstacle_summary(result):
     free = result.free
     ms = result.config.domain.min_free_fraction
     classified = region.free_cells(result.grid, ms)
+    walls = region.closed_faces(free)
     return {"name": region.name, "extent": list(region.extent), "raster": list(region.shape),
             "free_area_m2": region.free_area, "free_cells": int(free.sum()), "cells": int(free.size),
             "unreachable_cells": int((classified & ~free).sum()),
             "unreachable_area_m2": float((classified & ~free).sum()) * result.grid.cell_area,
-            "rule": f"a planner cell is free iff its free-area fraction >= {ms:g}"}
+            "closed_faces": 0 if walls is None else int(sum(int(w.sum()) for w in walls)),
+            "rule": f"a planner cell is free iff its free-area fraction >= {ms:g} (or a door needs it); a face between "
+                    "free cells is closed where the map's free space does not cross it"}
 
 
 def write_summary(result, out: Path, files=(), extra: dict | None = None) -> None:
