@@ -295,8 +295,7 @@ class Domain:
         cells = frac >= min_free_fraction * (1 - 1e-12)
         if self.is_rectangle:
             return cells
-        kept, _, _ = self._kept(nx, ny)
-        _, bx, by = self._kept(nx, ny)
+        kept, bx, by = self._kept(nx, ny)
         has = np.add.reduceat(np.add.reduceat(kept.astype(np.int64), bx[:-1], axis=0), by[:-1], axis=1) > 0
         candidates = has & ~cells
         if not candidates.any():

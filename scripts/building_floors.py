@@ -206,6 +206,32 @@ def plot(args) -> int:
     return 0
 
 
+def summary(args) -> int:
+    """A Markdown table per floor and controller: the threshold time of each seed, the time the RMSE first falls
+    below 1.25x the floor's best final RMSE (over every run of the floor), the RMSE at 2 T, and the rooms that 3
+    robots visited by 2 T and 3 T (the fewest over the seeds)."""
+    with open(args.csv) as fh:
+        rows = list(csv.DictReader(fh))
+    print("| floor | controller | threshold (T), per seed | RMSE <= 1.25x best final (T) | RMSE at 2 T | rooms with 3 "
+          "visitors by 2 T / 3 T | travel-time limit (T) |")
+    print("|---|---|---|---|---|---|---|")
+    for floor in dict.fromkeys(r["floor"] for r in rows):
+        mine = [r for r in rows if r["floor"] == floor]
+        best = min(json.loads(r["curve"])[-1][3] for r in mine)
+        for ctrl in dict.fromkeys(r["controller"] for r in mine):
+            rs = [r for r in mine if r["controller"] == ctrl]
+            thr = ", ".join("never" if r["threshold_T"] in ("nan", "") or float(r["threshold_T"]) != float(r["threshold_T"])
+                            else f"{float(r['threshold_T']):.3g}" for r in rs)
+            q = []
+            for r in rs:
+                hit = [c[0] for c in json.loads(r["curve"]) if c[3] <= 1.25 * best]
+                q.append(f"{hit[0]:.3g}" if hit else "never")
+            rm = ", ".join(f"{float(r['rmse_2T']):.3f}" for r in rs)
+            rooms = f"{min(int(r['rooms_3_by_2T']) for r in rs)} / {min(int(r['rooms_3_by_3T']) for r in rs)} of {rs[0]['rooms']}"
+            print(f"| {floor} | {ctrl} | {thr} | {', '.join(q)} | {rm} | {rooms} | {float(rs[0]['travel_limit_T']):.3g} |")
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -225,7 +251,11 @@ def main(argv=None) -> int:
     p.add_argument("--cell-size", type=float, default=None, help="default: 40 cells along the longer side")
     p.add_argument("--fraction", type=float, default=0.25, help="min_free_fraction (the tuned preset's 0.25)")
     p.add_argument("--png", default=str(OUT / "floors.png"))
+    s = sub.add_parser("summary")
+    s.add_argument("--csv", default="buildings.csv")
     args = ap.parse_args(argv)
+    if args.cmd == "summary":
+        return summary(args)
     if args.cmd == "maps":
         for name, path in write_maps(Path(args.out)).items():
             print(f"wrote {path}")
