@@ -133,8 +133,9 @@ def run_one(floor: str, controller: str, seed: int, preset: str, periods: int, c
         return rows[-1]["rmse"] if rows else float("nan")
 
     v2, v3 = visitors(2.0), visitors(3.0)
-    closed = 0 if res.region is None or res.region.closed_faces(res.free) is None else \
-        int(sum(w.sum() for w in res.region.closed_faces(res.free)))
+    faces = getattr(res.region, "closed_faces", None)          # (absent before walls closed faces)
+    walls = None if faces is None else faces(res.free)
+    closed = 0 if walls is None else int(sum(w.sum() for w in walls))
     return {"floor": floor, "controller": controller, "seed": seed, "preset": preset,
             "cells": f"{cfg.planner.nx}x{cfg.planner.ny}", "closed_faces": closed,
             "threshold_T": hit[0] / T if hit else float("nan"), "rmse_2T": rmse_at(2.0), "rmse_4T": rmse_at(4.0),
