@@ -33,7 +33,8 @@ from scipy.optimize import minimize
 from .gp import _N_POW, _N_POW_Y, GaussianProcess, kernel_key
 from .scale import SIGNAL_BOUNDS, running_variance
 
-__all__ = ["coarsening_factor", "coarsened", "refit", "refit_online", "length_scale_bounds", "signal_variance_bounds"]
+__all__ = ["coarsening_factor", "coarsened", "refit", "refit_online", "length_scale_bounds", "signal_variance_bounds",
+           "compare_kernels"]
 
 
 def _offset_maps(c: int, n_pow: int) -> np.ndarray:
@@ -226,3 +227,27 @@ def refit_online(gp: GaussianProcess):
             warnings.warn(f"learned {name} {value:.4g}{unit} sits at its {side} bound {bound:.4g}{unit}: {why}",
                           UserWarning, stacklevel=2)
     return gp.set_hyperparameters(s2, ell, ell_y)
+
+
+def compare_kernels(gp: GaussianProcess, kernels=None, maxiter: int = 30, factor: int = 1) -> dict:
+    """The kernel choice by marginal likelihood: for each of ``kernels`` (default every kernel of
+    :data:`regression.kernels.KERNELS`), the ML fit of (s_f^2, l) to gp's data (on gp's grid coarsened ``factor``
+    times, warm-started from gp's values) and its log marginal likelihood.  Returns ``{kernel: (lml, s_f^2, l)}``;
+    the largest lml is the kernel the data prefer (the same number of hyperparameters each, so no penalty term is
+    needed).  gp itself is not changed; set ``GPSettings.kernel`` to the choice."""
+    from .kernels import KERNELS
+    out = {}
+    for k in (KERNELS if kernels is None else kernels):
+        s = dataclasses.replace(gp.settings, kernel=k, inducing_spacing=gp.settings.resolved_inducing_spacing,
+                                learn_hyperparameters=False)
+        twin = GaussianProcess(s, gp.domain)
+        twin._mom[...] = gp._mom
+        twin._momy[...] = gp._momy
+        twin._n, twin._sum_y, twin._sum_y2 = gp._n, gp._sum_y, gp._sum_y2
+        twin._version += 1
+        twin._pending, twin._pending_n = None, 0
+        s2, ell, *rest = refit(twin, None, maxiter, factor)
+        ell_y = rest[0] if len(rest) == 2 else None
+        lml = twin._lml(s2, kernel_key(s, ell, ell_y), *twin._assemble(twin.prior_mean))
+        out[k] = (float(lml), s2, ell)
+    return out

@@ -78,3 +78,22 @@ def test_anisotropic_length_scales_are_learned():
     for _ in range(2):
         refit_online(gp)
     assert gp.settings.length_scale_y < 0.6 * gp.settings.length_scale
+
+
+def test_the_kernel_is_chosen_by_marginal_likelihood():
+    """Data drawn from a separable Matérn 3/2 GP prefer matern32; a smooth squared-exponential draw does not."""
+    from swarmfield.regression.hyper import compare_kernels
+    from swarmfield.regression.kernels import product_kernel
+    rng = np.random.default_rng(5)
+    X = np.column_stack([rng.uniform(0, 8, 700), rng.uniform(0, 6, 700)])
+    best = {}
+    for kernel in ("matern32", "squared-exponential"):
+        K = product_kernel(X, X, 1.0, (1.5, 1.5), kernel) + 1e-8 * np.eye(len(X))
+        y = np.linalg.cholesky(K) @ rng.standard_normal(len(X)) + 0.05 * rng.standard_normal(len(X))
+        gp = GaussianProcess(GPSettings(signal_variance=1.0, length_scale=1.5, noise_variance=0.0025,
+                                        inducing_spacing=0.3), DOMAIN)
+        gp.add(X, y)
+        lml = compare_kernels(gp, kernels=("matern32", "squared-exponential"), maxiter=10)
+        best[kernel] = max(lml, key=lambda k: lml[k][0])
+    assert best["matern32"] == "matern32"
+    assert best["squared-exponential"] == "squared-exponential"
