@@ -101,8 +101,11 @@ def length_scale_bounds(gp, factor: int = 1) -> tuple[float, float]:
 def signal_variance_bounds(gp) -> tuple[float, float]:
     """(lower, upper) of a learned s_f^2: :data:`regression.scale.SIGNAL_BOUNDS` times the data's variance
     (:func:`regression.scale.running_variance`), so that they follow the field's units."""
-    v = running_variance(gp)
-    return SIGNAL_BOUNDS[0] * v, SIGNAL_BOUNDS[1] * v
+    from .settings import MAX_SIGNAL_TO_NOISE
+    v, sn2 = running_variance(gp), gp.settings.noise_variance
+    lo = max(SIGNAL_BOUNDS[0] * v, sn2 / MAX_SIGNAL_TO_NOISE * 1.01)      # within the GP's numerical limits
+    hi = min(SIGNAL_BOUNDS[1] * v, sn2 * MAX_SIGNAL_TO_NOISE * 0.99)
+    return min(lo, hi / 1.0001), hi          # the numerical limits win over the data's scale
 
 
 def refit(gp, prior, maxiter: int, factor: int = 2, signal_variance_bounds=None, step_sd: float | None = None,
