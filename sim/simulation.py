@@ -18,7 +18,11 @@ planning and feedback.
             always at t = (k+1)T): the posterior f̄_k, V_k on all data and a metrics row
 
 :class:`Simulation` holds the state of one run; :meth:`Simulation.step` is one period of the loop
-above and reads like it.  Its parts are pluggable: the controller (:mod:`sim.controllers`), the
+above and reads like it.  Who computes what from which messages is a strategy object (:mod:`sim.network`):
+the paper's communication centre (default), or, with ``sim.comm_radius``, robots that talk only to
+neighbours (consensus density estimates, measurements relayed through components, the designated robot's
+map and plan); the loop calls it where Algorithm 1 communicates (data to the map, p̂ to the planner, the
+plan and the estimate to the controllers).  Its parts are pluggable: the controller (:mod:`sim.controllers`), the
 unknown field (:mod:`sim.fields`), the stop rule (:mod:`sim.stopping`), the planner (an
 ``ocp.ReferencePlanner``, built only if the controller needs a plan) and the recorders
 (:mod:`sim.recorders`).  :func:`sim.loop.run_simulation` is the thin facade most users call.
