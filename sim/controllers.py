@@ -84,8 +84,8 @@ class Context:
     free: np.ndarray | None = None
     #: the ``domain.Domain`` of the run (None on the empty rectangle)
     region: object = None
-    #: the faces between free cells that walls thinner than a cell close: two bool arrays, x faces then y
-    #: faces (:meth:`domain.Domain.closed_faces`), None when there is none
+    #: the faces between free cells that walls thinner than a cell close, two bool arrays of x faces and
+    #: y faces (from domain.Domain.closed_faces), None when there is none
     walls: tuple | None = None
 
 
