@@ -199,14 +199,17 @@ class SimSettings:
                     within this radius [m] (:mod:`sim.comm`, :mod:`sim.network`); None (default) or inf: the
                     paper's communication centre, Algorithm 1 unchanged
     comm_loss       probability that a link fails for one message round (0 default)
-    comm_rounds     consensus rounds of the density estimate per Euler sub-step (default 4)
+    comm_rounds     consensus rounds of the density estimate per Euler sub-step (default 4; comm_density
+                    "consensus")
     comm_modes      cosine modes per axis of the consensus density estimate (default 24; control.consensus)
     comm_anchor     re-anchor the consensus at every measurement to each component's exact moment average,
                     from the positions that come with the relayed measurements (default false: the consensus
                     alone)
-    comm_density    "consensus" (default): PI consensus rounds on the cosine moments; "relayed": no rounds, each
-                    robot's moments are its component's exact average at the last measurement (from the relayed
-                    measurements' positions) corrected by its own and its neighbours' moves since (sim.network)
+    comm_density    "consensus" (default): PI dynamic average consensus rounds on the cosine moments;
+                    "relayed": each robot's moments are its component's exact average at the last measurement
+                    (from the relayed measurements' positions) corrected by its own and its neighbours' moves
+                    since, no consensus rounds (sim.network; better with the tuned preset's 1 m bandwidth,
+                    worse with the paper's Silverman bandwidth: docs, results "A decentralized swarm")
     """
 
     robots: int = 100

@@ -6,9 +6,12 @@ regresses and plans, and sends p̂ and the plan back.  :class:`Centralized` is t
 
 :class:`Decentralized` (``sim.comm_radius = r``) replaces the centre's density estimate by the robots' own:
 robots hear only neighbours within r (:mod:`sim.comm`), and every robot keeps its own estimate of p̂ and ∇p̂
-by proportional-integral dynamic average consensus on the cosine moments of its position
-(:mod:`control.consensus`), ``sim.comm_rounds`` message rounds per Euler sub-step, and its feedback law
-(and the coverage baseline's) reads that estimate.  When the graph is complete (every working robot hears
+in the cosine moments of the positions (:mod:`control.consensus`): by default (``sim.comm_density =
+"consensus"``) by proportional-integral dynamic average consensus, ``sim.comm_rounds`` message rounds per
+Euler sub-step; or (``"relayed"``) its component's exact moments at the last measurement, from the positions
+that come with the relayed measurements, corrected by the moves of the robots it hears.
+Its feedback law (and the coverage baseline's) reads that estimate, with its own value and gradient from
+its neighbours' kernels where the radius allows (:func:`control.consensus.neighbour_kde`).  When the graph is complete (every working robot hears
 every other: r covers the swarm, no message lost), one round of position broadcasts gives every robot all
 positions, and each computes the centralized estimate itself: the run is then the centralized run, bit for
 bit.  The swarm may fall apart: each connected component then converges to the density of its own robots,
@@ -136,7 +139,12 @@ class Decentralized:
             return
         X = sim.X
         self.pi = PIConsensus(self.basis.features(X), gamma=0.01, gain_p=1.0, gain_i=0.45)
-        self.update(X, rounds=self.rounds * sim.settings.substeps)
+        if self.relayed:                 # D_0 was relayed with its positions: anchored at once
+            count, labels = self.labels
+            self.anchor(sim, labels, count)
+            self.update(X)
+        else:
+            self.update(X, rounds=self.rounds * sim.settings.substeps)
 
     def estimator(self, sim):
         return self
@@ -303,10 +311,11 @@ class Decentralized:
         if self.relayed and self._anchor_phi is not None:
             # the component's average at the last measurement, plus the moves of the robot and its neighbours
             # since, which it hears now (positions, 16 bytes a robot)
-            self.log.broadcast("density", int((graph.degree > 0).sum()), 2 * FLOAT_BYTES)
-            A = graph.adjacency() + sparse.identity(graph.n, format="csr")
+            heard = graph.drop(self.loss, self.rng)
+            self.log.broadcast("density", int((heard.degree > 0).sum()), 2 * FLOAT_BYTES)
+            A = heard.adjacency() + sparse.identity(graph.n, format="csr")
             z = self.pi.z + (A @ (phi - self._anchor_phi)) / self._anchor_size[:, None]
-            est = self.estimates(rows, full, graph.edges, z)
+            est = self.estimates(rows, full, heard.edges, z)
             self._last = (X, est)
             return est
         g, lap = graph, None

@@ -105,7 +105,8 @@ def test_consensus_forgets_a_wrong_start_and_splits_into_component_averages():
 
 def _fake_sim(X, substeps=1):
     from swarmfield.sim.config import RunConfig
-    cfg = RunConfig.from_preset("paper", comm_radius=1.5, comm_modes=4, comm_rounds=1, robots=len(X))
+    cfg = RunConfig.from_preset("paper", comm_radius=1.5, comm_modes=4, comm_rounds=1, robots=len(X),
+                                comm_density="consensus")
     sim = SimpleNamespace(X=X, alive=np.ones(len(X), bool), t=0.0, free=None,
                           settings=SimpleNamespace(substeps=substeps), estimate=None,
                           controller=SimpleNamespace(needs_plan=True))
