@@ -210,6 +210,12 @@ class SimSettings:
                     (from the relayed measurements' positions) corrected by its own and its neighbours' moves
                     since, no consensus rounds (sim.network; better with the tuned preset's 1 m bandwidth,
                     worse with the paper's Silverman bandwidth: docs, results "A decentralized swarm")
+    comm_fragments  components of the graph other than the main one (at least two robots) keep a map of their
+                    own (a GP of the data that reached them) and steer towards its variance; the run stops
+                    only when every such map meets the stop rule too (default true; false: fragments hold
+                    the end of their last plan and keep no map)
+    comm_hops       relay bound: a measurement travels at most this many hops per measurement step (None,
+                    default: through the whole connected component within the step)
     """
 
     robots: int = 100
@@ -249,6 +255,8 @@ class SimSettings:
     comm_modes: int = 24
     comm_anchor: bool = False
     comm_density: str = "consensus"
+    comm_fragments: bool = True
+    comm_hops: int | None = None
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -306,6 +314,10 @@ class SimSettings:
         if not isinstance(self.comm_anchor, bool):
             raise ValueError(f"sim.comm_anchor must be true or false, got {self.comm_anchor!r}")
         set_("comm_modes", _integer("comm_modes", self.comm_modes, 2))
+        if not isinstance(self.comm_fragments, bool):
+            raise ValueError(f"sim.comm_fragments must be true or false, got {self.comm_fragments!r}")
+        if self.comm_hops is not None:
+            set_("comm_hops", _integer("comm_hops", self.comm_hops, 1))
         if self.comm_modes > 256:
             raise ValueError(f"sim.comm_modes must be at most 256, got {self.comm_modes}")
         if self.target not in ("variance", "reachable"):

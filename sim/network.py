@@ -32,6 +32,7 @@ from scipy import sparse
 
 from ..control.consensus import CosineMoments, PIConsensus, RobotDensities, metropolis_laplacian, neighbour_kde
 from .comm import FLOAT_BYTES, MessageLog, disk_graph
+from .fragments import FragmentMaps
 from .knowledge import ITEM_BYTES, KnowledgeGroups
 
 __all__ = ["Centralized", "Decentralized", "make_network", "EXTRA_COLUMNS", "RobotPlans", "HeldPlan"]
@@ -77,6 +78,10 @@ class Centralized:
         """After a measurement with the posterior: the controller reads it (the centre's map, all robots)."""
         sim.controller.observe(sim.context())
 
+    def may_stop(self, sim) -> bool:
+        """Whether the rest of the swarm agrees with the map's stop: the centre's map is the only one."""
+        return True
+
     def row(self, sim) -> dict:
         return {}
 
@@ -115,6 +120,7 @@ class Decentralized:
         self.heard_var: list = []                                # variance maps broadcast so far (greedy)
         self.var_of = np.full(s.robots, -1)                      # the newest of them each robot heard
         self.labels = (1, np.zeros(s.robots, dtype=np.intp))     # components at the last measurement
+        self.fragments = FragmentMaps() if s.comm_fragments else None   # maps of the other components
 
     # ------------------------------------------------------------------ strategy hooks
     def bind(self, sim) -> None:
@@ -177,8 +183,29 @@ class Decentralized:
             sim.gp.add(kg.X[missing], kg.y[missing])
         members = int(kg.main.sum())
         T = sim.settings.period
-        if sim.t > 0 and abs(sim.t / T - round(sim.t / T)) < 1e-9 and members > 1:
+        period_end = sim.t > 0 and abs(sim.t / T - round(sim.t / T)) < 1e-9
+        if period_end and members > 1:
             self.log.broadcast("stop", members, 2 * FLOAT_BYTES)   # sup V and the decision, flooded once
+        if self.fragments is not None and count > 1:
+            import time
+            c0 = time.process_time()
+            self.fragments.update(sim, kg, labels, count)
+            if period_end:
+                self.fragments.plan(sim, self.plan_of, kg, labels, count)
+                k = int(sum((labels == c).sum() for c in range(count)
+                            if int(kg.group[np.flatnonzero(labels == c)[0]]) in self.fragments.maps))
+                if k:
+                    # each fragment's designated robot floods its sup V, stop flag and target grid
+                    self.log.broadcast("stop", k, 2 * FLOAT_BYTES)
+                    self.log.broadcast("plan", k, sim.grid.nx * sim.grid.ny * FLOAT_BYTES)
+            self.fragments.cpu += time.process_time() - c0
+        elif self.fragments is not None:
+            self.fragments.maps = {}
+
+    def may_stop(self, sim) -> bool:
+        """The stop by max-consensus of sup V over the components: the main map's rule is met, and every
+        fragment's map meets it too (:mod:`sim.fragments`)."""
+        return self.fragments is None or self.fragments.all_done
 
     def planning_density(self, sim):
         """The designated robot's own estimate of p̂ on the planner grid (the centre's when it hears everyone)."""
@@ -394,6 +421,8 @@ class Decentralized:
                 "messages": self.log.total_messages, "bytes": self.log.total_bytes,
                 "messages_by_kind": dict(self.log.messages), "bytes_by_kind": dict(self.log.bytes),
                 "components": self.components, "max_components": self.max_components,
+                "fragment_maps": None if self.fragments is None else self.fragments.most,
+                "fragment_cpu_s": None if self.fragments is None else self.fragments.cpu,
                 "mean_density_error": float(np.mean([r["density_error"] for r in rows])) if rows else None}
 
 
@@ -454,7 +483,7 @@ class RobotPlans:
         for key in np.unique(keys):
             idx = np.flatnonzero(keys == key)
             p = plan_of[idx[0]]
-            if p is not current:
+            if p is not current and not getattr(p, "steady", False):
                 p = held.setdefault(key, HeldPlan(p, like=current))
             self.parts.append((p, idx))
         self.n = len(plan_of)

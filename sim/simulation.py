@@ -250,7 +250,7 @@ class Simulation:
             self.estimate_density(fresh=True)
         self.refit_hyperparameters()
         snap = self.snapshot()
-        if self.stop_rule.reached(self.var, self.gp):
+        if self.stop_rule.reached(self.var, self.gp) and self.network.may_stop(self):
             return self.stop("threshold")
         if self.out_of_time():
             return self.stop("max_time")

@@ -311,3 +311,33 @@ def test_relayed_estimate_is_exact_at_the_measurement_and_follows_neighbours():
     h = est.h[0]
     P = net.basis.on_grid(net.basis.smoothed(z[None], np.array([h])), 40, 40)[0]
     np.testing.assert_allclose(est.on_grid(40, 40, [0])[0], P, atol=1e-12)
+
+
+def test_a_fragment_keeps_its_own_map_and_steers_by_it():
+    """Components other than the main one keep a GP of the data that reached them (the union when they
+    merge) and their robots track that map's variance: the motion differs from holding the last plan."""
+    from swarmfield.sim import config_from_dict, run_simulation
+    from swarmfield.sim.fragments import FragmentMaps
+    from swarmfield.sim.knowledge import KnowledgeGroups
+    sim = SimpleNamespace(gp=SimpleNamespace(settings=SimpleNamespace(signal_variance=1.0, length_scale=1.5)),
+                          config=config_from_dict(SMALL), settings=config_from_dict(SMALL).sim)
+    kg, maps = KnowledgeGroups(6), FragmentMaps()
+    rows = np.arange(6)
+    X = np.column_stack([np.arange(6.0), np.ones(6)])
+    labels = np.array([0, 0, 0, 1, 1, 2])                 # main {0, 1, 2}; fragment {3, 4}; robot 5 alone
+    kg.share(rows, X, np.arange(6.0), labels, 3)
+    maps.update(sim, kg, labels, 3)
+    (frag,) = maps.maps.values()
+    assert frag.gp.n_observations == 2 and frag.has.tolist() == [False] * 3 + [True, True, False]
+    labels = np.array([0, 0, 0, 1, 1, 1])                 # robot 5 joins the fragment: the union of their data
+    kg.share(rows, X, np.arange(6.0), labels, 2)
+    maps.update(sim, kg, labels, 2)
+    (merged,) = maps.maps.values()
+    assert merged is frag and merged.gp.n_observations == 2 + 1 + 3
+    cfg = config_from_dict(SMALL, {"comm_radius": 1.0})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        held = run_simulation(cfg.replace(comm_fragments=False))
+        own = run_simulation(cfg)
+    assert held.communication["fragment_maps"] is None and own.communication["fragment_maps"] >= 1
+    assert not np.array_equal(held.positions[-1], own.positions[-1])
