@@ -97,6 +97,57 @@ class KnowledgeGroups:
         for g in list(self.masks):
             if g not in live:
                 del self.masks[g]
+        missing, rebuild = self._main(labels, count)
+        return messages, transfers, missing, rebuild
+
+    def share_bounded(self, rows: np.ndarray, Xa: np.ndarray, y: np.ndarray, labels: np.ndarray, count: int,
+                      edges: np.ndarray, hops: int):
+        """:meth:`share` with the relay bound ``hops``: every robot forwards, in each of ``hops`` rounds, what
+        it holds and a neighbour (``edges`` (m, 2) of this step's graph) lacks; an item thus travels at most
+        ``hops`` hops per measurement step.  Robots of a component may then hold different data: every robot
+        is its own knowledge group.  A message is one robot's bundle in one round (sent if some neighbour
+        lacks something it holds); a transfer one item newly received by one robot."""
+        first = self.items
+        self.X = np.concatenate([self.X, np.asarray(Xa, float)])
+        self.y = np.concatenate([self.y, np.asarray(y, float)])
+        n, m = self.n, self.items
+        H = np.zeros((n, m), bool)
+        if not (len(self.masks) == n and all(k == i for i, k in enumerate(self.masks))):
+            for i in range(n):                                # from groups: every robot its group's data
+                H[i, :first] = self.masks[int(self.group[i])]
+        else:
+            for i in range(n):
+                H[i, :first] = self.masks[i]
+        H[np.asarray(rows, dtype=np.intp), first + np.arange(len(y))] = True
+        self.map_has = np.concatenate([self.map_has, np.zeros(len(y), bool)])
+        messages, transfers = 0, 0
+        edges = np.asarray(edges, dtype=np.intp).reshape(-1, 2)
+        for _ in range(hops):
+            if not len(edges):
+                break
+            a, b = edges[:, 0], edges[:, 1]
+            ab, ba = H[a] & ~H[b], H[b] & ~H[a]           # what a has and b lacks, and back
+            send = np.zeros(n, bool)
+            send[a[ab.any(axis=1)]] = True
+            send[b[ba.any(axis=1)]] = True
+            if not send.any():
+                break
+            got = np.zeros_like(H)
+            np.logical_or.at(got, b, ab)
+            np.logical_or.at(got, a, ba)
+            got &= ~H
+            transfers += int(got.sum())
+            messages += int(send.sum())
+            H |= got
+        self.group = np.arange(n, dtype=np.intp)
+        self.masks = {i: H[i] for i in range(n)}
+        self.next_id = n
+        missing, rebuild = self._main(labels, count)
+        return messages, transfers, missing, rebuild
+
+    def _main(self, labels: np.ndarray, count: int):
+        """Pick the main component; ``(missing, rebuild)`` of the map (:meth:`share`)."""
+        working = labels >= 0
         # the main component: most of the previous main's working members, else the largest
         prev = self.main & working
         if prev.any():
@@ -112,7 +163,7 @@ class KnowledgeGroups:
             self.map_has[:] = False
         missing = np.flatnonzero(mask & ~self.map_has)
         self.map_has |= mask
-        return messages, transfers, missing, rebuild
+        return missing, rebuild
 
     @property
     def leader(self) -> int:

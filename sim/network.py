@@ -120,6 +120,7 @@ class Decentralized:
         self.heard_var: list = []                                # variance maps broadcast so far (greedy)
         self.var_of = np.full(s.robots, -1)                      # the newest of them each robot heard
         self.labels = (1, np.zeros(s.robots, dtype=np.intp))     # components at the last measurement
+        self.hops = s.comm_hops                                  # relay bound per measurement step
         self.fragments = FragmentMaps() if s.comm_fragments else None   # maps of the other components
 
     # ------------------------------------------------------------------ strategy hooks
@@ -165,7 +166,11 @@ class Decentralized:
         count, labels = graph.components()
         self.note_components(count, sim.t)
         self.labels = (count, labels)
-        messages, transfers, missing, rebuild = self.knowledge.share(rows, Xa, y, labels, count)
+        if self.hops is None:
+            messages, transfers, missing, rebuild = self.knowledge.share(rows, Xa, y, labels, count)
+        else:
+            messages, transfers, missing, rebuild = self.knowledge.share_bounded(rows, Xa, y, labels, count,
+                                                                                 graph.edges, self.hops)
         self.log.record("measurements", messages, transfers * ITEM_BYTES)
         if self.pi is not None and self.anchored:
             self.anchor(sim, labels, count)
@@ -417,6 +422,7 @@ class Decentralized:
         robots = max(int(sim.alive.sum()), 1)
         rows = [r for r in sim.result.rows if math.isfinite(r.get("density_error", math.nan))]
         return {"comm_radius_m": self.radius, "message_loss": self.loss, "rounds_per_substep": self.rounds,
+                "relay_hops": self.hops,
                 "modes": self.basis.modes, "bytes_per_robot_per_step": self.log.total_bytes / (robots * steps),
                 "messages": self.log.total_messages, "bytes": self.log.total_bytes,
                 "messages_by_kind": dict(self.log.messages), "bytes_by_kind": dict(self.log.bytes),

@@ -341,3 +341,34 @@ def test_a_fragment_keeps_its_own_map_and_steers_by_it():
         own = run_simulation(cfg)
     assert held.communication["fragment_maps"] is None and own.communication["fragment_maps"] >= 1
     assert not np.array_equal(held.positions[-1], own.positions[-1])
+
+
+def test_relay_bound_on_a_chain():
+    """With sim.comm_hops = 1 a measurement travels one hop per measurement step along the chain 0-1-2-3;
+    every transfer and bundle is counted; unbounded, the chain holds everything at once."""
+    from swarmfield.sim.knowledge import KnowledgeGroups
+    edges = np.array([[0, 1], [1, 2], [2, 3]])
+    rows, X, labels = np.arange(4), np.zeros((4, 2)), np.zeros(4, dtype=np.intp)
+    kg = KnowledgeGroups(4)
+    msgs, transfers, missing, _ = kg.share_bounded(rows, X, np.arange(4.0), labels, 1, edges, 1)
+    held = [np.flatnonzero(kg.masks[i]).tolist() for i in range(4)]
+    assert held == [[0, 1], [0, 1, 2], [1, 2, 3], [2, 3]]
+    assert (msgs, transfers) == (4, 6) and missing.tolist() == [0, 1]     # the map: robot 0's data
+    msgs, transfers, missing, _ = kg.share_bounded(rows, X, np.arange(4.0), labels, 1, edges, 1)
+    held = [np.flatnonzero(kg.masks[i]).tolist() for i in range(4)]
+    assert held[0] == [0, 1, 2, 4, 5] and held[3] == [1, 2, 3, 6, 7]
+    assert transfers == 6 + 4 and msgs == 4 and missing.tolist() == [2, 4, 5]
+    kg = KnowledgeGroups(4)
+    kg.share_bounded(rows, X, np.arange(4.0), labels, 1, edges, 3)
+    assert all(kg.masks[i].all() for i in range(4))
+
+
+def test_relay_bound_in_a_run_is_counted():
+    from swarmfield.sim import config_from_dict, run_simulation
+    cfg = config_from_dict(SMALL, {"comm_radius": 2.0, "max_periods": 1})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        free = run_simulation(cfg)
+        one = run_simulation(cfg.replace(comm_hops=1))
+    assert one.communication["relay_hops"] == 1 and free.communication["relay_hops"] is None
+    assert one.communication["bytes_by_kind"]["measurements"] != free.communication["bytes_by_kind"]["measurements"]
