@@ -25,6 +25,7 @@ summary.json gets a ``communication`` block.
 from __future__ import annotations
 
 import math
+import time
 import warnings
 
 import numpy as np
@@ -192,7 +193,6 @@ class Decentralized:
         if period_end and members > 1:
             self.log.broadcast("stop", members, 2 * FLOAT_BYTES)   # sup V and the decision, flooded once
         if self.fragments is not None and count > 1:
-            import time
             c0 = time.process_time()
             self.fragments.update(sim, kg, labels, count)
             if period_end:
