@@ -1,6 +1,6 @@
 """Measurements shared over the communication graph, and the map that the designated robot keeps.
 
-Protocol (relay bound: the connected component, i.e. at most its diameter in hops, within one measurement
+Protocol (relay bound by default: the connected component, i.e. at most its diameter in hops, within one measurement
 step).  Every measurement (x, y, value: three float64, 24 bytes) is flooded through the connected
 component of the robot that took it: each robot forwards, once, every item it has and a neighbour lacks
 (epidemic routing with summary vectors).  Robots that were in different components exchange, on meeting,
@@ -18,7 +18,12 @@ of the *main component*, the component holding most of the previous main compone
 the one with most robots).  Its GP (:class:`regression.GaussianProcess`, one object for the whole run) gets
 every item its group holds and it lacks, in the order they were measured: while the swarm is one component
 these are exactly the step's measurements, so its map is the centre's map of Algorithm 1 bit for bit.  Other
-components keep their data and bring it along when they rejoin; they hold no map of their own.
+components keep their data and bring it along when they rejoin; those of two or more robots also keep a map
+of their own (:mod:`sim.fragments`).
+
+With a relay bound (``sim.comm_hops`` = k, :meth:`KnowledgeGroups.share_bounded`) an item travels at most k
+hops per measurement step; robots of a component may then hold different data, and every robot is its own
+group.
 """
 from __future__ import annotations
 
