@@ -36,6 +36,7 @@ def test_changelog_keeps_a_changelog_form():
     for heading in releases[1:]:
         assert re.fullmatch(r"## \[\d+\.\d+\.\d+\] - \d{4}-\d{2}-\d{2}", heading), heading
     versions = [re.search(r"\[(.*?)\]", h).group(1) for h in releases[1:]]
+    assert versions[0] == SOURCE_VERSION, f"the package's version {SOURCE_VERSION} has no dated changelog section"
     keys = [tuple(map(int, v.split("."))) for v in versions]
     assert keys == sorted(keys, reverse=True) and len(set(keys)) == len(keys), versions
     for ln in lines:
