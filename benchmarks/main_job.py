@@ -67,7 +67,7 @@ k0 = child()
 C["drawer_import"] = k0
 t = time.perf_counter(); c = time.process_time()
 if drawer is None and LEAN:
-    from swarmfield.runtime.plotting import lean_import   # as simulate-swarm does (issue 21)
+    from swarmfield.runtime.plotting import lean_import   # as simulate-swarm does
     lean_import()
 fig.write_figures(res, __import__("pathlib").Path(out), drawer=drawer)
 k1 = child()
@@ -113,7 +113,7 @@ def main():
     ap.add_argument("--threads", type=int, default=None)
     ap.add_argument("--repeats", type=int, default=1)
     ap.add_argument("--full-import", action="store_true",
-                    help="import matplotlib with its docstring tables (as before issue 21; the command now uses "
+                    help="import matplotlib with its docstring tables (as before the lean import; the command now uses "
                          "runtime.plotting.lean_import)")
     ap.add_argument("--no-drawer", action="store_true",
                     help="draw in the job's own process (as before the drawing process: simulate-swarm starts "

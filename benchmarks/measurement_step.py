@@ -145,8 +145,8 @@ def main():
     ap.add_argument("--configs", nargs="+", default=["default"], choices=list(CONFIGS))
     ap.add_argument("--domains", nargs="+", default=["rectangle"], help="rectangle | harbour | floor | lake | FILE")
     ap.add_argument("--kernels", nargs="+", default=["auto"], choices=["auto", "numpy", "compiled"],
-                    help="SWARMFIELD_ROBOT_KERNEL of the case: numpy = the NumPy per-robot passes (before issue 21 "
-                         "item 4), auto = the compiled ones from control.robot_kernel.MIN_ROBOTS robots on")
+                    help="SWARMFIELD_ROBOT_KERNEL of the case: numpy = the NumPy per-robot passes (before the compiled "
+                         "per-robot passes), auto = the compiled ones from control.robot_kernel.MIN_ROBOTS robots on")
     ap.add_argument("--seeds", type=int, nargs="+", default=[None],
                     help="sim.seed values (default: the scenario's); with several, a last table gives each "
                          "configuration's mean final RMSE over them (a single run's moves with any round-off)")

@@ -23,7 +23,7 @@ DEFAULT_PRESET = "paper"
 PRESETS: dict[str, dict] = {
     # the paper's configuration: the defaults of every settings class
     "paper": {},
-    # beyond the paper (issue 10): the combination measured in README "Beyond the paper"
+    # beyond the paper: the combination measured on docs/results/tuned-preset.md
     "tuned": {
         "planner": {
             # only the normal velocity vanishes on the walls: the reference reaches walls and corners
@@ -34,7 +34,7 @@ PRESETS: dict[str, dict] = {
             "speed_limit": "norm",
             # a re-plan stopped at max_iter keeps its (feasible, improved) last iterate
             "accept_feasible_iterate": True,
-            # issue 20: minimise the expected GP variance after the planned measurements (mean-field GP
+            # the information objective: minimise the expected GP variance after the planned measurements (mean-field GP
             # update, ocp.objectives; docs/design/information-objective.md) instead of the KL to p_f ∝ V:
             # the swarm sweeps the uncertainty away instead of spreading in proportion to it
             "objective": "information",
@@ -117,13 +117,13 @@ PRESETS: dict[str, dict] = {
                "kernel": "matern52", "hyper_prior_sd": 0.5, "hyper_step_sd": 1.0},
         # a learned s_f^2 changes the scale of V: stop at sup V <= 0.4 s_f^2 and target
         # max(V - 0.2 s_f^2, 0), the paper's 0.1 and 0.05 relative to its s_f^2 = 0.25
-        # eta_relative 0.05 (issue 20): keep planning until sup V < 0.05 s_f^2, the map keeps improving
+        # eta_relative 0.05: keep planning until sup V < 0.05 s_f^2, the map keeps improving
         # after the threshold instead of the loop stopping with "variance_below_eta" at 0.2 s_f^2.
         # stop_rule "robust" (sim.stopping): the relative threshold must also hold at the prior length
         # scale, so that a length scale learned in a smooth corner cannot call the field mapped
         # (docs/results/stop-rule.md: 6 of 60 runs stopped before the travel-time limit under
         # "relative", 0 of 60 under "robust"); every controller of a comparison is judged by it
-        # replan_every 2 (issue 20): re-plan every 2 measurement steps (T/4) on a receding horizon T from the
+        # replan_every 2 (receding horizon): re-plan every 2 measurement steps (T/4) on a receding horizon T from the
         # current p̂ and GP variance, so that a hole the swarm's paths left is planned for at once instead of
         # at the next period start (docs/design/receding-horizon.md, docs/results/tuned-preset.md)
         # map_rmse_relative 0.3: the robust rule also asks for the GP's expected RMSE sqrt(mean V) <= 0.3 s_f, so that
