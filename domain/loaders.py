@@ -6,6 +6,7 @@ import json
 import math
 import zipfile
 import zlib
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,25 @@ _ARCHIVE_ERRORS = (OSError, EOFError, ValueError, zipfile.BadZipFile, zlib.error
 
 #: Image values at or above this fraction of the full scale are free (light), below blocked (dark).
 LIGHT = 0.5
+
+
+@contextmanager
+def _reading(path: Path, kind: str):
+    """What a third-party reader raises inside the block, as one ``ValueError`` line naming ``path``: an
+    unreadable file, or "is not ``kind``" with the reader's message; our own "domain file ..." lines and
+    :class:`MissingExtra` pass unchanged."""
+    try:
+        yield
+    except MissingExtra:
+        raise
+    except PermissionError as exc:
+        raise ValueError(f"cannot read domain file {path}: {exc.strerror or exc}") from None
+    except ValueError as exc:
+        if str(exc).startswith("domain file"):
+            raise
+        raise ValueError(f"domain file {path} is not {kind}: {exc}") from None
+    except Exception as exc:  # noqa: BLE001 -- the readers (PIL, tifffile, rasterio) raise many kinds
+        raise ValueError(f"domain file {path} is not {kind}: {exc}") from None
 
 
 def _sidecar_extent(path: Path):
@@ -147,22 +167,13 @@ def _load_png(path: Path, sim_extent):
 
 def _decode_png(PIL, path: Path) -> np.ndarray:
     """The image's pixels; its size is checked against the pixel limit before it is decoded."""
-    try:
-        with PIL.open(path) as im:
-            check_pixels(path, *im.size)
-            if im.mode in ("P", "PA"):
-                im = im.convert("RGBA")
-            elif im.mode not in ("1", "L", "LA", "RGB", "RGBA", "I;16", "I", "F"):
-                im = im.convert("RGBA")
-            return np.asarray(im)
-    except PermissionError as exc:
-        raise ValueError(f"cannot read domain file {path}: {exc.strerror or exc}") from None
-    except ValueError as exc:
-        if str(exc).startswith("domain file"):
-            raise
-        raise ValueError(f"domain file {path} is not an image: {exc}") from None
-    except Exception as exc:  # noqa: BLE001 -- PIL raises many kinds
-        raise ValueError(f"domain file {path} is not an image: {exc}") from None
+    with _reading(path, "an image"), PIL.open(path) as im:
+        check_pixels(path, *im.size)
+        if im.mode in ("P", "PA"):
+            im = im.convert("RGBA")
+        elif im.mode not in ("1", "L", "LA", "RGB", "RGBA", "I;16", "I", "F"):
+            im = im.convert("RGBA")
+        return np.asarray(im)
 
 
 def _load_tif(path: Path, sim_extent):
@@ -177,21 +188,14 @@ def _load_tif(path: Path, sim_extent):
             have_rasterio = False
     if have_rasterio:
         import rasterio
-        try:
-            with rasterio.open(path) as ds:
-                check_pixels(path, ds.width, ds.height)
-                if ds.crs is not None and ds.crs.is_geographic:
-                    raise ValueError(_geographic(path, str(ds.crs)))
-                a = ds.read()
-                nodata = ds.nodata
-                b = ds.bounds
-                ext = None if ds.transform.is_identity else (b.left, b.right, b.bottom, b.top)
-        except ValueError as exc:
-            if str(exc).startswith("domain file"):
-                raise
-            raise ValueError(f"domain file {path} is not a GeoTIFF: {exc}") from None
-        except Exception as exc:  # noqa: BLE001
-            raise ValueError(f"domain file {path} is not a GeoTIFF: {exc}") from None
+        with _reading(path, "a GeoTIFF"), rasterio.open(path) as ds:
+            check_pixels(path, ds.width, ds.height)
+            if ds.crs is not None and ds.crs.is_geographic:
+                raise ValueError(_geographic(path, str(ds.crs)))
+            a = ds.read()
+            nodata = ds.nodata
+            b = ds.bounds
+            ext = None if ds.transform.is_identity else (b.left, b.right, b.bottom, b.top)
     else:
         tifffile = _need("tifffile", "tifffile", "a GeoTIFF (.tif) domain")
         import logging
@@ -200,7 +204,7 @@ def _load_tif(path: Path, sim_extent):
         log.disabled = True
         rotated = None
         try:
-            with tifffile.TiffFile(path) as tf:
+            with _reading(path, "a GeoTIFF"), tifffile.TiffFile(path) as tf:
                 if not len(tf.pages):
                     raise ValueError("no readable image in it")
                 page = tf.pages[0]
@@ -236,16 +240,6 @@ def _load_tif(path: Path, sim_extent):
                     else:
                         x0, y1 = m[3], m[7]
                         ext = (x0, x0 + W * m[0], y1 + H * m[5], y1)
-        except MissingExtra:
-            raise
-        except PermissionError as exc:
-            raise ValueError(f"cannot read domain file {path}: {exc.strerror or exc}") from None
-        except ValueError as exc:
-            if str(exc).startswith("domain file"):
-                raise
-            raise ValueError(f"domain file {path} is not a GeoTIFF: {exc}") from None
-        except Exception as exc:  # noqa: BLE001 -- tifffile raises many kinds
-            raise ValueError(f"domain file {path} is not a GeoTIFF: {exc}") from None
         finally:
             log.disabled = was
         if rotated is not None:
