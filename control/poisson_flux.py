@@ -146,18 +146,21 @@ class PoissonFlux:
         fy[:, 1:-1] = np.where(self.open_y, rate * (psi[:, 1:] - psi[:, :-1]) / g.dy, 0.0)
         return fx, fy
 
-    def at(self, X: np.ndarray, faces) -> np.ndarray:
-        """The flux at points X (n, 2): x flux linear in x between the holding cell's x faces, y flux linear in
-        y between its y faces (0 in blocked cells)."""
-        fx, fy = faces
+    def _cells(self, X: np.ndarray):
+        """(ci, cj, sx, sy): the cell holding each point of X (n, 2) and the point's place in it, in [0, 1]."""
         g = self.grid
-        X = np.asarray(X, dtype=float)
         ux = (X[:, 0] - g.domain[0]) / g.dx
         uy = (X[:, 1] - g.domain[2]) / g.dy
         ci = np.clip(np.floor(ux).astype(int), 0, g.nx - 1)
         cj = np.clip(np.floor(uy).astype(int), 0, g.ny - 1)
-        sx = np.clip(ux - ci, 0.0, 1.0)
-        sy = np.clip(uy - cj, 0.0, 1.0)
+        return ci, cj, np.clip(ux - ci, 0.0, 1.0), np.clip(uy - cj, 0.0, 1.0)
+
+    def at(self, X: np.ndarray, faces) -> np.ndarray:
+        """The flux at points X (n, 2): x flux linear in x between the holding cell's x faces, y flux linear in
+        y between its y faces (0 in blocked cells)."""
+        fx, fy = faces
+        X = np.asarray(X, dtype=float)
+        ci, cj, sx, sy = self._cells(X)
         out = np.empty((X.shape[0], 2))
         out[:, 0] = (1.0 - sx) * fx[ci, cj] + sx * fx[ci + 1, cj]
         out[:, 1] = (1.0 - sy) * fy[ci, cj] + sy * fy[ci, cj + 1]
@@ -179,12 +182,7 @@ class PoissonFlux:
         psi = np.zeros_like(E)
         psi[:, self.free] = self._lu.solve(np.ascontiguousarray(E[:, self.free].T)).T
         g = self.grid
-        ux = (X[:, 0] - g.domain[0]) / g.dx
-        uy = (X[:, 1] - g.domain[2]) / g.dy
-        ci = np.clip(np.floor(ux).astype(int), 0, g.nx - 1)
-        cj = np.clip(np.floor(uy).astype(int), 0, g.ny - 1)
-        sx = np.clip(ux - ci, 0.0, 1.0)
-        sy = np.clip(uy - cj, 0.0, 1.0)
+        ci, cj, sx, sy = self._cells(X)
         k = np.arange(m)
 
         def face(open_, ia, ja, ib, jb, inside, h):

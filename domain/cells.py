@@ -25,19 +25,24 @@ def cell_fractions(free_pixels: np.ndarray, extent, nx: int, ny: int) -> np.ndar
     return area / (((x1 - x0) / nx) * ((y1 - y0) / ny))
 
 
-def _connected_to_box(mask: np.ndarray, extent, box) -> np.ndarray:
-    """The True entries of ``mask`` (a raster of ``extent``) connected through faces (4-connectivity) to a True
-    entry whose area overlaps ``box`` = (x0, x1, y0, y1)."""
-    from scipy import ndimage
+def _touching_box(lab: np.ndarray, extent, box) -> np.ndarray:
+    """The entries of the labelled raster ``lab`` (of ``extent``; 0 = not in any part) whose part has an entry
+    whose area overlaps ``box`` = (x0, x1, y0, y1)."""
     x0, x1, y0, y1 = extent
-    nx, ny = mask.shape
+    nx, ny = lab.shape
     bx0, bx1, by0, by1 = box
     xs, ys = np.linspace(x0, x1, nx + 1), np.linspace(y0, y1, ny + 1)
     inx = (xs[1:] > bx0) & (xs[:-1] < bx1)
     iny = (ys[1:] > by0) & (ys[:-1] < by1)
-    lab, _ = ndimage.label(mask)
     ids = np.unique(lab[np.ix_(inx, iny)])
     return np.isin(lab, ids[ids > 0])
+
+
+def _connected_to_box(mask: np.ndarray, extent, box) -> np.ndarray:
+    """The True entries of ``mask`` (a raster of ``extent``) connected through faces (4-connectivity) to a True
+    entry whose area overlaps ``box`` = (x0, x1, y0, y1)."""
+    from scipy import ndimage
+    return _touching_box(ndimage.label(mask)[0], extent, box)
 
 
 def _grid_shape(g, extent):
@@ -109,15 +114,7 @@ def connected_to_box(mask: np.ndarray, extent, box, closed_x=None, closed_y=None
     """:func:`_connected_to_box` through the faces that no wall closes."""
     if closed_x is None:
         return _connected_to_box(mask, extent, box)
-    x0, x1, y0, y1 = extent
-    nx, ny = mask.shape
-    bx0, bx1, by0, by1 = box
-    xs, ys = np.linspace(x0, x1, nx + 1), np.linspace(y0, y1, ny + 1)
-    inx = (xs[1:] > bx0) & (xs[:-1] < bx1)
-    iny = (ys[1:] > by0) & (ys[:-1] < by1)
-    lab, _ = face_components(mask, closed_x, closed_y)
-    ids = np.unique(lab[np.ix_(inx, iny)])
-    return np.isin(lab, ids[ids > 0])
+    return _touching_box(face_components(mask, closed_x, closed_y)[0], extent, box)
 
 
 def keep_doors(cells: np.ndarray, candidates: np.ndarray, frac: np.ndarray, closed_x, closed_y) -> np.ndarray:
