@@ -352,10 +352,14 @@ def _load_geojson(path: Path, sim_extent):
     for g in geoms:
         if not np.isfinite(shapely.get_coordinates(g)).all():
             raise ValueError(f"domain file {path}: a polygon has a coordinate that is not a finite number")
-    bad = [g for g in geoms if not g.is_valid]
+    # The free region is the union of the polygons, the parts of a MultiPolygon included: GeoJSON forbids
+    # overlapping parts, but rooms drawn with doors across their walls overlap, and make_valid of the
+    # whole MultiPolygon would cut the overlaps out (even-odd) and close those doors.
+    parts = [p for g in geoms for p in shapely.get_parts(g)]
+    bad = [p for p in parts if not p.is_valid]
     notes = (f"domain file {path}: {len(bad)} polygon(s) not valid ({shapely.is_valid_reason(bad[0])}); repaired "
              "with shapely.make_valid: check the free region in the figures",) if bad else ()
-    geom = shapely.union_all([shapely.make_valid(g) for g in geoms])
+    geom = shapely.union_all([shapely.make_valid(p) if not p.is_valid else p for p in parts])
     ext = sim_extent
     if isinstance(doc, dict) and doc.get("bbox") is not None and ext is None:
         b = doc["bbox"]

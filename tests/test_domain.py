@@ -459,6 +459,24 @@ def test_geojson_positions_with_z_load(tmp_path):
     assert not d.contains([[11.0, 11.0]])[0] and d.contains([[5.0, 5.0]])[0]
 
 
+def test_overlapping_parts_of_a_multipolygon_are_joined_not_cut_out(tmp_path):
+    """Two rooms behind a 0.1 m wall and a door drawn across it as a third part: the free region is the
+    union (GeoJSON forbids overlapping parts, but make_valid of the whole would cut the overlaps out and
+    close the door)."""
+    pytest.importorskip("shapely")
+
+    def rect(x0, x1, y0, y1):
+        return [[[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]]]
+    rooms = {"type": "MultiPolygon", "coordinates": [rect(0, 9.95, 0, 20), rect(10.05, 20, 0, 20),
+                                                     rect(9.9, 10.1, 8, 9.5)]}
+    (tmp_path / "rooms.geojson").write_text(json.dumps(rooms))
+    d = load_domain(tmp_path / "rooms.geojson", EXT)
+    assert d.notes == ()
+    assert d.free_area == pytest.approx(398.0 + 0.15, abs=0.05)
+    assert d.contains([[9.92, 9.0], [10.0, 9.0], [10.08, 9.0]]).all()      # the door, overlaps included
+    assert not d.contains([[10.0, 12.0]])[0]                                 # the wall beside it
+
+
 def test_domain_table_round_trips_through_toml(tmp_path):
     from swarmfield.sim.config import load_config, to_toml
     cfg = _cfg("greedy", source="harbour")
