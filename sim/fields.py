@@ -373,7 +373,8 @@ class GridField(Field):
         tol = 1e-9 * max(x1 - x0, y1 - y0)
         if e[0] > x0 + tol or e[1] < x1 - tol or e[2] > y0 + tol or e[3] < y1 - tol:
             raise ValueError(f"{self.source or 'grid field'}: extent {list(e)} does not cover the simulation "
-                             f"domain {[x0, x1, y0, y1]}")
+                             f"domain {[x0, x1, y0, y1]}; to simulate on the field's extent set [sim] domain = "
+                             f"{[float(v) for v in e]} in a --config file")
 
     def describe(self):
         return {"name": self.name, "source": self.source, "sha256": self.sha256, "shape": list(self.values.shape),

@@ -238,7 +238,7 @@ def _bad_field_files(tmp):
         "1-D": ("flat.npz", "2-D"),
         "1 x n": ("thin.npz", "at least 2 x 2"),
         "bad extent": ("extent.npz", "x1 > x0"),
-        "does not cover": ("small.npz", "does not cover"),
+        "does not cover": ("small.npz", r"does not cover.*set \[sim\] domain = "),
         "non-numeric": ("text.npz", "numeric"),
         "bad sidecar": ("lonely.npy", "sidecar"),
         "csv words": ("words.csv", "not numeric"),
