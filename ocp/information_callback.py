@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .callback import reverse_mode_function
 from .objectives import _cumulative_trapezoid
 
 __all__ = ["InformationTerms", "information_callback"]
@@ -109,77 +110,18 @@ class InformationTerms:
 def information_callback(terms: InformationTerms, name: str = "information"):
     """``casadi.Function`` Φ = F(M, info): M (nx, ny n_snap) the snapshots side by side (as the graph's ``M``),
     info the parameter block -> Φ (1, n_snap); reverse mode by :meth:`InformationTerms.reverse`."""
-    import casadi as ca
-
     nx, ny, ns, ni = terms.nx, terms.ny, terms.n_snap, terms.n_info
 
     def dens(view):
-        # column-major (nx, ny n_snap): column l ny + j is P_l[:, j] -> C array (n_snap, ny, nx)
-        return np.frombuffer(view, dtype=np.float64).reshape(ns, ny, nx).transpose(0, 2, 1)
+        # the (ny n_snap, nx) view of M: row l ny + j is P_l[:, j] -> (n_snap, nx, ny)
+        return view.reshape(ns, ny, nx).transpose(0, 2, 1)
 
-    def vec(view, n):
-        return np.frombuffer(view, dtype=np.float64)[:n]
+    def forward(xs, phi):
+        phi[:, 0] = terms.forward(dens(xs[0]), xs[1][0])
 
-    class Reverse(ca.Callback):
-        def __init__(self, nadj, rname, opts):
-            ca.Callback.__init__(self)
-            self.nadj = nadj
-            self.construct(rname, opts)
+    def reverse(xs, seed, grads):
+        dP, dinfo = terms.reverse(dens(xs[0]), xs[1][0], seed[:, 0])
+        grads[0].reshape(ns, ny, nx)[:] = dP.transpose(0, 2, 1)
+        grads[1][0] = dinfo
 
-        def get_n_in(self): return 4
-        def get_n_out(self): return 2
-
-        def get_sparsity_in(self, i):
-            return [ca.Sparsity.dense(nx, ny * ns), ca.Sparsity.dense(ni, 1), ca.Sparsity.dense(1, ns),
-                    ca.Sparsity.dense(1, ns * self.nadj)][i]
-
-        def get_sparsity_out(self, i):
-            return [ca.Sparsity.dense(nx, ny * ns * self.nadj), ca.Sparsity.dense(ni, self.nadj)][i]
-
-        def has_eval_buffer(self):
-            return True
-
-        def eval_buffer(self, arg, res):
-            P, info = dens(arg[0]), vec(arg[1], ni)
-            seeds = np.frombuffer(arg[3], dtype=np.float64).reshape(self.nadj, ns)
-            dM = np.frombuffer(res[0], dtype=np.float64).reshape(self.nadj, ns, ny, nx)
-            dI = np.frombuffer(res[1], dtype=np.float64).reshape(self.nadj, ni)
-            for k in range(self.nadj):
-                dP, dinfo = terms.reverse(P, info, seeds[k])
-                dM[k] = dP.transpose(0, 2, 1)
-                dI[k] = dinfo
-            return 0
-
-    class Forward(ca.Callback):
-        def __init__(self):
-            ca.Callback.__init__(self)
-            self._reverse = {}
-            self.construct(name, {"enable_fd": False})
-
-        def get_n_in(self): return 2
-        def get_n_out(self): return 1
-
-        def get_sparsity_in(self, i):
-            return [ca.Sparsity.dense(nx, ny * ns), ca.Sparsity.dense(ni, 1)][i]
-
-        def get_sparsity_out(self, i):
-            return ca.Sparsity.dense(1, ns)
-
-        def has_eval_buffer(self):
-            return True
-
-        def eval_buffer(self, arg, res):
-            np.frombuffer(res[0], dtype=np.float64)[:ns] = terms.forward(dens(arg[0]), vec(arg[1], ni))
-            return 0
-
-        def has_reverse(self, nadj):
-            return True
-
-        def get_reverse(self, nadj, rname, inames, onames, opts):
-            cb = Reverse(nadj, f"{rname}_cb", {"enable_fd": False})
-            self._reverse[nadj] = cb                           # keep alive as long as this Function
-            nom_in, nom_out = self.mx_in(), self.mx_out()
-            seeds = [ca.MX.sym("adj", 1, ns * nadj)]
-            return ca.Function(rname, nom_in + nom_out + seeds, cb.call(nom_in + nom_out + seeds), inames, onames)
-
-    return Forward()
+    return reverse_mode_function(name, [(nx, ny * ns), (ni, 1)], (1, ns), forward, reverse)

@@ -41,6 +41,7 @@ import sys
 import numpy as np
 
 from ..runtime.cbuild import CLibrary, cache_dir  # noqa: F401 - cache_dir: where the library is cached
+from .callback import reverse_mode_function
 
 C_SOURCE = r"""
 #include <math.h>
@@ -710,8 +711,6 @@ def transport_callback(kernel: TransportKernel, name: str = "transport"):
     the interval-boundary snapshots (column k = vec of p(t_k)).  Its reverse derivative runs
     :meth:`TransportKernel.adjoint` on the trajectory cached by the last forward call at the same
     inputs (IPOPT evaluates f and then grad f at the same point; neither re-runs the other's work)."""
-    import casadi as ca
-
     class _Cache:
         key = None
         traj = None
@@ -727,80 +726,15 @@ def transport_callback(kernel: TransportKernel, name: str = "transport"):
 
     cache = _Cache()
 
-    def buf(view, shape):
-        # a column-major nonzero buffer of a dense (n_rows, m) matrix is m contiguous rows of n_rows
-        return np.frombuffer(view, dtype=np.float64).reshape(shape)
-
     N1 = kernel.N + 1
+    shapes_in = [(kernel.n_fx, kernel.N), (kernel.n_fy, kernel.N), (kernel.n_cell, 1)]
 
-    class Reverse(ca.Callback):
-        def __init__(self, nadj, rname, opts):
-            ca.Callback.__init__(self)
-            self.nadj = nadj
-            self.construct(rname, opts)
+    def forward(xs, P):
+        P[:] = kernel.snapshots(cache.get(xs[0], xs[1], xs[2][0]))
 
-        def get_n_in(self): return 5
-        def get_n_out(self): return 3
+    def reverse(xs, seed, grads):
+        VX, VY, p0 = xs[0], xs[1], xs[2][0]
+        grads[0][:], grads[1][:], grads[2][0] = kernel.adjoint(VX, VY, cache.get(VX, VY, p0), seed)
 
-        def get_sparsity_in(self, i):
-            return [ca.Sparsity.dense(kernel.n_fx, kernel.N), ca.Sparsity.dense(kernel.n_fy, kernel.N),
-                    ca.Sparsity.dense(kernel.n_cell, 1), ca.Sparsity.dense(kernel.n_cell, N1),
-                    ca.Sparsity.dense(kernel.n_cell, N1 * self.nadj)][i]
+    return reverse_mode_function(name, shapes_in, (kernel.n_cell, N1), forward, reverse)
 
-        def get_sparsity_out(self, i):
-            return [ca.Sparsity.dense(kernel.n_fx, kernel.N * self.nadj),
-                    ca.Sparsity.dense(kernel.n_fy, kernel.N * self.nadj),
-                    ca.Sparsity.dense(kernel.n_cell, self.nadj)][i]
-
-        def has_eval_buffer(self):
-            return True
-
-        def eval_buffer(self, arg, res):
-            VX, VY = buf(arg[0], (kernel.N, kernel.n_fx)), buf(arg[1], (kernel.N, kernel.n_fy))
-            p0 = buf(arg[2], (kernel.n_cell,))
-            traj = cache.get(VX, VY, p0)
-            seeds = buf(arg[4], (self.nadj, N1, kernel.n_cell))
-            gx = buf(res[0], (self.nadj, kernel.N, kernel.n_fx))
-            gy = buf(res[1], (self.nadj, kernel.N, kernel.n_fy))
-            g0 = buf(res[2], (self.nadj, kernel.n_cell))
-            for k in range(self.nadj):
-                gx[k], gy[k], g0[k] = kernel.adjoint(VX, VY, traj, seeds[k])
-            return 0
-
-    class Forward(ca.Callback):
-        def __init__(self):
-            ca.Callback.__init__(self)
-            self._reverse = {}
-            self.construct(name, {"enable_fd": False})
-
-        def get_n_in(self): return 3
-        def get_n_out(self): return 1
-
-        def get_sparsity_in(self, i):
-            return [ca.Sparsity.dense(kernel.n_fx, kernel.N), ca.Sparsity.dense(kernel.n_fy, kernel.N),
-                    ca.Sparsity.dense(kernel.n_cell, 1)][i]
-
-        def get_sparsity_out(self, i):
-            return ca.Sparsity.dense(kernel.n_cell, kernel.N + 1)
-
-        def has_eval_buffer(self):
-            return True
-
-        def eval_buffer(self, arg, res):
-            VX, VY = buf(arg[0], (kernel.N, kernel.n_fx)), buf(arg[1], (kernel.N, kernel.n_fy))
-            traj = cache.get(VX, VY, buf(arg[2], (kernel.n_cell,)))
-            buf(res[0], (N1, kernel.n_cell))[:] = kernel.snapshots(traj)
-            return 0
-
-        def has_reverse(self, nadj):
-            return True
-
-        def get_reverse(self, nadj, rname, inames, onames, opts):
-            cb = Reverse(nadj, f"{rname}_cb", {"enable_fd": False})
-            self._reverse[nadj] = cb                           # keep alive as long as this Function
-            nom_in = self.mx_in()
-            nom_out = self.mx_out()
-            seeds = [ca.MX.sym("adj", kernel.n_cell, (kernel.N + 1) * nadj)]
-            return ca.Function(rname, nom_in + nom_out + seeds, cb.call(nom_in + nom_out + seeds), inames, onames)
-
-    return Forward()
