@@ -106,8 +106,11 @@ def _obstacles(ax, result, dx: float = 0.0, **kw):
     if region is None:
         return None
     x0, x1, y0, y1 = region.extent
+    # A panel is a few hundred pixels wide: "nearest" resampling of a finer overlay drops whole rows of it, and
+    # with them one-pixel walls (which of them depends on where the wall falls).  Anti-aliasing in RGBA space
+    # keeps every wall, as a fainter line where it is thinner than a screen pixel.
     return ax.imshow(_obstacle_rgba(result), origin="lower", extent=(x0 + dx, x1 + dx, y0, y1),
-                     interpolation="nearest", zorder=2, **kw)
+                     interpolation="antialiased", interpolation_stage="rgba", zorder=2, **kw)
 
 
 def clip_note(values, vmin, vmax):

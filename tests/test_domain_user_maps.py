@@ -145,6 +145,31 @@ def test_obstacle_overlay_of_a_fine_map_is_small():
     assert result._obstacle_overlay is figures._obstacle_rgba(result)
 
 
+def test_every_thin_wall_is_drawn_on_a_small_panel():
+    """Five one-pixel walls of a 400 x 400 map at different phases, drawn on a 2-inch panel (fewer screen pixels
+    than map pixels): each shows (nearest resampling dropped some of them)."""
+    pytest.importorskip("matplotlib")
+    from swarmfield.runtime.plotting import new_figure
+    from swarmfield.sim import figures
+
+    free = np.ones((400, 400), bool)
+    rows = [61, 122, 203, 284, 345]                          # y = 3.05 ... 17.25 m
+    for j in rows:
+        free[:, j] = False
+    region = Domain.from_raster(free, (0, 20, 0, 20))
+    fig = new_figure(2.0, 2.0)
+    ax = fig.add_axes([0, 0, 1, 1])
+    ax.set_xlim(0, 20), ax.set_ylim(0, 20), ax.set_axis_off()
+    figures._obstacles(ax, SimpleNamespace(region=region, free=None))
+    fig.canvas.draw()
+    img = np.asarray(fig.canvas.buffer_rgba())[::-1, :, :3].astype(int)     # row 0 at y = 0
+    dark = (img < 235).all(axis=2).mean(axis=1) > 0.9                      # rows grey across the panel
+    ny = img.shape[0]
+    for j in rows:
+        k = int((j + 0.5) / 400 * ny)
+        assert dark[max(0, k - 1):k + 2].any(), f"the wall at map row {j} is not drawn"
+
+
 def test_stretched_pixels_are_warned_about(tmp_path):
     """A 300 x 100 (x by y) mask over a square extent, or the same mask saved transposed (image orientation):
     loaded, with a note naming the stretch; square pixels get none."""
