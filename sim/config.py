@@ -309,8 +309,8 @@ class SimSettings:
         if not self.comm_loss < 1:
             raise ValueError(f"sim.comm_loss must be a probability below 1, got {self.comm_loss:g}")
         set_("comm_rounds", _integer("comm_rounds", self.comm_rounds, 1))
-        if self.comm_density not in ("consensus", "relayed"):
-            raise ValueError(f"sim.comm_density must be 'consensus' or 'relayed', got {self.comm_density!r}")
+        if self.comm_density not in ("flooded", "consensus", "relayed"):
+            raise ValueError(f"sim.comm_density must be 'flooded', 'consensus' or 'relayed', got {self.comm_density!r}")
         if not isinstance(self.comm_anchor, bool):
             raise ValueError(f"sim.comm_anchor must be true or false, got {self.comm_anchor!r}")
         set_("comm_modes", _integer("comm_modes", self.comm_modes, 2))

@@ -32,7 +32,8 @@ import numpy as np
 from scipy import sparse
 
 from ..control.consensus import CosineMoments, PIConsensus, RobotDensities, metropolis_laplacian, neighbour_kde
-from .comm import FLOAT_BYTES, MessageLog, disk_graph
+from ..control.flooded import FloodedDensities, flooded_densities, table_ages
+from .comm import FLOAT_BYTES, INT_BYTES, MessageLog, disk_graph
 from .fragments import FragmentMaps
 from .knowledge import ITEM_BYTES, KnowledgeGroups
 
@@ -40,6 +41,12 @@ __all__ = ["Centralized", "Decentralized", "make_network", "EXTRA_COLUMNS", "Rob
 
 #: a robot's own p̂ comes from its neighbours' positions when the radius is at least this many bandwidths
 LOCAL_RADIUS = 3.0
+
+#: sub-steps of positions a robot keeps for the flooded tables (older entries read the oldest kept)
+HISTORY = 64
+
+#: one flooded position on the wire: x, y (float64), the robot's number and the sub-step it is from (int32)
+ENTRY_BYTES = 2 * FLOAT_BYTES + 2 * INT_BYTES
 
 #: metrics.csv columns of a decentralized run, after :data:`sim.metrics.COLUMNS`
 EXTRA_COLUMNS = ("density_error", "components", "comm_bytes")
@@ -112,6 +119,10 @@ class Decentralized:
         self._last = None            # (X array, estimate) of the last update
         self._used = None            # (X array, estimate) the controller used last
         self.relayed = s.comm_density == "relayed"
+        self.flooded = s.comm_density == "flooded"
+        self._history = None         # (HISTORY, n, 2) positions of the last sub-steps, newest first (flooded)
+        self._stamps = None          # (n, n) sub-step of the entry of robot j that robot i holds (-1: none)
+        self._substep = 0
         self.anchored = bool(s.comm_anchor) or self.relayed
         self._anchor_phi = None
         self._anchor_size = None
@@ -151,6 +162,9 @@ class Decentralized:
             count, labels = self.labels
             self.anchor(sim, labels, count)
             self.update(X)
+        elif self.flooded:               # the robots stand still while one period's rounds flood their positions
+            self._history = np.repeat(np.asarray(X, float)[None], HISTORY, axis=0)
+            self.update(X, rounds=self.rounds * sim.settings.substeps)
         else:
             self.update(X, rounds=self.rounds * sim.settings.substeps)
 
@@ -215,11 +229,11 @@ class Decentralized:
     def planning_density(self, sim):
         """The designated robot's own estimate of p̂ on the planner grid (the centre's when it hears everyone)."""
         est = self.current(sim.working())
-        if not isinstance(est, RobotDensities):
+        if not isinstance(est, (RobotDensities, FloodedDensities)):
             return sim.p_hat
         g = sim.grid
         lead = self.knowledge.leader
-        P = est.on_grid(g.nx, g.ny, [lead] if est.index is None else [int(np.searchsorted(est.index, lead))])[0]
+        P = est.on_grid(g.nx, g.ny, [lead])[0]          # rows of the estimates are robot numbers
         return g.normalize(P, "the designated robot's density estimate")
 
     def planned(self, sim) -> None:
@@ -330,14 +344,21 @@ class Decentralized:
         graph = disk_graph(full, self.radius, alive)
         count, _ = graph.components()
         self.note_components(count, sim.t)
-        phi = self.basis.features(full)
+        if self.flooded:
+            self.remember(full)
+        phi = None if self.flooded else self.basis.features(full)
         if self.loss == 0 and graph.is_complete():
             # everyone hears everyone: one round of positions, and each robot computes the centre's KDE
             k = int(alive.sum())
             self.log.broadcast("density", k if k > 1 else 0, 2 * FLOAT_BYTES)
-            mean = phi[alive].mean(axis=0)
-            self.pi.z[alive], self.pi.q[alive], self.pi.phi[alive] = mean, 0.0, phi[alive]
+            if phi is not None:
+                mean = phi[alive].mean(axis=0)
+                self.pi.z[alive], self.pi.q[alive], self.pi.phi[alive] = mean, 0.0, phi[alive]
             est = sim.estimate(X)
+            self._last = (X, est)
+            return est
+        if self.flooded:
+            est = self.flood(graph.drop(self.loss, self.rng), rows, rounds)
             self._last = (X, est)
             return est
         if self.relayed and self._anchor_phi is not None:
@@ -362,6 +383,39 @@ class Decentralized:
         est = self.estimates(rows, full, g.edges)
         self._last = (X, est)
         return est
+
+    def remember(self, full: np.ndarray) -> None:
+        """A new sub-step's positions at the head of the history (once per sub-step: repeated calls with the
+        same positions, e.g. the working robots' rows asked again, keep it)."""
+        if self._history is None:
+            self._history = np.repeat(full[None], HISTORY, axis=0)
+        elif not np.array_equal(self._history[0], full):
+            self._history = np.concatenate([full[None], self._history[:-1]])
+            self._substep += 1
+
+    def flood(self, heard, rows, rounds: int | None = None) -> FloodedDensities:
+        """``comm_density = "flooded"``: every robot floods its position ``comm_rounds`` hops per sub-step (R
+        rounds on the sub-step's graph ``heard``, lost links removed); each robot's estimate is the centre's
+        KDE of its table (:mod:`control.flooded`).  Accounting: every robot with a neighbour broadcasts in each
+        round the entries that reached it in the previous one (its own included), :data:`ENTRY_BYTES` each:
+        one message per round, the bytes of every entry it holds a newer version of than a sub-step before."""
+        sim = self.sim
+        R = self.rounds if rounds is None else int(rounds)
+        ages = table_ages(heard.adjacency(), R)
+        alive = sim.alive
+        ages[~alive, :] = -1
+        ages[:, ~alive] = -1
+        n = ages.shape[0]
+        none = np.iinfo(np.int64).min
+        stamps = np.where(ages >= 0, self._substep - ages, none)
+        if self._stamps is None:
+            self._stamps = np.full((n, n), none, dtype=np.int64)
+        fresh = (stamps > self._stamps).sum(axis=1)
+        senders = (heard.degree > 0) & (fresh > 0)
+        self._stamps = np.maximum(self._stamps, stamps)
+        self.log.record("density", R * int(senders.sum()), ENTRY_BYTES * int(fresh[senders].sum()))
+        return flooded_densities(sim.estimate.kde, self.basis, self._history, ages, alive, index=rows,
+                                 free=sim.free)
 
     def estimates(self, rows=None, X=None, edges=None, z=None) -> RobotDensities:
         """:class:`control.consensus.RobotDensities` of every robot from its consensus state; where the radius is
@@ -402,7 +456,7 @@ class Decentralized:
         controller used last (at the last sub-step; at the start the first ones) and p̂ the centralized KDE of
         the same positions."""
         X, est = self._used if self._used is not None else (sim.working(), self.current(sim.working()))
-        if not isinstance(est, RobotDensities):
+        if not isinstance(est, (RobotDensities, FloodedDensities)):
             return 0.0
         g = sim.grid
         rows = np.flatnonzero(sim.alive)
