@@ -199,13 +199,16 @@ class SimSettings:
                     within this radius [m] (:mod:`sim.comm`, :mod:`sim.network`); None (default) or inf: the
                     paper's communication centre, Algorithm 1 unchanged
     comm_loss       probability that a link fails for one message round (0 default)
-    comm_rounds     consensus rounds of the density estimate per Euler sub-step (default 4; comm_density
-                    "consensus")
+    comm_rounds     message rounds of the density estimate per Euler sub-step (default 4): the hops the flooded
+                    positions travel per sub-step (comm_density "flooded"), or consensus rounds ("consensus")
     comm_modes      cosine modes per axis of the consensus density estimate (default 24; control.consensus)
     comm_anchor     re-anchor the consensus at every measurement to each component's exact moment average,
                     from the positions that come with the relayed measurements (default false: the consensus
                     alone)
-    comm_density    "consensus" (default): PI dynamic average consensus rounds on the cosine moments;
+    comm_density    "flooded" (default): every robot floods its position comm_rounds hops per sub-step, and each
+                    robot's estimate is the centre's KDE of the positions that reached it (control.flooded: the
+                    centre's estimate wherever every entry is current, walls and bandwidth rule included);
+                    "consensus": PI dynamic average consensus rounds on the cosine moments;
                     "relayed": each robot's moments are its component's exact average at the last measurement
                     (from the relayed measurements' positions) corrected by its own and its neighbours' moves
                     since, no consensus rounds (sim.network; better with the tuned preset's 1 m bandwidth,
@@ -254,7 +257,7 @@ class SimSettings:
     comm_rounds: int = 4
     comm_modes: int = 24
     comm_anchor: bool = False
-    comm_density: str = "consensus"
+    comm_density: str = "flooded"
     comm_fragments: bool = True
     comm_hops: int | None = None
 

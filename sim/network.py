@@ -5,17 +5,22 @@ regresses and plans, and sends p̂ and the plan back.  :class:`Centralized` is t
 ``sim.comm_radius`` unset): it changes nothing in :class:`sim.simulation.Simulation`.
 
 :class:`Decentralized` (``sim.comm_radius = r``) replaces the centre's density estimate by the robots' own:
-robots hear only neighbours within r (:mod:`sim.comm`), and every robot keeps its own estimate of p̂ and ∇p̂
-in the cosine moments of the positions (:mod:`control.consensus`): by default (``sim.comm_density =
-"consensus"``) by proportional-integral dynamic average consensus, ``sim.comm_rounds`` message rounds per
-Euler sub-step; or (``"relayed"``) its component's exact moments at the last measurement, from the positions
-that come with the relayed measurements, corrected by the moves of the robots it hears.
-Its feedback law (and the coverage baseline's) reads that estimate, with its own value and gradient from
-its neighbours' kernels where the radius allows (:func:`control.consensus.neighbour_kde`).  When the graph is complete (every working robot hears
+robots hear only neighbours within r (:mod:`sim.comm`), and every robot keeps its own estimate of p̂ and ∇p̂.
+By default (``sim.comm_density = "flooded"``) every robot floods its position ``sim.comm_rounds`` hops per
+Euler sub-step, and its estimate is the centre's KDE of the positions that reached it (:mod:`control.flooded`;
+far robots' entries are a few sub-steps old); or (``"consensus"``) by proportional-integral dynamic average
+consensus on the cosine moments of the positions (:mod:`control.consensus`), ``sim.comm_rounds`` message
+rounds per sub-step; or (``"relayed"``) its component's exact moments at the last measurement, from the
+positions that come with the relayed measurements, corrected by the moves of the robots it hears.
+Its feedback law (and the coverage baseline's) reads that estimate (with the consensus or the relayed moments,
+its own value and gradient from its neighbours' kernels where the radius allows:
+:func:`control.consensus.neighbour_kde`).  When the graph is complete (every working robot hears
 every other: r covers the swarm, no message lost), one round of position broadcasts gives every robot all
 positions, and each computes the centralized estimate itself: the run is then the centralized run, bit for
-bit.  The swarm may fall apart: each connected component then converges to the density of its own robots,
-an isolated robot to its own kernel; a one-line warning names the number of components.
+bit; with flooded positions so is a run whose graph stays within ``comm_rounds`` hops of every robot.  The
+swarm may fall apart: each connected component then estimates the density of its own robots, an isolated
+robot its own kernel; a one-line warning names the number of components.  Robots that join the main
+component get its current plan from a neighbour at once.
 
 Metrics of a decentralized run add ``density_error`` (mean over the working robots of
 ||p̂_i - p̂||_L2 / ||p̂||_L2 on the planner grid, p̂ the centralized KDE of the same positions),
@@ -201,6 +206,7 @@ class Decentralized:
             sim.gp.add(Xa, y)                      # the step's own measurements: the centre's map, bit for bit
         elif missing.size:
             sim.gp.add(kg.X[missing], kg.y[missing])
+        self.hand_on_plan(sim)
         members = int(kg.main.sum())
         T = sim.settings.period
         period_end = sim.t > 0 and abs(sim.t / T - round(sim.t / T)) < 1e-9
@@ -240,13 +246,27 @@ class Decentralized:
         """The designated robot floods the new plan through the main component; the others keep theirs."""
         members = self.knowledge.main & sim.alive
         self.plan_of[members] = sim.plan
-        plan = sim.plan
-        # what a robot needs to rebuild p_r and v_r by the planner's own (deterministic) transport: the initial
-        # density on the planner grid, the interval times and the velocity coefficients
-        size = (np.asarray(plan.p[0]).size + np.asarray(plan.t_intervals).size + np.asarray(plan.coef).size) * FLOAT_BYTES
         k = int(members.sum())
         if k > 1:
-            self.log.broadcast("plan", k, size)
+            self.log.broadcast("plan", k, self.plan_bytes(sim.plan))
+
+    @staticmethod
+    def plan_bytes(plan) -> int:
+        """What a robot needs to rebuild p_r and v_r by the planner's own (deterministic) transport: the initial
+        density on the planner grid, the interval times and the velocity coefficients."""
+        return (np.asarray(plan.p[0]).size + np.asarray(plan.t_intervals).size + np.asarray(plan.coef).size) * FLOAT_BYTES
+
+    def hand_on_plan(self, sim) -> None:
+        """Robots that (re)joined the main component get its current plan from a neighbour at once, instead of
+        following their fragment's target or a held plan until the next re-plan: one plan message per robot
+        that receives it (its neighbour's rebroadcast)."""
+        if sim.plan is None or not sim.controller.needs_plan:
+            return
+        members = np.flatnonzero(self.knowledge.main & sim.alive)
+        lacking = members[np.array([p is not sim.plan for p in self.plan_of[members]], dtype=bool)]
+        if lacking.size and members.size > lacking.size:
+            self.plan_of[lacking] = sim.plan
+            self.log.broadcast("plan", int(lacking.size), self.plan_bytes(sim.plan))
 
     def observe(self, sim) -> None:
         """The controller reads the posterior.  ``greedy`` on local knowledge: its goals are chosen per connected
@@ -461,6 +481,8 @@ class Decentralized:
         g = sim.grid
         rows = np.flatnonzero(sim.alive)
         P = est.on_grid(g.nx, g.ny, rows)
+        mass = P.sum(axis=(1, 2)) * g.cell_area                # each robot's estimate to unit mass, as p̂
+        P = P / np.where(mass > 0, mass, 1.0)[:, None, None]
         Xw = X if X.shape[0] == rows.size else X[rows]
         ref = g.normalize(sim.estimate.kde.fit(Xw).on_grid(g.nx, g.ny), "KDE of the robots")
         num = np.sqrt(((P - ref[None]) ** 2).sum(axis=(1, 2)))

@@ -1,0 +1,138 @@
+"""Flooded positions: every robot's density estimate is the centre's KDE of the table that reached it."""
+from __future__ import annotations
+
+import warnings
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from swarmfield.control import KernelDensity
+from swarmfield.control.consensus import CosineMoments
+from swarmfield.control.flooded import FloodedDensities, flooded_densities, table_ages
+from swarmfield.sim.comm import disk_graph
+
+DOMAIN = (0.0, 20.0, 0.0, 20.0)
+
+
+def test_table_ages_on_a_chain_and_a_loner():
+    X = np.array([[1.0 + k, 1.0] for k in range(6)] + [[15.0, 15.0]])
+    ages = table_ages(disk_graph(X, 1.5).adjacency(), 2)
+    assert ages[0].tolist() == [0, 0, 0, 1, 1, 2, -1]            # hops 0..5: ceil(d / 2) - 1
+    assert ages[6].tolist() == [-1] * 6 + [0]
+    np.testing.assert_array_equal(ages, ages.T)
+    with pytest.raises(ValueError, match="rounds"):
+        table_ages(disk_graph(X, 1.5).adjacency(), 0)
+
+
+@pytest.mark.parametrize("walls", [False, True])
+def test_current_tables_give_the_centres_kde_walls_included(walls):
+    """Every robot within R hops of every other: each robot's estimate is the centre's, bit for bit -- with
+    obstacles the centre's heat kernel of the free space (reflection at the walls), not the rectangle's."""
+    rng = np.random.default_rng(0)
+    X = rng.uniform(0, 20, (60, 2))
+    free = None
+    if walls:
+        free = np.ones((40, 40), bool)
+        free[19:21, :30] = False                                  # a wall with a gap at the top
+        X = X[~((X[:, 0] > 9.5) & (X[:, 0] < 10.5) & (X[:, 1] < 15.0))]
+    kde = KernelDensity(DOMAIN, bandwidth=1.0, free=free, obstacle_kernel="reflect" if walls else "renormalise")
+    ages = table_ages(disk_graph(X, 6.0).adjacency(), 8)
+    assert ages.max() == 0
+    est = flooded_densities(kde, CosineMoments(DOMAIN, 24), X[None], ages, np.ones(len(X), bool), free=free)
+    ref = kde.fit(X)
+    p, g = est.evaluate(X)
+    pc, gc = ref.evaluate(X)
+    np.testing.assert_array_equal(p, pc)
+    np.testing.assert_array_equal(g, gc)
+    np.testing.assert_array_equal(est.on_grid(40, 40, [0, 5])[1], ref.on_grid(40, 40))
+
+
+def test_stale_entries_make_the_kde_of_the_robots_table():
+    """A chain flooded one hop per sub-step: far robots' entries are older; robot 0's estimate is the KDE of
+    its table (the far robots where they were), to the cosine series' truncation."""
+    X = np.array([[2.0 + 2.5 * k, 10.0] for k in range(7)])      # hops 0..6 along the chain
+    old = X + np.array([0.0, 3.0])                               # a sub-step ago every robot was 3 m higher
+    older = X + np.array([0.0, -4.0])
+    history = np.stack([X, old, older])
+    ages = table_ages(disk_graph(X, 3.0).adjacency(), 2)
+    assert ages[0].tolist() == [0, 0, 0, 1, 1, 2, 2]
+    kde = KernelDensity(DOMAIN, bandwidth=1.5, bins=(256, 256))
+    est = flooded_densities(kde, CosineMoments(DOMAIN, 48), history, ages, np.ones(7, bool))
+    table = np.array([history[a, j] for j, a in enumerate(ages[0])])
+    ref = kde.fit(table)
+    P = est.on_grid(80, 80, [0])[0]
+    R = ref.on_grid(80, 80)
+    assert np.linalg.norm(P - R) / np.linalg.norm(R) < 2e-3
+    p, g = est.evaluate(X)
+    pc, gc = ref.evaluate(X[:1])
+    np.testing.assert_allclose(p[0], pc[0], rtol=1e-3)
+    np.testing.assert_allclose(g[0], gc[0], atol=1e-3 * np.abs(gc).max())
+    assert est.stale[0] and ages[3].tolist() == [1, 0, 0, 0, 0, 0, 1]
+
+
+def test_isolated_robots_and_lost_robots():
+    X = np.array([[1.0, 1.0], [2.0, 1.0], [10.0, 10.0], [18.0, 18.0]])
+    active = np.array([True, True, True, False])
+    kde = KernelDensity(DOMAIN, bandwidth=1.5)
+    ages = table_ages(disk_graph(X, 1.5, active).adjacency(), 1)
+    est = flooded_densities(kde, CosineMoments(DOMAIN, 24), X[None], ages, active, index=np.flatnonzero(active))
+    assert isinstance(est, FloodedDensities)
+    p, _ = est.evaluate(X[active])
+    pair = kde.fit(X[:2]).evaluate(X[:2])[0]
+    np.testing.assert_array_equal(p[:2], pair)                  # the pair: the centre's KDE of the two
+    assert p[2] == pytest.approx(1.0 / (2 * np.pi * 1.5 ** 2), rel=2e-3)    # the loner: its own kernel
+    grids = est.on_grid(40, 40, [0, 2])
+    assert grids.shape == (2, 40, 40) and np.all(np.isfinite(grids))
+
+
+def _fake_sim(X, **changes):
+    from swarmfield.sim.config import RunConfig
+    cfg = RunConfig.from_preset("paper", comm_radius=1.5, comm_modes=4, comm_rounds=1, robots=len(X),
+                                comm_density="flooded", **changes)
+    sim = SimpleNamespace(X=X, alive=np.ones(len(X), bool), t=0.0, free=None, settings=SimpleNamespace(substeps=1),
+                          estimate=SimpleNamespace(kde=KernelDensity(DOMAIN, bandwidth=1.5)),
+                          controller=SimpleNamespace(needs_plan=True))
+    return cfg, sim
+
+
+def test_flooded_message_accounting_by_hand():
+    """A chain of three and a loner, one hop per sub-step: every robot of the chain forwards each entry it holds
+    a newer version of (24 bytes: x, y, its robot and its sub-step); the loner sends nothing."""
+    from swarmfield.sim.network import Decentralized
+    X = np.array([[1.0, 1.0], [2.0, 1.0], [3.0, 1.0], [10.0, 10.0]])
+    cfg, sim = _fake_sim(X)
+    net = Decentralized(cfg)
+    net.bind(sim)
+    with pytest.warns(UserWarning, match="2 components"):
+        net.start(sim)                      # deployment: each of the three learns the chain's three entries
+    assert net.log.messages == {"density": 3} and net.log.bytes == {"density": 3 * 3 * 24}
+    net(X + 0.1)                            # a sub-step: every entry of the chain advances at every member
+    assert net.log.messages == {"density": 6} and net.log.bytes == {"density": 6 * 3 * 24}
+    ages = table_ages(disk_graph(X, 1.5).adjacency(), 1)
+    assert ages[0, 2] == 1                  # robot 0 holds robot 2's position of the sub-step before
+    est = net(X + 0.1)                      # the same positions again (asked twice in a sub-step): nothing new
+    assert net.log.messages == {"density": 6} and net.log.bytes == {"density": 6 * 3 * 24}
+    assert isinstance(est, FloodedDensities)
+
+
+def test_flooded_run_with_every_robot_within_the_hop_bound_is_the_centralized_run():
+    """A connected graph (not complete) whose diameter is within comm_rounds hops: every robot holds every
+    current position, so the run is the centralized one bit for bit (the map, the motion, the stop)."""
+    from swarmfield.sim import config_from_dict, run_simulation
+    small = {
+        "sim": {"robots": 16, "domain": [0.0, 10.0, 0.0, 10.0], "start_box": [0.0, 4.0, 0.0, 4.0],
+                "period": 1.75, "max_periods": 2, "substeps": 4, "seed": 3},
+        "gp": {"length_scale": 1.5}, "kde": {"bins": [32, 32]},
+        "planner": {"nx": 16, "ny": 16, "n_intervals": 3, "n_modes_x": 3, "n_modes_y": 3},
+    }
+    base = config_from_dict(small)
+    central = run_simulation(base)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                # no split
+        flooded = run_simulation(base.replace(comm_radius=6.0, comm_rounds=16, comm_density="flooded"))
+    keep = [k for k in central.rows[0]]
+    assert [{k: r[k] for k in keep} for r in flooded.rows] == central.rows
+    assert all(r["density_error"] < 1e-12 for r in flooded.rows)
+    comm = flooded.communication
+    assert comm["bytes_by_kind"]["density"] > 0 and comm["max_components"] == 1
