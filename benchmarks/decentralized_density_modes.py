@@ -1,11 +1,11 @@
-"""Consensus against relayed moments (``sim.comm_density``) at one communication radius.
+"""The density estimates of a decentralized swarm (``sim.comm_density``) at one communication radius.
 
     python benchmarks/decentralized_density_modes.py [--preset paper] [--radius 4] [--periods 6]
-        [--fields sinc waves bumps] [--seeds 0 1]
+        [--fields sinc waves bumps] [--seeds 0 1] [--modes flooded consensus relayed centre]
 
 For every field and seed: the time to each run's own threshold (in periods T; the stop rule records it and
-does not stop the run, as in ``compare-controllers``) and the final RMSE with the relayed moments, the
-consensus and the centre, one line each.
+does not stop the run, as in ``compare-controllers``) and the final RMSE with each estimate (flooded
+positions, the consensus, the relayed moments) and the centre, one line each.
 """
 from __future__ import annotations
 
@@ -23,12 +23,14 @@ def main(argv=None) -> None:
     p.add_argument("--periods", type=int, default=6)
     p.add_argument("--fields", nargs="+", default=["sinc", "waves", "bumps"])
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1])
+    p.add_argument("--modes", nargs="+", default=["flooded", "consensus", "relayed", "centre"],
+                   choices=["flooded", "consensus", "relayed", "centre"])
     a = p.parse_args(argv)
     warnings.simplefilter("ignore")
     for field in a.fields:
         for seed in a.seeds:
             out = []
-            for mode in ("relayed", "consensus", None):
+            for mode in (None if m == "centre" else m for m in a.modes):
                 cfg = RunConfig.from_preset(a.preset, comm_radius=None if mode is None else a.radius,
                                             max_periods=a.periods, field=field, seed=seed,
                                             **({"comm_density": mode} if mode else {}))

@@ -25,6 +25,17 @@ def test_table_ages_on_a_chain_and_a_loner():
         table_ages(disk_graph(X, 1.5).adjacency(), 0)
 
 
+@pytest.mark.parametrize("n, box, radius", [(150, 20.0, 2.5), (120, 6.0, 4.0)])     # sparse; crowded (dense path)
+def test_table_ages_are_the_hop_distances(n, box, radius):
+    from scipy.sparse import csgraph
+    X = np.random.default_rng(n).uniform(0, box, (n, 2))
+    adj = disk_graph(X, radius).adjacency()
+    d = csgraph.shortest_path(adj, directed=False, unweighted=True)
+    for R in (1, 3):
+        ref = np.where(np.isfinite(d), np.maximum(np.ceil(np.nan_to_num(d, posinf=0.0) / R) - 1, 0), -1)
+        np.testing.assert_array_equal(table_ages(adj, R), ref)
+
+
 @pytest.mark.parametrize("walls", [False, True])
 def test_current_tables_give_the_centres_kde_walls_included(walls):
     """Every robot within R hops of every other: each robot's estimate is the centre's, bit for bit -- with
