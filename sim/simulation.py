@@ -64,7 +64,11 @@ from .recorders import MetricsRecorder
 from .result import QUIVER_POINTS, SimulationResult, Snapshot
 from .stopping import make_stop_rule
 
-__all__ = ["Simulation", "LatestEstimate", "check_config"]
+__all__ = ["Simulation", "LatestEstimate", "check_config", "data_scale_note"]
+
+#: the first data's signal (variance less the noise) this many times the prior s_f^2 of a GP in field units gets
+#: a warning (the built-in fields: at most 0.9 of it in the paper's start box; the same fields in ppm: 10^4-10^5)
+DATA_SCALE_RATIO = 25.0
 
 
 def check_config(config: RunConfig) -> None:
@@ -126,6 +130,25 @@ def _quiver_points(domain, q=QUIVER_POINTS):
     ys = y0 + (np.arange(q) + 0.5) * (y1 - y0) / q
     XQ, YQ = np.meshgrid(xs, ys, indexing="ij")
     return np.column_stack([XQ.ravel(), YQ.ravel()])
+
+
+def data_scale_note(y, gp, noise_variance: float) -> str | None:
+    """A warning when the first data's signal dwarfs a GP set in field units (``gp.signal_scale =
+    "absolute"``: the paper's s_f^2 = 0.25 is for a field of order 1); its V, the target and the threshold gamma
+    would then mean nothing for the field (a CO2 field in ppm: V stays at s_f^2, the estimate barely moves).
+    The signal is the data's variance less the noise's, and counts only where it exceeds three standard
+    errors of the sample variance."""
+    y = np.asarray(y, float)
+    if gp.signal_scale != "absolute" or y.size < 2:
+        return None
+    var = float(np.var(y, ddof=1))
+    signal = var - noise_variance
+    if signal > DATA_SCALE_RATIO * gp.signal_variance and signal > 3.0 * var * math.sqrt(2.0 / (y.size - 1)):
+        return (f"the measurements' signal varies {signal / gp.signal_variance:.3g}x more (variance "
+                f"{signal:.4g} after the noise) than the GP's prior s_f^2 = {gp.signal_variance:.4g} (field units "
+                "squared): the GP is set for a field of order 1; use --preset tuned (it standardizes the data: "
+                "[gp] signal_scale = \"data\") or set [gp] signal_variance and sim.gamma in this field's units")
+    return None
 
 
 class Simulation:
@@ -237,12 +260,22 @@ class Simulation:
         s = self.settings
         self.X = uniform_in_box(s.robots, s.start_box, self.rng, self.region)
         self.lose_robots()
-        self.measure()
+        self._check_data_scale(self.measure()[1])
         self.regress()
         self.estimate_density(fresh=True)
         self.network.start(self)
         self._notify("start")
         self.controller.start(self.context())
+
+    def _check_data_scale(self, y) -> None:
+        """:func:`data_scale_note` on a step's measurements, until it has warned once (the start box may be
+        flat where the rest of the field is not)."""
+        if getattr(self, "_scale_warned", False):
+            return
+        note = data_scale_note(y, self.config.gp, self.settings.noise_variance)
+        if note:
+            self._scale_warned = True
+            warnings.warn(note, UserWarning, stacklevel=2)
 
     def step(self) -> bool:
         """One period [kT, (k+1)T] of Algorithm 1; False once the run is over."""
@@ -290,6 +323,7 @@ class Simulation:
             return
         self.p_hat = self._p_hat_grid()
         tm["dynamics"] += time.perf_counter() - t_dyn
+        self._check_data_scale(y)
         self.regress(Xa, y)
         self._notify("measured")
         self.network.observe(self)                # the controller reads the posterior (per component if local)
