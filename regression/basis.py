@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from .kernels import kernel_1d
+from .kernels import kernel_1d, kernel_1d_dlog
 
 #: ``w_p(t) = sum_a BASIS_COEF[p, a] t^a`` for the four uniform cubic B-splines over a cell.
 BASIS_COEF = np.array(
@@ -109,16 +109,7 @@ class SplineAxis:
         hit = self._prior_cache.get(key)
         if hit is not None:
             return hit
-        gx, gw = np.polynomial.legendre.leggauss(_QUAD_POINTS)
-        left = self.lo + self.h * np.arange(self.n_cells)
-        xq = (left[:, None] + 0.5 * self.h * (gx[None, :] + 1.0)).reshape(-1)
-        wq = np.tile(0.5 * self.h * gw, self.n_cells)
-        bq = self.design_matrix(xq) * wq[:, None]          # rows: quadrature points, weighted
-        gram = self.design_matrix(xq).T @ bq                # int B B^T
-        load = bq.T @ kernel_1d(xq, xq, float(length_scale), kernel) @ bq
-        ginv_load = np.linalg.solve(gram, load)
-        kc = np.linalg.solve(gram, ginv_load.T)
-        kc = 0.5 * (kc + kc.T)
+        kc = self._project(kernel_1d, length_scale, kernel)
         lam, vec = np.linalg.eigh(kc)
         lam, vec = np.clip(lam[::-1], 0.0, None), np.ascontiguousarray(vec[:, ::-1])
         for a in (kc, lam, vec):
@@ -127,3 +118,30 @@ class SplineAxis:
             self._prior_cache.clear()
         self._prior_cache[key] = (kc, lam, vec)
         return kc, lam, vec
+
+    def prior_factor_dlog(self, length_scale: float, kernel: str = "squared-exponential") -> np.ndarray:
+        """``d Kc / d log l``: the projection ``G^{-1} dF G^{-1}`` of the kernel factor's derivative
+        (:func:`regression.kernels.kernel_1d_dlog`), exact for the spline model because the projection is
+        linear in the kernel (the analytic gradient of the log marginal likelihood, :mod:`regression.gp`)."""
+        key = ("dlog", kernel, float(length_scale))
+        hit = self._prior_cache.get(key)
+        if hit is None:
+            hit = self._project(kernel_1d_dlog, length_scale, kernel)
+            hit.flags.writeable = False
+            if len(self._prior_cache) > 32:
+                self._prior_cache.clear()
+            self._prior_cache[key] = hit
+        return hit
+
+    def _project(self, factor, length_scale: float, kernel: str) -> np.ndarray:
+        """``G^{-1} F G^{-1}`` with ``F = int int B(x) factor(x, x') B(x')^T`` (symmetrised)."""
+        gx, gw = np.polynomial.legendre.leggauss(_QUAD_POINTS)
+        left = self.lo + self.h * np.arange(self.n_cells)
+        xq = (left[:, None] + 0.5 * self.h * (gx[None, :] + 1.0)).reshape(-1)
+        wq = np.tile(0.5 * self.h * gw, self.n_cells)
+        bq = self.design_matrix(xq) * wq[:, None]          # rows: quadrature points, weighted
+        gram = self.design_matrix(xq).T @ bq                # int B B^T
+        load = bq.T @ factor(xq, xq, float(length_scale), kernel) @ bq
+        ginv_load = np.linalg.solve(gram, load)
+        kc = np.linalg.solve(gram, ginv_load.T)
+        return 0.5 * (kc + kc.T)
