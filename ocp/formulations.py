@@ -36,8 +36,11 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-__all__ = ["FORMULATIONS", "HESSIANS", "NLP", "Formulation", "SingleShooting", "MultipleShooting",
+__all__ = ["FORMULATIONS", "HESSIANS", "SOLVERS", "NLP", "Formulation", "SingleShooting", "MultipleShooting",
            "DirectTranscription", "resolve_formulation"]
+
+#: NLP solvers of direct transcription: IPOPT (any linear solver) or FATROP on the stage-ordered NLP
+SOLVERS = ("ipopt", "fatrop")
 
 #: Hessian choices of a formulation ("auto": single shooting follows ``ipopt.hessian_approximation``,
 #: multiple shooting and direct transcription use the exact sparse Hessian)
@@ -61,6 +64,10 @@ class NLP:
     ipopt_preferred: dict = field(default_factory=dict)
     #: rows of g that are the formulation's equality constraints (dynamics / lifts), for residual checks
     dynamics_rows: slice = field(default_factory=lambda: slice(0, 0))
+    #: the ``casadi.nlpsol`` plugin that solves it ("ipopt", or "fatrop" for a stage-ordered NLP) and the
+    #: plugin's own options (FATROP: the stage structure N, nx, nu, ng)
+    plugin: str = "ipopt"
+    plugin_options: dict = field(default_factory=dict)
 
     @property
     def n_x(self) -> int:
@@ -300,10 +307,17 @@ class DirectTranscription(_StateFormulation):
 
     name = "direct-transcription"
 
-    def __init__(self, hessian: str = "auto", parallelization: str = "serial", merge: bool = True):
+    def __init__(self, hessian: str = "auto", parallelization: str = "serial", merge: bool = True,
+                 solver: str = "ipopt"):
         super().__init__(hessian)
+        if solver not in SOLVERS:
+            raise ValueError(f"direct transcription's solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
         self.parallelization = parallelization
         self.merge = merge
+        self.solver = solver
+
+    def __repr__(self):
+        return f"{type(self).__name__}(hessian={self.hessian!r}, solver={self.solver!r})"
 
     def step_function(self, problem):
         """One explicit donor-cell sub-step p -> p - dt div(v p) (:func:`ocp.transport.upwind_step`)
@@ -331,6 +345,8 @@ class DirectTranscription(_StateFormulation):
             raise ValueError("formulation 'direct-transcription' implements the upwind (donor-cell) step only; "
                              f"planner.scheme is {s.scheme!r}")
         self.problem = problem
+        if self.solver == "fatrop":
+            return self._build_staged(problem)
         g = problem.grid
         nx, ny, N, n_sub = g.nx, g.ny, problem.N, problem.n_sub
         nc, nfx, nfy = nx * ny, (nx - 1) * ny, nx * (ny - 1)
@@ -382,9 +398,111 @@ class DirectTranscription(_StateFormulation):
             dynamics_rows=slice(n_speed, n_speed + nl + nc * K))
         return self.nlp
 
+    def _build_staged(self, problem) -> NLP:
+        """The same problem with its variables and constraints ordered stage by stage, for FATROP's
+        Riccati recursion (one stage per sub-step k = 0 .. K, K = N n_sub).
+
+        Stage k's state is x_k = [p_k; h_k]: the density after k sub-steps and the (merged) coefficients
+        a = a+ - a- of the interval in force, held from sub-step to sub-step; stage 0 has no state (p0
+        is a parameter).  The first sub-step of interval l has the controls u = [a+_l; a-_l] >= 0 and the
+        speed-limit row sum(a+_l + a-_l) <= v_max; the other sub-steps have none.  The dynamics rows
+        x_{k+1} - F(x_k, u_k) = 0 come first in a stage, then its speed-limit row, as FATROP's
+        ``structure_detection = "manual"`` expects.  The face velocities are the separable lift of h
+        (:func:`lift_matrices` of one interval) inside F, so the state stays n_cell + 2IJ wide.
+        l1 speed limit, split form only."""
+        s, g = problem.settings, problem.grid
+        if s.speed_limit != "l1" or s.speed_limit_form != "split":
+            raise ValueError("formulation 'direct-transcription' with solver 'fatrop' poses the l1 speed limit in the "
+                             f"split form only; planner.speed_limit is {s.speed_limit!r}, speed_limit_form "
+                             f"{s.speed_limit_form!r}")
+        nx, ny, N, n_sub = g.nx, g.ny, problem.N, problem.n_sub
+        nc, nfx = nx * ny, (nx - 1) * ny
+        m, K = 2 * problem.I * problem.J, N * n_sub
+        par, p0, q, lq = self._parameters(problem)
+        step = self.step_function(problem)
+        self.step = step
+        Lw, Lv = lift_matrices(problem.basis, 1)
+        Lw, Lv = _dm(Lw), _dm(Lv)
+
+        def advance(p, a):
+            v = ca.mtimes(Lv, ca.mtimes(Lw, a))
+            return step(p, v[:nfx], v[nfx:])
+
+        X = [ca.MX(0, 1)] + [ca.MX.sym(f"x{k}", nc + m) for k in range(1, K + 1)]
+        U = [ca.MX.sym(f"u{k}", 2 * m) if k % n_sub == 0 and k < K else ca.MX(0, 1) for k in range(K + 1)]
+        xs, rows, lbg, ubg, lbx, ubx = [], [], [], [], [], []
+        snapshots, sq = [p0], 0
+        for k in range(K + 1):
+            xs += [X[k], U[k]]
+            if k > 0:
+                lo = np.full(nc + m, -np.inf)
+                if k % n_sub == 0:
+                    lo[:nc] = 0.0                                  # the snapshots enter the log of the KL
+                    snapshots.append(X[k][:nc])
+                lbx.append(lo)
+                ubx.append(np.full(nc + m, np.inf))
+            if U[k].numel():
+                lbx.append(np.zeros(2 * m))
+                ubx.append(np.full(2 * m, np.inf))
+            if k == K:
+                break
+            p = p0 if k == 0 else X[k][:nc]
+            if U[k].numel():
+                a = U[k][:m] - U[k][m:]
+                sq = sq + ca.sumsqr(U[k])
+            else:
+                a = X[k][nc:]
+            rows.append(X[k + 1] - ca.vertcat(advance(p, a), a))      # x_{k+1} - F(x_k, u_k)
+            lbg.append(np.zeros(nc + m))
+            ubg.append(np.zeros(nc + m))
+            if U[k].numel():
+                rows.append(ca.sum1(U[k]))                             # speed limit of the interval
+                lbg.append(np.array([-np.inf]))
+                ubg.append(np.array([s.v_max]))
+        energy = s.w_v * s.interval * (g.lx * g.ly / 4.0) * sq
+        f = self._snapshot_cost(problem, ca.horzcat(*snapshots), q, lq) + energy
+        self._stage = (K, n_sub, nc, m)
+        self._n_coef_vars = 2 * problem.n_coef
+        structure = {"N": K, "nx": [0] + [nc + m] * K, "nu": [int(u.numel()) for u in U],
+                     "ng": [1 if u.numel() else 0 for u in U]}
+        n_g = sum(r.numel() for r in rows)
+        self.nlp = NLP({"x": ca.vertcat(*xs), "p": par, "f": f, "g": ca.vertcat(*rows)},
+                       np.concatenate(lbx), np.concatenate(ubx), np.concatenate(lbg), np.concatenate(ubg),
+                       "exact", plugin="fatrop", plugin_options=structure, dynamics_rows=slice(0, n_g))
+        return self.nlp
+
+    def _staged_coefficient_index(self):
+        """Positions of [a+; a-] (``TransportProblem`` layout) in the stage-ordered x."""
+        K, n_sub, nc, m = self._stage
+        idx, offset = [], 0
+        for k in range(K):
+            if k % n_sub == 0:
+                idx.append(np.arange(offset, offset + 2 * m))
+                offset += 2 * m
+            offset += nc + m                                       # x_{k+1}
+        u = np.stack(idx)                                          # (N, 2m): [a+_l; a-_l]
+        return np.concatenate([u[:, :m].ravel(), u[:, m:].ravel()])
+
+    def coefficients(self, x) -> np.ndarray:
+        if self.solver != "fatrop":
+            return super().coefficients(x)
+        x = np.asarray(x, dtype=float).ravel()
+        return self.problem.coefficients_from_solution(x[self._staged_coefficient_index()])
+
+    def residual(self, x, par) -> float:
+        if self.solver != "fatrop":
+            return super().residual(x, par)
+        if not hasattr(self, "_g_fn"):
+            self._g_fn = ca.Function("g", [self.nlp.nlp["x"], self.nlp.nlp["p"]], [self.nlp.nlp["g"]])
+        gv = np.array(self._g_fn(x, par)).ravel()
+        dyn = np.asarray(self.nlp.lbg) == np.asarray(self.nlp.ubg)
+        return float(np.max(np.abs(gv[dyn])))
+
     def initial_point(self, coef0, p0) -> np.ndarray:
         """The coefficient start, its face velocities and p0 simulated under coef0 (a feasible point)."""
         P = self.problem
+        if self.solver == "fatrop":
+            return self._staged_initial_point(coef0, p0)
         xc = self._coef_start(coef0)
         a = P.coefficients_from_solution(xc)
         coef = P.vector_to_coef(a)
@@ -394,6 +512,25 @@ class DirectTranscription(_StateFormulation):
         traj = P.trajectory(p0, coef)[1:]
         am = a if self._merged else a[:0]
         return np.concatenate([xc, am, Lw @ a, V, np.concatenate([s.ravel(order="F") for s in traj])])
+
+
+    def _staged_initial_point(self, coef0, p0) -> np.ndarray:
+        """[u_0, x_1, u_1, ...]: the split coefficient start and p0 simulated under it (feasible)."""
+        P = self.problem
+        K, n_sub, nc, m = self._stage
+        xc = self._coef_start(coef0)
+        a = P.coefficients_from_solution(xc)
+        traj = P.trajectory(p0, P.vector_to_coef(a))            # (K + 1, nx, ny)
+        n = P.n_coef
+        ap, am = xc[:n].reshape(-1, m), xc[n:].reshape(-1, m)
+        al = a.reshape(-1, m)
+        out = []
+        for k in range(K):
+            l = k // n_sub
+            if k % n_sub == 0:
+                out += [ap[l], am[l]]
+            out += [traj[k + 1].ravel(order="F"), al[l]]
+        return np.concatenate(out)
 
 
 def _dm(M) -> ca.DM:
@@ -441,5 +578,8 @@ def resolve_formulation(spec, settings=None) -> Formulation:
     if isinstance(spec, Formulation):
         return spec.bind()
     if isinstance(spec, str) and spec in FORMULATIONS:
-        return FORMULATIONS[spec](hessian=getattr(settings, "formulation_hessian", "auto"))
+        hessian = getattr(settings, "formulation_hessian", "auto")
+        if spec == "direct-transcription":
+            return DirectTranscription(hessian=hessian, solver=getattr(settings, "formulation_solver", "ipopt"))
+        return FORMULATIONS[spec](hessian=hessian)
     raise ValueError(f"unknown formulation {spec!r}; known: {', '.join(FORMULATIONS)}")

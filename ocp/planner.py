@@ -119,8 +119,10 @@ class ReferencePlanner:
             # tuned preset's first-period plans; docs/results/tuned-preset.md, "Planner scaling")
             ipopt["obj_scaling_factor"] = 1.0 / s.information_weight
         self.ipopt_options = ipopt
+        if self.nlp.plugin == "fatrop":
+            opts = fatrop_options(self.nlp, s.ipopt)
         try:
-            self.solver = ca.nlpsol("reference_density", "ipopt", self.nlp.nlp, opts)
+            self.solver = ca.nlpsol("reference_density", self.nlp.plugin, self.nlp.nlp, opts)
         except RuntimeError as exc:
             reason = re.sub(r"^.*?\.cpp:\d+:\s*", "", str(exc).strip().splitlines()[-1])
             raise ValueError(f"IPOPT rejected the options: {reason}") from None
@@ -314,6 +316,8 @@ class ReferencePlanner:
         wall = time.perf_counter() - t_start
         cpu = time.process_time() - c_start
         stats = solver.stats()
+        if nlp.plugin == "fatrop":
+            stats = fatrop_stats(stats)
         status = stats.get("return_status", "unknown")
         x = np.array(sol["x"]).ravel()
         if status == "Invalid_Option":
@@ -326,6 +330,7 @@ class ReferencePlanner:
             summary["cold_start"] = coarse_summary
         summary["formulation"] = F.name
         summary["hessian"] = nlp.hessian
+        summary["nlp_solver"] = nlp.plugin
         summary["mu_strategy"] = self.ipopt_options.get("mu_strategy")
         if not isinstance(F, SingleShooting):
             # max |continuity / step / lift residual| at the returned point (the plan is re-simulated anyway)
@@ -348,7 +353,7 @@ class ReferencePlanner:
         fixed when a solver is built): ``warm_start_init_point`` for a primal-dual warm start, ``max_iter`` of a
         re-plan (``PlannerSettings.replan_max_iter``).  No changes: :attr:`solver`."""
         changes = {k: v for k, v in changes.items() if self.ipopt_options.get(k) != v}
-        if not changes:
+        if not changes or self.nlp.plugin != "ipopt":
             return self.solver
         key = tuple(sorted(changes.items()))
         if key not in self._solvers:
@@ -468,6 +473,23 @@ def _interrupt_guard():
         yield hits
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+def fatrop_options(nlp, ipopt) -> dict:
+    """``casadi.nlpsol`` options of FATROP for a stage-ordered NLP: its stage structure (``nlp.plugin_options``)
+    and the IPOPT settings FATROP shares (``tol``, ``max_iter``, ``print_level``; it has no CPU-time limit
+    and no linear-solver choice: its Riccati recursion factorises the KKT system stage by stage)."""
+    return {"structure_detection": "manual", **nlp.plugin_options, "print_time": False, "record_time": True,
+            "error_on_fail": False,
+            "fatrop": {"tol": float(ipopt.tol), "max_iter": int(ipopt.max_iter), "print_level": int(ipopt.print_level)}}
+
+
+def fatrop_stats(stats: dict) -> dict:
+    """FATROP's stats with IPOPT's status names (``Solve_Succeeded`` when it converged)."""
+    out = dict(stats)
+    ok = bool(stats.get("success")) and stats.get("unified_return_status") == "SOLVER_RET_SUCCESS"
+    out["return_status"] = "Solve_Succeeded" if ok else f"FATROP_{stats.get('unified_return_status', 'failed')}"
+    return out
 
 
 def _stats_summary(stats: dict, wall: float) -> dict:

@@ -230,6 +230,10 @@ class PlannerSettings:
     #: Hessian of the formulation: "auto" (single shooting: ``ipopt.hessian_approximation``; multiple
     #: shooting and direct transcription: the exact sparse Hessian), "exact" or "limited-memory"
     formulation_hessian: str = "auto"
+    #: NLP solver of the formulation: "ipopt" (default; ``ipopt.linear_solver`` factorises its KKT systems) or
+    #: "fatrop" (direct transcription only: its variables ordered stage by stage, one stage per sub-step, and
+    #: FATROP's Riccati recursion; exact Hessian, l1 speed limit in the split form)
+    formulation_solver: str = "ipopt"
     #: initial guess of a solve without a warm-start plan (ocp.coarse, docs/design/planner-speed.md): "zero" (the
     #: zero velocity: the paper's), "coarse": first solve the problem with the first-order scheme on a grid of half
     #: the cells per side (obstacle mask coarsened: a coarse cell is free iff all the fine cells it covers are)
@@ -426,6 +430,18 @@ def _check_formulation(s):
     if s.formulation == "direct-transcription" and s.scheme != "upwind":
         raise ValueError("planner.formulation = 'direct-transcription' implements the upwind scheme only, "
                          f"not {s.scheme!r}")
+    if s.formulation_solver not in ("ipopt", "fatrop"):
+        raise ValueError(f"planner.formulation_solver must be 'ipopt' or 'fatrop', got {s.formulation_solver!r}")
+    if s.formulation_solver == "fatrop":
+        if s.formulation != "direct-transcription":
+            raise ValueError("planner.formulation_solver = 'fatrop' solves formulation 'direct-transcription' only, "
+                             f"not {s.formulation!r}")
+        if s.speed_limit != "l1" or s.speed_limit_form != "split":
+            raise ValueError("planner.formulation_solver = 'fatrop' poses the l1 speed limit in the split form only, "
+                             f"not speed_limit {s.speed_limit!r} / speed_limit_form {s.speed_limit_form!r}")
+        if s.formulation_hessian == "limited-memory" or s.objective != "symmetric-kl":
+            raise ValueError("planner.formulation_solver = 'fatrop' needs the exact Hessian and the symmetric-KL "
+                             "objective")
     if s.formulation != "single-shooting" and s.method != "ipopt":
         raise ValueError(f"planner.formulation = {s.formulation!r} is an IPOPT formulation; method 'grg' "
                          "runs single shooting on its own")
