@@ -20,6 +20,7 @@ import argparse
 import json
 import os
 import resource
+import signal
 import subprocess
 import sys
 import tempfile
@@ -103,8 +104,11 @@ def child(grid, form, solver, args) -> dict:
         row = json.loads(lines[-1])
     else:
         tail = [ln for ln in text.splitlines() if ln.strip()][-1:] or ["no output"]
-        memory = any(w in text for w in ("bad_alloc", "MemoryError", "Cannot allocate", "allocation"))
-        row = {"status": ("cap: memory " if memory else "crashed ") + f"({tail[0][:120]})"}
+        memory = any(w in text.lower() for w in ("bad_alloc", "memoryerror", "cannot allocate", "allocat",
+                                                  "out of memory"))
+        how = (f"signal {signal.Signals(os.WTERMSIG(status)).name}" if os.WIFSIGNALED(status)
+               else f"exit status {os.WEXITSTATUS(status)}")
+        row = {"status": ("cap: memory" if memory else "crashed") + f" ({how}; {tail[0][:120]})"}
     row.update(grid=grid, formulation=form, solver=solver, wall_s=time.perf_counter() - t,
                peak_rss_mb=ru.ru_maxrss / 1024.0, child_cpu_s=ru.ru_utime + ru.ru_stime)
     return row

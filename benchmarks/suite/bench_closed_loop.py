@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 
-from .common import TIMER, limit_threads
+from .common import TIMER, limit_threads, run, run_config, step_cpu_ms
 
 
 def _run(preset: str, controller: str, periods: int, **sim):
@@ -96,3 +96,122 @@ class LargeSwarmStep:
         return 1e3 * (time.process_time() - c) / steps
 
     track_cpu_ms_per_step.unit = "ms"
+
+
+class MeasurementStep:
+    """CPU per measurement step (the planner left out) at 1,000 and 10,000 robots, the posterior at every step
+    (``metrics_every = 1``) or at the default cadence ("auto": only when cheap), feedback law, one period
+    (``python benchmarks/measurement_step.py --robots 1000 10000 --every 1 auto`` in more detail)."""
+
+    timer = TIMER
+    params = ([1000, 10_000], ["auto", "1"])
+    param_names = ["robots", "metrics_every"]
+    number = 1
+    repeat = 1
+    warmup_time = 0.0
+    timeout = 600
+
+    def setup(self, robots, every):
+        limit_threads()
+
+    def track_mean_cpu_ms_per_step(self, robots, every):
+        every = every if every == "auto" else int(every)
+        ms = step_cpu_ms(run_config("paper", robots=robots, max_periods=1, metrics_every=every))
+        return sum(ms) / len(ms)
+
+    track_mean_cpu_ms_per_step.unit = "ms"
+
+
+class DomainStep:
+    """CPU per measurement step on a map with walls and doors against the empty rectangle, 2,000 robots, the
+    paper's settings (``python benchmarks/domain_step.py`` in more detail; goal: within 1.3x)."""
+
+    timer = TIMER
+    params = ["rectangle", "floor"]
+    param_names = ["domain"]
+    number = 1
+    repeat = 1
+    warmup_time = 0.0
+    timeout = 600
+
+    def setup(self, domain):
+        limit_threads()
+
+    def track_mean_cpu_ms_per_step(self, domain):
+        ms = step_cpu_ms(run_config("paper", domain, robots=2000, max_periods=1))
+        return sum(ms) / len(ms)
+
+    track_mean_cpu_ms_per_step.unit = "ms"
+
+
+class TunedReplans:
+    """The tuned preset's receding-horizon re-plans in a closed loop (two periods, feedback): the median and the
+    largest re-plan after the first, in CPU seconds over the re-plan interval (goal: median <= 0.5, max <= 1),
+    and the first plan's CPU seconds (``python benchmarks/realtime_plans.py --fields sinc plumes --domains
+    rectangle floor``; the real-time plans results page)."""
+
+    timer = TIMER
+    params = ["sinc/rectangle", "plumes/floor"]
+    param_names = ["field/domain"]
+    number = 1
+    repeat = 1
+    warmup_time = 0.0
+    timeout = 900
+
+    def setup_cache(self):
+        limit_threads()
+        import statistics
+        out = {}
+        for case in self.params:
+            field, domain = case.split("/")
+            cfg = run_config("tuned", domain, max_periods=2, field=field, controller="feedback")
+            res, _ = run(cfg)
+            cpus = [p["solve_cpu_s"] for p in res.replans if p.get("success")]
+            interval = cfg.sim.replan_every * cfg.sim.dt
+            later = cpus[1:] or [float("nan")]
+            out[case] = {"first": cpus[0] if cpus else float("nan"), "median": statistics.median(later) / interval,
+                         "max": max(later) / interval}
+        return out
+
+    def track_median_replan_cpu_over_interval(self, cache, case):
+        return cache[case]["median"]
+
+    track_median_replan_cpu_over_interval.unit = "ratio"
+
+    def track_max_replan_cpu_over_interval(self, cache, case):
+        return cache[case]["max"]
+
+    track_max_replan_cpu_over_interval.unit = "ratio"
+
+    def track_first_plan_cpu_s(self, cache, case):
+        return cache[case]["first"]
+
+    track_first_plan_cpu_s.unit = "s"
+
+
+class Decentralized:
+    """The decentralized swarm (robots talk within 4 m) against the paper's centralized loop, 100 robots, two
+    periods: CPU ratio and bytes per robot and step (``python benchmarks/decentralized_cost.py``)."""
+
+    timer = TIMER
+    number = 1
+    repeat = 1
+    warmup_time = 0.0
+    timeout = 900
+
+    def setup_cache(self):
+        limit_threads()
+        central, c_cpu = run(run_config("paper", robots=100, max_periods=2, allow_long_run=True))
+        local, l_cpu = run(run_config("paper", robots=100, max_periods=2, comm_radius=4.0, allow_long_run=True))
+        comm = local.communication or {}
+        return {"ratio": l_cpu / c_cpu, "bytes": comm.get("bytes_per_robot_per_step") or float("nan")}
+
+    def track_cpu_ratio_to_centralized(self, cache):
+        return cache["ratio"]
+
+    track_cpu_ratio_to_centralized.unit = "ratio"
+
+    def track_bytes_per_robot_per_step(self, cache):
+        return cache["bytes"]
+
+    track_bytes_per_robot_per_step.unit = "bytes"

@@ -67,3 +67,60 @@ class TunedPlan:
         return self.first.meta["solver"]["iterations"]
 
     track_first_plan_iterations.unit = "iterations"
+
+
+class PlannerGrid:
+    """The paper's first plan, cold, on finer grids with IPOPT and with the paper's GRG
+    (``python benchmarks/plan_reference.py --grids 40,80 --grg``; the grid sweep of the solver-study page)."""
+
+    timer = TIMER
+    params = ([40, 80], ["ipopt", "grg"])
+    param_names = ["cells_per_side", "method"]
+    number = 1
+    repeat = 2
+    warmup_time = 0.0
+    timeout = 300
+
+    def setup(self, n, method):
+        limit_threads()
+        from swarmfield.ocp import PlannerSettings, ReferencePlanner
+        self.planner = ReferencePlanner(PlannerSettings(nx=n, ny=n))
+        self.p0, self.target, _ = first_step(self.planner.grid, "symmetric-kl")
+        self.planner.solve(self.p0, self.target, method=method)          # compiled kernels, not timed
+
+    def time_cold_solve(self, n, method):
+        self.planner.solve(self.p0, self.target, method=method)
+
+    def track_iterations(self, n, method):
+        return self.planner.solve(self.p0, self.target, method=method).meta["solver"]["iterations"]
+
+    track_iterations.unit = "iterations"
+
+
+class Formulations:
+    """The paper's first plan at 10 x 10 in the three formulations (L-BFGS for the two with density
+    variables): the formulations results page measures them at 20 x 20 and 40 x 40 with
+    ``benchmarks/formulation_solvers.py`` and ``benchmarks/formulation_optimum.py``."""
+
+    timer = TIMER
+    params = ["single-shooting", "multiple-shooting", "direct-transcription"]
+    param_names = ["formulation"]
+    number = 1
+    repeat = 1
+    warmup_time = 0.0
+    timeout = 300
+
+    def setup(self, form):
+        limit_threads()
+        from swarmfield.ocp import PlannerSettings, ReferencePlanner
+        hess = "auto" if form == "single-shooting" else "limited-memory"
+        self.planner = ReferencePlanner(PlannerSettings(nx=10, ny=10, formulation=form, formulation_hessian=hess))
+        self.p0, self.target, _ = first_step(self.planner.grid, "symmetric-kl")
+
+    def time_cold_solve(self, form):
+        self.planner.solve(self.p0, self.target)
+
+    def track_objective(self, form):
+        return self.planner.solve(self.p0, self.target).meta["objective"]
+
+    track_objective.unit = "objective"

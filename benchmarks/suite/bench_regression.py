@@ -33,3 +33,35 @@ class Posterior:
     def time_add_and_predict(self, n):
         self.gp.add(self.X, self.y)
         self.gp.predict(self.centers)
+
+
+class RefitHyperparameters:
+    """One online MAP refit of the GP's (s_f^2, l) at the paper's grid, from the prior values (cold) and from the
+    previous fit after 100 more points (warm, as in the loop) (``python benchmarks/refit_hyperparameters.py``)."""
+
+    timer = TIMER
+    number = 1
+    repeat = 3
+    warmup_time = 0.0
+    timeout = 300
+
+    @staticmethod
+    def _data(rng, n):
+        X = rng.uniform(0.0, 20.0, (n, 2))
+        return X, 0.5 * np.sin(X[:, 0] / 3) * np.cos(X[:, 1] / 3) + 0.2 * rng.normal(size=n)
+
+    def setup(self):
+        limit_threads()
+        from swarmfield.regression import GaussianProcess, GPSettings
+        from swarmfield.regression.hyper import refit_online
+        self.refit = refit_online
+        self.rng = np.random.default_rng(0)
+        self.gp = GaussianProcess(GPSettings(learn_hyperparameters=True, hyper_maxiter=15), domain=(0, 20, 0, 20))
+        self.gp.add(*self._data(self.rng, 3200))
+
+    def time_cold_refit(self):
+        self.refit(self.gp)
+
+    def time_warm_refit_after_100_points(self):
+        self.gp.add(*self._data(self.rng, 100))
+        self.refit(self.gp)

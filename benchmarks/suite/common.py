@@ -33,3 +33,50 @@ def first_step(grid, objective: str):
         extra["information"] = InformationInputs(first_step_variance(grid), N_ROBOTS, 0.875, gs.noise_variance,
                                                  gs.length_scale)
     return p0, target, extra
+
+
+def run_config(preset: str = "paper", domain: str = "rectangle", **sim):
+    """A preset's ``RunConfig`` with simulation changes and a domain ("rectangle": the empty one)."""
+    import dataclasses
+
+    from swarmfield.sim.config import RunConfig
+    cfg = RunConfig.from_preset(preset, **sim)
+    if domain != "rectangle":
+        cfg = dataclasses.replace(cfg, domain=dataclasses.replace(cfg.domain, source=domain))
+    return cfg
+
+
+def run(cfg):
+    """``run_simulation`` of ``cfg`` to its ``max_periods`` (the stop rule recorded, not stopping, as in
+    ``compare-controllers``); returns (result, CPU seconds)."""
+    import warnings
+
+    from swarmfield.sim.loop import run_simulation
+    from swarmfield.sim.stopping import make_stop_rule
+    c = time.process_time()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = run_simulation(cfg, stop_rule=make_stop_rule(cfg.sim, stops=False))
+    return res, time.process_time() - c
+
+
+def step_cpu_ms(cfg, periods: int = 1) -> list:
+    """CPU milliseconds of every measurement step (``Simulation.measurement_step``: Δt of dynamics, the
+    measurement, the KDE, the GP update and -- when due -- the posterior) over ``periods`` periods after the
+    start; the planner is left out (``benchmarks/measurement_step.py``, ``benchmarks/domain_step.py``)."""
+    from swarmfield.sim.simulation import Simulation
+
+    class Timed(Simulation):
+        def measurement_step(self, j):
+            c = time.process_time()
+            super().measurement_step(j)
+            self.step_ms.append(1e3 * (time.process_time() - c))
+
+    sim = Timed(cfg)
+    sim.step_ms = []
+    sim.start()
+    for _ in range(periods):
+        if not sim.step():
+            break
+    sim.finish()
+    return sim.step_ms
