@@ -1,0 +1,23 @@
+"""The asv suite (benchmarks/suite) imports, and every benchmark the benchmarks page lists exists with at least one
+time_ / track_ / peakmem_ method; every script beside the suite is named on that page.  No timing."""
+import importlib
+import re
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_benchmarks_page_lists_what_the_suite_has():
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        page = (ROOT / "docs" / "guide" / "benchmarks.md").read_text()
+        listed = re.findall(r"^\| `(bench_\w+)\.(\w+)` \|", page, flags=re.M)
+        assert len(listed) >= 14
+        for module, cls in listed:
+            obj = getattr(importlib.import_module(f"suite.{module}"), cls)
+            assert any(n.startswith(("time_", "track_", "peakmem_")) for n in dir(obj)), (module, cls)
+        for script in (ROOT / "benchmarks").glob("*.py"):
+            assert f"`{script.name}`" in page, f"benchmarks/{script.name} is not on docs/guide/benchmarks.md"
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
