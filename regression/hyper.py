@@ -42,6 +42,8 @@ __all__ = ["coarsening_factor", "coarsened", "refit", "refit_online", "length_sc
 #: instead of 8-11 likelihood evaluations); the gradient tolerance stays 1e-5 per point
 _SCALE = 10.0
 _GTOL = 1e-5
+#: prior truncation of the refit's likelihood on the coarse grid (:func:`refit`)
+REFIT_TRUNCATION = 1e-12
 
 
 def _offset_maps(c: int, n_pow: int) -> np.ndarray:
@@ -63,10 +65,11 @@ def coarsening_factor(gp, wanted: int) -> int:
     return 1
 
 
-def coarsened(gp, factor: int, length_scale: float | None = None):
+def coarsened(gp, factor: int, length_scale: float | None = None, prior_truncation: float | None = None):
     """A :class:`GaussianProcess` on the grid of cell width ``factor`` x gp's, holding exactly the
     sufficient statistics of gp's data (module docstring); its settings are gp's with that spacing
-    and ``length_scale`` (default: gp's, raised to the coarse grid's lower bound 1.5 W)."""
+    and ``length_scale`` (default: gp's, raised to the coarse grid's lower bound 1.5 W), and ``prior_truncation``
+    if given."""
     c = int(factor)
     ax, ay = gp._ax, gp._ay
     if c < 1 or ax.n_cells % c or ay.n_cells % c:
@@ -76,8 +79,9 @@ def coarsened(gp, factor: int, length_scale: float | None = None):
     s = gp.settings
     ell = max(s.length_scale if length_scale is None else float(length_scale), 1.5 * spacing)
     ell_y = None if s.length_scale_y is None else max(s.length_scale_y, 1.5 * spacing)
+    tr = s.prior_truncation if prior_truncation is None else float(prior_truncation)
     coarse = GaussianProcess(dataclasses.replace(s, length_scale=ell, length_scale_y=ell_y, inducing_spacing=spacing,
-                                                 learn_hyperparameters=False), gp.domain)
+                                                 learn_hyperparameters=False, prior_truncation=tr), gp.domain)
     if (coarse._ax.n_cells, coarse._ay.n_cells) != (ax.n_cells // c, ay.n_cells // c):   # pragma: no cover
         raise RuntimeError("coarse grid does not align with the fine one")
     NX, NY = ax.n_cells // c, ay.n_cells // c
@@ -133,7 +137,11 @@ def refit(gp, prior, maxiter: int, factor: int = 2, signal_variance_bounds=None,
     if gp.n_observations < 2:
         raise ValueError("a hyperparameter refit needs at least two observations")
     c = coarsening_factor(gp, factor)
-    coarse = coarsened(gp, c) if c > 1 else gp
+    # on the coarse grid (cheap) the likelihood keeps (nearly) every prior direction: the kept set moves with l, and
+    # with the default truncation (relative to s_f^2) a refit at an inflated s_f^2 (a hotspot's first refit: 10^3 -
+    # 10^4 x the data's variance) drops directions of many times the noise variance, so that the likelihood jumps by
+    # tens of nats between points 10^-4 apart and L-BFGS-B stays where it is, period after period
+    coarse = coarsened(gp, c, prior_truncation=min(gp.settings.prior_truncation, REFIT_TRUNCATION)) if c > 1 else gp
     lo_l, hi_l = _default_length_bounds(gp, c) if length_scale_bounds is None else length_scale_bounds
     lo_l = max(float(lo_l), 1.5 * coarse.settings.resolved_inducing_spacing)
     sv_lo, sv_hi = _signal_bounds(gp) if signal_variance_bounds is None else signal_variance_bounds

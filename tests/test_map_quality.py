@@ -84,6 +84,26 @@ def test_refit_does_not_jump_an_order_of_magnitude_on_data_from_a_flat_start():
         assert 0.1 < s1 / s0 < 10 and 0.1 < l1 / l0 < 10
 
 
+def test_a_refit_after_an_inflated_one_comes_back():
+    """A hotspot's first refit can inflate s_f^2 to ~10^3-10^4 x the data's variance at a long l; the next refit must
+    come back to what the data say (here l ~ 2.3 m, s_f^2 ~ 10^4 ppm^2).  With the default prior truncation
+    (relative to s_f^2) the likelihood dropped directions of many noise variances there, jumped by tens of nats
+    between neighbouring points, and the refit stayed at (7.3e7, 7.55 m) period after period."""
+    rng = np.random.default_rng(2)
+    X = rng.uniform(0, 20, (900, 2))
+    c = rng.uniform(4, 16, 2)
+    y = 400 + 1000 * np.exp(-((X[:, 0] - c[0]) ** 2 + (X[:, 1] - c[1]) ** 2) / (2 * 1.2 ** 2)) + 5 * rng.normal(size=900)
+    gp = GaussianProcess(GPSettings(signal_variance=1.0, length_scale=1.0, noise_variance=25.0, signal_scale="data",
+                                    kernel="matern52", learn_hyperparameters=True, hyper_prior_sd=0.5,
+                                    hyper_step_sd=1.0, hyper_maxiter=8), (0.0, 20.0, 0.0, 20.0))
+    gp.add(X, y)
+    gp.set_hyperparameters(7.3e7, 7.55)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        s = refit_online(gp)
+    assert s.length_scale < 4.0 and s.signal_variance < 1e5
+
+
 def test_a_learned_value_at_its_bound_is_warned_about_in_one_line():
     X, y, _, _ = _sample(0.3, 1.0, 1500, 0.01, seed=2)          # far finer than the grid resolves
     gp = GaussianProcess(GPSettings(signal_variance=1.0, learn_hyperparameters=True, signal_scale="data"), DOMAIN)
