@@ -7,6 +7,9 @@
   with a density floor and speed saturation (see that module for what they do to the
   stability results).
 
+* :mod:`control.flooded` -- distributed density estimation by flooded positions: every robot's own p̂
+  and ∇p̂ as the centre's KDE of the positions that reached it within a hop bound per sub-step (the
+  decentralized swarm's default).
 * :mod:`control.consensus` -- distributed density estimation: every robot's own p̂ and ∇p̂ from its
   neighbours' messages (PI dynamic average consensus on the cosine moments of the positions), for a
   swarm without a communication centre.
