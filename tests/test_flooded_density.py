@@ -147,3 +147,28 @@ def test_flooded_run_with_every_robot_within_the_hop_bound_is_the_centralized_ru
     assert all(r["density_error"] < 1e-12 for r in flooded.rows)
     comm = flooded.communication
     assert comm["bytes_by_kind"]["density"] > 0 and comm["max_components"] == 1
+
+
+def test_the_plan_starts_from_the_designated_robots_own_estimate_when_robots_are_lost():
+    """With lost robots the estimates keep one row per robot: the designated robot's row is its number (it was
+    its position among the working robots, i.e. another robot's estimate)."""
+    from swarmfield.ocp import Grid
+    from swarmfield.sim.network import Decentralized
+    X = np.array([[1.0, 1.0], [2.0, 1.0], [3.0, 1.0], [12.0, 12.0], [13.0, 12.0]])
+    cfg, sim = _fake_sim(X)
+    sim.grid = Grid(DOMAIN, 20, 20)
+    sim.alive = np.array([False, False, True, True, True])
+    sim.working = lambda: sim.X[sim.alive]
+    sim.p_hat = None
+    net = Decentralized(cfg)
+    net.bind(sim)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        net.start(sim)
+    net.knowledge.main = np.array([False, False, False, True, True])     # robot 3 is the designated robot
+    assert net.knowledge.leader == 3
+    P = net.planning_density(sim)
+    est = net.current(sim.working())
+    own = sim.grid.normalize(est.on_grid(20, 20, [3])[0])
+    np.testing.assert_allclose(P, own, atol=1e-12)
+    assert not np.allclose(P, sim.grid.normalize(est.on_grid(20, 20, [2])[0]))
