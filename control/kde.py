@@ -280,15 +280,19 @@ class KernelDensity:
         dy = (y1 - y0) / my
         n = X.shape[0]
 
-        # 1. linear binning onto the bin centres x0 + (j + 1/2) dx
-        counts = _linear_binning(X, x0, y0, dx, dy, mx, my)
+        # 1. linear binning onto the bin centres x0 + (j + 1/2) dx (no weight across a closed face)
+        closed = self._closed_bins(mx, my) if reflect else None
+        if closed is None:
+            counts = _linear_binning(X, x0, y0, dx, dy, mx, my)
+        else:
+            counts = _linear_binning_walls(X, x0, y0, dx, dy, mx, my, closed)
         dens = counts / (n * dx * dy)
 
         hx2 = h * h - dx * dx / 6.0
         hy2 = h * h - dy * dy / 6.0
         if reflect:
-            p, px, py, pxy = self._free_heat(dens, mx, my, dx, dy, hx2, hy2)
-            return DensityEstimate(self.domain, float(h), (mx, my), n, p, px, py, pxy, self.free)
+            p, px, py, pxy, closed = self._free_heat(dens, mx, my, dx, dy, hx2, hy2)
+            return DensityEstimate(self.domain, float(h), (mx, my), n, p, px, py, pxy, self.free, closed)
 
         # 2./3. Neumann heat kernel in the DCT-II domain, derivatives via DST
         a = sfft.dctn(dens, type=2)
@@ -323,18 +327,22 @@ class KernelDensity:
         is a lazy random walk of variance 2 D ds per axis, so the steps together add exactly hx2 and hy2
         (the binning's dx^2/6 is in h^2 already, as on the DCT path).  Blocked bins then take the value of
         their nearest free bin (zero normal derivative at the obstacle) and the derivatives are central
-        differences, so the Hermite interpolant of :class:`DensityEstimate` is C^1 as before."""
+        differences, so the Hermite interpolant of :class:`DensityEstimate` is C^1 as before.  At a closed
+        face (a wall thinner than a cell) a difference takes the bin's own value for its neighbour across the
+        face (the mirror ghost of a reflecting wall: zero normal derivative on it, as at the outer walls), so
+        the density behind a wall does not enter this side's gradient.  Also returns the closed bin faces
+        (None without any) for the interpolation (:class:`DensityEstimate`)."""
         key = (mx, my)
         if key not in self._heat:
             from scipy.ndimage import distance_transform_edt
             m = self.mask(mx, my)
             _, (ix, iy) = distance_transform_edt(~m, return_indices=True)    # nearest free bin of every bin
             ox, oy = m[:-1, :] & m[1:, :], m[:, :-1] & m[:, 1:]
-            if self.walls is not None:
-                cx, cy = bin_walls(self.walls, self.free.shape, mx, my)
-                ox, oy = ox & ~cx, oy & ~cy
-            self._heat[key] = (m, ix, iy, ox.astype(float), oy.astype(float))
-        m, ix, iy, open_x, open_y = self._heat[key]
+            closed = self._closed_bins(mx, my)
+            if closed is not None:
+                ox, oy = ox & ~closed[0], oy & ~closed[1]
+            self._heat[key] = (m, ix, iy, ox.astype(float), oy.astype(float), closed)
+        m, ix, iy, open_x, open_y, closed = self._heat[key]
         p = np.zeros_like(dens)
         np.add.at(p, (ix[~m], iy[~m]), dens[~m])           # mass of blocked bins to their nearest free bin
         p[m] += dens[m]
@@ -358,10 +366,21 @@ class KernelDensity:
         mass = float(p[m].sum()) * dx * dy
         if mass > 0:
             p /= mass
-        px = np.gradient(p, dx, axis=0)
-        py = np.gradient(p, dy, axis=1)
-        pxy = np.gradient(px, dy, axis=1)
-        return p, px, py, pxy
+        cx, cy = (None, None) if closed is None else closed
+        px = _gradient(p, dx, 0, cx)
+        py = _gradient(p, dy, 1, cy)
+        pxy = _gradient(px, dy, 1, cy)
+        return p, px, py, pxy, closed
+
+    def _closed_bins(self, mx: int, my: int):
+        """The closed faces of the mx x my bins (:func:`bin_walls`), None without any; cached."""
+        if self.walls is None:
+            return None
+        key = ("walls", int(mx), int(my))
+        if key not in self._masks:
+            cx, cy = bin_walls(self.walls, self.free.shape, mx, my)
+            self._masks[key] = (cx, cy) if (cx.any() or cy.any()) else None
+        return self._masks[key]
 
     def mask(self, nx: int, ny: int) -> np.ndarray:
         """``free`` resampled to an nx x ny cell grid of the domain (cell centre lookup), cached."""
@@ -369,6 +388,26 @@ class KernelDensity:
         if key not in self._masks:
             self._masks[key] = resample_mask(self.free, *key)
         return self._masks[key]
+
+
+def _gradient(f: np.ndarray, step: float, axis: int, closed) -> np.ndarray:
+    """``np.gradient(f, step, axis=axis)``, except at the bins next to a closed face (``closed``: f's shape less
+    one along ``axis``): there the neighbour across the face is the bin's own value (the mirror ghost of a
+    reflecting wall), so nothing behind a wall enters the difference."""
+    g = np.gradient(f, step, axis=axis)
+    if closed is None or not closed.any():
+        return g
+    f = np.moveaxis(f, axis, 0)
+    c = np.moveaxis(np.asarray(closed, dtype=bool), axis, 0)
+    no = np.zeros((1,) + c.shape[1:], dtype=bool)
+    above = np.concatenate([c, no])                 # the face after bin k along the axis is closed
+    below = np.concatenate([no, c])                 # the face before bin k is closed
+    hi = np.where(above, f, np.concatenate([f[1:], f[-1:]]))
+    lo = np.where(below, f, np.concatenate([f[:1], f[:-1]]))
+    g = np.moveaxis(g, axis, 0).copy()
+    touched = above | below                         # elsewhere np.gradient's values (one-sided at the outer walls)
+    g[touched] = ((hi - lo) / (2.0 * step))[touched]
+    return np.moveaxis(g, 0, axis)
 
 
 def bin_walls(walls, shape, mx: int, my: int):
@@ -425,6 +464,50 @@ def _linear_binning_numpy(X, x0, y0, dx, dy, mx, my) -> np.ndarray:
     return c.reshape(mx, my)
 
 
+def _linear_binning_walls(X, x0, y0, dx, dy, mx, my, closed) -> np.ndarray:
+    """Linear binning (:func:`_linear_binning_numpy`) that puts no weight across a closed bin face: a robot's
+    share of a centre behind a wall goes to the centre its ghost mirrors (the robot's own, nearest centre across
+    an x or y wall; for the diagonal centre, the one :meth:`DensityEstimate._wall_corners` mirrors), as the
+    outer walls keep a robot's whole weight on their side."""
+    cx, cy = closed
+    fx = (X[:, 0] - x0) / dx - 0.5
+    fy = (X[:, 1] - y0) / dy - 0.5
+    ix = np.floor(fx)
+    iy = np.floor(fy)
+    sx = fx - ix
+    sy = fy - iy
+    ix = ix.astype(np.intp)
+    iy = iy.astype(np.intp)
+    ix0, ix1 = np.clip(ix, 0, mx - 1), np.clip(ix + 1, 0, mx - 1)
+    iy0, iy1 = np.clip(iy, 0, my - 1), np.clip(iy + 1, 0, my - 1)
+    # the stencil's faces (open where the two centres coincide at an outer wall)
+    fi, fj = np.minimum(ix0, mx - 2), np.minimum(iy0, my - 2)
+    x_lo = (ix0 == ix1) | ~cx[fi, iy0]            # x face in row iy0 open
+    x_hi = (ix0 == ix1) | ~cx[fi, iy1]            # ... in row iy1
+    y_lo = (iy0 == iy1) | ~cy[ix0, fj]            # y face in column ix0 open
+    y_hi = (iy0 == iy1) | ~cy[ix1, fj]            # ... in column ix1
+    a, b = sx >= 0.5, sy >= 0.5                   # the robot's own centre: (ix1 if a else ix0, iy1 if b else iy0)
+    own_row, other_row = np.where(b, x_hi, x_lo), np.where(b, x_lo, x_hi)
+    own_col, other_col = np.where(a, y_hi, y_lo), np.where(a, y_lo, y_hi)
+    oi, ni = np.where(a, ix1, ix0), np.where(a, ix0, ix1)          # own and neighbouring column
+    oj, nj = np.where(b, iy1, iy0), np.where(b, iy0, iy1)
+    wo_x, wn_x = np.where(a, sx, 1 - sx), np.where(a, 1 - sx, sx)  # weights of the own / other column
+    wo_y, wn_y = np.where(b, sy, 1 - sy), np.where(b, 1 - sy, sy)
+    # where each of the four shares lands: the x neighbour, the y neighbour, the diagonal
+    xi = np.where(own_row, ni, oi)
+    yj = np.where(own_col, nj, oj)
+    reach = (own_row & other_col) | (own_col & other_row)
+    via_y = ~own_row | own_col                     # the diagonal's ghost mirrors the y neighbour's
+    di = np.where(reach, ni, np.where(via_y, oi, xi))
+    dj = np.where(reach, nj, np.where(via_y, yj, oj))
+    size = mx * my
+    c = np.bincount(oi * my + oj, wo_x * wo_y, minlength=size)
+    c += np.bincount(xi * my + oj, wn_x * wo_y, minlength=size)
+    c += np.bincount(oi * my + yj, wo_x * wn_y, minlength=size)
+    c += np.bincount(di * my + dj, wn_x * wn_y, minlength=size)
+    return c.reshape(mx, my)
+
+
 def _pad_reflect(p, px, py, pxy) -> np.ndarray:
     """(4, mx + 2, my + 2): p, dp/dx, dp/dy, d2p/dxdy, each with one ghost layer on every side holding the
     mirror value across the wall, negated where the field is odd across it (dp/dx at the x walls, dp/dy at
@@ -455,11 +538,24 @@ class DensityEstimate:
     grad_y: np.ndarray        # d p_hat / dy at the bin centres
     grad_xy: np.ndarray       # d2 p_hat / dx dy at the bin centres
     free: np.ndarray | None = None   # free-space mask of the domain (None: the whole rectangle)
+    walls: tuple | None = None       # closed bin faces (bx - 1, by), (bx, by - 1): walls thinner than a cell
 
     def __post_init__(self):
         # padded, flattened (bx+2)*(by+2) grids of p, dp/dx, dp/dy, d2p/dxdy with reflected ghost nodes
         flat = tuple(g.ravel() for g in _pad_reflect(self.values, self.grad_x, self.grad_y, self.grad_xy))
         object.__setattr__(self, "_flat", flat)
+        if self.walls is not None:
+            # closed faces between the padded nodes: x faces (bx + 1, by + 2), y faces (bx + 2, by + 1); the ghost
+            # rows and columns are mirrors of the first and last ones, and so are their faces
+            mx, my = self.bins
+            cx, cy = (np.asarray(w, dtype=bool) for w in self.walls)
+            px = np.zeros((mx + 1, my + 2), dtype=bool)
+            px[1:-1, 1:-1] = cx
+            px[:, 0], px[:, -1] = px[:, 1], px[:, -2]
+            py = np.zeros((mx + 2, my + 1), dtype=bool)
+            py[1:-1, 1:-1] = cy
+            py[0, :], py[-1, :] = py[1, :], py[-2, :]
+            object.__setattr__(self, "_closed", (px, py))
 
     def __repr__(self):
         return f"DensityEstimate(n_points={self.n_points}, bandwidth={self.bandwidth:.4g}, bins={self.bins})"
@@ -505,7 +601,11 @@ class DensityEstimate:
         u = fy - j
         k00 = i * (my + 2) + j                 # flat index of the lower-left node
         corners = (k00, k00 + 1, k00 + (my + 2), k00 + (my + 3))   # (a, b) = 00, 01, 10, 11
-        P, PX, PY, PXY = self._flat
+        if self.walls is not None:
+            P, PX, PY, PXY = self._wall_corners(i, j, t, u, corners)
+            corners = (0, 1, 2, 3)
+        else:
+            P, PX, PY, PXY = self._flat
         # cubic Hermite weights: value/slope at the left (0) and right (1) node, and their d/dt
         t2, u2 = t * t, u * u
         t3, u3 = t2 * t, u2 * u
@@ -542,6 +642,44 @@ class DensityEstimate:
         gx = da0 * v0 + da1 * v1 + db0 * s0 + db1 * s1
         gy = a0 * dv0 + a1 * dv1 + b0 * ds0 + b1 * ds1
         return p, gx, gy
+
+    def _wall_corners(self, i, j, t, u, corners):
+        """The four Hermite nodes of each point (as four (4, m) arrays p, dp/dx, dp/dy, d2p/dxdy, corner k in row
+        k) with every node that a closed face separates from the point replaced by a mirror ghost.
+
+        The point's own node is the nearest one (a bin face lies midway between two nodes, so the point is on
+        the own node's side of it).  The x neighbour across a closed x face becomes the own node mirrored in x
+        (p, -p_x, p_y, -p_xy), the y neighbour across a closed y face the own node mirrored in y; the diagonal
+        node, unless reachable through open faces of the stencil, the mirror of the (possibly ghost) y neighbour
+        across the x face, or of the x neighbour across the y face.  A wall across the stencil thus acts like
+        the outer walls (:func:`_pad_reflect`): zero normal derivative on it, nothing behind it counts."""
+        cpx, cpy = self._closed
+        a = t >= 0.5                               # own node: column 1 (else 0) of the stencil
+        b = u >= 0.5                               # own node: row 1 (else 0)
+        x_lo, x_hi = ~cpx[i, j], ~cpx[i, j + 1]    # the stencil's x faces are open: row 0, row 1
+        y_lo, y_hi = ~cpy[i, j], ~cpy[i + 1, j]    # its y faces: column 0, column 1
+        own_row, other_row = np.where(b, x_hi, x_lo), np.where(b, x_lo, x_hi)
+        own_col, other_col = np.where(a, y_hi, y_lo), np.where(a, y_lo, y_hi)
+        V = np.stack([np.stack([f[k] for f in self._flat]) for k in corners])     # (corner, field, m)
+        ka = np.where(a, 2, 0)
+        kb = np.where(b, 1, 0)
+        n = np.arange(len(t))
+        own = V[ka + kb, :, n].T                   # (field, m)
+        xn = V[(2 - ka) + kb, :, n].T
+        yn = V[ka + (1 - kb), :, n].T
+        dg = V[(2 - ka) + (1 - kb), :, n].T
+        mirror_x = np.array([1.0, -1.0, 1.0, -1.0])[:, None]
+        mirror_y = np.array([1.0, 1.0, -1.0, -1.0])[:, None]
+        xn = np.where(own_row, xn, own * mirror_x)
+        yn = np.where(own_col, yn, own * mirror_y)
+        reach = (own_row & other_col) | (own_col & other_row)
+        dg = np.where(reach, dg, np.where(~own_row | own_col, yn * mirror_x, xn * mirror_y))
+        out = np.empty_like(V)
+        out[ka + kb, :, n] = own.T
+        out[(2 - ka) + kb, :, n] = xn.T
+        out[ka + (1 - kb), :, n] = yn.T
+        out[(2 - ka) + (1 - kb), :, n] = dg.T
+        return tuple(out[:, f] for f in range(4))
 
     def density(self, points: np.ndarray) -> np.ndarray:
         """p_hat at ``points`` (m, 2) -> (m,)."""

@@ -600,6 +600,8 @@ def tracking_velocity(X: np.ndarray, plan, t: float, est, settings, stir_pattern
     basis = getattr(plan, "basis", "sine")
     if basis not in ("sine", "sine-cosine"):
         return None
+    if getattr(est, "walls", None) is not None:
+        return None                  # an estimate with closed faces: its wall-aware interpolation is NumPy's
     X = np.ascontiguousarray(X, dtype=np.float64)
     n = X.shape[0]
     keep = []                               # arrays referenced by pointer: alive until the call returns

@@ -221,6 +221,61 @@ def test_the_kde_does_not_smooth_across_a_closed_face():
     assert plain[20:, :20].sum() * 0.25 > 0.05
 
 
+def test_the_kde_gradient_sees_a_closed_face_as_a_reflecting_wall():
+    """A wall across the whole map is a mirror: the estimate of robots left of it equals twice the estimate
+    without the wall of those robots and their mirror images (same bins, so exact to rounding), values and
+    gradients, also within a bin of the wall.  Before, the gradient there was a difference across the wall:
+    robots of a crowded side were driven into the wall at the speed limit (alpha |p_x| / p ~ 3 /m)."""
+    from swarmfield.control.feedback import FeedbackSettings, feedback_velocity
+    from swarmfield.control.kde import KernelDensity
+    free = np.ones((40, 40), bool)
+    cx, cy = np.zeros((39, 40), bool), np.zeros((40, 39), bool)
+    cx[19, :] = True                                       # x = 10, no door
+    rng = np.random.default_rng(1)
+    X = np.column_stack([rng.uniform(0.0, 10.0, 500), rng.uniform(0.0, 20.0, 500)])
+    both = np.vstack([X, np.column_stack([20.0 - X[:, 0], X[:, 1]])])
+    walled = KernelDensity(EXT, bandwidth=1.0, free=free, obstacle_kernel="reflect", walls=(cx, cy)).fit(X)
+    mirror = KernelDensity(EXT, bandwidth=1.0, free=free, obstacle_kernel="reflect").fit(both)
+    pts = np.column_stack([np.linspace(8.0, 9.99, 41), np.linspace(1.0, 19.0, 41)])
+    p, g = walled.evaluate(pts)
+    q, gq = mirror.evaluate(pts)
+    np.testing.assert_allclose(p, 2 * q, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(g, 2 * gq, rtol=1e-9, atol=1e-12)
+    assert np.abs(g[-1, 0]) < 1e-3 * np.abs(g[:, 1]).max()   # about zero normal derivative at the wall
+    # the law's velocity on a uniform reference within a bin of the wall: nowhere near the speed limit
+    s = FeedbackSettings(alpha=3.0, v_max=3.0)
+    near = pts[:, 0] > 9.75
+    v = feedback_velocity(p[near], g[near], np.full(near.sum(), 1 / 200), np.zeros((near.sum(), 2)),
+                          np.zeros((near.sum(), 2)), s)
+    assert np.abs(v[:, 0]).max() < 0.5
+    # right of the wall (nobody there): almost nothing, and no pull towards the wall
+    p_r, g_r = walled.evaluate(np.array([[10.05, 5.0], [10.2, 5.0]]))
+    assert p_r.max() < 1e-6 and np.abs(g_r).max() < 1e-6
+
+
+def test_the_kde_beside_a_door_is_continuous_and_keeps_its_mass():
+    from swarmfield.control.kde import KernelDensity
+    d = thin_wall_domain()
+    free = d.free_cells((40, 40))
+    walls = d.closed_faces(free)
+    rng = np.random.default_rng(2)
+    X = np.column_stack([rng.uniform(0.0, 9.8, 800), rng.uniform(0.0, 20.0, 800)])     # left of the wall
+    est = KernelDensity(EXT, bandwidth=1.0, free=free, obstacle_kernel="reflect", walls=walls).fit(X)
+    # along the wall, left of it: the normal derivative of a crowd's edge at a wall is ~0 (it was ~3 p per metre,
+    # a difference across the wall); along both sides and across the door's edges (y = 15, 16.2) no jump
+    pts = np.column_stack([np.full(400, 9.8), np.linspace(1.0, 13.0, 400)])
+    p, g = est.evaluate(pts)
+    assert np.abs(g[:, 0] / p).max() < 0.3
+    for x in (9.8, 10.2):
+        pts = np.column_stack([np.full(400, x), np.linspace(10.0, 20.0, 400)])
+        p, g = est.evaluate(pts)
+        assert np.all(np.isfinite(g)) and p.min() >= 0
+        assert np.abs(np.diff(p)).max() < 0.05 * p.max()     # no jump at the door's edges
+    x = (np.arange(80) + 0.5) * 0.25
+    G = np.meshgrid(x, x, indexing="ij")
+    assert est.density(np.column_stack([G[0].ravel(), G[1].ravel()])).sum() * 0.0625 == pytest.approx(1.0, rel=2e-2)
+
+
 def test_geodesics_and_the_travel_time_limit_go_through_the_door(tmp_path):
     from swarmfield.sim.stopping import travel_time_limit
     d = thin_wall_domain()
