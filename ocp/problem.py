@@ -228,23 +228,17 @@ class TransportProblem:
             running = s.information_weight * ca.mtimes(phi, ca.DM(trap))
             terminal = s.information_weight * phi[N]
             self.information_curve = ca.Function("information_curve", [a, p0, self.info], [phi])
-        elif self.kernel is None:
-            kls = [self.sym_kl(pk, qt, lq) for pk in states]
-            running = 0.5 * (kls[0] + kls[-1]) + sum(kls[1:-1])   # trapezoid over the interval boundaries
-            terminal = kls[-1]
+            if s.information_kl > 0:
+                # plus the paper's KL terms, weighted: mass the information terms do not need is drawn to the target
+                # instead of parked (in a corner, against a wall), and mass far from any gain feels the target's pull
+                klv = self._kl_curve(states, Pk if self.kernel is not None else None, qt, lq, N)
+                running = running + s.information_kl * ca.mtimes(klv, ca.DM(trap))
+                terminal = terminal + s.information_kl * klv[N]
         else:
-            # the same sums on the (cells x snapshots) matrix at once: a handful of MX nodes, not 13 x 6
-            qv, lqv = ca.vec(qt), ca.vec(lq)
-            ones = ca.DM.ones(1, N + 1)
-            terms = (Pk - ca.mtimes(qv, ones)) * (ca.log(Pk + s.log_eps) - ca.mtimes(lqv, ones))
-            if self.free is not None:    # free cells only
-                terms = ca.mtimes(ca.DM(self.free.ravel(order="F").astype(float)).T, terms)
-                klv = terms * g.cell_area
-            else:
-                klv = ca.sum1(terms) * g.cell_area
+            klv = self._kl_curve(states, Pk if self.kernel is not None else None, qt, lq, N)
             trap = np.ones(N + 1)
             trap[[0, -1]] = 0.5
-            running = ca.mtimes(klv, ca.DM(trap))
+            running = ca.mtimes(klv, ca.DM(trap))               # trapezoid over the interval boundaries
             terminal = klv[N]
         energy = tau * (g.lx * g.ly / 4.0) * ca.sumsqr(a)
         J_f = s.w_f * terminal
@@ -262,6 +256,21 @@ class TransportProblem:
         else:
             self._slack_nlp(a, J_f + J_p + J_v, param)
         self.objective = ca.Function("objective", [a, p0, qt, lq] + extra, [J_f + J_p + J_v])
+
+    def _kl_curve(self, states, Pk, qt, lq, N):
+        """KLs(p_l, q) at every interval boundary l, (1, N + 1) (eq. "optimization problem"'s terms): on the
+        (cells x snapshots) matrix ``Pk`` at once with the transport kernel (a handful of MX nodes), else one
+        ``sym_kl`` per snapshot."""
+        import casadi as ca
+        s, g = self.settings, self.grid
+        if Pk is None:
+            return ca.horzcat(*[self.sym_kl(pk, qt, lq) for pk in states])
+        qv, lqv = ca.vec(qt), ca.vec(lq)
+        ones = ca.DM.ones(1, N + 1)
+        terms = (Pk - ca.mtimes(qv, ones)) * (ca.log(Pk + s.log_eps) - ca.mtimes(lqv, ones))
+        if self.free is not None:    # free cells only
+            return ca.mtimes(ca.DM(self.free.ravel(order="F").astype(float)).T, terms) * g.cell_area
+        return ca.sum1(terms) * g.cell_area
 
     def _block(self):
         """(N x n_coef) 0/1 matrix summing the coefficients of each interval."""

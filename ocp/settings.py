@@ -220,6 +220,11 @@ class PlannerSettings:
     #: current, possibly learned, length scale) or "stop-rule" (those the stop rule judges by: with
     #: sim.stop_rule = "robust" the variance at l_c = min(l, prior l) and l_c; else as "gp")
     information_scale: str = "gp"
+    #: weight of the paper's symmetric-KL terms (w_f KLs(p(t_f), q) + w_p int KLs) added to the information objective
+    #: (0 = none): the information terms value mass only where it lowers the predicted variance and are indifferent to
+    #: where the rest is parked, so a plan may pile it in corners and against walls (measuring through a thin wall
+    #: in the mean field); the KL terms charge such piles and pull the rest towards the target
+    information_kl: float = 0.0
 
     #: how the problem becomes an NLP (:mod:`ocp.formulations`, docs/design/formulations.md):
     #: "single-shooting" (default: the coefficients only, the density eliminated by the transport kernel),
@@ -266,6 +271,10 @@ class PlannerSettings:
             raise ValueError(f"planner.objective must be one of {', '.join(repr(o) for o in OBJECTIVES)}, "
                              f"got {self.objective!r}")
         _positive(self, "information_power", "information_weight", "information_efficiency")
+        if isinstance(self.information_kl, bool) or not isinstance(self.information_kl, (int, float)) or \
+                not (math.isfinite(self.information_kl) and self.information_kl >= 0):
+            raise ValueError(f"planner.information_kl must be a finite number >= 0, got {self.information_kl!r}")
+        object.__setattr__(self, "information_kl", float(self.information_kl))
         if self.information_scale not in ("gp", "stop-rule"):
             raise ValueError(f"planner.information_scale must be 'gp' or 'stop-rule', got {self.information_scale!r}")
         if self.objective == "information" and self.method != "ipopt":
