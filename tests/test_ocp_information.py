@@ -224,8 +224,8 @@ def test_tuned_plans_do_not_park_the_swarm_against_a_thin_wall():
     """A wall across x = 6 with a door at its top, the uncertainty behind it at the bottom, the swarm at the bottom
     left.  The information terms alone count measurements through the wall (the mean-field spread is Euclidean)
     and are indifferent to mass they cannot use: the plan piles 29 % of the swarm in the column against the wall
-    and moves 2 % into the room behind it.  With the tuned preset's KL weight the plan takes half of the swarm
-    through the door into that room and leaves 7 % against the wall."""
+    and moves 2 % into the room behind it.  With the tuned preset's KL weight (1) the plan takes 38 % of the swarm
+    through the door into that room and leaves 8 % against the wall."""
     from swarmfield.sim.presets import PRESETS
     n = 12
     cx, cy = np.zeros((n - 1, n), bool), np.zeros((n, n - 1), bool)
