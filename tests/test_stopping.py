@@ -210,8 +210,11 @@ def test_travel_time_limit_goes_around_obstacles():
 
 def test_closed_loop_records_the_robust_threshold_and_stops_at_it():
     from swarmfield.sim.loop import run_simulation
+    # a smooth field (learned l 3-10 m, above the prior 1.5 m), so that the robust rule's variance at l_c = 1.5 m
+    # lowers the threshold (on the default sinc the converged refit learns l at its lower bound, 1.125 m)
     doc = {"sim": {"robots": 30, "domain": [0.0, 10.0, 0.0, 10.0], "start_box": [0.0, 4.0, 0.0, 4.0],
-                   "period": 1.75, "max_periods": 3, "substeps": 2, "controller": "lawnmower", "stop_rule": "robust"},
+                   "period": 1.75, "max_periods": 3, "substeps": 2, "controller": "lawnmower", "stop_rule": "robust",
+                   "field": "plumes"},
            "gp": {"length_scale": 1.5, "learn_hyperparameters": True, "hyper_maxiter": 4},
            "kde": {"bins": [32, 32]}, "planner": {"nx": 16, "ny": 16}}
     cfg = config_from_dict(doc)
