@@ -54,11 +54,10 @@ def kernel_1d(a: np.ndarray, b: np.ndarray, length_scale: float, kernel: str = "
 
 
 def kernel_1d_dlog(a: np.ndarray, b: np.ndarray, length_scale: float, kernel: str = "squared-exponential") -> np.ndarray:
-    """The derivative ``d k_1(a_i - b_j; l) / d log l`` of :func:`kernel_1d` (for analytic likelihood gradients)::
+    """The derivative ``d k_1(a_i - b_j; l) / d log l`` of :func:`kernel_1d` (for analytic likelihood gradients).
 
-        squared-exponential   k (r / l)^2
-        matern52              (s^2 / 3) (1 + s) exp(-s),   s = sqrt5 r / l
-        matern32              s^2 exp(-s),                 s = sqrt3 r / l
+    With r = |a_i - b_j| the derivatives are ``k (r / l)^2`` (squared exponential), ``(s^2 / 3) (1 + s) exp(-s)``
+    with ``s = sqrt5 r / l`` (Matérn 5/2) and ``s^2 exp(-s)`` with ``s = sqrt3 r / l`` (Matérn 3/2).
     """
     a = np.asarray(a, dtype=float).reshape(-1)
     b = np.asarray(b, dtype=float).reshape(-1)
