@@ -303,7 +303,11 @@ class DirectTranscription(_StateFormulation):
     v_l = M a_l is an equality constraint.  One SX Function for one step, ``map``-ped over the
     sub-steps of an interval (velocities shared) and again over the intervals: the graph stays
     small and the derivatives sparse.  Exact Hessian by default (MUMPS factorises the sparse KKT
-    system); ``hessian="limited-memory"`` for L-BFGS.  Upwind (donor-cell) scheme only."""
+    system); ``hessian="limited-memory"`` for L-BFGS.  Upwind (donor-cell) scheme only.
+
+    ``solver="fatrop"`` (``planner.formulation_solver``): the same problem with its variables and constraints
+    ordered stage by stage for FATROP's Riccati recursion (:meth:`_build_staged`; exact Hessian, l1 limit in
+    the split form); measured slower than IPOPT + MUMPS (docs/results/formulations.md)."""
 
     name = "direct-transcription"
 
