@@ -127,6 +127,15 @@ class CosineMoments:
     def evaluate(self, S: np.ndarray, X) -> tuple[np.ndarray, np.ndarray]:
         """Each robot's series ``S`` (n, K, K) at its own position X_i (n, 2): (p (n,), ∇p (n, 2)), p clipped at
         0 with a zero gradient there (as :meth:`control.kde.DensityEstimate.evaluate`)."""
+        p, g = self.series_at(S, X)
+        neg = p <= 0
+        if neg.any():
+            p[neg] = 0.0
+            g[neg] = 0.0
+        return p, g
+
+    def series_at(self, S: np.ndarray, X) -> tuple[np.ndarray, np.ndarray]:
+        """The series ``S`` (n, K, K) at X (n, 2), row by row, unclipped: (p (n,), ∇p (n, 2))."""
         X = np.asarray(X, dtype=float)
         x0, _, y0, _ = self.domain
         ax = np.outer(X[:, 0] - x0, self.wx)
@@ -137,10 +146,6 @@ class CosineMoments:
         Ssy = np.einsum("ikl,il->ik", S, sy)
         p = np.einsum("ik,ik->i", cx, Scy)
         g = np.column_stack([np.einsum("ik,ik->i", sx, Scy), np.einsum("ik,ik->i", cx, Ssy)])
-        neg = p <= 0
-        if neg.any():
-            p[neg] = 0.0
-            g[neg] = 0.0
         return p, g
 
     def on_grid(self, S: np.ndarray, nx: int, ny: int) -> np.ndarray:

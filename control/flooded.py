@@ -157,27 +157,13 @@ class FloodedDensities:
             p[sel], g[sel] = self.bases[k].evaluate(X[sel])
         series = ~based | self.stale[r]
         if series.any():
-            sp, sg = self._series_at(self.S[r[series]], X[series])
+            sp, sg = self.basis.series_at(self.S[r[series]], X[series])     # unclipped: a stale change may be < 0
             p[series] += sp
             g[series] += sg
         neg = p <= 0
         if neg.any():
             p[neg] = 0.0
             g[neg] = 0.0
-        return p, g
-
-    def _series_at(self, S, X):
-        """The series S (m, K, K) at X (m, 2), unclipped (a stale entries' change may be negative)."""
-        x0, _, y0, _ = self.domain
-        b = self.basis
-        ax = np.outer(X[:, 0] - x0, b.wx)
-        ay = np.outer(X[:, 1] - y0, b.wy)
-        cx, sx = np.cos(ax), -np.sin(ax) * b.wx[None, :]
-        cy, sy = np.cos(ay), -np.sin(ay) * b.wy[None, :]
-        Scy = np.einsum("ikl,il->ik", S, cy)
-        Ssy = np.einsum("ikl,il->ik", S, sy)
-        p = np.einsum("ik,ik->i", cx, Scy)
-        g = np.column_stack([np.einsum("ik,ik->i", sx, Scy), np.einsum("ik,ik->i", cx, Ssy)])
         return p, g
 
     def on_grid(self, nx: int, ny: int, rows=None) -> np.ndarray:

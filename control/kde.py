@@ -448,15 +448,18 @@ def _linear_binning(X, x0, y0, dx, dy, mx, my) -> np.ndarray:
     return _linear_binning_numpy(X, x0, y0, dx, dy, mx, my)
 
 
-def _linear_binning_numpy(X, x0, y0, dx, dy, mx, my) -> np.ndarray:
+def _bin_corner(X, x0, y0, dx, dy):
+    """(ix, iy, sx, sy): the lower-left bin centre of each point (centres at x0 + (i + 1/2) dx) and the point's
+    fractional offset from it along x and y, in [0, 1)."""
     fx = (X[:, 0] - x0) / dx - 0.5
     fy = (X[:, 1] - y0) / dy - 0.5
     ix = np.floor(fx)
     iy = np.floor(fy)
-    sx = fx - ix
-    sy = fy - iy
-    ix = ix.astype(np.intp)
-    iy = iy.astype(np.intp)
+    return ix.astype(np.intp), iy.astype(np.intp), fx - ix, fy - iy
+
+
+def _linear_binning_numpy(X, x0, y0, dx, dy, mx, my) -> np.ndarray:
+    ix, iy, sx, sy = _bin_corner(X, x0, y0, dx, dy)
     # neighbours beyond the walls are the mirrors of the first/last centre
     ix0 = np.clip(ix, 0, mx - 1)
     ix1 = np.clip(ix + 1, 0, mx - 1)
@@ -476,14 +479,7 @@ def _linear_binning_walls(X, x0, y0, dx, dy, mx, my, closed) -> np.ndarray:
     an x or y wall; for the diagonal centre, the one :meth:`DensityEstimate._wall_corners` mirrors), as the
     outer walls keep a robot's whole weight on their side."""
     cx, cy = closed
-    fx = (X[:, 0] - x0) / dx - 0.5
-    fy = (X[:, 1] - y0) / dy - 0.5
-    ix = np.floor(fx)
-    iy = np.floor(fy)
-    sx = fx - ix
-    sy = fy - iy
-    ix = ix.astype(np.intp)
-    iy = iy.astype(np.intp)
+    ix, iy, sx, sy = _bin_corner(X, x0, y0, dx, dy)
     ix0, ix1 = np.clip(ix, 0, mx - 1), np.clip(ix + 1, 0, mx - 1)
     iy0, iy1 = np.clip(iy, 0, my - 1), np.clip(iy + 1, 0, my - 1)
     # the stencil's faces (open where the two centres coincide at an outer wall)
