@@ -137,9 +137,10 @@ def test_a_domain_given_with_the_tuned_preset_keeps_its_free_fraction():
     assert RunConfig.default().domain.min_free_fraction == 0.5
 
 
-def test_tuned_replans_are_bounded_to_seventy_iterations():
-    """A tuned re-plan stops after 70 IPOPT iterations (11-14 ms each at 40 x 40: the median re-plan under half of
-    its T/4 interval, docs/results/realtime-plans.md); the first plan keeps max_iter 150."""
+def test_tuned_replans_are_bounded_to_a_hundred_iterations():
+    """A tuned re-plan stops after 100 IPOPT iterations (11-14 ms each at 40 x 40: every re-plan within its T/4
+    interval); 70 put the median under half of it but made the deep-room map's RMSE 1.7x
+    (docs/results/realtime-plans.md); the first plan keeps max_iter 150."""
     from swarmfield.sim.config import RunConfig
     p = RunConfig.from_preset("tuned").planner
-    assert p.replan_max_iter == 70 and p.ipopt.max_iter == 150 and p.accept_feasible_iterate
+    assert p.replan_max_iter == 100 and p.ipopt.max_iter == 150 and p.accept_feasible_iterate
