@@ -8,11 +8,8 @@ from .common import TIMER, limit_threads, run, run_config, step_cpu_ms
 
 
 def _run(preset: str, controller: str, periods: int, **sim):
-    from swarmfield.sim.config import RunConfig
-    from swarmfield.sim.loop import run_simulation
-    from swarmfield.sim.stopping import make_stop_rule
-    cfg = RunConfig.from_preset(preset).replace(max_periods=periods, controller=controller, **sim)
-    return run_simulation(cfg, stop_rule=make_stop_rule(cfg.sim, stops=False))
+    """(result, CPU seconds) of ``periods`` periods of ``controller`` under ``preset`` (:func:`common.run`)."""
+    return run(run_config(preset, max_periods=periods, controller=controller, **sim))
 
 
 class PaperRun:
@@ -52,17 +49,12 @@ class TunedCost:
         _run("tuned", "lawnmower", 2)
 
     def track_cost_ratio(self):
-        c = time.process_time()
-        _run("tuned", "feedback", 2)
-        fb = time.process_time() - c
-        c = time.process_time()
-        _run("tuned", "lawnmower", 2)
-        return fb / (time.process_time() - c)
+        return _run("tuned", "feedback", 2)[1] / _run("tuned", "lawnmower", 2)[1]
 
     track_cost_ratio.unit = "ratio"
 
     def track_max_replan_cpu_over_interval(self):
-        res = _run("tuned", "feedback", 2)
+        res, _ = _run("tuned", "feedback", 2)
         cfg = res.config.sim
         later = [p["solve_cpu_s"] for p in res.replans if p.get("success")][1:]
         return max(later) / (cfg.replan_every * cfg.dt)
@@ -84,9 +76,8 @@ class LargeSwarmStep:
         limit_threads()
 
     def track_cpu_ms_per_step(self):
-        from swarmfield.sim.config import RunConfig
         from swarmfield.sim.simulation import Simulation
-        cfg = RunConfig.default().replace(robots=10_000, max_periods=1, controller="greedy", metrics_every=1)
+        cfg = run_config("paper", robots=10_000, max_periods=1, controller="greedy", metrics_every=1)
         sim = Simulation(cfg)
         sim.start()
         c = time.process_time()
