@@ -41,6 +41,7 @@ def one(grid: int, form: str, limit: str, basis: str, start: str, cpu_limit: flo
     from swarmfield.ocp.settings import IpoptSettings, PlannerSettings
     from swarmfield.ocp.transport import simulate
     from swarmfield.sim.scenario import box_density, first_step_target
+    from swarmfield.studies.solver_spec import derivatives_cpu_s
 
     limits = {"max_cpu_time": float(cpu_limit)}
     # IPOPT's own iteration log of the solve (the warm start's solve is not logged)
@@ -73,7 +74,7 @@ def one(grid: int, form: str, limit: str, basis: str, start: str, cpu_limit: flo
     resim = simulate(plan.p[0], plan.coef, g, s.interval, s.substeps, s.upwind_smoothing, s.basis)
     row.update(status=sv["status"], iterations=sv["iterations"], hessian=sv["hessian"], objective=plan.meta["objective"],
                ipopt_cpu_s=sv.get("t_proc_total"),
-               derivatives_cpu_s=sum(sv.get(f"t_proc_nlp_{k}", 0.0) for k in ("f", "grad_f", "g", "jac_g", "hess_l")),
+               derivatives_cpu_s=derivatives_cpu_s(sv),
                dynamics_residual=sv.get("dynamics_residual", 0.0), mu_strategy=sv.get("mu_strategy"),
                resim_error=float(np.abs(plan.p - resim).max()))
     return row

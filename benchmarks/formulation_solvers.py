@@ -38,6 +38,7 @@ def one(grid: int, form: str, solver: str, hessian: str, cpu_cap: float, max_ite
     from swarmfield.ocp.planner import ReferencePlanner
     from swarmfield.ocp.settings import IpoptSettings, PlannerSettings
     from swarmfield.sim.scenario import box_density, first_step_target
+    from swarmfield.studies.solver_spec import derivatives_cpu_s
 
     extra = {"max_cpu_time": float(cpu_cap)}
     lin = "mumps" if solver == "fatrop" else solver
@@ -60,7 +61,7 @@ def one(grid: int, form: str, solver: str, hessian: str, cpu_cap: float, max_ite
         plan = planner.solve(p0, target)
     except Exception as exc:                         # noqa: BLE001 -- recorded
         st = getattr(exc, "stats", {}) or {}
-        row["derivatives_cpu_s"] = sum(st.get(f"t_proc_nlp_{k}", 0.0) for k in ("f", "grad_f", "g", "jac_g", "hess_l"))
+        row["derivatives_cpu_s"] = derivatives_cpu_s(st)
         row.update(status=st.get("status", type(exc).__name__), iterations=st.get("iterations", -1),
                    solve_cpu_s=time.process_time() - c1, solve_wall_s=time.perf_counter() - w1,
                    error=str(exc)[:200])
@@ -69,7 +70,7 @@ def one(grid: int, form: str, solver: str, hessian: str, cpu_cap: float, max_ite
     row.update(solve_cpu_s=time.process_time() - c1, solve_wall_s=time.perf_counter() - w1,
                status=sv["status"], iterations=sv["iterations"], objective=plan.meta["objective"],
                dynamics_residual=sv.get("dynamics_residual", 0.0))
-    row["derivatives_cpu_s"] = sum(sv.get(f"t_proc_nlp_{k}", 0.0) for k in ("f", "grad_f", "g", "jac_g", "hess_l"))
+    row["derivatives_cpu_s"] = derivatives_cpu_s(sv)
     return row
 
 

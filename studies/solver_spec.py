@@ -34,11 +34,18 @@ import time
 
 from ..ocp.settings import FORMULATIONS, TRANSPORTS, PlannerSettings, dataclass_from_dict, to_dict
 
-__all__ = ["SpecError", "AXES", "parse_spec", "expand", "preset_tasks", "run_planner_task", "COLUMNS"]
+__all__ = ["SpecError", "AXES", "parse_spec", "expand", "preset_tasks", "run_planner_task", "COLUMNS",
+           "derivatives_cpu_s"]
 
 
 class SpecError(ValueError):
     """A bad sweep specification (raised before any run starts)."""
+
+
+def derivatives_cpu_s(stats: dict) -> float:
+    """IPOPT's process-CPU seconds in the NLP's functions and derivatives (f, grad f, g, its Jacobian, the
+    Hessian of the Lagrangian) from a solve's statistics; the rest of ``t_proc_total`` is IPOPT's own work."""
+    return sum(stats.get(f"t_proc_nlp_{k}", 0.0) for k in ("f", "grad_f", "g", "jac_g", "hess_l"))
 
 
 def _bool(v):
@@ -339,8 +346,7 @@ def run_planner_task(task: dict) -> list[dict]:
                    # IPOPT's own process-CPU timers: the whole solve, and the part in the NLP's functions
                    # and derivatives (the rest is IPOPT's linear algebra, MUMPS)
                    ipopt_cpu_s=sv.get("t_proc_total", nan),
-                   derivatives_cpu_s=sum(sv.get(f"t_proc_nlp_{k}", 0.0)
-                                         for k in ("f", "grad_f", "g", "jac_g", "hess_l")))
+                   derivatives_cpu_s=derivatives_cpu_s(sv))
         terms = m.get("objective_terms", {}) or {}
         for k_row, k_meta in (("J_terminal", "terminal"), ("J_running", "running"), ("J_effort", "energy")):
             if k_meta in terms:
