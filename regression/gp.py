@@ -430,11 +430,11 @@ class GaussianProcess:
         """``signal_scale = "data"``: s_f^2 = signal_variance x v_y of the first batch (:mod:`regression.scale`);
         the settings are in field units from here on (``initial_settings`` keeps the relative ones)."""
         from .scale import reference_variance
-        from .settings import MAX_SIGNAL_TO_NOISE
+        from .settings import signal_variance_limits
         s = self._settings
         self.data_variance = reference_variance(y, s.noise_variance)
-        s2 = min(max(s.signal_variance * self.data_variance, s.noise_variance / MAX_SIGNAL_TO_NOISE * 1.01),
-                 s.noise_variance * MAX_SIGNAL_TO_NOISE * 0.99)            # the GP's numerical limits
+        lo, hi = signal_variance_limits(s.noise_variance)
+        s2 = min(max(s.signal_variance * self.data_variance, lo), hi)
         self._settings = dataclasses.replace(s, signal_variance=s2,
                                              signal_scale="absolute", inducing_spacing=self._spacing)
 

@@ -112,10 +112,11 @@ def length_scale_bounds(gp, factor: int = 1) -> tuple[float, float]:
 def signal_variance_bounds(gp) -> tuple[float, float]:
     """(lower, upper) of a learned s_f^2: :data:`regression.scale.SIGNAL_BOUNDS` times the data's variance
     (:func:`regression.scale.running_variance`), so that they follow the field's units."""
-    from .settings import MAX_SIGNAL_TO_NOISE
-    v, sn2 = running_variance(gp), gp.settings.noise_variance
-    lo = max(SIGNAL_BOUNDS[0] * v, sn2 / MAX_SIGNAL_TO_NOISE * 1.01)      # within the GP's numerical limits
-    hi = min(SIGNAL_BOUNDS[1] * v, sn2 * MAX_SIGNAL_TO_NOISE * 0.99)
+    from .settings import signal_variance_limits
+    v = running_variance(gp)
+    lo_n, hi_n = signal_variance_limits(gp.settings.noise_variance)
+    lo = max(SIGNAL_BOUNDS[0] * v, lo_n)      # within the GP's numerical limits
+    hi = min(SIGNAL_BOUNDS[1] * v, hi_n)
     return min(lo, hi / 1.0001), hi          # the numerical limits win over the data's scale
 
 
@@ -186,16 +187,16 @@ def refit(gp, prior, maxiter: int, factor: int = 2, signal_variance_bounds=None,
     theta0 = np.array([np.clip(math.log(v), *bd) for v, bd in zip(current if start is None else start, bounds)])
     # the analytic gradient (GaussianProcess._lml_and_gradient): one factorisation and one triangular inversion per
     # point instead of the 3-4 factorisations of a finite-difference gradient; the first evaluation is L-BFGS-B's own
-    start = {}
+    f0 = {}
 
     def first(theta):
         out = objective(theta)
-        start.setdefault("f", out[0])
+        f0.setdefault("f", out[0])
         return out
 
     res = minimize(first, theta0, method="L-BFGS-B", jac=True, bounds=bounds,
                    options={"maxiter": int(maxiter), "ftol": 1e-7, "gtol": _SCALE * _GTOL})
-    theta = res.x if np.all(np.isfinite(res.x)) and res.fun <= start["f"] else theta0
+    theta = res.x if np.all(np.isfinite(res.x)) and res.fun <= f0["f"] else theta0
     return (*(float(math.exp(t)) for t in theta), evals[0])
 
 

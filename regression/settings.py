@@ -15,6 +15,13 @@ from ..runtime.validation import MAX_MAGNITUDE
 #: factorisation and overflows the float32 variance snapshots of a run).
 MAX_VARIANCE = 1e30
 MAX_SIGNAL_TO_NOISE = 1e10
+
+
+def signal_variance_limits(noise_variance: float) -> tuple[float, float]:
+    """(lower, upper) signal variance the GP accepts with this noise variance (:data:`MAX_SIGNAL_TO_NOISE` either
+    way, 1 % inside it), for values derived from data rather than given by the user."""
+    return noise_variance / MAX_SIGNAL_TO_NOISE * 1.01, noise_variance * MAX_SIGNAL_TO_NOISE * 0.99
+
 #: choices of :attr:`GPSettings.signal_scale`
 SIGNAL_SCALES = ("absolute", "data")
 
