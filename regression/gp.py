@@ -268,6 +268,34 @@ def _validate_domain(domain) -> tuple[float, float, float, float]:
     return vals
 
 
+def _fitting_spacing_hint(domain, settings: GPSettings) -> str:
+    """The settings that fit ``domain``'s inducing grid into ``settings.max_inducing_points``, as advice.
+
+    The smallest spacing h (to 3 significant digits, rounded up) with ``(ceil(Lx/h) + 3) (ceil(Ly/h) + 3)``
+    nodes within the budget, and the length scale ``2 h`` whose default grid that is (h = l / 2); with
+    ``inducing_spacing`` unset the length scale is the one setting to change.
+    """
+    x0, x1, y0, y1 = domain
+    lx, ly, budget = x1 - x0, y1 - y0, settings.max_inducing_points
+
+    def nodes(h):
+        return (math.ceil(lx / h - 1e-9) + 3) * (math.ceil(ly / h - 1e-9) + 3)
+
+    lo, hi = settings.resolved_inducing_spacing, max(lx, ly)
+    if nodes(hi) > budget:      # not even one cell per axis fits (budget < 16 is refused by the settings)
+        return "use a larger inducing_spacing or length_scale"
+    for _ in range(200):        # bisection on the monotone node count
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if nodes(mid) > budget else (lo, mid)
+    h = float(f"{hi:.3g}")
+    while nodes(h) > budget:    # rounding to 3 digits may have gone below the fitting spacing
+        h = float(f"{h * 1.001:.3g}")
+    if settings.inducing_spacing is None:
+        return (f"a length scale of at least {2 * h:g} fits (gp.length_scale, whose grid spacing is l / 2 = {h:g}; "
+                f"[gp] length_scale = {2 * h:g} in a configuration file)")
+    return f"an inducing spacing of at least {h:g} fits (gp.inducing_spacing, with gp.length_scale >= {1.5 * h:.3g})"
+
+
 class GaussianProcess:
     """GP regression of a scalar field on a rectangle with O(1)-in-n updates and predictions.
 
@@ -307,7 +335,7 @@ class GaussianProcess:
             raise ValueError(
                 f"the inducing grid would have {self._ax.n_nodes} x {self._ay.n_nodes} = {self._n_nodes} nodes "
                 f"(spacing {self._spacing:g} on domain {self._domain}), more than max_inducing_points = "
-                f"{settings.max_inducing_points}; use a larger inducing_spacing or length_scale, or raise "
+                f"{settings.max_inducing_points}; {_fitting_spacing_hint(self._domain, settings)}, or raise "
                 "max_inducing_points (prediction costs O(M^3))")
         self._settings = settings
         self._tol = 1e-9 * max(x1 - x0, y1 - y0)

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import dataclasses
 
+import re
+
 import numpy as np
 import pytest
 
@@ -494,6 +496,25 @@ def test_domain_and_grid_size_validation():
         GaussianProcess(GPSettings(length_scale=0.1), domain=(0.0, 20.0, 0.0, 20.0))
     with pytest.raises(TypeError):
         GaussianProcess({"length_scale": 1.0})
+
+
+@pytest.mark.parametrize("domain", [(0.0, 60.0, 0.0, 40.0), (0.0, 2000.0, 0.0, 1000.0), (-3.0, 17.0, 5.0, 9.0)])
+def test_grid_too_fine_names_the_length_scale_that_fits(domain):
+    # a site larger than the paper's: the error names a length scale whose grid fits the budget, and it does
+    budget = 1024
+    with pytest.raises(ValueError, match="a length scale of at least") as err:
+        GaussianProcess(GPSettings(length_scale=0.05, max_inducing_points=budget), domain=domain)
+    ell = float(re.search(r"\[gp\] length_scale = ([0-9.e+]+)", str(err.value)).group(1))
+    fits = GaussianProcess(GPSettings(length_scale=ell, max_inducing_points=budget), domain=domain)
+    assert fits._n_nodes <= budget
+    with pytest.raises(ValueError, match="max_inducing_points"):    # and a length scale 2 % shorter does not
+        GaussianProcess(GPSettings(length_scale=0.98 * ell, max_inducing_points=budget), domain=domain)
+    with pytest.raises(ValueError, match=r"an inducing spacing of at least ([0-9.]+) fits") as err:
+        GaussianProcess(GPSettings(length_scale=0.5 * ell, inducing_spacing=0.2 * ell, max_inducing_points=budget),
+                        domain=domain)
+    h = float(re.search(r"at least ([0-9.e+]+) fits", str(err.value)).group(1))
+    assert GaussianProcess(GPSettings(length_scale=1.5 * h, inducing_spacing=h, max_inducing_points=budget),
+                           domain=domain)._n_nodes <= budget
 
 
 # ---------------------------------------------------------------------- hyperparameters
