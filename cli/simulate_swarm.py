@@ -72,6 +72,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--noise-sd", type=float, metavar="SD",
                    help="standard deviation of the measurement noise, in the field's units (sim.noise_variance = SD^2; "
                         "default the paper's 0.2)")
+    p.add_argument("--kernel-angle", metavar="DEGREES|auto",
+                   help="rotated anisotropic GP kernel: the direction (degrees from x, counter-clockwise) of "
+                        "gp.length_scale, gp.length_scale_y across it; auto: chosen by marginal likelihood at the "
+                        "first hyperparameter refit (needs learned hyperparameters, e.g. --preset tuned); "
+                        "replaces gp.kernel_angle (default 0: axis-aligned)")
     p.add_argument("--gif", action="store_true", help="also write animation.gif")
     p.add_argument("--no-figures", action="store_true", help="write no PNG figures")
     p.add_argument("--force", action="store_true", help="write into a non-empty folder that holds no previous run")
@@ -102,6 +107,7 @@ def resolve(args):
         if v is not None and (v < 0 or (v == 0 and name != "seed")):
             flag = "--" + name.replace("_", "-")
             raise InputError(f"{flag} must be {'>= 0' if name == 'seed' else '> 0'}, got {v}")
+    angle = kernel_angle_argument(getattr(args, "kernel_angle", None))
     if args.config is not None:
         check_path(args.config, "config file")
     try:
@@ -109,6 +115,9 @@ def resolve(args):
         cell_size = getattr(args, "cell_size", None)
         config = load_config(args.config, overrides, preset, cell_size) if args.config is not None else \
             config_from_dict({}, overrides, preset, cell_size)
+        if angle is not None:
+            import dataclasses
+            config = dataclasses.replace(config, gp=dataclasses.replace(config.gp, kernel_angle=angle))
         source = getattr(args, "domain", None)
         if source is None and config.domain.source:
             source = config.domain.source      # a file from [domain] source is made absolute as --domain's is
@@ -126,6 +135,22 @@ def resolve(args):
         warnings.warn(f"--diffusion-sigma has no effect: it is the diffusion controller's noise, this run's "
                       f"controller is {config.sim.controller}", stacklevel=2)
     return config, field
+
+
+def kernel_angle_argument(value):
+    """``--kernel-angle``: None, ``"auto"`` or an angle in degrees; ``InputError`` otherwise."""
+    if value is None:
+        return None
+    text = str(value).strip().lower()
+    if text == "auto":
+        return "auto"
+    try:
+        angle = float(text)
+    except ValueError:
+        angle = math.nan
+    if not (math.isfinite(angle) and abs(angle) <= 360.0):
+        raise InputError(f"--kernel-angle must be an angle in degrees in [-360, 360] or auto, got {value!r}")
+    return angle
 
 
 def with_domain(config, source):

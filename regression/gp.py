@@ -42,6 +42,11 @@ and 1e-8 ... 3e-6; ``tests/test_regression.py`` asserts it, and on the paper's d
 (A tolerance relative to the largest
 eigenvalue, tried first, let the error grow with l / h: 1e-4 in f̄ at l = 10.)
 
+*Rotated anisotropy* (``GPSettings.kernel_angle``): x above is the rotated coordinate u = R(theta)^T (x - x_c),
+and the lattice is axis-aligned in u over the domain's rotated bounding box (:mod:`regression.frame`); points
+are rotated in :meth:`add` and :meth:`predict`, everything else is unchanged.  The box holds up to twice the
+nodes (45 degrees on a square: 61 x 61 = 3721 instead of 43 x 43), so a factorisation costs up to ~8x as much.
+
 Why the cost does not grow with n: on a cell of the grid, phi(x) has 16 non-zeros, the
 products of four cubic polynomials in the local coordinates (t_1, t_2) per axis. Hence A and b
 are linear in the per-cell power sums ``sum t_1^a t_2^b`` (a, b <= 6) and
@@ -124,6 +129,7 @@ from scipy.optimize import minimize
 
 from ..runtime.validation import real_array
 from .basis import BASIS_COEF, PRODUCT_COEF, SplineAxis, bspline_weights
+from .frame import Frame
 from .settings import GPSettings
 
 
@@ -319,7 +325,7 @@ class GaussianProcess:
     #: points (and refactorised from the power sums otherwise).
     update_rank_fraction = 0.25
 
-    def __init__(self, settings: GPSettings | None = None, domain=(0.0, 20.0, 0.0, 20.0)):
+    def __init__(self, settings: GPSettings | None = None, domain=(0.0, 20.0, 0.0, 20.0), frame: Frame | None = None):
         if settings is None:
             settings = GPSettings()
         if not isinstance(settings, GPSettings):
@@ -328,38 +334,50 @@ class GaussianProcess:
         x0, x1, y0, y1 = self._domain
         self._spacing = settings.resolved_inducing_spacing
         self._initial_settings = settings
-        self._ax = SplineAxis(x0, x1, self._spacing)
-        self._ay = SplineAxis(y0, y1, self._spacing)
-        self._n_nodes = self._ax.n_nodes * self._ay.n_nodes
-        if self._n_nodes > settings.max_inducing_points:
-            raise ValueError(
-                f"the inducing grid would have {self._ax.n_nodes} x {self._ay.n_nodes} = {self._n_nodes} nodes "
-                f"(spacing {self._spacing:g} on domain {self._domain}), more than max_inducing_points = "
-                f"{settings.max_inducing_points}; {_fitting_spacing_hint(self._domain, settings)}, or raise "
-                "max_inducing_points (prediction costs O(M^3))")
         self._settings = settings
         self._tol = 1e-9 * max(x1 - x0, y1 - y0)
-
-        n_cells = self._ax.n_cells * self._ay.n_cells
-        self._mom = np.zeros((n_cells, _N_POW, _N_POW))          # sum t1^a t2^b
-        self._momy = np.zeros((n_cells, _N_POW_Y, _N_POW_Y))     # sum y t1^a t2^b
         self._n = 0
         self._sum_y = 0.0
         self._sum_y2 = 0.0
         self._version = 0
-        self._assembled = None     # (key, A, b) for the current data, noise and mean
-        self._cov = None           # _Covariance: Sigma for some data version and hyperparameters
-        self._mu = None            # (key, mu) with key (version, hyperparameters, prior mean)
-        # positions added since the data version of self._cov (since no data while it is None),
-        # kept for a Woodbury update; None once they exceed the update rank (refactorise then)
-        self._pending: list[np.ndarray] | None = []
-        self._pending_n = 0
+        #: ``kernel_angle = "auto"``: the data (x, y batches) kept until the angle is chosen (:meth:`set_kernel_angle`)
+        self._raw: list | None = [] if settings.kernel_angle == "auto" else None
         #: number of posterior covariances computed from scratch / by a Woodbury update
         self.n_factorizations = 0
         self.n_woodbury_updates = 0
         self._followers: list[GaussianProcess] = []
         #: v_y of the first data with ``signal_scale = "data"`` (:mod:`regression.scale`), else None
         self.data_variance = None
+        self._build_lattice(frame)
+
+    def _build_lattice(self, frame: Frame | None) -> None:
+        """The inducing lattice in ``frame`` (default: the settings' kernel angle on the domain, :mod:`regression.frame`)
+        and empty power sums and caches on it."""
+        settings = self._settings
+        if frame is None:
+            frame = Frame.for_domain(self._domain, settings.frame_angle, self._spacing, settings.hyper_coarsening)
+        self._frame = frame
+        u0, u1, v0, v1 = frame.box
+        self._ax = SplineAxis(u0, u1, self._spacing)
+        self._ay = SplineAxis(v0, v1, self._spacing)
+        self._n_nodes = self._ax.n_nodes * self._ay.n_nodes
+        if self._n_nodes > settings.max_inducing_points:
+            rotated = "" if frame.identity else f" (the lattice covers the domain rotated by {frame.angle:g} degrees)"
+            raise ValueError(
+                f"the inducing grid would have {self._ax.n_nodes} x {self._ay.n_nodes} = {self._n_nodes} nodes "
+                f"(spacing {self._spacing:g} on domain {self._domain}{rotated}), more than max_inducing_points = "
+                f"{settings.max_inducing_points}; {_fitting_spacing_hint(frame.box, settings)}, or raise "
+                "max_inducing_points (prediction costs O(M^3))")
+        n_cells = self._ax.n_cells * self._ay.n_cells
+        self._mom = np.zeros((n_cells, _N_POW, _N_POW))          # sum t1^a t2^b
+        self._momy = np.zeros((n_cells, _N_POW_Y, _N_POW_Y))     # sum y t1^a t2^b
+        self._assembled = None     # (key, A, b) for the current data, noise and mean
+        self._cov = None           # _Covariance: Sigma for some data version and hyperparameters
+        self._mu = None            # (key, mu) with key (version, hyperparameters, prior mean)
+        # positions added since the data version of self._cov (since no data while it is None),
+        # kept for a Woodbury update; None once they exceed the update rank (refactorise then)
+        self._pending: list[np.ndarray] | None = [] if self._n == 0 else None
+        self._pending_n = 0
         self._bases: dict = {}      # _PriorBasis by (length scale, prior_truncation)
         self._band_gather = None    # (flat indices, valid) of Sigma's band in the full M x M Sigma
         self._band_offsets = None   # offsets in the band of the 16 x 16 node pairs of a cell
@@ -374,6 +392,11 @@ class GaussianProcess:
     @property
     def domain(self) -> tuple[float, float, float, float]:
         return self._domain
+
+    @property
+    def frame(self) -> Frame:
+        """The (rotated) frame the inducing lattice is axis-aligned in (:mod:`regression.frame`)."""
+        return self._frame
 
     @property
     def n_observations(self) -> int:
@@ -439,20 +462,50 @@ class GaussianProcess:
             return
         if self._n == 0 and self._settings.signal_scale == "data":
             self._standardize(y)
+        U = self._frame.to_frame(X)             # the lattice's frame (X itself without a rotation)
         for k in range(0, n, _ADD_CHUNK):       # bounded work arrays (~1 KB per point) for huge batches
-            self._accumulate(X[k:k + _ADD_CHUNK], y[k:k + _ADD_CHUNK])
+            self._accumulate(U[k:k + _ADD_CHUNK], y[k:k + _ADD_CHUNK])
         self._n += n
         self._sum_y += float(y.sum())
         self._sum_y2 += float(y @ y)
         self._version += 1
+        if self._raw is not None:               # kernel_angle "auto": kept until the angle is chosen
+            self._raw.append((X, np.array(y, dtype=float)))
         for f in self._followers:             # same data at other hyperparameters (:meth:`follower`)
             f.add(X, y)
         if self._pending is not None:
             if self._pending_n + n <= self.max_update_rank:
-                self._pending.append(X)          # X is a fresh array from _points
+                self._pending.append(U)          # a fresh array (from _points, or rotated)
                 self._pending_n += n
             else:
                 self._pending, self._pending_n = None, 0
+
+    def set_kernel_angle(self, angle) -> GPSettings:
+        """Fix the angle of a ``kernel_angle = "auto"`` GP (:mod:`regression.hyper` chooses it at the first refit):
+        the inducing lattice is rebuilt in the rotated frame and the power sums are accumulated again from the data
+        kept so far (in the order they were added: the same sums as a GP built with that angle), for this GP and its
+        followers; the data are no longer kept.  Returns the new settings."""
+        if self._raw is None:
+            raise ValueError("set_kernel_angle needs a GP built with kernel_angle = \"auto\" whose angle is not "
+                             "chosen yet")
+        angle = GPSettings(kernel_angle=angle).kernel_angle
+        if angle == "auto":
+            raise ValueError("set_kernel_angle needs an angle in degrees, got \"auto\"")
+        raw, self._raw = self._raw, None
+        self._reframe(angle, raw)
+        return self._settings
+
+    def _reframe(self, angle: float, raw: list) -> None:
+        self._settings = dataclasses.replace(self._settings, kernel_angle=angle, inducing_spacing=self._spacing)
+        self._build_lattice(None)
+        for X, y in raw:
+            U = self._frame.to_frame(X)
+            for k in range(0, y.shape[0], _ADD_CHUNK):
+                self._accumulate(U[k:k + _ADD_CHUNK], y[k:k + _ADD_CHUNK])
+        self._version += 1
+        for f in self._followers:
+            f._raw = None
+            f._reframe(angle, raw)
 
     def _standardize(self, y: np.ndarray) -> None:
         """``signal_scale = "data"``: s_f^2 = signal_variance x v_y of the first batch (:mod:`regression.scale`);
@@ -841,7 +894,7 @@ class GaussianProcess:
         if k <= ``max_update_rank``, else a factorisation, O(M^3) (module docstring); both are
         independent of the number of observations. Later calls cost O(256) per point.
         """
-        pts = self._points(points, "points")
+        pts = self._frame.to_frame(self._points(points, "points"))
         s = self._settings
         npts = pts.shape[0]
         if self._n == 0:
@@ -919,7 +972,8 @@ class GaussianProcess:
         new = dataclasses.replace(s, signal_variance=s.signal_variance if signal_variance is None else signal_variance,
                                   length_scale=s.length_scale if length_scale is None else length_scale,
                                   inducing_spacing=self._spacing, learn_hyperparameters=False)
-        f = GaussianProcess(new, self._domain)
+        f = GaussianProcess(new, self._domain, frame=self._frame)
+        f._raw = None                             # re-framed by this GP if its angle is still to be chosen
         f._mom[...] = self._mom
         f._momy[...] = self._momy
         f._n, f._sum_y, f._sum_y2 = self._n, self._sum_y, self._sum_y2

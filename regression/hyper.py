@@ -34,7 +34,7 @@ from .gp import _N_POW, _N_POW_Y, GaussianProcess, kernel_key
 from .scale import SIGNAL_BOUNDS, running_variance
 
 __all__ = ["coarsening_factor", "coarsened", "refit", "refit_online", "length_scale_bounds", "signal_variance_bounds",
-           "compare_kernels"]
+           "compare_kernels", "choose_kernel_angle"]
 
 #: the refit's objective (negative log posterior per data point) is multiplied by this: L-BFGS-B's first step on a
 #: box-bounded problem is minus the gradient, and the per-point curvature in (log s_f^2, log l) is ~0.05-0.5, so
@@ -81,7 +81,9 @@ def coarsened(gp, factor: int, length_scale: float | None = None, prior_truncati
     ell_y = None if s.length_scale_y is None else max(s.length_scale_y, 1.5 * spacing)
     tr = s.prior_truncation if prior_truncation is None else float(prior_truncation)
     coarse = GaussianProcess(dataclasses.replace(s, length_scale=ell, length_scale_y=ell_y, inducing_spacing=spacing,
-                                                 learn_hyperparameters=False, prior_truncation=tr), gp.domain)
+                                                 learn_hyperparameters=False, prior_truncation=tr), gp.domain,
+                              frame=gp.frame)
+    coarse._raw = None
     if (coarse._ax.n_cells, coarse._ay.n_cells) != (ax.n_cells // c, ay.n_cells // c):   # pragma: no cover
         raise RuntimeError("coarse grid does not align with the fine one")
     NX, NY = ax.n_cells // c, ay.n_cells // c
@@ -121,7 +123,7 @@ def signal_variance_bounds(gp) -> tuple[float, float]:
 
 
 def refit(gp, prior, maxiter: int, factor: int = 2, signal_variance_bounds=None, step_sd: float | None = None,
-          length_scale_bounds=None, start=None):
+          length_scale_bounds=None, start=None, out: dict | None = None):
     """MAP (or ML if ``prior`` is None) (s_f^2, l) from gp's running sums on a grid ``factor`` times
     coarser; returns (s_f^2, l, number of likelihood evaluations), or (s_f^2, l_x, l_y, evaluations) when gp's
     kernel has a length scale per axis (``GPSettings.length_scale_y``).
@@ -133,7 +135,9 @@ def refit(gp, prior, maxiter: int, factor: int = 2, signal_variance_bounds=None,
     :func:`signal_variance_bounds`, relative to the data's variance) and ``length_scale_bounds`` (default
     :func:`length_scale_bounds` of the coarse grid); the start is gp's current values clipped into them, or
     ``start`` = (s_f^2, l) / (s_f^2, l_x, l_y) if given (the trust region stays centred on gp's current values).
-    The gradient is analytic (:meth:`GaussianProcess._lml_and_gradient`).
+    The gradient is analytic (:meth:`GaussianProcess._lml_and_gradient`).  ``out``: a dict given receives
+    ``"log_posterior"``, the objective's value at the result (log marginal likelihood on the coarse grid plus the
+    log-normal priors' exponents, without their normalising constants).
     """
     if gp.n_observations < 2:
         raise ValueError("a hyperparameter refit needs at least two observations")
@@ -196,7 +200,10 @@ def refit(gp, prior, maxiter: int, factor: int = 2, signal_variance_bounds=None,
 
     res = minimize(first, theta0, method="L-BFGS-B", jac=True, bounds=bounds,
                    options={"maxiter": int(maxiter), "ftol": 1e-7, "gtol": _SCALE * _GTOL})
-    theta = res.x if np.all(np.isfinite(res.x)) and res.fun <= f0["f"] else theta0
+    accepted = np.all(np.isfinite(res.x)) and res.fun <= f0["f"]
+    theta = res.x if accepted else theta0
+    if out is not None:
+        out["log_posterior"] = -n * ((float(res.fun) if accepted else f0["f"]) / _SCALE + unit_shift)
     return (*(float(math.exp(t)) for t in theta), evals[0])
 
 
@@ -233,6 +240,8 @@ def refit_online(gp: GaussianProcess):
     was fitted on gets a one-line ``UserWarning`` (once per GP and bound).  Updates gp's settings (the
     posterior is recomputed at the next ``predict``) and returns them."""
     s0 = gp.initial_settings
+    if gp._raw is not None:                    # kernel_angle "auto": the first refit chooses the angle
+        choose_kernel_angle(gp)
     prior = _prior(gp)
     c = coarsening_factor(gp, s0.hyper_coarsening)
     cur = gp.settings
@@ -277,7 +286,8 @@ def compare_kernels(gp: GaussianProcess, kernels=None, maxiter: int = 30, factor
     for k in (KERNELS if kernels is None else kernels):
         s = dataclasses.replace(gp.settings, kernel=k, inducing_spacing=gp.settings.resolved_inducing_spacing,
                                 learn_hyperparameters=False)
-        twin = GaussianProcess(s, gp.domain)
+        twin = GaussianProcess(s, gp.domain, frame=gp.frame)
+        twin._raw = None
         twin._mom[...] = gp._mom
         twin._momy[...] = gp._momy
         twin._n, twin._sum_y, twin._sum_y2 = gp._n, gp._sum_y, gp._sum_y2
@@ -288,3 +298,50 @@ def compare_kernels(gp: GaussianProcess, kernels=None, maxiter: int = 30, factor
         lml = twin._lml(s2, kernel_key(s, ell, ell_y), *twin._assemble(twin.prior_mean))
         out[k] = (float(lml), s2, ell)
     return out
+
+
+def choose_kernel_angle(gp: GaussianProcess, angles=None, maxiter: int = 50) -> dict:
+    """The rotation of an anisotropic kernel chosen by marginal likelihood (``GPSettings.kernel_angle = "auto"``).
+
+    For each candidate angle (default :data:`regression.frame.ANGLE_CANDIDATES`, 0 to 75 degrees in steps of 15:
+    with a length scale per rotated axis these cover every direction) a GP in that frame is given the data gp has
+    kept, in the order they came (so that it is the GP that angle would have been from the start), and its
+    (s_f^2, l_1, l_2) are fitted by MAP on the refit's coarse grid with the refit's log-normal priors (as
+    :func:`refit_online`, without the trust region, up to ``maxiter`` iterations).  The angle of the largest log
+    posterior wins (a uniform prior over the candidates; the same number of hyperparameters each); gp is moved
+    to it (:meth:`GaussianProcess.set_kernel_angle`) with that candidate's values, from which the refit goes on.
+    Returns ``{angle: (log posterior, s_f^2, l_1, l_2)}``.
+
+    Cost: one coarse-grid MAP fit per candidate (~0.5-2 s each on the paper's domain, where a rotated coarse grid
+    has up to twice the 529 nodes of the axis-aligned one), once per run."""
+    from .frame import ANGLE_CANDIDATES
+    raw = gp._raw
+    if raw is None:
+        raise ValueError("choose_kernel_angle needs a GP built with kernel_angle = \"auto\" whose angle is not "
+                         "chosen yet")
+    if gp.n_observations < 2:
+        raise ValueError("choosing the kernel angle needs at least two observations")
+    s0 = gp.initial_settings
+    spacing = gp.settings.resolved_inducing_spacing
+    scores, skipped = {}, []
+    for angle in (ANGLE_CANDIDATES if angles is None else angles):
+        settings = dataclasses.replace(s0, kernel_angle=float(angle), inducing_spacing=spacing)
+        try:
+            twin = GaussianProcess(settings, gp.domain)
+        except ValueError:                       # the rotated lattice exceeds max_inducing_points
+            skipped.append(float(angle))
+            continue
+        for X, y in raw:
+            twin.add(X, y)
+        c = coarsening_factor(twin, s0.hyper_coarsening)
+        out = {}
+        s2, l1, l2, _ = refit(twin, _prior(twin), maxiter, c, out=out)
+        scores[twin.settings.kernel_angle] = (out["log_posterior"], s2, l1, l2)
+    if not scores:
+        raise ValueError(f"no candidate kernel angle fits max_inducing_points = {s0.max_inducing_points} "
+                         f"(skipped {skipped})")
+    best = max(scores, key=lambda a: scores[a][0])
+    gp.set_kernel_angle(best)
+    _, s2, l1, l2 = scores[best]
+    gp.set_hyperparameters(s2, l1, l2)
+    return scores

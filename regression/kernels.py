@@ -15,8 +15,9 @@ regression cost independent of the number of observations).  The squared exponen
 product; the Matérn kernels here are the *separable* (product) Matérn family, whose sample paths have the
 same smoothness along each axis as the isotropic Matérn of the same order (once / twice mean-square
 differentiable for 3/2 / 5/2, against infinitely often for the squared exponential): the choice a
-geostatistician makes for fields rougher than the squared exponential allows.  A rotated anisotropy is not
-a product of axis factors and is not offered.
+geostatistician makes for fields rougher than the squared exponential allows.  A rotated anisotropy (the
+length scales along and across a direction at an angle to the axes, ``GPSettings.kernel_angle``) is a product of
+factors in rotated coordinates: the GP works in that frame (:mod:`regression.frame`).
 """
 from __future__ import annotations
 

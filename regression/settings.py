@@ -95,7 +95,16 @@ class GPSettings:
         and at h = l/5 for Matérn 3/2 (3e-2 at l/3).
     length_scale_y
         Length scale along y (ARD: anisotropic, axis-aligned); None: ``length_scale`` on both axes.  Learned
-        along with ``length_scale`` when set.
+        along with ``length_scale`` when set.  With a ``kernel_angle`` the two length scales are along the rotated
+        axes (``length_scale`` along the direction at that angle, ``length_scale_y`` across it).
+    kernel_angle
+        Rotated anisotropy: the angle in degrees (counter-clockwise from the x axis) of the direction along which
+        ``length_scale`` applies; ``length_scale_y`` applies across it (:mod:`regression.frame`: the GP works in
+        the rotated frame, whose inducing lattice covers the domain's rotated bounding box: up to twice the nodes
+        at 45 degrees on a square).  0 (the default): the axis-aligned kernel, bit for bit.  ``"auto"``: chosen
+        by marginal likelihood at the first online refit among 0, 15, ..., 75 degrees (the best MAP log
+        posterior of each candidate's refit on the data seen so far; the data are kept until then).  Any angle
+        other than 0 gives the kernel a length scale per axis (``length_scale_y`` defaults to ``length_scale``).
     signal_scale
         ``"absolute"`` (the paper): ``signal_variance`` is in field units squared.  ``"data"``: the GP
         works on standardized data: ``signal_variance`` (and the centre of the learned s_f^2's prior and its
@@ -140,6 +149,7 @@ class GPSettings:
     length_scale_y: float | None = None
     hyper_step_sd: float | None = None
     hyper_prior_sd_signal: float | None = None
+    kernel_angle: float | str = 0.0
 
     def __post_init__(self):
         object.__setattr__(self, "signal_variance", _finite_positive("signal_variance", self.signal_variance))
@@ -154,6 +164,18 @@ class GPSettings:
             raise ValueError(f"kernel must be one of {', '.join(KERNELS)}, got {self.kernel!r}")
         if self.length_scale_y is not None:
             object.__setattr__(self, "length_scale_y", _finite_positive("length_scale_y", self.length_scale_y))
+        ang = self.kernel_angle
+        if isinstance(ang, str):
+            if ang.strip().lower() != "auto":
+                raise ValueError(f"kernel_angle must be an angle in degrees or \"auto\", got {ang!r}")
+            object.__setattr__(self, "kernel_angle", "auto")
+        else:
+            if isinstance(ang, bool) or not isinstance(ang, numbers.Real) or not math.isfinite(float(ang)) \
+                    or abs(float(ang)) > 360.0:
+                raise ValueError(f"kernel_angle must be an angle in degrees in [-360, 360] or \"auto\", got {ang!r}")
+            object.__setattr__(self, "kernel_angle", float(ang) % 180.0 + 0.0)    # theta and theta + 180: one kernel
+        if self.kernel_angle != 0.0 and self.length_scale_y is None:
+            object.__setattr__(self, "length_scale_y", self.length_scale)
         if self.signal_scale not in SIGNAL_SCALES:
             raise ValueError(f"signal_scale must be one of {', '.join(SIGNAL_SCALES)}, got {self.signal_scale!r}")
         ratio = self.signal_variance / self.noise_variance
@@ -210,6 +232,11 @@ class GPSettings:
     def shortest_length_scale(self) -> float:
         """min(length_scale, length_scale_y)."""
         return self.length_scale if self.length_scale_y is None else min(self.length_scale, self.length_scale_y)
+
+    @property
+    def frame_angle(self) -> float:
+        """The kernel's rotation in force (degrees): ``kernel_angle``, or 0 while ``"auto"`` is not yet chosen."""
+        return 0.0 if self.kernel_angle == "auto" else self.kernel_angle
 
     @property
     def kernel_key(self):

@@ -19,6 +19,8 @@ no map: they hold the end of their last plan.
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ..ocp.plan import ReferencePlan
@@ -98,7 +100,9 @@ class FragmentMaps:
                 f = spare.pop(max(fits)[1]) if fits else None
             if f is None:
                 gs = sim.gp.settings
-                gp = GaussianProcess(sim.config.gp, domain=sim.settings.domain)
+                # the main map's rotation (a fragment's GP is not refitted: it cannot choose an "auto" angle)
+                gp = GaussianProcess(dataclasses.replace(sim.config.gp, kernel_angle=gs.frame_angle),
+                                     domain=sim.settings.domain)
                 gp.set_hyperparameters(gs.signal_variance, gs.length_scale)
                 f = _Fragment(gp, items)
             add = np.flatnonzero(mask & ~f.has)

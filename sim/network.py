@@ -29,6 +29,7 @@ summary.json gets a ``communication`` block.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 import warnings
@@ -197,7 +198,8 @@ class Decentralized:
         if rebuild:
             from ..regression import GaussianProcess
             gs = sim.gp.settings
-            gp = GaussianProcess(sim.config.gp, domain=sim.settings.domain)
+            gp = GaussianProcess(dataclasses.replace(sim.config.gp, kernel_angle=gs.kernel_angle),   # the map's rotation
+                                 domain=sim.settings.domain)
             gp.set_hyperparameters(gs.signal_variance, gs.length_scale)
             sim.gp = gp
         kg = self.knowledge

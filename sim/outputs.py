@@ -192,6 +192,7 @@ def summary_dict(result, files=(), extra: dict | None = None) -> dict:
                                             "tracking_error", "mean_speed", "n_observations", "signal_variance",
                                             "length_scale", "threshold", "coverage")},
         "stop_rule": s.stop_rule,
+        **({} if getattr(result, "kernel", None) is None else {"kernel": result.kernel}),
         "final_rmse": final.get("rmse"),
         "final_max_variance": final.get("max_variance"),
         "metrics_definition": "fields on the planner grid cell centres: rmse = sqrt(mean (f - f_bar)^2), "

@@ -435,6 +435,10 @@ class Simulation:
         if self.config.gp.learn_hyperparameters and self.gp.n_observations >= 2:
             t0 = time.perf_counter()
             refit_online(self.gp)            # warm start; posterior recomputed below
+            gs = self.gp.settings
+            self.result.kernel = {"kernel": gs.kernel, "signal_variance": gs.signal_variance,
+                                  "length_scale": gs.length_scale, "length_scale_y": gs.length_scale_y,
+                                  "kernel_angle": gs.kernel_angle}
             self.mean, self.var = self.predict()
             self.result.timings["regression"] += time.perf_counter() - t0
             self._notify("refitted")
