@@ -4,7 +4,8 @@
 
 The tuned preset's GP (Matérn 5/2, l = 1 m: h = 0.5 m) on the paper's [0, 20]^2 at 0, 30 and 45 degrees: the
 inducing nodes M, the CPU of one refactorisation of the posterior from the power sums after 3,200 observations,
-of one online refit (``regression.hyper.refit_online``, cold) and, for ``kernel_angle = "auto"``, of the choice
+of a closed-loop measurement step (100 new points, a Woodbury update, the 40 x 40 cell centres predicted), of one
+online refit (``regression.hyper.refit_online``, cold) and, for ``kernel_angle = "auto"``, of the choice
 among the six candidate angles on the first period's data (800 observations).  Data: the field file if given
 (e.g. ``fields/aniso.npz`` of ``scripts/map_quality_fields.py``), else a smooth rotated field; noise sd 0.2.
 CPU seconds (``time.process_time``), median of three.  Not asserted by any test.
@@ -53,6 +54,15 @@ def main(path=None):
             return gp.predict(X[:10])
 
         t_fact, _ = _cpu(factorise)
+        centres = (np.stack(np.meshgrid(np.arange(40), np.arange(40), indexing="ij"), -1).reshape(-1, 2) + 0.5) * 0.5
+        gp.predict(centres)
+
+        def step():
+            Xn = rng.uniform(0.0, 20.0, (100, 2))
+            gp.add(Xn, f(Xn) + 0.2 * rng.standard_normal(100))
+            return gp.predict(centres)
+
+        t_step, _ = _cpu(step, 5)
 
         def cold_refit():
             g = GaussianProcess(GPSettings(**tuned, kernel_angle=angle), (0.0, 20.0, 0.0, 20.0))
@@ -60,7 +70,8 @@ def main(path=None):
             return refit_online(g)
 
         t_refit, s = _cpu(cold_refit, 1)
-        print(f"angle {angle:4.0f}: M = {gx} x {gy} = {gx * gy}, refactorisation {t_fact:.2f} s CPU, cold refit "
+        print(f"angle {angle:4.0f}: M = {gx} x {gy} = {gx * gy}, refactorisation {t_fact:.2f} s CPU, step (100 points "
+              f"by a Woodbury update, 1,600 predictions) {t_step:.3f} s CPU, cold refit "
               f"{t_refit:.2f} s CPU (l = {s.length_scale:.3g} / {s.length_scale_y:.3g} m)")
     Xs = X[:800] * (7.0 / 20.0)          # the first period: 100 robots x 8 steps, in the start box
     ys = f(Xs) + 0.2 * rng.standard_normal(len(Xs))

@@ -57,6 +57,7 @@ class Frame:
 
     @property
     def identity(self) -> bool:
+        """True at angle 0: u = x, no rotation."""
         return self.angle == 0.0
 
     @classmethod

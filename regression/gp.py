@@ -313,6 +313,10 @@ class GaussianProcess:
         ``(x0, x1, y0, y1)``; observations and query points must lie in it (points outside by
         at most 1e-9 of the domain size are clipped onto the boundary, anything further is an
         error).
+    frame
+        The :class:`regression.frame.Frame` whose axes the inducing lattice is aligned with (default: the one of
+        ``settings.kernel_angle`` on the domain; GPs on another grid over the same data, such as the refit's
+        coarse one, share it).
 
     See the module docstring for the method (cubic-B-spline inducing grid + exact sufficient
     statistics) and its accuracy.

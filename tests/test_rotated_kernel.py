@@ -145,6 +145,7 @@ def test_auto_chooses_the_planted_angle():
     gp = GaussianProcess(_settings("auto", learn_hyperparameters=True, length_scale_y=None), DOMAIN)
     assert gp.settings.length_scale_y == 0.5 and gp.frame.identity
     gp.add(X[:250], y[:250])
+    follower = gp.follower(length_scale=0.6)              # e.g. the stop rule's GP at another length scale
     gp.add(X[250:], y[250:])
     scores = choose_kernel_angle(gp)
     assert sorted(scores) == [0.0, 15.0, 30.0, 45.0, 60.0, 75.0]
@@ -156,6 +157,7 @@ def test_auto_chooses_the_planted_angle():
     assert np.array_equal(gp._mom, twin._mom) and np.array_equal(gp._momy, twin._momy)
     twin.set_hyperparameters(gp.settings.signal_variance, gp.settings.length_scale, gp.settings.length_scale_y)
     assert np.array_equal(gp.predict(Q)[0], twin.predict(Q)[0])
+    assert follower.frame == gp.frame and np.array_equal(follower._mom, twin._mom)     # re-framed with it
     with pytest.raises(ValueError, match="not chosen yet"):
         gp.set_kernel_angle(15.0)
 
