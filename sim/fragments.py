@@ -101,7 +101,8 @@ class FragmentMaps:
             if f is None:
                 gs = sim.gp.settings
                 # the main map's rotation (a fragment's GP is not refitted: it cannot choose an "auto" angle)
-                gp = GaussianProcess(dataclasses.replace(sim.config.gp, kernel_angle=gs.frame_angle),
+                angle = getattr(gs, "frame_angle", sim.config.gp.frame_angle)
+                gp = GaussianProcess(dataclasses.replace(sim.config.gp, kernel_angle=angle),
                                      domain=sim.settings.domain)
                 gp.set_hyperparameters(gs.signal_variance, gs.length_scale)
                 f = _Fragment(gp, items)
