@@ -331,8 +331,10 @@ def choose_kernel_angle(gp: GaussianProcess, angles=None, maxiter: int = 50, win
     with a length scale per rotated axis these cover every direction) a GP in that frame is given the data gp has
     kept, in the order they came, and its (s_f^2, l_1, l_2) are fitted by MAP on the GP's own inducing spacing
     with the refit's log-normal priors (as :func:`refit_online`, without the trust region, up to ``maxiter``
-    iterations; lengths from 1.5 h to the domain's longer side).  The angle of the largest log posterior wins (a
-    uniform prior over the candidates, the same number of hyperparameters each); gp is moved to it
+    iterations; lengths from 1.5 h to the domain's longer side).  With the default candidates one more angle is
+    fitted, the vertex of the parabola through the best candidate's log posterior and its two neighbours' (to
+    0.1 degree, within half a step; skipped when under 1 degree from the best).  The angle of the largest log
+    posterior wins (a uniform prior over the angles, the same number of hyperparameters each); gp is moved to it
     (:meth:`GaussianProcess.set_kernel_angle`) with that fit's values, from which the refit goes on.
 
     The candidates are fitted on a square window of the domain holding the data (their bounding box, or ``window``
@@ -359,7 +361,8 @@ def choose_kernel_angle(gp: GaussianProcess, angles=None, maxiter: int = 50, win
             batches.append((x[inside], y[inside]))
     x0, x1, y0, y1 = gp.domain
     scores = {}
-    for angle in (ANGLE_CANDIDATES if angles is None else angles):
+
+    def score(angle):
         twin = GaussianProcess(dataclasses.replace(s0, kernel_angle=float(angle), inducing_spacing=h), win)
         for x, y in batches:
             twin.add(x, y)
@@ -370,7 +373,19 @@ def choose_kernel_angle(gp: GaussianProcess, angles=None, maxiter: int = 50, win
         s2, l1, l2, _ = refit(twin, _prior(twin), maxiter, 1, length_scale_bounds=(lo, max(x1 - x0, y1 - y0, 2 * lo)),
                               out=out)
         scores[twin.settings.kernel_angle] = (out["log_posterior"], s2, l1, l2)
+
+    for angle in (ANGLE_CANDIDATES if angles is None else angles):
+        score(angle)
     best = max(scores, key=lambda a: scores[a][0])
+    if angles is None:                 # the vertex of the parabola through the best candidate and its neighbours
+        step = ANGLE_CANDIDATES[1] - ANGLE_CANDIDATES[0]
+        lo_, mid, hi_ = (scores[(best + d) % 90.0][0] for d in (-step, 0.0, step))
+        curvature = lo_ - 2.0 * mid + hi_
+        if curvature < 0.0:
+            shift = max(-step / 2, min(step / 2, 0.5 * (lo_ - hi_) / curvature * step))
+            if abs(shift) >= 1.0:
+                score(round(best + shift, 1) % 90.0)
+                best = max(scores, key=lambda a: scores[a][0])
     gp.set_kernel_angle(best)
     _, s2, l1, l2 = scores[best]
     gp.set_hyperparameters(s2, l1, l2)

@@ -6,6 +6,7 @@ writes, on the paper's [0, 20]^2 at 0.05 m (.npz field files, :func:`swarmfield.
 
 ``fine.npz``       a squared-exponential GP sample, l = 0.8 m, sd 1, mean 0 (random Fourier features)
 ``aniso.npz``      a GP sample with l = 3 m along a direction 30 degrees from x and 0.8 m across it
+``aniso50.npz``    the same at 50 degrees (between two of the angles ``gp.kernel_angle = "auto"`` chooses among)
 ``hotspot.npz``    400 + 1000 exp(-|x - (14, 13)|^2 / (2 1.2^2)): a leak in ppm on a flat background (run it with
                    --noise-sd 5, a sensor's ppm)
 """
@@ -32,7 +33,8 @@ def main(out: Path) -> None:
     X, Y = np.meshgrid(xs, xs, indexing="ij")
     P = np.column_stack([X.ravel(), Y.ravel()])
     ext = (0.0, 20.0, 0.0, 20.0)
-    for name, (lx, ly, ang, seed) in {"fine": (0.8, 0.8, 0.0, 5), "aniso": (3.0, 0.8, np.pi / 6, 6)}.items():
+    for name, (lx, ly, ang, seed) in {"fine": (0.8, 0.8, 0.0, 5), "aniso": (3.0, 0.8, np.pi / 6, 6),
+                                      "aniso50": (3.0, 0.8, np.radians(50.0), 7)}.items():
         rng = np.random.default_rng(seed)
         w, b = _features(rng, 3000, lx, ly, ang)
         f = np.sqrt(2.0 / len(b)) * np.cos(P @ w.T + b).sum(axis=1)
