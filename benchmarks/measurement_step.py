@@ -71,6 +71,9 @@ CONFIGS = {
     "hold": {"kde": {"hold_substeps": 8}},
     "exact-prior": {"gp": {"prior_truncation": 0.0}},
     "prior-2e-7": {"gp": {"prior_truncation": 2e-7}},
+    "gmrf": {"gp": {"kernel": "gmrf"}},
+    "gmrf2": {"gp": {"kernel": "gmrf2"}},
+    "gmrf2-l2.5": {"gp": {"kernel": "gmrf2", "length_scale": 2.5, "inducing_spacing": 0.5}},
 }
 
 

@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import blas, lapack
 
-__all__ = ["cholesky", "solve", "logdet", "selected_inverse", "to_dense", "from_dense"]
+__all__ = ["cholesky", "solve", "logdet", "selected_inverse", "matvec", "to_dense", "from_dense"]
 
 
 def _check(blocks: np.ndarray) -> tuple[int, int, int]:
@@ -123,6 +123,17 @@ def selected_inverse(factor: np.ndarray) -> np.ndarray:
         out[k, 0] = skk
         win[:b, :b] = skk
     return out
+
+
+def matvec(blocks: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """P z for the symmetric block band ``blocks`` and a vector z (diagonal blocks used in full)."""
+    nb, w, b = _check(blocks)
+    zb = np.asarray(z, dtype=float).reshape(nb, b)
+    out = np.einsum("krc,kc->kr", blocks[:, 0], zb)
+    for d in range(1, min(w, nb - 1) + 1):
+        out[d:] += np.einsum("krc,kc->kr", blocks[:nb - d, d], zb[:nb - d])      # block (k + d, k) z_k
+        out[:nb - d] += np.einsum("krc,kr->kc", blocks[:nb - d, d], zb[d:])     # its transpose z_{k+d}
+    return out.reshape(-1)
 
 
 def to_dense(blocks: np.ndarray) -> np.ndarray:

@@ -128,8 +128,11 @@ from scipy.linalg import blas, cho_solve, lapack
 from scipy.optimize import minimize
 
 from ..runtime.validation import real_array
+from . import banded
 from .basis import BASIS_COEF, PRODUCT_COEF, SplineAxis, bspline_weights
 from .frame import Frame
+from .gmrf import GmrfPrior, band_of_blocks, gmrf_prior
+from .kernels import GMRF_KERNELS
 from .settings import GPSettings
 
 
@@ -173,6 +176,18 @@ class _Covariance:
     @property
     def kcy(self) -> np.ndarray:
         return self.basis.kcy
+
+
+@dataclasses.dataclass
+class _GmrfCovariance:
+    """Posterior of the ``"gmrf"`` prior (:mod:`regression.gmrf`) for data version ``version`` and ``hyper``:
+    the Cholesky factor of P = Q / s_f^2 + A as a block band (:mod:`regression.banded`) and Sigma = P^{-1}
+    between nodes at most 3 apart (``band``, (gx, gy, 7, 7), from the selected inverse)."""
+    hyper: tuple
+    version: int
+    prior: GmrfPrior
+    factor: np.ndarray
+    band: np.ndarray
 
 
 @dataclasses.dataclass(frozen=True)
@@ -385,6 +400,7 @@ class GaussianProcess:
         self._bases: dict = {}      # _PriorBasis by (length scale, prior_truncation)
         self._band_gather = None    # (flat indices, valid) of Sigma's band in the full M x M Sigma
         self._band_offsets = None   # offsets in the band of the 16 x 16 node pairs of a cell
+        self._idx_blocks = None     # kernel "gmrf": (lower (p, r) pairs, positions in A's block band)
         self._build_scatter_indices()
 
     # ------------------------------------------------------------------ properties
@@ -425,6 +441,8 @@ class GaussianProcess:
         n_new = int(n_new)
         if n_new < 0:
             raise ValueError(f"n_new must be >= 0, got {n_new}")
+        if self._settings.kernel in GMRF_KERNELS:            # every posterior is a cheap banded factorisation
+            return True
         return self._pending is not None and self._pending_n + n_new <= self.max_update_rank
 
     @property
@@ -576,18 +594,41 @@ class GaussianProcess:
         (i, j) and column node (i + di - 3, j + dj - 3), the only non-zeros; and b = sum phi (y - m) / s_n^2,
         both from the power sums."""
         sn2 = self._settings.noise_variance
-        key = (self._version, mean, sn2)
+        gmrf = self._settings.kernel in GMRF_KERNELS
+        key = (self._version, mean, sn2, gmrf)
         if self._assembled is not None and self._assembled[0] == key:
             return self._assembled[1], self._assembled[2]
         pc = PRODUCT_COEF.reshape(16, _N_POW)                    # [(p, r), a]
         u = self._mom @ pc.T                                     # [cell, a, (q, s)]
         z = pc @ u                                               # [cell, (p, r), (q, s)]
         gx, gy = self._ax.n_nodes, self._ay.n_nodes
-        a = np.bincount(self._idx_a, weights=z.reshape(-1) / sn2,
-                        minlength=gx * _BAND * gy * _BAND).reshape(gx, _BAND, gy, _BAND)
+        if gmrf:
+            a = self._assemble_blocks(z / sn2)
+        else:
+            a = np.bincount(self._idx_a, weights=z.reshape(-1) / sn2,
+                            minlength=gx * _BAND * gy * _BAND).reshape(gx, _BAND, gy, _BAND)
         b = self._assemble_b(mean)
         self._assembled = (key, a, b)
         return a, b
+
+    def _assemble_blocks(self, z: np.ndarray) -> np.ndarray:
+        """A as the lower block band (gx, 4, gy, gy) of :mod:`regression.banded` (block (i + d, i) of x-nodes,
+        y-nodes inside; diagonal blocks in full) from the cells' 16 x 16 local products ``z`` / s_n^2."""
+        gx, gy = self._ax.n_nodes, self._ay.n_nodes
+        if self._idx_blocks is None:
+            ncx, ncy = self._ax.n_cells, self._ay.n_cells
+            ci, cj = np.meshgrid(np.arange(ncx), np.arange(ncy), indexing="ij")
+            ci, cj = ci.reshape(-1, 1, 1), cj.reshape(-1, 1, 1)
+            o = np.arange(4)
+            p_, r_ = [v.reshape(-1) for v in np.meshgrid(o, o, indexing="ij")]
+            lower = p_ >= r_                                   # row x-node i + p below or at column's i + r
+            p_, r_ = p_[lower][None, :, None], r_[lower][None, :, None]
+            q_, s_ = [v.reshape(1, 1, -1) for v in np.meshgrid(o, o, indexing="ij")]
+            idx = (((ci + r_) * 4 + (p_ - r_)) * gy + (cj + q_)) * gy + (cj + s_)
+            self._idx_blocks = (np.flatnonzero(lower), idx.reshape(-1))
+        pairs, idx = self._idx_blocks
+        w = z[:, pairs, :]
+        return np.bincount(idx, weights=w.reshape(-1), minlength=gx * 4 * gy * gy).reshape(gx, 4, gy, gy)
 
     def _assemble_b(self, mean: float) -> np.ndarray:
         """b = sum phi (y - m) / s_n^2 from the power sums (O(cells), no M x M work)."""
@@ -737,8 +778,43 @@ class GaussianProcess:
             raise np.linalg.LinAlgError(f"Cholesky factorisation of I + S A S failed (info={info})")
         return chol_u.T, basis
 
+    def _gmrf_prior(self, key) -> GmrfPrior:
+        """The (cached) normalised GMRF prior (:mod:`regression.gmrf`) of a kernel key ``("gmrf", l_x, l_y)``."""
+        kernel, l_x, l_y = key
+        hit = self._bases.get(key)
+        if hit is None:
+            hit = gmrf_prior(self._ax.n_nodes, self._ay.n_nodes, self._ax.h, self._ay.h, l_x, l_y, GMRF_KERNELS[kernel])
+            if len(self._bases) > 8:
+                self._bases.clear()
+            self._bases[key] = hit
+        return hit
+
+    def _gmrf_posterior(self):
+        """(m, mu, band of Sigma, band of the prior covariance) of the ``"gmrf"`` prior: P = Q / s_f^2 + A
+        factorised as a block band, Sigma's band by selected inversion, mu = P^{-1} b (:mod:`regression.gmrf`)."""
+        s = self._settings
+        mean = self.prior_mean
+        hyper = (s.signal_variance, s.kernel_key, s.noise_variance)
+        cov = self._cov
+        if cov is None or cov.hyper != hyper or cov.version != self._version:
+            self._cov = None
+            prior = self._gmrf_prior(hyper[1])
+            a, _ = self._assemble(mean)
+            factor = banded.cholesky(a + prior.precision / hyper[0], overwrite=True)
+            cov = _GmrfCovariance(hyper, self._version, prior, factor, band_of_blocks(banded.selected_inverse(factor)))
+            self._cov = cov
+            self._pending, self._pending_n = [], 0
+            self.n_factorizations += 1
+        key = (self._version, hyper, mean)
+        if self._mu is None or self._mu[0] != key:
+            self._mu = (key, banded.solve(cov.factor, self._assemble_b(mean)))
+        return mean, self._mu[1], cov.band, cov.prior.band
+
     def _get_posterior(self):
-        """(m, mu, band of Sigma, kcx, kcy) for the current data, hyperparameters and prior mean."""
+        """(m, mu, band of Sigma, prior) for the current data, hyperparameters and prior mean; ``prior`` is
+        (kcx, kcy), the prior's Kronecker factors, or (kernel ``"gmrf"``) the band of the prior covariance."""
+        if self._settings.kernel in GMRF_KERNELS:
+            return self._gmrf_posterior()
         s = self._settings
         mean = self.prior_mean
         hyper = (s.signal_variance, s.kernel_key, s.noise_variance)
@@ -753,7 +829,7 @@ class GaussianProcess:
             else:                                                    # s_f^2 T (fx (x) fy)^T b
                 mu = hyper[0] * (cov.half @ self._kron_left(cov.basis.fx.T, cov.basis.fy.T, b[:, None])[:, 0])
             self._mu = (key, mu)
-        return mean, self._mu[1], self._sigma_band(cov), cov.kcx, cov.kcy
+        return mean, self._mu[1], self._sigma_band(cov), (cov.kcx, cov.kcy)
 
     def _sigma_band(self, cov: _Covariance) -> np.ndarray:
         """Sigma's entries between nodes at most 3 apart per axis, (gx, gy, 7, 7): ``band[i, j, di, dj]`` is
@@ -903,7 +979,7 @@ class GaussianProcess:
         npts = pts.shape[0]
         if self._n == 0:
             return np.full(npts, self.prior_mean), np.full(npts, s.signal_variance)
-        mean, mu, band, kcx, kcy = self._get_posterior()
+        mean, mu, band, prior = self._get_posterior()
         if self._band_offsets is None:
             # node pair (p, q), (r, s) of a cell with first node (i, j): band entry [i + p, j + q, r - p + 3, s - q + 3]
             p_, q_, r_, s_ = np.meshgrid(*(np.arange(4),) * 4, indexing="ij")
@@ -918,9 +994,15 @@ class GaussianProcess:
             out_mean[sl] = mean + np.einsum("ij,ij->i", phi, mu[node])
             local = flat[(node[:, 0] * (_BAND * _BAND))[:, None, None] + self._band_offsets[None]]
             post = np.einsum("ij,ijk,ik->i", phi, local, phi)
-            prior_x = np.einsum("ij,ijk,ik->i", wx, kcx[nx_[:, :, None], nx_[:, None, :]], wx)
-            prior_y = np.einsum("ij,ijk,ik->i", wy, kcy[ny_[:, :, None], ny_[:, None, :]], wy)
-            out_var[sl] = np.maximum(post, 0.0) / (prior_x * prior_y)
+            if isinstance(prior, tuple):
+                kcx, kcy = prior
+                prior_x = np.einsum("ij,ijk,ik->i", wx, kcx[nx_[:, :, None], nx_[:, None, :]], wx)
+                prior_y = np.einsum("ij,ijk,ik->i", wy, kcy[ny_[:, :, None], ny_[:, None, :]], wy)
+                prior_var = prior_x * prior_y
+            else:                                           # the prior covariance's band (kernel "gmrf")
+                pl = prior.reshape(-1)[(node[:, 0] * (_BAND * _BAND))[:, None, None] + self._band_offsets[None]]
+                prior_var = np.einsum("ij,ijk,ik->i", phi, pl, phi)
+            out_var[sl] = np.maximum(post, 0.0) / prior_var
         return out_mean, out_var
 
     # ------------------------------------------------------------------ hyperparameters
@@ -989,8 +1071,53 @@ class GaussianProcess:
     def _lml(self, s2: float, ell: float, a: np.ndarray, b: np.ndarray) -> float:
         return self._lml_parts(s2, ell, a, b)[0]
 
+    def _gmrf_lml(self, s2: float, key, a: np.ndarray, b: np.ndarray):
+        """(log marginal likelihood, factor of P, mu, prior) of the ``"gmrf"`` prior, exact from the banded factors::
+
+            log p = -1/2 [ r^T r / s_n^2 - b^T P^{-1} b + log det P - log det (Q / s_f^2) + n log(2 pi s_n^2) ]
+
+        (P = Q / s_f^2 + A; the same identity as :meth:`_lml_parts` with K_c = s_f^2 Q^{-1})."""
+        sn2 = self._settings.noise_variance
+        m = self.prior_mean
+        rr = self._sum_y2 - 2.0 * m * self._sum_y + self._n * m * m
+        prior = self._gmrf_prior(key)
+        factor = banded.cholesky(a + prior.precision / s2, overwrite=True)
+        mu = banded.solve(factor, b)
+        logdet_q = prior.logdet - self._n_nodes * math.log(s2)
+        lml = -0.5 * (rr / sn2 - float(b @ mu) + banded.logdet(factor) - logdet_q + self._n * math.log(2.0 * math.pi * sn2))
+        return lml, factor, mu, prior
+
+    def _gmrf_lml_and_gradient(self, s2: float, key, a: np.ndarray, b: np.ndarray) -> tuple[float, np.ndarray]:
+        """:meth:`_lml_and_gradient` of the ``"gmrf"`` prior.  With Q_s = Q / s_f^2, d Q_s / d log s_f^2 = -Q_s and
+        (d log det P - d log det Q_s - d b^T P^{-1} b) = tr(Sigma dQ_s) - tr(Q_s^{-1} dQ_s) + mu^T dQ_s mu::
+
+            d log p / d log s_f^2 = 1/2 (mu^T Q_s mu + tr(Sigma Q_s) - M),
+
+        exact (tr(Sigma Q_s) needs Sigma only within Q's pattern: the selected inverse).  The length-scale
+        derivatives (through the lattice precision and its per-node normalisation) are central differences
+        of the log marginal likelihood in log l (step 1e-4)."""
+        lml, factor, mu, prior = self._gmrf_lml(s2, key, a, b)
+        qs = prior.precision / s2
+        sel = banded.selected_inverse(factor)
+        tr = float(np.sum(sel[:, 0] * qs[:, 0])) + 2.0 * float(np.sum(sel[:, 1:] * qs[:, 1:]))
+        qmu = banded.matvec(qs, mu)
+        grad = np.empty(3)
+        grad[0] = 0.5 * (float(mu @ qmu) + tr - self._n_nodes)
+        kernel, l_x, l_y = key
+        h = 1e-4
+        for k in (1, 2):
+            vals = []
+            for sign in (1.0, -1.0):
+                f = math.exp(sign * h)
+                kk = (kernel, l_x * f, l_y) if k == 1 else (kernel, l_x, l_y * f)
+                vals.append(self._gmrf_lml(s2, kk, a, b)[0])
+            grad[k] = (vals[0] - vals[1]) / (2.0 * h)
+        return lml, grad
+
     def _lml_parts(self, s2: float, ell, a: np.ndarray, b: np.ndarray):
         """(log marginal likelihood, Cholesky factor L of B, prior basis, S_K^T b, B^{-1} S_K^T b)."""
+        if isinstance(ell, tuple) and ell[0] in GMRF_KERNELS:
+            return self._gmrf_lml(s2, ell, a, b)
         sn2 = self._settings.noise_variance
         m = self.prior_mean
         rr = self._sum_y2 - 2.0 * m * self._sum_y + self._n * m * m
@@ -1022,6 +1149,8 @@ class GaussianProcess:
         inversion, about the Cholesky factorisation's cost): a gradient costs about two evaluations of
         :meth:`_lml` instead of the three or four of finite differences, and is exact for the spline model
         (up to the prior truncation's change of the kept directions with l, ``prior_truncation`` x s_f^2)."""
+        if isinstance(ell, tuple) and ell[0] in GMRF_KERNELS:
+            return self._gmrf_lml_and_gradient(s2, ell, a, b)
         lml, chol, basis, sb, v = self._lml_parts(s2, ell, a, b)
         if isinstance(ell, tuple):
             kernel, l_x, l_y = ell

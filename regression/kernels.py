@@ -34,8 +34,24 @@ def squared_exponential_1d(a: np.ndarray, b: np.ndarray, length_scale: float) ->
     return np.exp(-0.5 * (d / length_scale) ** 2)
 
 
-#: one-dimensional kernel factors by name (``GPSettings.kernel``)
+#: one-dimensional kernel factors by name (the separable values of ``GPSettings.kernel``)
 KERNELS = ("squared-exponential", "matern52", "matern32")
+#: the Gaussian-Markov-random-field priors of :mod:`regression.gmrf` by name, with the Matérn smoothness nu
+#: they discretise (not products of axis factors: their priors are sparse precisions)
+GMRF_KERNELS = {"gmrf": 1, "gmrf2": 2}
+#: every value of ``GPSettings.kernel``
+GP_KERNELS = KERNELS + tuple(GMRF_KERNELS)
+
+
+def matern(r: np.ndarray, length_scale: float, nu: int) -> np.ndarray:
+    """Unit-variance isotropic Matérn covariance ``2^(1-nu) / Gamma(nu) (kappa r)^nu K_nu(kappa r)`` with
+    ``kappa = sqrt(2 nu) / l``: the covariances the GMRF priors (:mod:`regression.gmrf`, nu = 1, 2) discretise."""
+    from scipy.special import gamma, kv
+    s = math.sqrt(2.0 * nu) * np.abs(np.asarray(r, dtype=float)) / float(length_scale)
+    out = np.ones_like(s)
+    pos = s > 0
+    out[pos] = 2.0 ** (1.0 - nu) / gamma(nu) * s[pos] ** nu * kv(nu, s[pos])
+    return out
 
 
 def kernel_1d(a: np.ndarray, b: np.ndarray, length_scale: float, kernel: str = "squared-exponential") -> np.ndarray:
@@ -51,6 +67,8 @@ def kernel_1d(a: np.ndarray, b: np.ndarray, length_scale: float, kernel: str = "
     if kernel == "matern32":
         s = math.sqrt(3.0) * r
         return (1.0 + s) * np.exp(-s)
+    if kernel in GMRF_KERNELS:
+        raise ValueError(f"kernel {kernel!r} is not a product of one-dimensional factors (regression.gmrf)")
     raise ValueError(f"kernel must be one of {', '.join(KERNELS)}, got {kernel!r}")
 
 

@@ -39,3 +39,120 @@ def test_cholesky_of_an_indefinite_band_is_an_error():
     blocks[2, 0] -= 100.0 * np.eye(3)
     with pytest.raises(np.linalg.LinAlgError, match="block 2"):
         banded.cholesky(blocks)
+
+
+# ---------------------------------------------------------------- the GP with a GMRF prior
+import dataclasses
+import math
+
+from swarmfield.regression import GaussianProcess, GPSettings
+from swarmfield.regression.gmrf import band_of_blocks, lattice_precision
+from swarmfield.regression.kernels import matern
+
+SMALL = (0.0, 4.0, 0.0, 3.0)          # 11 x 9 spline nodes at l = 1, h = l / 2
+
+
+def _phi(gp, pts):
+    bx, by = gp._ax.design_matrix(pts[:, 0]), gp._ay.design_matrix(pts[:, 1])
+    return (bx[:, :, None] * by[:, None, :]).reshape(len(pts), -1)
+
+
+def _dense_prior(gp):
+    """K_c = s_f^2 Q^{-1} as a dense matrix (the prior covariance of the spline coefficients)."""
+    prior = gp._gmrf_prior(gp.settings.kernel_key)
+    return gp.settings.signal_variance * np.linalg.inv(banded.to_dense(prior.precision))
+
+
+@pytest.mark.parametrize("kernel", ["gmrf", "gmrf2"])
+def test_gmrf_posterior_equals_a_dense_gp_with_the_same_prior_covariance(kernel):
+    rng = np.random.default_rng(3)
+    s = GPSettings(kernel=kernel, signal_variance=0.3, noise_variance=0.05, prior_mean=1.5,
+                   length_scale=1.2, length_scale_y=0.9, inducing_spacing=0.45)
+    gp = GaussianProcess(s, SMALL)
+    x = np.column_stack([rng.uniform(0, 4, 60), rng.uniform(0, 3, 60)])
+    y = 1.5 + np.sin(x[:, 0]) * np.cos(x[:, 1]) + 0.2 * rng.normal(size=60)
+    gp.add(x[:40], y[:40])
+    gp.predict(x[:1])
+    gp.add(x[40:], y[40:])                                    # a second posterior after new data
+    q = np.column_stack([rng.uniform(0, 4, 50), rng.uniform(0, 3, 50)])
+    mean, var = gp.predict(q)
+    # oracle: the function-space GP with k(x, x') = phi(x)^T K_c phi(x') (plain NumPy, no precision)
+    kc = _dense_prior(gp)
+    px, pq = _phi(gp, x), _phi(gp, q)
+    cov = px @ kc @ px.T + s.noise_variance * np.eye(60)
+    kqx = pq @ kc @ px.T
+    mean_ref = 1.5 + kqx @ np.linalg.solve(cov, y - 1.5)
+    prior_q = np.einsum("ij,jk,ik->i", pq, kc, pq)
+    var_ref = (prior_q - np.einsum("ij,ji->i", kqx, np.linalg.solve(cov, kqx.T))) * s.signal_variance / prior_q
+    assert np.max(np.abs(mean - mean_ref)) < 1e-10
+    assert np.max(np.abs(var - var_ref)) < 1e-10 * s.signal_variance
+    lml_ref = -0.5 * ((y - 1.5) @ np.linalg.solve(cov, y - 1.5) + np.linalg.slogdet(cov)[1] + 60 * math.log(2 * math.pi))
+    assert gp.log_marginal_likelihood() == pytest.approx(lml_ref, abs=1e-8)
+    assert gp.n_factorizations == 2 and gp.n_woodbury_updates == 0
+
+
+def test_gmrf_prior_band_and_per_node_normalisation():
+    gp = GaussianProcess(GPSettings(kernel="gmrf", length_scale=1.0), SMALL)
+    prior = gp._gmrf_prior(gp.settings.kernel_key)
+    q = banded.to_dense(prior.precision)
+    inv = np.linalg.inv(q)
+    sc = prior.scale.reshape(-1)                                         # Q = S^-1 Q_0 S^-1
+    q0 = banded.to_dense(lattice_precision(11, 9, 0.5, 0.5, 1.0, 1.0))
+    assert np.allclose(q, q0 / np.outer(sc, sc), rtol=1e-12, atol=0)
+    assert prior.logdet == pytest.approx(np.linalg.slogdet(q)[1], abs=1e-8)
+    dense_band = band_of_blocks(banded.from_dense(inv, gp.inducing_shape[1], 3))
+    assert np.allclose(prior.band, dense_band, atol=1e-12)
+    # the unnormalised lattice precision: the 13-point stencil (nodes at most 2 apart) of (I + l^2/2 L)^2
+    q0 = banded.to_dense(lattice_precision(11, 9, 0.5, 0.5, 1.0, 1.0))
+    i, j = np.divmod(np.arange(99), 9)
+    far = (np.abs(np.subtract.outer(i, i)) + np.abs(np.subtract.outer(j, j))) > 2
+    assert np.all(q0[far] == 0.0) and np.all(np.linalg.eigvalsh(q0) > 0)
+
+
+@pytest.mark.parametrize("kernel, nu, tol", [("gmrf", 1, 0.13), ("gmrf2", 2, 0.08)])
+def test_gmrf_field_covariance_is_close_to_the_matern_it_discretises(kernel, nu, tol):
+    """phi(x)^T K_c phi(x') against s_f^2 Matérn(|x - x'|) in the middle of a 10 x 10 domain (l = 1, h = l/2):
+    the correlation within ``tol`` up to 3 l (the lattice and the splines' smoothing), the variance within
+    2 % of s_f^2 over the whole domain, edges and corners included (per-node normalisation)."""
+    gp = GaussianProcess(GPSettings(kernel=kernel, signal_variance=2.0), (0.0, 10.0, 0.0, 10.0))
+    kc = _dense_prior(gp)
+    xs = np.linspace(2.0, 8.0, 61)
+    line = _phi(gp, np.column_stack([xs, np.full(61, 5.0)]))
+    cov = line @ kc @ line[30]
+    corr = cov / np.sqrt(cov[30] * np.einsum("ij,jk,ik->i", line, kc, line))
+    assert np.max(np.abs(corr - matern(np.abs(xs - 5.0), 1.0, nu))) < tol
+    g = np.linspace(0.0, 10.0, 81)
+    grid = _phi(gp, np.array(np.meshgrid(g, g, indexing="ij")).reshape(2, -1).T)
+    var = np.sum((grid @ kc) * grid, axis=1) / 2.0
+    assert 0.98 < np.min(var) and np.max(var) < 1.001
+
+
+def test_gmrf_lml_gradient_against_finite_differences():
+    rng = np.random.default_rng(4)
+    gp = GaussianProcess(GPSettings(kernel="gmrf2", length_scale=1.3, length_scale_y=1.1), SMALL)
+    x = np.column_stack([rng.uniform(0, 4, 80), rng.uniform(0, 3, 80)])
+    gp.add(x, np.sin(x[:, 0]) + 0.2 * rng.normal(size=80))
+    a, b = gp._assemble(gp.prior_mean)
+    key = gp.settings.kernel_key
+    lml, grad = gp._lml_and_gradient(0.4, key, a, b)
+    h = 1e-5
+    fd = (gp._lml(0.4 * math.exp(h), key, a, b) - gp._lml(0.4 * math.exp(-h), key, a, b)) / (2 * h)
+    assert lml == pytest.approx(gp._lml(0.4, key, a, b), abs=1e-12)
+    assert grad[0] == pytest.approx(fd, rel=1e-6, abs=1e-6)
+    for k, kk in ((1, ("gmrf2", 1.3 * math.exp(1e-3), 1.1)), (2, ("gmrf2", 1.3, 1.1 * math.exp(1e-3)))):
+        assert grad[k] == pytest.approx((gp._lml(0.4, kk, a, b) - lml) / 1e-3, rel=2e-2, abs=1e-3)
+    iso = GaussianProcess(GPSettings(kernel="gmrf2", length_scale=1.3), SMALL)
+    iso.add(x, np.sin(x[:, 0]) + 0.2 * rng.normal(size=80))
+    before = iso.log_marginal_likelihood()
+    fitted = iso.fit_hyperparameters(maxiter=10)                        # the optimiser runs on it
+    assert fitted.kernel == "gmrf2" and iso.log_marginal_likelihood() > before
+
+
+def test_gmrf_kernel_setting_is_validated_and_always_fits_the_cadence():
+    with pytest.raises(ValueError, match="kernel must be one of .*gmrf, gmrf2.*got 'gmrf3'"):
+        GPSettings(kernel="gmrf3")
+    gp = GaussianProcess(GPSettings(kernel="gmrf"), SMALL)
+    assert gp.update_fits(10 ** 6)                      # a posterior is a banded factorisation whatever the data
+    mean, var = gp.predict(np.array([[1.0, 1.0]]))
+    assert var[0] == gp.settings.signal_variance
+    assert dataclasses.replace(gp.settings).kernel_key == ("gmrf", 1.0, 1.0)
