@@ -73,7 +73,9 @@ CONFIGS = {
     "prior-2e-7": {"gp": {"prior_truncation": 2e-7}},
     "gmrf": {"gp": {"kernel": "gmrf"}},
     "gmrf2": {"gp": {"kernel": "gmrf2"}},
+    "gmrf2-l2": {"gp": {"kernel": "gmrf2", "length_scale": 2.0, "inducing_spacing": 0.5}},
     "gmrf2-l2.5": {"gp": {"kernel": "gmrf2", "length_scale": 2.5, "inducing_spacing": 0.5}},
+    "gmrf2-l3.5": {"gp": {"kernel": "gmrf2", "length_scale": 3.5, "inducing_spacing": 0.5}},
 }
 
 

@@ -83,13 +83,14 @@ def band_of_blocks(blocks: np.ndarray) -> np.ndarray:
     most 3 apart: ``out[i, j, di, dj]`` is the entry of nodes (i, j) and (i + di - 3, j + dj - 3), 0 beyond
     the lattice (the layout :meth:`GaussianProcess.predict` reads)."""
     gx, w1, gy, _ = blocks.shape
-    idx, valid = _band_index(gx, w1, gy)
-    return np.where(valid, blocks.reshape(-1)[idx], 0.0)
+    idx = _band_index(gx, w1, gy)
+    return np.append(blocks.reshape(-1), 0.0)[idx]
 
 
 @functools.lru_cache(maxsize=4)
-def _band_index(gx: int, w1: int, gy: int) -> tuple[np.ndarray, np.ndarray]:
-    """Flat positions in a (gx, w1, gy, gy) block band of the (gx, gy, 7, 7) entries of :func:`band_of_blocks`."""
+def _band_index(gx: int, w1: int, gy: int) -> np.ndarray:
+    """Flat positions in a (gx, w1, gy, gy) block band of the (gx, gy, 7, 7) entries of :func:`band_of_blocks`
+    (one past the end, the position of an appended zero, for entries beyond the lattice)."""
     i, j, di, dj = np.meshgrid(np.arange(gx), np.arange(gy), np.arange(_BAND), np.arange(_BAND), indexing="ij")
     i2, j2 = i + di - 3, j + dj - 3
     valid = (i2 >= 0) & (i2 < gx) & (j2 >= 0) & (j2 < gy)
@@ -98,9 +99,9 @@ def _band_index(gx: int, w1: int, gy: int) -> tuple[np.ndarray, np.ndarray]:
     r = np.where(i2 >= i, j2, j)                          # row inside block (k + d): the node of the larger i
     c = np.where(i2 >= i, j, j2)
     idx = ((np.clip(lo, 0, gx - 1) * w1 + np.minimum(d, w1 - 1)) * gy + np.clip(r, 0, gy - 1)) * gy + np.clip(c, 0, gy - 1)
-    for a in (idx, valid):
-        a.flags.writeable = False
-    return idx, valid
+    idx = np.where(valid, idx, gx * w1 * gy * gy)
+    idx.flags.writeable = False
+    return idx
 
 
 def _cell_weights(g: int) -> tuple[np.ndarray, np.ndarray]:

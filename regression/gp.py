@@ -390,7 +390,7 @@ class GaussianProcess:
         n_cells = self._ax.n_cells * self._ay.n_cells
         self._mom = np.zeros((n_cells, _N_POW, _N_POW))          # sum t1^a t2^b
         self._momy = np.zeros((n_cells, _N_POW_Y, _N_POW_Y))     # sum y t1^a t2^b
-        self._assembled = None     # (key, A, b) for the current data, noise and mean
+        self._assembled = None     # (key, A) for the current data and noise
         self._cov = None           # _Covariance: Sigma for some data version and hyperparameters
         self._mu = None            # (key, mu) with key (version, hyperparameters, prior mean)
         # positions added since the data version of self._cov (since no data while it is None),
@@ -591,13 +591,17 @@ class GaussianProcess:
 
     def _assemble(self, mean: float) -> tuple[np.ndarray, np.ndarray]:
         """A = sum phi phi^T / s_n^2 as its band (gx, 7, gy, 7): ``a[i, di, j, dj]`` is the entry of row node
-        (i, j) and column node (i + di - 3, j + dj - 3), the only non-zeros; and b = sum phi (y - m) / s_n^2,
-        both from the power sums."""
+        (i, j) and column node (i + di - 3, j + dj - 3), the only non-zeros (with a GMRF kernel: as the block band
+        of :meth:`_assemble_blocks`); and b = sum phi (y - m) / s_n^2, both from the power sums."""
+        return self._assemble_a(), self._assemble_b(mean)
+
+    def _assemble_a(self) -> np.ndarray:
+        """A of :meth:`_assemble` (it does not depend on the prior mean), cached per data version and noise."""
         sn2 = self._settings.noise_variance
         gmrf = self._settings.kernel in GMRF_KERNELS
-        key = (self._version, mean, sn2, gmrf)
+        key = (self._version, sn2, gmrf)
         if self._assembled is not None and self._assembled[0] == key:
-            return self._assembled[1], self._assembled[2]
+            return self._assembled[1]
         pc = PRODUCT_COEF.reshape(16, _N_POW)                    # [(p, r), a]
         u = self._mom @ pc.T                                     # [cell, a, (q, s)]
         z = pc @ u                                               # [cell, (p, r), (q, s)]
@@ -607,9 +611,8 @@ class GaussianProcess:
         else:
             a = np.bincount(self._idx_a, weights=z.reshape(-1) / sn2,
                             minlength=gx * _BAND * gy * _BAND).reshape(gx, _BAND, gy, _BAND)
-        b = self._assemble_b(mean)
-        self._assembled = (key, a, b)
-        return a, b
+        self._assembled = (key, a)
+        return a
 
     def _assemble_blocks(self, z: np.ndarray) -> np.ndarray:
         """A as the lower block band (gx, 4, gy, gy) of :mod:`regression.banded` (block (i + d, i) of x-nodes,
@@ -799,7 +802,7 @@ class GaussianProcess:
         if cov is None or cov.hyper != hyper or cov.version != self._version:
             self._cov = None
             prior = self._gmrf_prior(hyper[1])
-            a, _ = self._assemble(mean)
+            a = self._assemble_a()
             factor = banded.cholesky(a + prior.precision / hyper[0], overwrite=True)
             cov = _GmrfCovariance(hyper, self._version, prior, factor, band_of_blocks(banded.selected_inverse(factor)))
             self._cov = cov
@@ -897,7 +900,7 @@ class GaussianProcess:
             old = None if cov is None else cov.store
             self._cov = None
             self._pending, self._pending_n = None, 0
-            a, _ = self._assemble(self.prior_mean)
+            a = self._assemble_a()
             chol, basis = self._factorize(s2, ell, a)
             # chol.T is the Fortran-ordered upper factor: dpotri works in place on it (no copy)
             binv_f, info = lapack.dpotri(chol.T, lower=0, overwrite_c=1)

@@ -21,3 +21,15 @@ def test_benchmarks_page_lists_what_the_suite_has():
             assert f"`{script.name}`" in page, f"benchmarks/{script.name} is not on docs/guide/benchmarks.md"
     finally:
         sys.path.remove(str(ROOT / "benchmarks"))
+
+
+def test_large_swarm_step_times_the_measurement_step_per_kernel():
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        bench = importlib.import_module("suite.bench_closed_loop").LargeSwarmStep
+        assert bench.params == ["squared-exponential", "gmrf2"] and callable(bench.track_step_cpu_ms)
+        for kernel in bench.params:
+            cfg = bench._config(kernel)
+            assert (cfg.gp.kernel, cfg.sim.robots, cfg.sim.metrics_every) == (kernel, 10_000, 1)
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))

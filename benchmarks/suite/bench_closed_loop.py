@@ -62,22 +62,39 @@ class TunedCost:
     track_max_replan_cpu_over_interval.unit = "ratio"
 
 
+#: GP settings of the kernels :class:`LargeSwarmStep` compares: the paper's squared exponential and the
+#: banded GMRF prior (Matérn nu = 2 at the length scale the paper's field prefers, on the same inducing grid)
+KERNEL_SETTINGS = {"squared-exponential": {},
+                   "gmrf2": {"kernel": "gmrf2", "length_scale": 2.5, "inducing_spacing": 0.5}}
+
+
 class LargeSwarmStep:
     """A measurement step at 10,000 robots with the posterior every step (``sim.metrics_every = 1``; greedy, which
-    reads it): CPU per step over one period after the start (``benchmarks/measurement_step.py`` in more detail)."""
+    reads it), per GP kernel (``gp.kernel``; :data:`KERNEL_SETTINGS`): ``track_step_cpu_ms`` is the mean CPU of
+    a measurement step (the planner and the start left out, as :class:`MeasurementStep`), ``track_cpu_ms_per_step``
+    the CPU of the whole period after the start (planner and refit included) over its steps
+    (``benchmarks/measurement_step.py --configs default gmrf2-l2.5`` in more detail)."""
 
     timer = TIMER
+    params = list(KERNEL_SETTINGS)
+    param_names = ["kernel"]
     number = 1
     repeat = 1
     warmup_time = 0.0
     timeout = 600
 
-    def setup(self):
+    def setup(self, kernel):
         limit_threads()
 
-    def track_cpu_ms_per_step(self):
-        from swarmfield.sim.simulation import Simulation
+    @staticmethod
+    def _config(kernel):
+        import dataclasses
         cfg = run_config("paper", robots=10_000, max_periods=1, controller="greedy", metrics_every=1)
+        return dataclasses.replace(cfg, gp=dataclasses.replace(cfg.gp, **KERNEL_SETTINGS[kernel]))
+
+    def track_cpu_ms_per_step(self, kernel):
+        from swarmfield.sim.simulation import Simulation
+        cfg = self._config(kernel)
         sim = Simulation(cfg)
         sim.start()
         c = time.process_time()
@@ -87,6 +104,12 @@ class LargeSwarmStep:
         return 1e3 * (time.process_time() - c) / steps
 
     track_cpu_ms_per_step.unit = "ms"
+
+    def track_step_cpu_ms(self, kernel):
+        ms = step_cpu_ms(self._config(kernel))
+        return sum(ms) / len(ms)
+
+    track_step_cpu_ms.unit = "ms"
 
 
 class MeasurementStep:
