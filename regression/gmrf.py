@@ -1,40 +1,48 @@
-"""A Gaussian Markov random field prior on the spline coefficients (``GPSettings.kernel = "gmrf"``).
+"""Gaussian-Markov-random-field priors on the spline coefficients (``GPSettings.kernel = "gmrf"``, ``"gmrf2"``).
 
 The GP (:mod:`regression.gp`) models the field as ``f(x) = m + phi(x)^T c`` with cubic B-splines phi on an
 n_x x n_y node lattice.  With the separable kernels the prior of c is a dense Kronecker covariance, so
 its posterior needs a dense O(r^3) factorisation whenever many points arrive.  Here the prior of c is
 given by a sparse *precision* instead: the lattice discretisation of the stochastic PDE of Lindgren, Rue &
 Lindström (2011, "An explicit link between Gaussian fields and Gaussian Markov random fields: the SPDE
-approach", JRSS-B 73(4)), whose solutions have the Matérn covariance
+approach", JRSS-B 73(4), 423-498),
 
-    k(r) = s_f^2 (kappa r) K_1(kappa r),     kappa = sqrt(2) / l     (nu = 1 in two dimensions, alpha = 2)
+    (kappa^2 - Delta)^(alpha / 2) (tau x) = W,    alpha = nu + 1 (two dimensions),
 
-(the Matérn form and length-scale convention of Rasmussen & Williams, as :mod:`regression.kernels`).
-On the lattice (spacings h_x, h_y; mass lumped, C = h_x h_y I; G the 5-point lattice Laplacian with
-reflecting, i.e. Neumann, boundaries) the operator (kappa^2 - Delta)^2 of nu = 1 gives, per axis length
-scales l_x, l_y (kappa^2 - Delta scaled by l^2 / 2 along each axis),
+whose stationary solutions have the Matérn covariance of smoothness nu (nu = 1 for ``"gmrf"``, nu = 2 for
+``"gmrf2"``), with kappa = sqrt(2 nu) / l (the length-scale convention of Rasmussen & Williams and of
+:mod:`regression.kernels`; :func:`regression.kernels.matern`).  On the lattice (spacings h_x, h_y; mass lumped,
+C = h_x h_y I; G the 5-point lattice Laplacian with reflecting, i.e. Neumann, boundaries) and with one length
+scale per axis (the operator scaled by l_d^2 / (2 nu) along axis d)
 
-    Q_0 = h_x h_y / (2 pi l_x l_y) K^2,    K = I + (l_x^2 / 2) L_x (x) I + (l_y^2 / 2) I (x) L_y,
+    Q_0 = h_x h_y / (2 pi l_x l_y) K^alpha,    K = I + l_x^2 / (2 nu) L_x (x) I + l_y^2 / (2 nu) I (x) L_y,
 
-with L_d the second differences along axis d divided by h_d^2: a 13-point stencil, and 1 / (4 pi kappa^2
-tau^2) = 1 the SPDE's unit marginal variance.
+with L_d the second differences along axis d divided by h_d^2 (tau chosen for unit marginal variance in the
+continuum): a 13-point stencil for nu = 1 (nodes at most 2 apart per axis), 25 points for nu = 2 (3 apart).
+nu = 3 would reach 4 nodes and widen the band of every factorisation; it is not offered.
 
 *Normalisation.*  The reflecting boundary inflates the lattice field's variance near the edges (about
-1.9x on an edge, 3.3x in a corner at h = l/2) and the lattice and the spline smoothing change its level in
-the interior (phi^T Corr phi ~ 0.70 at h = l/2).  Each node is therefore rescaled to the same variance,
-``Q = (1 / v) D^{1/2} Q_0 D^{1/2}`` with ``D = diag(Q_0^{-1})`` (per-node normalisation, which keeps
-Q_0's sparsity; extending the lattice by a margin would add nodes to every factorisation), and v is chosen so
-that the prior variance of f averaged over a cell in the middle of the domain is 1: s_f^2 then means the
-same as for the other kernels.  The prior variance ``phi^T Q^{-1} phi`` is flat to ~1 % over the whole
-rectangle (the module's tests measure it) and, as for the other kernels, the predictive variance is divided
-by it, so that it is exactly s_f^2 far from data.
+1.9x on an edge, 3.3x in a corner at nu = 1, h = l/2) and the lattice and the spline smoothing change its level
+(phi^T Corr phi ~ 0.70 in the interior).  Each node is therefore rescaled, ``Q = S^{-1} Q_0 S^{-1}`` with
+``S`` diagonal (per-node normalisation: it keeps Q_0's sparsity, while extending the lattice by a margin would
+add nodes to every factorisation): S starts at ``diag(Q_0^{-1})^{-1/2}`` (unit coefficient variances) and a
+three-step fixed-point iteration then scales each node so that the field's prior variance ``phi(x)^T Q^{-1}
+phi(x)`` is 1 at its centre (clipped into the domain).  As S changes only the scale, the band of Q^{-1}
+follows without a new factorisation.  The prior variance of f is then within [0.980, 1.001] s_f^2 over the
+whole rectangle, corners included (the rest is the splines' ripple between nodes; ``tests/test_gmrf.py``),
+against [0.68, 0.77] unnormalised: s_f^2 means what it means for the other kernels.  As for them, the
+predictive variance is divided by the prior variance, so that it is exactly s_f^2 far from data.
+
+*How close to Matérn.*  The field's correlation phi(x)^T Q^{-1} phi(x') against the Matérn it discretises,
+in the middle of the domain up to 3 l, l = 1 at h = l/2: within 0.13 (nu = 1) and 0.08 (nu = 2), the lattice
+(kappa h = 0.7 and 1) and the splines' own smoothing; closer at longer l on the same grid.
 
 *Why banded.*  The posterior precision P = Q / s_f^2 + A (A = sum phi phi^T / s_n^2 couples nodes at
-most 3 apart per axis, Q at most 2) has in natural lattice order (x-node i as block row, y-node j inside
+most 3 apart per axis, Q at most 2 or 3) has in natural lattice order (x-node i as block row, y-node j inside
 the block) a block band of width 3: the block-banded Cholesky factorisation and the selected inverse of
 :mod:`regression.banded` give the posterior mean and Sigma's entries between nodes at most 3 apart --
-all a prediction reads -- in O(n_x w^2 n_y^3) flops, whatever the number of data and with no prior
-truncation, and log det P, log det Q for the exact log marginal likelihood.
+all a prediction reads -- in O(n_x w^2 n_y^3) flops (w = 3) whatever the number of data and with no prior
+truncation, and log det P and log det Q for the exact log marginal likelihood.
 """
 from __future__ import annotations
 

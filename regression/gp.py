@@ -87,6 +87,13 @@ the paper's setting, ~3e-10 at s_f^2 / s_n^2 = 1000. :meth:`log_marginal_likelih
 :meth:`fit_hyperparameters` (and :func:`regression.hyper.refit_online`) always use the power sums. ``n_factorizations`` and
 ``n_woodbury_updates`` count the two paths.
 
+*GMRF priors* (``GPSettings.kernel = "gmrf"`` / ``"gmrf2"``, :mod:`regression.gmrf`): the prior of c is a sparse
+precision Q (a lattice Matérn SPDE) instead of a dense Kronecker covariance, so the posterior precision
+P = Q / s_f^2 + A is block-banded and every posterior is a block-banded Cholesky factorisation and a selected
+inversion (:mod:`regression.banded`): mu = P^{-1} b and Sigma's band (nodes at most 3 apart, all :meth:`predict`
+reads) in ~10-15 ms at M = 1849 whatever the number of new points; no Woodbury updates and no prior truncation,
+and :meth:`update_fits` is always true.  The log marginal likelihood is exact from the banded factors.
+
 Alternatives considered: the projected-process (DTC) statistics with the exact k_u(x) touch a
 w^2 x w^2 block of A per observation (w ~ 12 nodes per axis for a 3 l cut-off at h = l/2, i.e.
 ~2e4 updates per point, ~1e3 times the 65 here); Keys cubic-convolution interpolation (the
