@@ -1,6 +1,7 @@
 """Record the planner calls of a closed-loop run, then replay them with other planner settings.
 
     python benchmarks/replan_replay.py record CALLS.pkl [--field sinc] [--domain rectangle] [--seed 0] [--periods 3]
+        [--config FILE]
     python benchmarks/replan_replay.py replay CALLS.pkl [--set planner.KEY=VALUE ...] [--ipopt KEY=VALUE ...]
     python benchmarks/replan_replay.py replay CALLS.pkl --variants VARIANTS.json     # several, one process
 
@@ -25,13 +26,15 @@ import sys
 import time
 
 
-def record(path, field, domain, seed, periods, preset="tuned"):
+def record(path, field, domain, seed, periods, preset="tuned", config=None):
     from swarmfield.ocp import ReferencePlanner
     from swarmfield.sim.config import RunConfig
     from swarmfield.sim.loop import run_simulation
     from swarmfield.sim.simulation import resolve_domain
     from swarmfield.sim.stopping import make_stop_rule
-    cfg = RunConfig.from_preset(preset).replace(max_periods=periods, field=field, seed=seed)
+    from swarmfield.sim.config import load_config
+    cfg = load_config(config, preset=preset) if config else RunConfig.from_preset(preset)
+    cfg = cfg.replace(max_periods=periods, field=field, seed=seed)
     if domain != "rectangle":
         cfg = dataclasses.replace(cfg, domain=dataclasses.replace(cfg.domain, source=domain))
     calls = []
@@ -43,11 +46,12 @@ def record(path, field, domain, seed, periods, preset="tuned"):
             return super().solve(p0, target, t0=t0, warm_start=warm_start, method=method, information=information)
 
     from swarmfield.ocp import Grid
-    _, free = resolve_domain(cfg, Grid(cfg.planner.domain, cfg.planner.nx, cfg.planner.ny))
-    planner = Recording(cfg.planner, free=free)
+    region, free = resolve_domain(cfg, Grid(cfg.planner.domain, cfg.planner.nx, cfg.planner.ny))
+    walls = None if region is None else region.closed_faces(free)     # walls thinner than a cell
+    planner = Recording(cfg.planner, free=free, walls=walls)
     run_simulation(cfg, planner=planner, stop_rule=make_stop_rule(cfg.sim, stops=False))
     with open(path, "wb") as fh:
-        pickle.dump({"settings": planner.settings, "free": free, "calls": calls,
+        pickle.dump({"settings": planner.settings, "free": free, "walls": walls, "calls": calls,
                      "run": {"field": field, "domain": domain, "seed": seed, "periods": periods}}, fh)
     print(f"{len(calls)} planner calls recorded in {path}")
 
@@ -71,7 +75,7 @@ def replay(path, sets, ipopt_sets, label="", calls=None):
     if ip or extra:
         changes["ipopt"] = dataclasses.replace(s.ipopt, **ip, extra={**s.ipopt.extra, **extra})
     s = dataclasses.replace(s, **changes)
-    planner = ReferencePlanner(s, free=rec["free"])
+    planner = ReferencePlanner(s, free=rec["free"], walls=rec.get("walls"))
     prev, rows = None, []
     for i, call in enumerate(rec["calls"][:calls]):
         c0, w0 = time.process_time(), time.perf_counter()
@@ -84,7 +88,8 @@ def replay(path, sets, ipopt_sets, label="", calls=None):
         sv = plan.meta["solver"]
         rows.append({"call": i, "cpu_s": round(time.process_time() - c0, 3), "wall_s": round(time.perf_counter() - w0, 3),
                      "iterations": sv["iterations"], "status": sv["status"], "objective": plan.meta["objective"],
-                     "kl_final": plan.meta["symmetric_kl_final"], "substeps": plan.meta["substeps"]})
+                     "kl_final": plan.meta["symmetric_kl_final"], "substeps": plan.meta["substeps"],
+                     "cold_start": sv.get("cold_start")})
         prev = plan
     cpus = [r["cpu_s"] for r in rows]
     later = cpus[1:] or [0.0]
@@ -93,6 +98,7 @@ def replay(path, sets, ipopt_sets, label="", calls=None):
                       "first_cpu_s": cpus[0], "later_max_cpu_s": max(later),
                       "later_median_cpu_s": statistics.median(later),
                       "iterations": [r.get("iterations") for r in rows],
+                      **({"first_coarse": rows[0]["cold_start"]} if rows and rows[0].get("cold_start") else {}),
                       "objectives": [round(r["objective"], 4) if "objective" in r else None for r in rows]}), flush=True)
     return rows
 
@@ -108,13 +114,14 @@ def main(argv=None) -> int:
     ap.add_argument("--periods", type=int, default=3)
     ap.add_argument("--set", dest="sets", action="append", default=[], metavar="planner.KEY=VALUE")
     ap.add_argument("--ipopt", action="append", default=[], metavar="KEY=VALUE")
+    ap.add_argument("--config", default=None, help="record: a configuration file laid over the tuned preset")
     ap.add_argument("--label", default="")
     ap.add_argument("--calls", type=int, default=None, help="replay only the first CALLS calls")
     ap.add_argument("--variants", default=None, help="JSON file: a list of {label, set, ipopt} replayed in turn")
     a = ap.parse_args(argv)
     limit_threads()
     if a.mode == "record":
-        record(a.path, a.field, a.domain, a.seed, a.periods)
+        record(a.path, a.field, a.domain, a.seed, a.periods, config=a.config)
     else:
         if a.variants:
             with open(a.variants) as fh:

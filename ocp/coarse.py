@@ -76,3 +76,41 @@ def coarse_problem(grid: Grid, free, p0: np.ndarray, target: np.ndarray, modes_x
             return None
         out.append(c)
     return shape, fc, out[0], out[1]
+
+
+def coarsen_walls(walls, free, shape: tuple[int, int]):
+    """Closed faces (closed_x (cx-1, cy), closed_y (cx, cy-1)) of the coarse grid for the fine closed faces ``walls``
+    (closed_x (nx-1, ny), closed_y (nx, ny-1); None stays None): a coarse face is closed iff every fine face on it
+    between two free fine cells is closed (a door stays open; walls inside a coarse cell are lost: the coarse plan
+    is only a guess).  The fine faces on a coarse face are those at the fine face nearest to it."""
+    if walls is None:
+        return None
+    cx_, cy_ = (np.asarray(w, dtype=bool) for w in walls)
+    nx, ny = cx_.shape[0] + 1, cx_.shape[1]
+    f = np.ones((nx, ny), dtype=bool) if free is None else np.asarray(free, dtype=bool)
+    Ry = overlap_matrix(ny, shape[1]) > 0                 # (cy, ny): fine rows of each coarse row
+    Rx = overlap_matrix(nx, shape[0]) > 0
+
+    def closed(fine_closed, fine_open_pair, n_fine, n_coarse, R_other):
+        out = np.zeros((n_coarse - 1, R_other.shape[0]), dtype=bool)
+        for I in range(n_coarse - 1):
+            i = min(max(int(round((I + 1) * n_fine / n_coarse)) - 1, 0), n_fine - 2)   # fine face index
+            for J in range(R_other.shape[0]):
+                rows = R_other[J]
+                both_free = fine_open_pair[i][rows]
+                out[I, J] = bool(np.all(fine_closed[i][rows] | ~both_free)) and bool(np.any(fine_closed[i][rows]))
+        return out
+
+    closed_x = closed(cx_, f[:-1] & f[1:], nx, shape[0], Ry)
+    closed_y = closed(cy_.T, (f[:, :-1] & f[:, 1:]).T, ny, shape[1], Rx).T
+    if not (closed_x.any() or closed_y.any()):
+        return None
+    return closed_x, closed_y
+
+
+def coarse_information(information, shape: tuple[int, int]):
+    """The information objective's inputs (:class:`ocp.objectives.InformationInputs`) on the coarse grid: the
+    variance averaged over each coarse cell (:func:`coarsen_density`), the robots, Δt, σ_n^2 and ℓ unchanged (the
+    NLP's parameters scale with the coarse cells: :meth:`~ocp.objectives.InformationInputs.parameters`)."""
+    import dataclasses
+    return dataclasses.replace(information, variance=coarsen_density(information.variance, shape))

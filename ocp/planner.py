@@ -32,6 +32,9 @@ from .settings import IpoptSettings, PlannerSettings, to_dict
 
 SUCCESS = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 
+#: IPOPT's default ``acceptable_compl_inf_tol`` (an unscaled complementarity), kept relative to a scaled objective
+IPOPT_ACCEPTABLE_COMPL_INF_TOL = 1e-2
+
 #: solvers of :meth:`ReferencePlanner.solve`: IPOPT on the CasADi NLP, or the paper's GRG (a baseline)
 METHODS = ("ipopt", "grg")
 
@@ -118,6 +121,14 @@ class ReferencePlanner:
             # Scaling by 1 / weight: 2-6x fewer iterations, the optimum within 0.4 % (measured on the
             # tuned preset's first-period plans; docs/results/tuned-preset.md, "Planner scaling")
             ipopt["obj_scaling_factor"] = 1.0 / s.information_weight
+            if "acceptable_compl_inf_tol" not in s.ipopt.extra:
+                # IPOPT tests the complementarity of an acceptable point *unscaled* (acceptable_compl_inf_tol,
+                # default 0.01): with the objective scaled by 1 / weight the multipliers, and so the unscaled
+                # complementarity, are weight times the scaled ones, and the test was 100x stricter than the
+                # scaled acceptable_tol it goes with -- the objective-change stop of the tuned preset's plans never
+                # fired (re-plans ran to their iteration limit with the objective changing by < 1e-4).  The
+                # default 0.01 relative to the scaled objective, as the other tolerances
+                ipopt["acceptable_compl_inf_tol"] = IPOPT_ACCEPTABLE_COMPL_INF_TOL / ipopt["obj_scaling_factor"]
         self.ipopt_options = ipopt
         if self.nlp.plugin == "fatrop":
             opts = fatrop_options(self.nlp, s.ipopt)
@@ -139,8 +150,10 @@ class ReferencePlanner:
                 fc = coarsen_free(self.free, shape)
                 if fc is None or fc.any():
                     # the first-order scheme there (cheaper; its optimum is only the starting point of this solve)
+                    from .coarse import coarsen_walls
+                    wc = coarsen_walls(self.walls, self.free, shape)
                     self._coarse = ReferencePlanner(dataclasses.replace(s, nx=shape[0], ny=shape[1], cold_start="zero",
-                                                                        scheme="upwind"), free=fc)
+                                                                        scheme="upwind"), free=fc, walls=wc)
         self.build_time = time.perf_counter() - t0
         self._grg = None
         self._info, self._info_meta = None, None
@@ -150,13 +163,15 @@ class ReferencePlanner:
         mode = s.resolved_cold_start
         if s.cold_start == "auto" and self.problem.free is not None:
             mode = "zero"        # obstacles: measured mixed (MUSCL rooms 0.83x, pillars 1.22x): an option there
-        return (mode == "coarse" and s.method == "ipopt" and s.objective == "symmetric-kl" and s.basis != "free-space"
-                and isinstance(self.formulation, SingleShooting))
+        return (mode == "coarse" and s.method == "ipopt" and s.objective in ("symmetric-kl", "information")
+                and s.basis != "free-space" and isinstance(self.formulation, SingleShooting))
 
-    def _coarse_coefficients(self, p0: np.ndarray, target: np.ndarray):
+    def _coarse_coefficients(self, p0: np.ndarray, target: np.ndarray, information=None):
         """(coefficients, summary) of the coarse solve of ``cold_start = "coarse"`` for the normalised fine p0 and
-        target (before the floors: the coarse planner applies them), or (None, reason) when there is none."""
-        from .coarse import coarse_problem
+        target (before the floors: the coarse planner applies them), or (None, reason) when there is none.
+        ``information`` (the fine solve's :class:`ocp.objectives.InformationInputs`): its variance averaged over
+        the coarse cells (:func:`ocp.coarse.coarse_information`), the rest unchanged."""
+        from .coarse import coarse_information, coarse_problem
         if self._coarse is None:
             return None, {"used": False, "reason": "no coarse grid (fewer than 2 cells per half-wave of the highest mode, or no free coarse cell)"}
         cp = coarse_problem(self.grid, self.free, p0, target, self.settings.n_modes_x, self.settings.n_modes_y)
@@ -164,8 +179,11 @@ class ReferencePlanner:
             return None, {"used": False, "reason": "no mass on the coarse free cells"}
         shape, _, p0c, tc = cp
         c0 = time.process_time()
+        extra = {}
+        if information is not None:
+            extra["information"] = coarse_information(information, shape)
         try:
-            plan = self._coarse.solve(p0c, tc, method="ipopt")
+            plan = self._coarse.solve(p0c, tc, method="ipopt", **extra)
         except PlannerError as exc:
             return None, {"used": False, "reason": f"coarse solve failed: {exc}"}
         sv = plan.meta["solver"]
@@ -201,8 +219,9 @@ class ReferencePlanner:
     # ------------------------------------------------------------------ initial guesses
     def initial_coefficients(self, warm_start: ReferencePlan | None, t0: float) -> np.ndarray:
         """Cold start: zero velocity.  Warm start: the previous plan's coefficients shifted by the
-        number of whole intervals elapsed since its start (tail filled with zeros); a plan whose
-        horizon has fully elapsed is reused unshifted (the next period usually needs a similar flow)."""
+        number of whole intervals elapsed since its start, the new last intervals zero
+        (``PlannerSettings.replan_tail = "zero"``) or the previous plan's last interval held (``"hold"``); a plan
+        whose horizon has fully elapsed is reused unshifted (the next period usually needs a similar flow)."""
         P = self.problem
         shape = (P.N, 2, P.I, P.J)
         if warm_start is None:
@@ -228,6 +247,8 @@ class ReferencePlanner:
             return prev.copy()
         out = np.zeros(shape)
         out[: P.N - shift] = prev[shift:]
+        if self.settings.replan_tail == "hold":
+            out[P.N - shift:] = prev[-1]
         return out
 
     # ------------------------------------------------------------------ solve
@@ -278,7 +299,7 @@ class ReferencePlanner:
         coef0 = self.initial_coefficients(warm_start, t0)
         coarse_summary = None
         if warm_start is None and method == "ipopt" and self._coarse_applies():
-            coarse_coef, coarse_summary = self._coarse_coefficients(p0_raw, target)
+            coarse_coef, coarse_summary = self._coarse_coefficients(p0_raw, target, information)
             if coarse_coef is not None:
                 coef0 = coarse_coef
         # scale the initial guess into the admissible set, then start strictly interior

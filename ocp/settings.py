@@ -257,11 +257,18 @@ class PlannerSettings:
     #: 100 against the first plan's 150; docs/results/realtime-plans.md); with ``accept_feasible_iterate`` a
     #: re-plan stopped there keeps its last feasible iterate
     replan_max_iter: int | None = None
+    #: the last intervals of a re-plan's initial guess, beyond the previous plan's horizon (its coefficients shifted by
+    #: the intervals elapsed, :meth:`ocp.planner.ReferencePlanner.initial_coefficients`): "zero" (default) the zero
+    #: velocity, "hold" the previous plan's last interval repeated (the usual receding-horizon guess: the flow the
+    #: plan ended with goes on; docs/results/realtime-plans.md)
+    replan_tail: str = "zero"
 
     def __post_init__(self):
         _check_formulation(self)
         if self.replan_max_iter is not None:
             _positive_int(self, "replan_max_iter")
+        if self.replan_tail not in ("zero", "hold"):
+            raise ValueError(f"planner.replan_tail must be 'zero' or 'hold', got {self.replan_tail!r}")
         if self.warm_start not in ("primal", "primal-dual"):
             raise ValueError(f"planner.warm_start must be 'primal' or 'primal-dual', got {self.warm_start!r}")
         if self.cold_start not in ("auto", "zero", "coarse"):

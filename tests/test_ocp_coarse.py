@@ -176,3 +176,66 @@ def test_auto_cold_start_is_zero_with_obstacles():
     free = wall_mask()
     assert ReferencePlanner(PlannerSettings(**SMALL, scheme="muscl"), free=free)._coarse is None
     assert ReferencePlanner(PlannerSettings(**SMALL, scheme="muscl", cold_start="coarse"), free=free)._coarse is not None
+
+
+def test_coarse_walls_keep_doors_and_lose_walls_inside_a_coarse_cell():
+    from swarmfield.ocp.coarse import coarsen_walls
+    n = 16
+    cx = np.zeros((n - 1, n), dtype=bool)
+    cy = np.zeros((n, n - 1), dtype=bool)
+    cx[7, :] = True                  # on the coarse face between coarse columns 3 and 4 ...
+    cx[7, 6:10] = False              # ... with a door over fine rows 6-9 (coarse rows 3 and 4)
+    cx[4, :] = True                  # inside coarse column 2: lost
+    cy[:, 11] = True                 # between coarse rows 5 and 6 ...
+    cy[0, 11] = False                # ... open at one fine cell of coarse column 0: that coarse face stays open
+    wx, wy = coarsen_walls((cx, cy), None, (8, 8))
+    assert wx.shape == (7, 8) and wy.shape == (8, 7)
+    expect_x = np.zeros((7, 8), dtype=bool)
+    expect_x[3] = True
+    expect_x[3, 3:5] = False
+    np.testing.assert_array_equal(wx, expect_x)
+    expect_y = np.zeros((8, 7), dtype=bool)
+    expect_y[1:, 5] = True
+    np.testing.assert_array_equal(wy, expect_y)
+    assert coarsen_walls(None, None, (8, 8)) is None
+    assert coarsen_walls((np.zeros_like(cx), np.zeros_like(cy)), None, (8, 8)) is None
+
+
+def test_coarse_information_averages_the_variance_only():
+    from swarmfield.ocp.coarse import coarse_information
+    from swarmfield.ocp.objectives import InformationInputs
+    rng = np.random.default_rng(0)
+    v = rng.uniform(0.05, 0.3, (16, 12))
+    fine = InformationInputs(v, 40, 0.5, 0.04, 1.2)
+    c = coarse_information(fine, (8, 6))
+    np.testing.assert_allclose(c.variance, coarsen_density(v, (8, 6)), rtol=1e-14)
+    assert c.variance[0, 0] == pytest.approx(v[:2, :2].mean())
+    assert (c.robots, c.measurement_interval, c.noise_variance, c.length_scale) == (40, 0.5, 0.04, 1.2)
+
+
+@pytest.mark.parametrize("walls", [False, True])
+def test_coarse_cold_start_of_the_information_objective(walls):
+    """cold_start = "coarse" with objective = "information": the coarse solve gets the variance averaged over its
+    cells (and the walls coarsened), and the fine solve from its coefficients reaches the zero start's optimum."""
+    from swarmfield.ocp.objectives import InformationInputs
+    cw = None
+    if walls:                        # a thin wall at x = 5 with a door in the middle
+        cx = np.zeros((15, 16), dtype=bool)
+        cx[7] = True
+        cx[7, 6:10] = False
+        cw = (cx, np.zeros((16, 15), dtype=bool))
+    plans = {}
+    for cs in ("zero", "coarse"):
+        s = PlannerSettings(**SMALL, cold_start=cs, objective="information", information_power=4.0,
+                            basis="sine-cosine", information_kl=1.0)
+        pl = ReferencePlanner(s, walls=cw)
+        g = pl.grid
+        X, Y = np.meshgrid(g.xc, g.yc, indexing="ij")
+        V0 = 0.25 * (1 - 0.8 * np.exp(-((X - 2.5) ** 2 + (Y - 2.5) ** 2) / 4.0))
+        plans[cs] = pl.solve(bump(g, 2.5, 2.5, 1.2), bump(g, 8.0, 5.0, 1.2),
+                             information=InformationInputs(V0, 50, 0.5, 0.04, 1.2))
+        if cs == "coarse":
+            assert (pl._coarse.walls is not None) == walls
+    info = plans["coarse"].meta["solver"]["cold_start"]
+    assert info["used"] and info["grid"] == [8, 8] and info["iterations"] > 0
+    assert plans["coarse"].meta["objective"] == pytest.approx(plans["zero"].meta["objective"], rel=1e-2)

@@ -245,3 +245,17 @@ def test_tuned_plans_do_not_park_the_swarm_against_a_thin_wall():
     (wall0, room0), (wall1, room1) = out.values()
     assert wall0 > 0.2 and room0 < 0.1
     assert wall1 < 0.15 and room1 > 0.35
+
+
+def test_acceptable_complementarity_relative_to_the_scaled_objective():
+    """IPOPT tests an acceptable point's complementarity unscaled: with the information objective scaled by
+    1 / weight the test keeps IPOPT's 0.01 relative to the scaled objective (0.01 x weight unscaled), so that the
+    objective-change stop can fire; an explicit ipopt.extra value wins, the KL objective keeps IPOPT's default."""
+    from swarmfield.ocp.settings import IpoptSettings
+    pl = ReferencePlanner(_small(transport="numpy", information_weight=40.0))
+    assert pl.ipopt_options["acceptable_compl_inf_tol"] == pytest.approx(0.01 * 40.0)
+    explicit = ReferencePlanner(_small(transport="numpy", ipopt=IpoptSettings(extra={"acceptable_compl_inf_tol": 0.5})))
+    assert explicit.ipopt_options["acceptable_compl_inf_tol"] == 0.5
+    own = ReferencePlanner(_small(transport="numpy", ipopt=IpoptSettings(extra={"obj_scaling_factor": 1.0})))
+    assert "acceptable_compl_inf_tol" not in own.ipopt_options          # the user's scaling, the user's tolerances
+    assert "acceptable_compl_inf_tol" not in ReferencePlanner(_small(objective="symmetric-kl")).ipopt_options

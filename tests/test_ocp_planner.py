@@ -353,3 +353,23 @@ def test_replan_max_iter_limits_warm_started_solves_only():
     assert planner.solve(p1, target).meta["solver"]["iterations"] > 3      # a cold solve keeps ipopt.max_iter
     with pytest.raises(ValueError, match="replan_max_iter"):
         PlannerSettings(replan_max_iter=0)
+
+
+def test_replan_tail_holds_the_last_interval():
+    """A re-plan's initial guess: the previous plan shifted by the intervals elapsed; beyond its horizon the zero
+    velocity ("zero", the default) or its last interval held ("hold")."""
+    s = PlannerSettings(**SMALL)
+    planner = ReferencePlanner(s)
+    g = planner.grid
+    prev = planner.solve(bump(g, 2.5, 2.5, 1.2), bump(g, 7.0, 5.0, 1.2))
+    c = np.asarray(prev.coef)
+    N = c.shape[0]
+    zero = planner.initial_coefficients(prev, s.interval)
+    np.testing.assert_array_equal(zero[: N - 1], c[1:])
+    assert not zero[N - 1].any()
+    held = ReferencePlanner(PlannerSettings(**SMALL, replan_tail="hold")).initial_coefficients(prev, s.interval)
+    np.testing.assert_array_equal(held[: N - 1], c[1:])
+    np.testing.assert_array_equal(held[N - 1], c[-1])
+    assert np.abs(c[-1]).sum() > 0
+    with pytest.raises(ValueError, match="replan_tail"):
+        PlannerSettings(replan_tail="repeat")
