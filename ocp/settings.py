@@ -244,8 +244,10 @@ class PlannerSettings:
     #: the cells per side (obstacle mask coarsened: a coarse cell is free iff all the fine cells it covers are)
     #: and start from its velocity coefficients (grid-independent), or "auto" (default): "coarse" for
     #: scheme = "muscl" on the empty rectangle (measured 0.6-0.8x the MUSCL solve time, same optimum), "zero"
-    #: otherwise (the paper's preset unchanged; with obstacles the gain was mixed).  Single shooting, IPOPT, objective "symmetric-kl" only (anything else, or a coarse grid
-    #: with fewer than max(8, 2 x modes) cells per side, ocp.coarse.coarse_shape, starts from zero)
+    #: otherwise (the paper's preset unchanged; with obstacles the gain was mixed).  Single shooting, IPOPT, objective
+    #: "symmetric-kl" or "information" (the variance averaged over the coarse cells, thin walls coarsened: ocp.coarse;
+    #: about neutral in CPU on the tuned preset's first plan, docs/results/realtime-plans.md) only (anything else, or a
+    #: coarse grid with fewer than max(8, 2 x modes) cells per side, ocp.coarse.coarse_shape, starts from zero)
     cold_start: str = "auto"
     #: start of a solve from a warm-start plan (a re-plan; :mod:`ocp.warmstart`): "primal" (default) the plan's
     #: coefficients shifted by the intervals elapsed; "primal-dual" also IPOPT's multipliers of the planner's last
