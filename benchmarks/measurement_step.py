@@ -44,6 +44,11 @@ Two configurations for large swarms can be added to the table (``--configs``):
 * ``prior-2e-7``: ``gp.prior_truncation = 2e-7`` (the default until 2026-11-26: 1623 of the 1849
   directions kept at l = 1 instead of 1358).
 
+* ``gmrf``, ``gmrf2``: ``gp.kernel`` = the Matérn nu = 1 / nu = 2 GMRF prior (:mod:`regression.gmrf`; every posterior
+  a block-banded factorisation and selected inversion, so ``auto`` computes one at every step), l = 1;
+* ``gmrf2-l2``, ``gmrf2-l2.5``, ``gmrf2-l3.5``: ``gmrf2`` at l = 2, 2.5, 3.5 on the default GP's 43 x 43 lattice
+  (``inducing_spacing = 0.5``); ``gmrf2-l2.5-h0.8``: at l = 2.5 on 28 x 28 nodes (``inducing_spacing = 0.8``).
+
 ``--domains`` times the same step with obstacles (built-in domains, :mod:`domain`;
 target: within 1.3x of the empty rectangle at 10,000 robots); ``rectangle`` is the empty domain.
 
@@ -76,6 +81,7 @@ CONFIGS = {
     "gmrf2-l2": {"gp": {"kernel": "gmrf2", "length_scale": 2.0, "inducing_spacing": 0.5}},
     "gmrf2-l2.5": {"gp": {"kernel": "gmrf2", "length_scale": 2.5, "inducing_spacing": 0.5}},
     "gmrf2-l3.5": {"gp": {"kernel": "gmrf2", "length_scale": 3.5, "inducing_spacing": 0.5}},
+    "gmrf2-l2.5-h0.8": {"gp": {"kernel": "gmrf2", "length_scale": 2.5, "inducing_spacing": 0.8}},
 }
 
 

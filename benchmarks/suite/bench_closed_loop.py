@@ -63,9 +63,9 @@ class TunedCost:
 
 
 #: GP settings of the kernels :class:`LargeSwarmStep` compares: the paper's squared exponential and the
-#: banded GMRF prior (Matérn nu = 2 at the length scale the paper's field prefers, on the same inducing grid)
+#: banded GMRF prior (Matérn nu = 2 at the length scale the paper's field prefers, on 28 x 28 nodes)
 KERNEL_SETTINGS = {"squared-exponential": {},
-                   "gmrf2": {"kernel": "gmrf2", "length_scale": 2.5, "inducing_spacing": 0.5}}
+                   "gmrf2": {"kernel": "gmrf2", "length_scale": 2.5, "inducing_spacing": 0.8}}
 
 
 class LargeSwarmStep:
@@ -73,7 +73,7 @@ class LargeSwarmStep:
     reads it), per GP kernel (``gp.kernel``; :data:`KERNEL_SETTINGS`): ``track_step_cpu_ms`` is the mean CPU of
     a measurement step (the planner and the start left out, as :class:`MeasurementStep`), ``track_cpu_ms_per_step``
     the CPU of the whole period after the start (planner and refit included) over its steps
-    (``benchmarks/measurement_step.py --configs default gmrf2-l2.5`` in more detail)."""
+    (``benchmarks/measurement_step.py --configs default gmrf2-l2.5-h0.8`` in more detail)."""
 
     timer = TIMER
     params = list(KERNEL_SETTINGS)
