@@ -144,3 +144,13 @@ def test_tuned_replans_are_bounded_to_a_hundred_iterations():
     from swarmfield.sim.config import RunConfig
     p = RunConfig.from_preset("tuned").planner
     assert p.replan_max_iter == 100 and p.ipopt.max_iter == 150 and p.accept_feasible_iterate
+
+
+def test_tuned_planner_skips_the_multiplier_reestimate():
+    """The tuned planner's norm limit has equality rows, so IpoptSettings.recalc_y = "auto" would keep IPOPT's
+    least-squares multiplier estimate (one more factorisation an iteration); the preset turns it off (the same
+    plans within the spread, docs/results/realtime-plans.md), the paper preset keeps "auto"."""
+    from swarmfield.sim.config import RunConfig
+    assert RunConfig.from_preset("tuned").planner.ipopt.options()["recalc_y"] == "no"
+    assert RunConfig.from_preset("tuned").planner.replan_tail == "zero"
+    assert "recalc_y" not in RunConfig.default().planner.ipopt.options()
