@@ -92,7 +92,7 @@ PRESETS: dict[str, dict] = {
             # 2.9 ms an iteration (of ~12); a plumes / floor run's twelve plans replayed 11.7 -> 10.4 s of CPU with
             # 707 -> 693 re-plan iterations (sinc / rectangle 470 -> 498), objectives within 0.2 %; the deep room's map
             # at 2T 0.0519 / 0.0517 -> 0.0514 / 0.0525, at 4T 0.0346 / 0.0345 -> 0.0367 / 0.0338 (seeds 0 / 1).
-            # Not adopted: holding the last interval in a re-plan's guess (planner.replan_tail = "hold"): 2-15 % fewer
+            # Not adopted: holding the last interval in a re-plan's guess (planner.replan_tail = "hold"): up to 15 % fewer
             # re-plan iterations in the replays, but the deep room's RMSE at 2T 0.0555 / 0.0538 and at 4T 0.0364 / 0.0363
             # (+4-7 %; 0.0591 / 0.0518 with recalc_y "no" too) (docs/results/realtime-plans.md, "Cheaper iterations")
             "ipopt": {"acceptable_tol": 1e-2, "acceptable_obj_change_tol": 1e-4, "max_iter": 150, "recalc_y": "no"},
