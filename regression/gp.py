@@ -408,6 +408,7 @@ class GaussianProcess:
         self._band_gather = None    # (flat indices, valid) of Sigma's band in the full M x M Sigma
         self._band_offsets = None   # offsets in the band of the 16 x 16 node pairs of a cell
         self._idx_blocks = None     # kernel "gmrf": (lower (p, r) pairs, positions in A's block band)
+        self._prior_var_cache = None  # kernel "gmrf": (prior band, points, prior variance there) of the last predict
         self._build_scatter_indices()
 
     # ------------------------------------------------------------------ properties
@@ -998,6 +999,13 @@ class GaussianProcess:
         flat = band.reshape(-1)
         out_mean = np.empty(npts)
         out_var = np.empty(npts)
+        prior_all = None
+        if not isinstance(prior, tuple):
+            # GMRF prior: its variance at the points depends on them and the prior only (the loop asks the same
+            # cell centres at every step): kept for the last points asked
+            hit = self._prior_var_cache
+            if hit is not None and hit[0] is prior and np.array_equal(hit[1], pts):
+                prior_all = hit[2]
         for start in range(0, npts, _PREDICT_CHUNK):
             sl = slice(start, min(start + _PREDICT_CHUNK, npts))
             nx_, ny_, wx, wy, node, phi = self._basis(pts[sl])
@@ -1009,9 +1017,14 @@ class GaussianProcess:
                 prior_x = np.einsum("ij,ijk,ik->i", wx, kcx[nx_[:, :, None], nx_[:, None, :]], wx)
                 prior_y = np.einsum("ij,ijk,ik->i", wy, kcy[ny_[:, :, None], ny_[:, None, :]], wy)
                 prior_var = prior_x * prior_y
+            elif prior_all is not None:
+                prior_var = prior_all[sl]
             else:                                           # the prior covariance's band (kernel "gmrf")
                 pl = prior.reshape(-1)[(node[:, 0] * (_BAND * _BAND))[:, None, None] + self._band_offsets[None]]
                 prior_var = np.einsum("ij,ijk,ik->i", phi, pl, phi)
+                if start == 0:
+                    self._prior_var_cache = (prior, pts, np.empty(npts))
+                self._prior_var_cache[2][sl] = prior_var
             out_var[sl] = np.maximum(post, 0.0) / prior_var
         return out_mean, out_var
 

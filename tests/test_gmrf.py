@@ -89,6 +89,8 @@ def test_gmrf_posterior_equals_a_dense_gp_with_the_same_prior_covariance(kernel)
     lml_ref = -0.5 * ((y - 1.5) @ np.linalg.solve(cov, y - 1.5) + np.linalg.slogdet(cov)[1] + 60 * math.log(2 * math.pi))
     assert gp.log_marginal_likelihood() == pytest.approx(lml_ref, abs=1e-8)
     assert gp.n_factorizations == 2 and gp.n_woodbury_updates == 0
+    # the prior variance kept for the last points asked: the same answers again, and for other points
+    assert np.array_equal(gp.predict(q)[1], var) and np.allclose(gp.predict(q[7:19])[1], var[7:19], rtol=1e-13)
 
 
 def test_gmrf_prior_band_and_per_node_normalisation():
