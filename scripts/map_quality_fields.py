@@ -9,6 +9,12 @@ writes, on the paper's [0, 20]^2 at 0.05 m (.npz field files, :func:`swarmfield.
 ``aniso50.npz``    the same at 50 degrees (between two of the angles ``gp.kernel_angle = "auto"`` chooses among)
 ``hotspot.npz``    400 + 1000 exp(-|x - (14, 13)|^2 / (2 1.2^2)): a leak in ppm on a flat background (run it with
                    --noise-sd 5, a sensor's ppm)
+
+and two fields nobody tuned on (drawn after the comparisons on the fields above, to check them):
+
+``fine_ppm.npz``   400 + 1000 x a squared-exponential GP sample with l = 0.6 m (another seed): fine structure in ppm
+                   (run it with --noise-sd 200, the fine field's noise-to-signal ratio)
+``patches.npz``    tanh(3 g) for a GP sample g with l = 1.5 m: flat patches of +-1 with sharp edges between them
 """
 from __future__ import annotations
 
@@ -39,6 +45,14 @@ def main(out: Path) -> None:
         w, b = _features(rng, 3000, lx, ly, ang)
         f = np.sqrt(2.0 / len(b)) * np.cos(P @ w.T + b).sum(axis=1)
         save_npz_field(out / f"{name}.npz", f.reshape(X.shape), ext)
+    rng = np.random.default_rng(11)
+    w, b = _features(rng, 3000, 0.6, 0.6, 0.0)
+    g = np.sqrt(2.0 / len(b)) * np.cos(P @ w.T + b).sum(axis=1)
+    save_npz_field(out / "fine_ppm.npz", (400.0 + 1000.0 * g).reshape(X.shape), ext)
+    rng = np.random.default_rng(12)
+    w, b = _features(rng, 3000, 1.5, 1.5, 0.0)
+    g = np.sqrt(2.0 / len(b)) * np.cos(P @ w.T + b).sum(axis=1)
+    save_npz_field(out / "patches.npz", np.tanh(3.0 * g).reshape(X.shape), ext)
     hot = 400.0 + 1000.0 * np.exp(-((X - 14.0) ** 2 + (Y - 13.0) ** 2) / (2 * 1.2 ** 2))
     save_npz_field(out / "hotspot.npz", hot, ext)
 

@@ -1,0 +1,148 @@
+"""The tuned feedback against the baselines, by the time to the threshold and by the map (docs/results/map-quality.md).
+
+    python benchmarks/map_quality_table.py OUT [OUT ...]
+
+Each ``OUT`` is a ``compare-controllers`` folder (or its runs.csv); the runs of all of them are merged, so that the
+feedback and the baselines may come from separate commands.  Per field (on a map: "MAP / FIELD") and seed, the best
+final RMSE is that of any run of any input, and for every controller: the time until sup V first reached the run's
+own threshold, the times until the RMSE first fell below 1.5x and 1.25x that best final RMSE (in periods T; "never"
+within the runs), and the RMSE at 2T.  Two Markdown tables: the values per controller (cells "seed 0 / 1 / 2 / 3"),
+and the feedback's over the best baseline's (the smallest RMSE at 2T of the other controllers, the smaller time of
+greedy and the lawnmower), with the count of cases where it is first or level (ratio <= 1).
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+#: the controllers whose time is "the better baseline's" (the ergodic baseline is compared by its map)
+TIME_BASELINES = ("greedy", "lawnmower")
+
+
+def read_rows(path):
+    """Rows of OUT/runs.csv, or of the finished runs OUT/runs/*.json of a sweep still running."""
+    path = Path(path)
+    if path.is_dir():
+        if not (path / "runs.csv").exists():
+            for f in sorted((path / "runs").glob("*.json")):
+                yield from json.loads(f.read_text())["rows"]
+            return
+        path = path / "runs.csv"
+    with open(path, newline="") as fh:
+        yield from csv.DictReader(fh)
+
+
+def scenario_runs(paths):
+    """{(place, seed): {controller: rows sorted by time}}; place is the field, or "MAP / FIELD" on a map."""
+    runs = defaultdict(lambda: defaultdict(list))
+    for p in paths:
+        for r in read_rows(p):
+            dom = r.get("domain") or ""
+            place = r["field"] if dom in ("", "rectangle") else f"{dom} / {r['field']}"
+            runs[(place, int(r["seed"]))][r["controller"]].append(r)
+    for by_ctrl in runs.values():
+        for rows in by_ctrl.values():
+            rows.sort(key=lambda r: float(r["t"]))
+    return runs
+
+
+def first_time(rows, test) -> float:
+    """The first t_T whose row passes ``test``, infinity if none does."""
+    return next((float(r["t_T"]) for r in rows if test(r)), math.inf)
+
+
+def measures(runs) -> dict:
+    """{(place, seed, controller): {"hit", "m15", "m125", "rmse2"}} with the best final RMSE per (place, seed)."""
+    out = {}
+    for (place, seed), by_ctrl in runs.items():
+        best = min(float(rows[-1]["rmse"]) for rows in by_ctrl.values())
+        for ctrl, rows in by_ctrl.items():
+            rmse2 = next((float(r["rmse"]) for r in rows if abs(float(r["t_T"]) - 2.0) < 1e-9), math.nan)
+            out[(place, seed, ctrl)] = {
+                "hit": first_time(rows, lambda r: float(r["max_variance"]) <= float(r["threshold"])),
+                "m15": first_time(rows, lambda r: float(r["rmse"]) <= 1.5 * best),
+                "m125": first_time(rows, lambda r: float(r["rmse"]) <= 1.25 * best),
+                "rmse2": rmse2}
+    return out
+
+
+def _t(v):
+    return "never" if math.isinf(v) else f"{v:.2f}"
+
+
+def _r(v):
+    return f"{v:.3f}" if v < 10 else f"{v:.2f}"
+
+
+def ratios(m, place, seed, controllers, feedback="feedback"):
+    """(RMSE 2T, threshold time, 1.25x-map time) of the feedback over the best baseline's; None where missing."""
+    f = m.get((place, seed, feedback))
+    others = [c for c in controllers if c != feedback and (place, seed, c) in m]
+    if f is None or not others:
+        return None
+    best_rmse = min(m[(place, seed, c)]["rmse2"] for c in others)
+    tb = [c for c in others if c in TIME_BASELINES] or others
+
+    def ratio(key):
+        b = min(m[(place, seed, c)][key] for c in tb)
+        if math.isinf(f[key]) and math.isinf(b):
+            return 1.0
+        return f[key] / b if b > 0 else math.inf
+    return f["rmse2"] / best_rmse, ratio("hit"), ratio("m125")
+
+
+def tables(paths) -> str:
+    runs = scenario_runs(paths)
+    m = measures(runs)
+    places = list(dict.fromkeys(p for p, _ in sorted(runs, key=lambda k: (k[0], k[1]))))
+    seeds = sorted({s for _, s in runs})
+    controllers = sorted({c for (_, _, c) in m}, key=lambda c: (c != "feedback", c))
+    lines = ["| field | controller | sup V ≤ γ [T] | map 1.5× [T] | map 1.25× [T] | RMSE 2T |",
+             "|---|---|---|---|---|---|"]
+    for place in places:
+        for c in controllers:
+            vals = [m.get((place, s, c)) for s in seeds]
+            if not any(vals):
+                continue
+            cell = lambda key, fmt: " / ".join("—" if v is None else fmt(v[key]) for v in vals)   # noqa: E731
+            lines.append(f"| {place} | {c} | {cell('hit', _t)} | {cell('m15', _t)} | {cell('m125', _t)} | "
+                         f"{cell('rmse2', _r)} |")
+    lines += ["", "| field | feedback's RMSE at 2 T / best other's | time to the threshold / better baseline's | "
+              "time to a 1.25× map / better baseline's |", "|---|---|---|---|"]
+    wins = [0, 0, 0]
+    cases = 0
+    for place in places:
+        rs = [ratios(m, place, s, controllers) for s in seeds]
+        if not any(rs):
+            continue
+        cols = []
+        for i in range(3):
+            cols.append(" / ".join("—" if r is None else f"{r[i]:.2f}" for r in rs))
+            wins[i] += sum(1 for r in rs if r is not None and r[i] <= 1.0 + 1e-9)
+        cases += sum(1 for r in rs if r is not None)
+        lines.append(f"| {place} | " + " | ".join(cols) + " |")
+    lines.append("")
+    lines.append(f"First or level (ratio ≤ 1) on {wins[0]} / {wins[1]} / {wins[2]} of {cases} cases "
+                 "(map at 2 T / threshold / 1.25× map).")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if not argv or any(a.startswith("-") for a in argv):
+        print(__doc__, file=sys.stderr)
+        return 2
+    missing = [a for a in argv if not Path(a).exists()]
+    if missing:
+        print(f"map_quality_table.py: no such folder or file: {missing[0]}", file=sys.stderr)
+        return 2
+    print(tables(argv))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
