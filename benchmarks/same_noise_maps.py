@@ -59,11 +59,12 @@ def main(argv=None) -> int:
         for ctrl, steps in sets.items():
             gp = GaussianProcess(cfg.gp, domain=cfg.sim.domain)
             used = 0
-            for j, P in enumerate(steps):
+            for lo, hi in ((0, 1), (1, k + 1), (k + 1, 2 * k + 1)):     # t = 0; the first period; the second
+                P = np.concatenate(steps[lo:hi])
                 gp.add(P, f(P) + noise[used:used + len(P)])
                 used += len(P)
-                if j % k == 0 and j < len(steps) - 1 and cfg.gp.learn_hyperparameters and gp.n_observations >= 2:
-                    refit_online(gp)                      # the period starts t = 0, T (as sim.simulation does)
+                if hi < len(steps) and cfg.gp.learn_hyperparameters and gp.n_observations >= 2:
+                    refit_online(gp)                      # at the period starts t = 0 and T (as sim.simulation does)
             mean, _ = gp.predict(C)
             out[ctrl].append(float(np.sqrt(np.mean((mean - truth) ** 2))))
     for ctrl, v in out.items():
