@@ -107,8 +107,9 @@ class GPSettings:
         ``length_scale`` applies; ``length_scale_y`` applies across it (:mod:`regression.frame`: the GP works in
         the rotated frame, whose inducing lattice covers the domain's rotated bounding box: up to twice the nodes
         at 45 degrees on a square).  0 (the default): the axis-aligned kernel, bit for bit.  ``"auto"``: chosen
-        by marginal likelihood at the first online refit among 0, 15, ..., 75 degrees (the best MAP log
-        posterior of each candidate's refit on the data seen so far; the data are kept until then).  Any angle
+        by marginal likelihood at the first online refit among 0, 15, ..., 75 degrees and one parabolic
+        refinement (the best MAP log posterior of each candidate's fit to the data seen so far;
+        :func:`regression.hyper.choose_kernel_angle`; the data are kept until then).  Any angle
         other than 0 gives the kernel a length scale per axis (``length_scale_y`` defaults to ``length_scale``).
     signal_scale
         ``"absolute"`` (the paper): ``signal_variance`` is in field units squared.  ``"data"``: the GP
