@@ -3,7 +3,8 @@
     python benchmarks/map_quality_table.py OUT [OUT ...]
 
 Each ``OUT`` is a ``compare-controllers`` folder (or its runs.csv); the runs of all of them are merged, so that the
-feedback and the baselines may come from separate commands.  Per field (on a map: "MAP / FIELD") and seed, the best
+feedback and the baselines may come from separate commands (a controller's run on a field and seed in two inputs is
+an error).  Per field (on a map: "MAP / FIELD") and seed, the best
 final RMSE is that of any run of any input, and for every controller: the time until sup V first reached the run's
 own threshold, the times until the RMSE first fell below 1.5x and 1.25x that best final RMSE (in periods T; "never"
 within the runs), and the RMSE at 2T.  Two Markdown tables: the values per controller (cells "seed 0 / 1 / 2 / 3"),
@@ -39,10 +40,14 @@ def read_rows(path):
 def scenario_runs(paths):
     """{(place, seed): {controller: rows sorted by time}}; place is the field, or "MAP / FIELD" on a map."""
     runs = defaultdict(lambda: defaultdict(list))
+    source = {}
     for p in paths:
         for r in read_rows(p):
             dom = r.get("domain") or ""
             place = r["field"] if dom in ("", "rectangle") else f"{dom} / {r['field']}"
+            key = (place, int(r["seed"]), r["controller"])
+            if source.setdefault(key, str(p)) != str(p):
+                raise ValueError(f"{r['controller']} on {place}, seed {r['seed']} is in both {source[key]} and {p}")
             runs[(place, int(r["seed"]))][r["controller"]].append(r)
     for by_ctrl in runs.values():
         for rows in by_ctrl.values():
@@ -140,7 +145,11 @@ def main(argv=None) -> int:
     if missing:
         print(f"map_quality_table.py: no such folder or file: {missing[0]}", file=sys.stderr)
         return 2
-    print(tables(argv))
+    try:
+        print(tables(argv))
+    except ValueError as exc:
+        print(f"map_quality_table.py: {exc}", file=sys.stderr)
+        return 2
     return 0
 
 

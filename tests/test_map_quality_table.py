@@ -61,3 +61,13 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys):
     assert m.main([str(tmp_path / "missing")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "no such folder" in err
+
+
+def test_a_run_in_two_inputs_is_refused(tmp_path, capsys):
+    m = _module()
+    rows = {("feedback", "fine", 0, ""): [(0.0, 1.0, 0.1, 1.0), (2.0, 0.05, 0.1, 0.2)]}
+    _write(tmp_path / "a", rows)
+    _write(tmp_path / "b", rows)
+    assert m.main([str(tmp_path / "a"), str(tmp_path / "b")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "feedback on fine, seed 0 is in both" in err
