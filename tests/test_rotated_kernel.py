@@ -197,3 +197,18 @@ def test_simulate_swarm_refuses_a_bad_kernel_angle(tmp_path, capsys):
         err = capsys.readouterr().err
         assert words in err and len(err.strip().splitlines()) == 1
         assert not out.exists()
+
+
+def test_the_gmrf_prior_turns_with_the_frame():
+    """The sparse GMRF prior lives on the same lattice: at 90 degrees with its two lengths swapped it is the
+    axis-aligned one (mean and variance to round-off, the same likelihood)."""
+    rng = np.random.default_rng(0)
+    X = rng.uniform(0.0, L, (400, 2))
+    y = np.sin(X[:, 0]) + 0.1 * rng.standard_normal(400)
+    Q = rng.uniform(0.0, L, (50, 2))
+    gps = [GaussianProcess(GPSettings(kernel="gmrf", length_scale=lx, length_scale_y=ly, kernel_angle=a,
+                                      noise_variance=0.01), DOMAIN) for a, lx, ly in ((0, 1.0, 0.6), (90, 0.6, 1.0))]
+    (m0, v0), (m1, v1) = [gp.add(X, y) or gp.predict(Q) for gp in gps]
+    assert not gps[1].frame.identity
+    assert np.max(np.abs(m0 - m1)) < 1e-10 and np.max(np.abs(v0 - v1)) < 1e-10
+    assert gps[1].log_marginal_likelihood() == pytest.approx(gps[0].log_marginal_likelihood(), abs=1e-8)
