@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["reverse_mode_function"]
+__all__ = ["LastEvaluation", "reverse_mode_function"]
 
 
 def _view(buffer, shape):
@@ -25,29 +25,69 @@ def _view(buffer, shape):
     return np.frombuffer(buffer, dtype=np.float64).reshape(c, r)
 
 
-def reverse_mode_function(name: str, shapes_in, shape_out, forward, reverse):
+class LastEvaluation:
+    """``state(xs)`` of the last inputs seen, recomputed only when the inputs change.
+
+    IPOPT evaluates the objective and then its gradient at the same point, and CasADi's gradient function
+    runs the forward node again before the reverse one: all three calls at the same inputs share one
+    ``state``.  The key is the inputs' bytes (CasADi's buffers, compared bit for bit: a different input, even
+    -0.0 for 0.0, recomputes); only the last evaluation is kept.  The state must not be modified by its users."""
+
+    def __init__(self, state):
+        self._state = state
+        self._key = None
+        self._value = None
+        self.hits = self.misses = 0
+
+    def get(self, buffers, xs):
+        """The state at the inputs ``xs`` whose raw buffers are ``buffers``."""
+        if self._key is not None and len(self._key) == len(buffers) and all(
+                k == bytes(memoryview(b).cast("B")) for k, b in zip(self._key, buffers)):   # memcmp
+            self.hits += 1
+            return self._value
+        self._key = None                                           # never a stale key if state() raises
+        self._value = self._state(xs)
+        self._key = [bytes(memoryview(b).cast("B")) for b in buffers]
+        self.misses += 1
+        return self._value
+
+
+def reverse_mode_function(name: str, shapes_in, shape_out, forward, reverse, state=None):
     """``casadi.Function`` ``y = F(x_0, ..., x_{m-1})`` of dense matrices evaluated in NumPy, with reverse mode.
 
     ``shapes_in``: the (rows, cols) of every input; ``shape_out``: those of the one output.
     ``forward(xs, y)`` fills ``y`` (the (cols, rows) view of the output) from the inputs' views ``xs``.
     ``reverse(xs, seed, grads)`` fills, for one adjoint direction ``seed`` (the output's view), the views
-    ``grads`` (one an input, same layout) with seedᵀ ∂y/∂x_i.  The nominal output is not passed: a reverse
-    pass that needs the forward's intermediates caches them itself (IPOPT evaluates f and then ∇f at the
-    same point).  Keep the returned object alive as long as CasADi uses it (CasADi holds no reference)."""
+    ``grads`` (one an input, same layout) with seedᵀ ∂y/∂x_i; an entry of ``grads`` is None when CasADi does
+    not use that sensitivity (an NLP's parameters: IPOPT asks for the gradient in the variables only), and
+    the pass may skip its work.  ``state(xs)``, if given, computes the intermediates both passes need once
+    per input point (:class:`LastEvaluation`, bit-for-bit keyed on the inputs); it is then passed as
+    ``forward(xs, st, y)`` and ``reverse(xs, st, seed, grads)``.  Without it the nominal output is not
+    passed: a reverse pass that needs the forward's intermediates caches them itself.  Keep the returned
+    object alive as long as CasADi uses it (CasADi holds no reference)."""
     import casadi as ca
 
     shapes_in = [tuple(int(v) for v in s) for s in shapes_in]
     r_out, c_out = (int(v) for v in shape_out)
     m = len(shapes_in)
+    last = LastEvaluation(state) if state is not None else None
+
+    def views(arg):
+        return [_view(arg[i], s) for i, s in enumerate(shapes_in)]
 
     class Reverse(ca.Callback):
-        def __init__(self, nadj, rname, opts):
+        # returned by get_reverse itself (not wrapped in an MX Function): CasADi then passes None for the
+        # sensitivities nobody uses (e.g. those of an NLP's parameters), and the pass skips them
+        def __init__(self, nadj, rname, inames, onames, opts):
             ca.Callback.__init__(self)
-            self.nadj = nadj
+            self.nadj, self.inames, self.onames = nadj, list(inames), list(onames)
             self.construct(rname, opts)
 
         def get_n_in(self): return m + 2               # inputs, nominal output, seeds
         def get_n_out(self): return m
+
+        def get_name_in(self, i): return self.inames[i]
+        def get_name_out(self, i): return self.onames[i]
 
         def get_sparsity_in(self, i):
             if i < m:
@@ -62,18 +102,21 @@ def reverse_mode_function(name: str, shapes_in, shape_out, forward, reverse):
             return True
 
         def eval_buffer(self, arg, res):
-            xs = [_view(arg[i], s) for i, s in enumerate(shapes_in)]
+            if all(b is None for b in res[:m]):
+                return 0
+            xs = views(arg)
             seeds = np.frombuffer(arg[m + 1], dtype=np.float64).reshape(self.nadj, c_out, r_out)
-            grads = [np.frombuffer(res[i], dtype=np.float64).reshape(self.nadj, c, r)
+            grads = [None if res[i] is None else np.frombuffer(res[i], dtype=np.float64).reshape(self.nadj, c, r)
                      for i, (r, c) in enumerate(shapes_in)]
+            extra = () if last is None else (last.get(arg[:m], xs),)
             for k in range(self.nadj):
-                reverse(xs, seeds[k], [g[k] for g in grads])
+                reverse(xs, *extra, seeds[k], [None if g is None else g[k] for g in grads])
             return 0
 
     class Forward(ca.Callback):
         def __init__(self):
             ca.Callback.__init__(self)
-            self._reverse = {}
+            self._reverse = []
             self.construct(name, {"enable_fd": False})
 
         def get_n_in(self): return m
@@ -89,17 +132,19 @@ def reverse_mode_function(name: str, shapes_in, shape_out, forward, reverse):
             return True
 
         def eval_buffer(self, arg, res):
-            forward([_view(arg[i], s) for i, s in enumerate(shapes_in)], _view(res[0], (r_out, c_out)))
+            if res[0] is None:
+                return 0
+            xs = views(arg)
+            extra = () if last is None else (last.get(arg[:m], xs),)
+            forward(xs, *extra, _view(res[0], (r_out, c_out)))
             return 0
 
         def has_reverse(self, nadj):
             return True
 
         def get_reverse(self, nadj, rname, inames, onames, opts):
-            cb = Reverse(nadj, f"{rname}_cb", {"enable_fd": False})
-            self._reverse[nadj] = cb                           # keep alive as long as this Function
-            nom_in, nom_out = self.mx_in(), self.mx_out()
-            seeds = [ca.MX.sym("adj", r_out, c_out * nadj)]
-            return ca.Function(rname, nom_in + nom_out + seeds, cb.call(nom_in + nom_out + seeds), inames, onames)
+            cb = Reverse(nadj, rname, inames, onames, {"enable_fd": False})
+            self._reverse.append(cb)                           # keep alive as long as this Function
+            return cb
 
     return Forward()

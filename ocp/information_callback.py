@@ -68,20 +68,28 @@ class InformationTerms:
         V = V0 / (1.0 + c * V0 * G)
         return V0, Kx, Ky, c, cum, G, V
 
+    def state(self, P, info):
+        """The intermediates of one point (P, info) that :meth:`forward` and :meth:`reverse` share; they own
+        their memory (``info`` may be a view of a buffer CasADi reuses)."""
+        return self._state(P, np.array(info, dtype=float, copy=True))
+
     def _mean_power(self, V, axis=None):
         n = self.nx * self.ny
         if self.q == 1.0:
             return V.sum(axis=axis) / n
         return (_power(V, self.q).sum(axis=axis) / n) ** (1.0 / self.q)
 
-    def forward(self, P, info) -> np.ndarray:
-        """Φ_l for P (n_snap, nx, ny)."""
-        V0, *_, V = self._state(P, info)
+    def forward(self, P, info, state=None) -> np.ndarray:
+        """Φ_l for P (n_snap, nx, ny); ``state``: :meth:`state` of the same point, if already computed."""
+        V0, *_, V = self._state(P, info) if state is None else state
         return self._mean_power(V, axis=(1, 2)) / self._mean_power(V0)
 
-    def reverse(self, P, info, seed):
-        """(dP (n_snap, nx, ny), dinfo (n_info,)) = seed (n_snap,) pulled back through Φ."""
-        V0, Kx, Ky, c, cum, G, V = self._state(P, info)
+    def reverse(self, P, info, seed, state=None, wrt=(True, True)):
+        """(dP (n_snap, nx, ny), dinfo (n_info,)) = seed (n_snap,) pulled back through Φ.
+
+        ``state``: :meth:`state` of the same point, if already computed; ``wrt``: which of the two
+        sensitivities to compute (the other is returned as None: the planner never needs dinfo)."""
+        V0, Kx, Ky, c, cum, G, V = self._state(P, info) if state is None else state
         n, q = self.nx * self.ny, self.q
         seed = np.asarray(seed, dtype=float).ravel()
         ref = self._mean_power(V0)
@@ -96,32 +104,45 @@ class InformationTerms:
             dref_dV0 = ref ** (1.0 - q) * _power(V0, q - 1.0) / n
         V2 = V * V
         H = -c * V2 * dV                                                 # d / dG
-        dcum = np.matmul(np.matmul(Kx.T, H), Ky)
-        dP = np.tensordot(self.C, dcum, axes=([1], [0]))                   # dP_k = sum_l C[k, l] dcum_l
-        dKx = np.matmul(np.matmul(H, Ky), cum.transpose(0, 2, 1)).sum(axis=0)     # sum_l (H_l Ky) cum_l^T
-        dKy = np.matmul(H.transpose(0, 2, 1), np.matmul(Kx, cum)).sum(axis=0)     # sum_l H_l^T (Kx cum_l)
-        dc = float(-(dV * V2 * G).sum())
-        dV0 = (dV * V2).sum(axis=0) / (V0 * V0)          # V0 > 0: InformationInputs.parameters floors it
-        dV0 = dV0 - float((seed * phi).sum()) / ref * dref_dV0           # Φ = M_q(V) / M_q(V0)
-        dinfo = np.concatenate([dV0.ravel(order="F"), dKx.ravel(order="F"), dKy.ravel(order="F"), [dc]])
+        dP = dinfo = None
+        if wrt[0]:
+            dcum = np.matmul(np.matmul(Kx.T, H), Ky)
+            dP = np.tensordot(self.C, dcum, axes=([1], [0]))               # dP_k = sum_l C[k, l] dcum_l
+        if wrt[1]:
+            dKx = np.matmul(np.matmul(H, Ky), cum.transpose(0, 2, 1)).sum(axis=0)     # sum_l (H_l Ky) cum_l^T
+            dKy = np.matmul(H.transpose(0, 2, 1), np.matmul(Kx, cum)).sum(axis=0)     # sum_l H_l^T (Kx cum_l)
+            dc = float(-(dV * V2 * G).sum())
+            dV0 = (dV * V2).sum(axis=0) / (V0 * V0)      # V0 > 0: InformationInputs.parameters floors it
+            dV0 = dV0 - float((seed * phi).sum()) / ref * dref_dV0       # Φ = M_q(V) / M_q(V0)
+            dinfo = np.concatenate([dV0.ravel(order="F"), dKx.ravel(order="F"), dKy.ravel(order="F"), [dc]])
         return dP, dinfo
 
 
 def information_callback(terms: InformationTerms, name: str = "information"):
     """``casadi.Function`` Φ = F(M, info): M (nx, ny n_snap) the snapshots side by side (as the graph's ``M``),
-    info the parameter block -> Φ (1, n_snap); reverse mode by :meth:`InformationTerms.reverse`."""
+    info the parameter block -> Φ (1, n_snap); reverse mode by :meth:`InformationTerms.reverse`.
+
+    The intermediates are computed once per point (:class:`ocp.callback.LastEvaluation`): the objective,
+    the gradient function's forward node and its reverse node at one IPOPT iterate share them; the
+    sensitivity to ``info`` (IPOPT's parameters) is computed only when CasADi uses it."""
     nx, ny, ns, ni = terms.nx, terms.ny, terms.n_snap, terms.n_info
 
     def dens(view):
         # the (ny n_snap, nx) view of M: row l ny + j is P_l[:, j] -> (n_snap, nx, ny)
         return view.reshape(ns, ny, nx).transpose(0, 2, 1)
 
-    def forward(xs, phi):
-        phi[:, 0] = terms.forward(dens(xs[0]), xs[1][0])
+    def state(xs):
+        return terms.state(dens(xs[0]), xs[1][0])
 
-    def reverse(xs, seed, grads):
-        dP, dinfo = terms.reverse(dens(xs[0]), xs[1][0], seed[:, 0])
-        grads[0].reshape(ns, ny, nx)[:] = dP.transpose(0, 2, 1)
-        grads[1][0] = dinfo
+    def forward(xs, st, phi):
+        phi[:, 0] = terms.forward(dens(xs[0]), xs[1][0], state=st)
 
-    return reverse_mode_function(name, [(nx, ny * ns), (ni, 1)], (1, ns), forward, reverse)
+    def reverse(xs, st, seed, grads):
+        dP, dinfo = terms.reverse(dens(xs[0]), xs[1][0], seed[:, 0], state=st,
+                                  wrt=(grads[0] is not None, grads[1] is not None))
+        if dP is not None:
+            grads[0].reshape(ns, ny, nx)[:] = dP.transpose(0, 2, 1)
+        if dinfo is not None:
+            grads[1][0] = dinfo
+
+    return reverse_mode_function(name, [(nx, ny * ns), (ni, 1)], (1, ns), forward, reverse, state=state)

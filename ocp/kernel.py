@@ -734,7 +734,10 @@ def transport_callback(kernel: TransportKernel, name: str = "transport"):
 
     def reverse(xs, seed, grads):
         VX, VY, p0 = xs[0], xs[1], xs[2][0]
-        grads[0][:], grads[1][:], grads[2][0] = kernel.adjoint(VX, VY, cache.get(VX, VY, p0), seed)
+        gvx, gvy, gp0 = kernel.adjoint(VX, VY, cache.get(VX, VY, p0), seed)
+        for g, v in zip(grads, (gvx, gvy, gp0[None, :])):
+            if g is not None:                                  # None: a sensitivity CasADi does not use (p0's)
+                g[:] = v
 
     return reverse_mode_function(name, shapes_in, (kernel.n_cell, N1), forward, reverse)
 
