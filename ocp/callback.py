@@ -117,6 +117,7 @@ def reverse_mode_function(name: str, shapes_in, shape_out, forward, reverse, sta
         def __init__(self):
             ca.Callback.__init__(self)
             self._reverse = []
+            self.last = last                                   # the LastEvaluation (hits, misses), or None
             self.construct(name, {"enable_fd": False})
 
         def get_n_in(self): return m
