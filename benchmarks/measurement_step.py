@@ -48,6 +48,8 @@ Two configurations for large swarms can be added to the table (``--configs``):
   a block-banded factorisation and selected inversion, so ``auto`` computes one at every step), l = 1;
 * ``gmrf2-l2``, ``gmrf2-l2.5``, ``gmrf2-l3.5``: ``gmrf2`` at l = 2, 2.5, 3.5 on the default GP's 43 x 43 lattice
   (``inducing_spacing = 0.5``); ``gmrf2-l2.5-h0.8``: at l = 2.5 on 28 x 28 nodes (``inducing_spacing = 0.8``).
+* ``se-l2.5-h0.8``, ``se-l3.5``: the default squared exponential at the same length scales and lattices as
+  ``gmrf2-l2.5-h0.8`` and ``gmrf2-l3.5`` (what the longer length scale alone buys).
 
 ``--domains`` times the same step with obstacles (built-in domains, :mod:`domain`;
 target: within 1.3x of the empty rectangle at 10,000 robots); ``rectangle`` is the empty domain.
@@ -82,6 +84,8 @@ CONFIGS = {
     "gmrf2-l2.5": {"gp": {"kernel": "gmrf2", "length_scale": 2.5, "inducing_spacing": 0.5}},
     "gmrf2-l3.5": {"gp": {"kernel": "gmrf2", "length_scale": 3.5, "inducing_spacing": 0.5}},
     "gmrf2-l2.5-h0.8": {"gp": {"kernel": "gmrf2", "length_scale": 2.5, "inducing_spacing": 0.8}},
+    "se-l2.5-h0.8": {"gp": {"length_scale": 2.5, "inducing_spacing": 0.8}},
+    "se-l3.5": {"gp": {"length_scale": 3.5, "inducing_spacing": 0.5}},
 }
 
 
