@@ -13,28 +13,16 @@ greedy and the lawnmower), with the count of cases where it is first or level (r
 """
 from __future__ import annotations
 
-import csv
-import json
 import math
 import sys
 from collections import defaultdict
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))     # the sibling script, also when loaded by path
+from tuned_ablation_table import read_runs  # noqa: E402  runs.csv, or the finished runs/*.json of a sweep folder
+
 #: the controllers whose time is "the better baseline's" (the ergodic baseline is compared by its map)
 TIME_BASELINES = ("greedy", "lawnmower")
-
-
-def read_rows(path):
-    """Rows of OUT/runs.csv, or of the finished runs OUT/runs/*.json of a sweep still running."""
-    path = Path(path)
-    if path.is_dir():
-        if not (path / "runs.csv").exists():
-            for f in sorted((path / "runs").glob("*.json")):
-                yield from json.loads(f.read_text())["rows"]
-            return
-        path = path / "runs.csv"
-    with open(path, newline="") as fh:
-        yield from csv.DictReader(fh)
 
 
 def scenario_runs(paths):
@@ -42,7 +30,7 @@ def scenario_runs(paths):
     runs = defaultdict(lambda: defaultdict(list))
     source = {}
     for p in paths:
-        for r in read_rows(p):
+        for r in read_runs(p):
             dom = r.get("domain") or ""
             place = r["field"] if dom in ("", "rectangle") else f"{dom} / {r['field']}"
             key = (place, int(r["seed"]), r["controller"])
