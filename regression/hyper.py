@@ -15,6 +15,8 @@ follow *exactly* from the fine ones, without the data (:func:`coarsened`).  The 
 likelihood on the coarse grid costs an M_c x M_c factorisation (M_c = 529 instead of 1849 at the
 paper's setting, ~30x cheaper); the price is the lower bound l >= 1.5 W of the coarse spline
 kernel's accuracy (:class:`GPSettings`), i.e. learned length scales >= 1.5 m at the default c = 2.
+A GMRF kernel (``"gmrf"``, ``"gmrf2"``) is always fitted on the GP's own lattice (:func:`coarsening_factor`): its
+prior depends on the lattice spacing, and its banded likelihood is cheap there.
 
 :func:`refit` maximises the log posterior (log marginal likelihood + independent normal priors on
 log s_f^2 and log l, centred at the initial settings, sd ``hyper_prior_sd``) over (log s_f^2, log l)
@@ -31,6 +33,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from .gp import _N_POW, _N_POW_Y, GaussianProcess, kernel_key
+from .kernels import GMRF_KERNELS
 from .scale import SIGNAL_BOUNDS, running_variance
 
 __all__ = ["coarsening_factor", "coarsened", "refit", "refit_online", "length_scale_bounds", "signal_variance_bounds",
@@ -57,7 +60,13 @@ def _offset_maps(c: int, n_pow: int) -> np.ndarray:
 
 
 def coarsening_factor(gp, wanted: int) -> int:
-    """The largest c <= ``wanted`` dividing both axes' cell counts (1 if none larger)."""
+    """The largest c <= ``wanted`` dividing both axes' cell counts (1 if none larger); always 1 for a GMRF kernel
+    (``"gmrf"``, ``"gmrf2"``): its prior is the lattice discretisation of an SPDE, whose precision depends on the
+    lattice spacing, so that on a coarser lattice it is another model -- fitted there, a draw from the prior at
+    l = 2 m on the 0.5 m lattice learned l = 1.5 m instead of 2.0 -- while the fine lattice's banded likelihood is
+    cheap enough to be fitted on directly."""
+    if gp.settings.kernel in GMRF_KERNELS:
+        return 1
     nx, ny = gp._ax.n_cells, gp._ay.n_cells
     for c in range(max(1, int(wanted)), 0, -1):
         if nx % c == 0 and ny % c == 0:
@@ -236,7 +245,8 @@ def refit_online(gp: GaussianProcess):
     Multi-resolution: the likelihood is evaluated on the grid coarsened ``hyper_coarsening`` times (exact
     sufficient statistics, ~30x cheaper); when the learned l sits at that grid's lower bound (1.5 x its
     cell width) the fit is repeated on the GP's own grid, whose bound is half as long, so that the data
-    decide a length scale below the coarse grid's resolution.  A learned value at a bound of the grid it
+    decide a length scale below the coarse grid's resolution (a GMRF kernel: the GP's own grid at once,
+    :func:`coarsening_factor`).  A learned value at a bound of the grid it
     was fitted on gets a one-line ``UserWarning`` (once per GP and bound).  Updates gp's settings (the
     posterior is recomputed at the next ``predict``) and returns them."""
     s0 = gp.initial_settings

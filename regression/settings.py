@@ -86,6 +86,7 @@ class GPSettings:
         The refit evaluates the likelihood on a spline grid this many times coarser, with the
         exact sufficient statistics of the data (:mod:`regression.hyper`; ~30x cheaper at 2);
         the learned length scale is then >= 1.5 x the coarse spacing (1.5 m at the defaults).
+        Ignored by the GMRF kernels, which are fitted on their own lattice (their prior depends on its spacing).
     kernel
         ``"squared-exponential"`` (the paper's), ``"matern52"`` or ``"matern32"``: the one-dimensional factor of
         the separable kernel (:mod:`regression.kernels`; Matérn for fields rougher than the squared exponential's

@@ -158,3 +158,43 @@ def test_gmrf_kernel_setting_is_validated_and_always_fits_the_cadence():
     mean, var = gp.predict(np.array([[1.0, 1.0]]))
     assert var[0] == gp.settings.signal_variance
     assert dataclasses.replace(gp.settings).kernel_key == ("gmrf", 1.0, 1.0)
+
+
+# ---------------------------------------------------------------- the refit of (s_f^2, l) with a GMRF prior
+def _gmrf_draw(kernel, length, n, seed, domain=(0.0, 12.0, 0.0, 12.0), s2=0.25, sn2=0.01):
+    """A GP holding n noisy points of a draw from its own GMRF prior at length ``length`` (on its 0.5 m lattice)."""
+    rng = np.random.default_rng(seed)
+    gp = GaussianProcess(GPSettings(kernel=kernel, signal_variance=s2, length_scale=1.0, noise_variance=sn2,
+                                    learn_hyperparameters=True), domain)
+    q = banded.to_dense(gp._gmrf_prior((kernel, length, length)).precision)
+    c = math.sqrt(s2) * np.linalg.solve(np.linalg.cholesky(q).T, rng.normal(size=len(q)))
+    x = np.column_stack([rng.uniform(domain[0], domain[1], n), rng.uniform(domain[2], domain[3], n)])
+    gp.add(x, 1.0 + _phi(gp, x) @ c + math.sqrt(sn2) * rng.normal(size=n))
+    return gp
+
+
+def _profile_maximiser(gp, lengths):
+    """The l of the largest log marginal likelihood over ``lengths`` (s_f^2 maximised at each), by brute force."""
+    from scipy.optimize import minimize_scalar
+    best = []
+    for ell in lengths:
+        r = minimize_scalar(lambda t: -gp.log_marginal_likelihood(math.exp(t), ell), bounds=(math.log(1e-3), 3.0),
+                            method="bounded", options={"xatol": 1e-3})
+        best.append(-r.fun)
+    return lengths[int(np.argmax(best))]
+
+
+def test_gmrf_refit_learns_the_length_of_a_draw_from_its_own_prior():
+    """The refit fits the GP's own lattice: on a coarser one the GMRF is another model (it learned l = 1.5 m on
+    this draw of l = 2 m, against 2.0 on the GP's lattice and the brute-force maximiser's 2.0)."""
+    from swarmfield.regression.hyper import coarsening_factor, refit, refit_online
+    gp = _gmrf_draw("gmrf2", 2.0, 2000, seed=0)
+    assert coarsening_factor(gp, 2) == 1
+    s2, ell, _ = refit(gp, None, 30, factor=2)
+    best = _profile_maximiser(gp, np.linspace(1.4, 2.8, 8))
+    assert ell == pytest.approx(2.0, rel=0.2)
+    assert ell == pytest.approx(best, rel=0.2)
+    assert gp.log_marginal_likelihood(s2, ell) >= gp.log_marginal_likelihood(s2, best) - 0.5
+    # the online refit (MAP, prior centred on l = 1) lands there too
+    st = refit_online(gp)
+    assert st.length_scale == pytest.approx(2.0, rel=0.2)
