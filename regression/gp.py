@@ -1110,7 +1110,8 @@ class GaussianProcess:
         lml = -0.5 * (rr / sn2 - float(b @ mu) + banded.logdet(factor) - logdet_q + self._n * math.log(2.0 * math.pi * sn2))
         return lml, factor, mu, prior
 
-    def _gmrf_lml_and_gradient(self, s2: float, key, a: np.ndarray, b: np.ndarray) -> tuple[float, np.ndarray]:
+    def _gmrf_lml_and_gradient(self, s2: float, key, a: np.ndarray, b: np.ndarray,
+                               tied: bool = False) -> tuple[float, np.ndarray]:
         """:meth:`_lml_and_gradient` of the ``"gmrf"`` prior.  With Q_s = Q / s_f^2, d Q_s / d log s_f^2 = -Q_s and
         (d log det P - d log det Q_s - d b^T P^{-1} b) = tr(Sigma dQ_s) - tr(Q_s^{-1} dQ_s) + mu^T dQ_s mu::
 
@@ -1118,7 +1119,9 @@ class GaussianProcess:
 
         exact (tr(Sigma Q_s) needs Sigma only within Q's pattern: the selected inverse).  The length-scale
         derivatives (through the lattice precision and its per-node normalisation) are central differences
-        of the log marginal likelihood in log l (step 1e-4)."""
+        of the log marginal likelihood in log l (step 1e-4); ``tied`` (an isotropic fit, l_x = l_y = l): one central
+        difference along l instead of one per axis (two prior builds instead of four, the bulk of an evaluation's
+        cost), returned as half of d log p / d log l in each of the two entries (their sum is what such a fit uses)."""
         lml, factor, mu, prior = self._gmrf_lml(s2, key, a, b)
         qs = prior.precision / s2
         sel = banded.selected_inverse(factor)
@@ -1128,13 +1131,16 @@ class GaussianProcess:
         grad[0] = 0.5 * (float(mu @ qmu) + tr - self._n_nodes)
         kernel, l_x, l_y = key
         h = 1e-4
-        for k in (1, 2):
+        for k in ((0,) if tied else (1, 2)):
             vals = []
             for sign in (1.0, -1.0):
                 f = math.exp(sign * h)
-                kk = (kernel, l_x * f, l_y) if k == 1 else (kernel, l_x, l_y * f)
+                kk = (kernel, l_x * f, l_y * f) if k == 0 else (kernel, l_x * f, l_y) if k == 1 else (kernel, l_x, l_y * f)
                 vals.append(self._gmrf_lml(s2, kk, a, b)[0])
-            grad[k] = (vals[0] - vals[1]) / (2.0 * h)
+            if k == 0:
+                grad[1] = grad[2] = 0.25 * (vals[0] - vals[1]) / h
+            else:
+                grad[k] = (vals[0] - vals[1]) / (2.0 * h)
         return lml, grad
 
     def _lml_parts(self, s2: float, ell, a: np.ndarray, b: np.ndarray):
@@ -1155,7 +1161,8 @@ class GaussianProcess:
         logdet = 2.0 * float(np.sum(np.log(np.diag(chol))))
         return -0.5 * (rr / sn2 - quad + logdet + self._n * math.log(2.0 * math.pi * sn2)), chol, basis, sb, v[:, 0]
 
-    def _lml_and_gradient(self, s2: float, ell, a: np.ndarray, b: np.ndarray) -> tuple[float, np.ndarray]:
+    def _lml_and_gradient(self, s2: float, ell, a: np.ndarray, b: np.ndarray,
+                          tied: bool = False) -> tuple[float, np.ndarray]:
         """The log marginal likelihood (as :meth:`_lml`) and its gradient with respect to (log s_f^2, log l_x, log l_y).
 
         With K = s_f^2 S_K S_K^T the coefficients' prior covariance, u = b - A mu, the standard identity
@@ -1171,9 +1178,11 @@ class GaussianProcess:
         along y).  The traces of B^{-1} need only its partial traces over one axis, from L^{-1} (one triangular
         inversion, about the Cholesky factorisation's cost): a gradient costs about two evaluations of
         :meth:`_lml` instead of the three or four of finite differences, and is exact for the spline model
-        (up to the prior truncation's change of the kept directions with l, ``prior_truncation`` x s_f^2)."""
+        (up to the prior truncation's change of the kept directions with l, ``prior_truncation`` x s_f^2).
+        ``tied``: only the sum of the two length-scale entries is needed (an isotropic fit); a GMRF prior then
+        computes that sum alone (:meth:`_gmrf_lml_and_gradient`)."""
         if isinstance(ell, tuple) and ell[0] in GMRF_KERNELS:
-            return self._gmrf_lml_and_gradient(s2, ell, a, b)
+            return self._gmrf_lml_and_gradient(s2, ell, a, b, tied=tied)
         lml, chol, basis, sb, v = self._lml_parts(s2, ell, a, b)
         if isinstance(ell, tuple):
             kernel, l_x, l_y = ell
@@ -1263,7 +1272,8 @@ class GaussianProcess:
             psd = float(prior[2])
 
         def objective(theta):
-            lml, g = self._lml_and_gradient(math.exp(theta[0]), kernel_key(self._settings, math.exp(theta[1])), a, b)
+            lml, g = self._lml_and_gradient(math.exp(theta[0]), kernel_key(self._settings, math.exp(theta[1])), a, b,
+                                            tied=True)
             val, grad = -lml, -np.array([g[0], g[1] + g[2]])
             if prior is not None:
                 val += 0.5 * float(np.sum(((theta - c) / psd) ** 2))

@@ -181,7 +181,7 @@ def refit(gp, prior, maxiter: int, factor: int = 2, signal_variance_bounds=None,
     def objective(theta):
         evals[0] += 1
         try:
-            lml, g = coarse._lml_and_gradient(math.exp(theta[0]), key(theta), a, b)
+            lml, g = coarse._lml_and_gradient(math.exp(theta[0]), key(theta), a, b, tied=not ard)
         except np.linalg.LinAlgError:
             return np.inf, np.zeros_like(theta)
         val = -lml
