@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 
-from .common import TIMER, limit_threads, run, run_config, step_cpu_ms
+from .common import TIMER, limit_threads, run, mean_step_cpu_ms, run_config
 
 
 def _run(preset: str, controller: str, periods: int, **sim):
@@ -106,8 +106,7 @@ class LargeSwarmStep:
     track_cpu_ms_per_step.unit = "ms"
 
     def track_step_cpu_ms(self, kernel):
-        ms = step_cpu_ms(self._config(kernel))
-        return sum(ms) / len(ms)
+        return mean_step_cpu_ms(self._config(kernel))
 
     track_step_cpu_ms.unit = "ms"
 
@@ -130,8 +129,7 @@ class MeasurementStep:
 
     def track_mean_cpu_ms_per_step(self, robots, every):
         every = every if every == "auto" else int(every)
-        ms = step_cpu_ms(run_config("paper", robots=robots, max_periods=1, metrics_every=every))
-        return sum(ms) / len(ms)
+        return mean_step_cpu_ms(run_config("paper", robots=robots, max_periods=1, metrics_every=every))
 
     track_mean_cpu_ms_per_step.unit = "ms"
 
@@ -152,8 +150,7 @@ class DomainStep:
         limit_threads()
 
     def track_mean_cpu_ms_per_step(self, domain):
-        ms = step_cpu_ms(run_config("paper", domain, robots=2000, max_periods=1))
-        return sum(ms) / len(ms)
+        return mean_step_cpu_ms(run_config("paper", domain, robots=2000, max_periods=1))
 
     track_mean_cpu_ms_per_step.unit = "ms"
 

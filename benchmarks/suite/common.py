@@ -60,8 +60,8 @@ def run(cfg):
     return res, time.process_time() - c
 
 
-def step_cpu_ms(cfg, periods: int = 1) -> list:
-    """CPU milliseconds of every measurement step (``Simulation.measurement_step``: Δt of dynamics, the
+def mean_step_cpu_ms(cfg, periods: int = 1) -> float:
+    """Mean CPU milliseconds of a measurement step (``Simulation.measurement_step``: Δt of dynamics, the
     measurement, the KDE, the GP update and -- when due -- the posterior) over ``periods`` periods after the
     start; the planner is left out (``benchmarks/measurement_step.py``, ``benchmarks/domain_step.py``)."""
     from swarmfield.sim.simulation import Simulation
@@ -79,4 +79,4 @@ def step_cpu_ms(cfg, periods: int = 1) -> list:
         if not sim.step():
             break
     sim.finish()
-    return sim.step_ms
+    return sum(sim.step_ms) / len(sim.step_ms)
