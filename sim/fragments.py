@@ -104,7 +104,8 @@ class FragmentMaps:
                 angle = getattr(gs, "frame_angle", sim.config.gp.frame_angle)
                 gp = GaussianProcess(dataclasses.replace(sim.config.gp, kernel_angle=angle),
                                      domain=sim.settings.domain)
-                gp.set_hyperparameters(gs.signal_variance, gs.length_scale)
+                # every learned value of the main map, l_y of an anisotropic kernel included
+                gp.set_hyperparameters(gs.signal_variance, gs.length_scale, getattr(gs, "length_scale_y", None))
                 f = _Fragment(gp, items)
             add = np.flatnonzero(mask & ~f.has)
             if add.size:

@@ -1,6 +1,7 @@
 """The decentralized swarm: communication graph, message accounting, consensus density, the closed loop."""
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from types import SimpleNamespace
@@ -341,6 +342,26 @@ def test_a_fragment_keeps_its_own_map_and_steers_by_it():
         own = run_simulation(cfg)
     assert held.communication["fragment_maps"] is None and own.communication["fragment_maps"] >= 1
     assert not np.array_equal(held.positions[-1], own.positions[-1])
+
+
+def test_a_new_fragment_map_copies_every_learned_length_scale():
+    """A fragment's GP starts from the main map's learned values, the cross length scale l_y of an
+    anisotropic kernel included (it used to start from the configured l_y)."""
+    from swarmfield.sim import config_from_dict
+    from swarmfield.sim.fragments import FragmentMaps
+    from swarmfield.sim.knowledge import KnowledgeGroups
+    cfg = config_from_dict(SMALL)
+    cfg = dataclasses.replace(cfg, gp=dataclasses.replace(cfg.gp, length_scale=1.5, length_scale_y=1.5))
+    learned = SimpleNamespace(signal_variance=0.7, length_scale=2.5, length_scale_y=1.25)
+    sim = SimpleNamespace(gp=SimpleNamespace(settings=learned), config=cfg, settings=cfg.sim)
+    kg, maps = KnowledgeGroups(4), FragmentMaps()
+    X = np.column_stack([np.arange(4.0), np.ones(4)])
+    labels = np.array([0, 0, 1, 1])
+    kg.share(np.arange(4), X, np.arange(4.0), labels, 2)
+    maps.update(sim, kg, labels, 2)
+    (frag,) = maps.maps.values()
+    s = frag.gp.settings
+    assert (s.signal_variance, s.length_scale, s.length_scale_y) == (0.7, 2.5, 1.25)
 
 
 def test_relay_bound_on_a_chain():
