@@ -25,7 +25,8 @@ Rules (``sim.stop_rule``):
 ``robust``                ``relative``, and in addition the same threshold must hold for the
                           variance V_c computed with the same data and s_f^2 but the length scale
                           l_c = min(l, ``sim.stop_length_scale``) (default: the GP's configured,
-                          i.e. prior-median, length scale):
+                          i.e. prior-median, length scale; for an anisotropic kernel the same bound
+                          on each axis's length scale):
 
                               sup V_(s_f^2, l) <= gamma_r s_f^2   and   sup V_(s_f^2, l_c) <= gamma_r s_f^2.
 
@@ -167,11 +168,35 @@ class RobustThreshold(RelativeThreshold):
         lc = gp.initial_settings.length_scale if self.check_length_scale is None else self.check_length_scale
         return max(min(gp.settings.length_scale, lc), lo)
 
-    def _variance(self, gp, role: str, signal_variance: float, length_scale: float) -> np.ndarray:
-        """V on the bound points with gp's data at (signal_variance, length_scale): gp's own posterior, or
-        that of a follower GP kept (one per role) and updated with gp (Woodbury updates)."""
+    def check_scale_y(self, gp) -> float | None:
+        """The same bound on the cross length scale l_y of an anisotropic kernel (None for an isotropic one):
+        min(l_y, stop_length_scale or the configured l_y), raised to 1.5 x the inducing spacing.  Without it a
+        long l_y learned across the field would call it mapped, as a long l would without l_c."""
+        ly = gp.settings.length_scale_y
+        if ly is None:
+            return None
+        lo = 1.5 * gp.settings.resolved_inducing_spacing
+        init = gp.initial_settings
+        lc = (init.length_scale if init.length_scale_y is None else init.length_scale_y) \
+            if self.check_length_scale is None else self.check_length_scale
+        return max(min(ly, lc), lo)
+
+    def _shorter(self, gp) -> tuple[float, float | None] | None:
+        """(l_c, l_c,y) when either is below gp's own length scale along its axis, else None."""
         s = gp.settings
-        if (signal_variance, length_scale) == (s.signal_variance, s.length_scale):
+        lc, lcy = self.check_scale(gp), self.check_scale_y(gp)
+        if lc < s.length_scale * (1 - 1e-12) or (lcy is not None and lcy < s.length_scale_y * (1 - 1e-12)):
+            return min(lc, s.length_scale), lcy
+        return None
+
+    def _variance(self, gp, role: str, signal_variance: float, length_scale: float,
+                  length_scale_y: float | None = None) -> np.ndarray:
+        """V on the bound points with gp's data at (signal_variance, length_scale[, length_scale_y]): gp's own
+        posterior, or that of a follower GP kept (one per role) and updated with gp (Woodbury updates).
+        ``length_scale_y`` None keeps gp's own cross length scale."""
+        s = gp.settings
+        ly = s.length_scale_y if length_scale_y is None else length_scale_y
+        if (signal_variance, length_scale, ly) == (s.signal_variance, s.length_scale, s.length_scale_y):
             return gp.predict(self.points)[1]
         if self._gp is not gp:
             self._gp, self._twins = gp, {}
@@ -179,19 +204,18 @@ class RobustThreshold(RelativeThreshold):
         if twin is None:
             twin = self._twins[role] = gp.follower(signal_variance=signal_variance, length_scale=length_scale)
         t = twin.settings
-        if (t.signal_variance, t.length_scale) != (signal_variance, length_scale):
-            twin.set_hyperparameters(signal_variance, length_scale)
+        if (t.signal_variance, t.length_scale, t.length_scale_y) != (signal_variance, length_scale, ly):
+            twin.set_hyperparameters(signal_variance, length_scale, ly)
         return twin.predict(self.points)[1]
 
     def check_variance(self, gp) -> np.ndarray | None:
         """V at (s_f^2, l_c) on the bound points, or None when l_c is gp's own length scale."""
         if self.points is None:
             raise ValueError("RobustThreshold needs the points of sup V: call bind(points) first")
-        s = gp.settings
-        lc = self.check_scale(gp)
-        if lc >= s.length_scale * (1 - 1e-12):
+        short = self._shorter(gp)
+        if short is None:
             return None
-        return self._variance(gp, "check", s.signal_variance, lc)
+        return self._variance(gp, "check", gp.settings.signal_variance, *short)
 
     def floor_variance(self, gp) -> float | None:
         """The signal variance the conditions are evaluated at when gp's is below the floor (module
@@ -222,10 +246,9 @@ class RobustThreshold(RelativeThreshold):
         floor = self.floor_variance(gp)
         if floor is not None:            # a signal under the noise: the conditions at s_f'^2 = floor
             s = gp.settings
-            lc = min(self.check_scale(gp), s.length_scale)
+            short = self._shorter(gp)
             sup_f = float(self._variance(gp, "floor", floor, s.length_scale).max())
-            sup_fc = float(self._variance(gp, "floor-check", floor, lc).max()) if lc < s.length_scale * (1 - 1e-12) \
-                else sup_f
+            sup_fc = sup_f if short is None else float(self._variance(gp, "floor-check", floor, *short).max())
             sup_v = float(gp.predict(self.points)[1].max())
             self.last_check_variance = sup_fc
             worst = max(sup_f, sup_fc)

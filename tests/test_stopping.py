@@ -100,6 +100,29 @@ def test_a_long_learned_length_scale_cannot_make_an_unvisited_corner_look_mapped
     assert sup_v <= rob.threshold(gp) and sup_v <= rel.threshold(gp)
 
 
+def test_a_long_learned_cross_length_scale_cannot_make_the_gaps_between_rows_look_mapped():
+    """The same bound on each axis of an anisotropic kernel: rows of data 3 m apart, a learned l_y = 4.4 m across
+    them (l = 1 m along them, the configured 1 m on both).  The relative rule fires; the robust one checks the
+    variance at (1 m, 1 m) and does not."""
+    pts = _grid()
+    gp = GaussianProcess(GPSettings(length_scale=1.0, length_scale_y=1.0), domain=(0, 20, 0, 20))
+    X = _lattice(0.25, 19.75, 0.5, 18.5, 0.25)
+    X = X[np.isclose(np.mod(X[:, 1] - 0.5, 3.0), 0.0)]
+    gp.add(X, np.zeros(len(X)))
+    gp.set_hyperparameters(0.25, 1.0, 4.4)
+    sup_v = gp.predict(pts)[1].max()
+    rel = make_stop_rule(SimSettings(stop_rule="relative")).bind(pts)
+    rob = make_stop_rule(_robust_config().sim).bind(pts)
+    assert rob.check_scale(gp) == 1.0 and rob.check_scale_y(gp) == 1.0
+    assert sup_v <= rel.threshold(gp)                       # the relative rule says "mapped"
+    assert sup_v > rob.threshold(gp)                        # the robust one does not
+    ref = GaussianProcess(GPSettings(length_scale=1.0, length_scale_y=1.0), domain=(0, 20, 0, 20))
+    ref.add(X, np.zeros(len(X)))
+    assert rob.last_check_variance == pytest.approx(ref.predict(pts)[1].max(), rel=1e-9)
+    iso = GaussianProcess(GPSettings(length_scale=1.0), domain=(0, 20, 0, 20))
+    assert rob.check_scale_y(iso) is None
+
+
 def test_a_signal_under_the_noise_is_judged_at_the_floor():
     """A learned s_f^2 = 0.002 under s_n^2 = 0.04 (the sinc field's ripples, 50 robots): 15 measurements on
     every metre leave V / s_f^2 near 0.6 -- 0.4 s_f^2 is out of reach -- but satisfy the rule evaluated at the
