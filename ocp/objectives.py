@@ -9,8 +9,8 @@ update; derivation and assumptions in docs/design/information-objective.md):
     Φ_l       = M_q(V(., t_l)) / M_q(V0),     M_q(V) = (mean_cells V^q)^(1/q)
 
 with K(d) = exp(-|d|^2 / ℓ^2) (the squared correlation of the squared-exponential kernel of length
-scale ℓ, peak 1), applied as separable dense convolution matrices Kx (nx x nx), Ky (ny x ny) on the
-cell grid, the time integral by the trapezoid over the interval boundaries, N the working robots,
+scale ℓ, peak 1; exp(-d_x^2 / ℓ_x^2 - d_y^2 / ℓ_y^2) for an axis-aligned anisotropic kernel), applied as
+separable dense convolution matrices Kx (nx x nx), Ky (ny x ny) on the cell grid, the time integral by the trapezoid over the interval boundaries, N the working robots,
 Δt_m the measurement interval, σ_n^2 the GP noise variance and V0 the current GP variance on the
 grid.  q = ``information_power``: 1 is the mean variance, large q a smooth sup (the stop rule is on
 sup V).  The OCP then minimises
@@ -51,7 +51,8 @@ class InformationInputs:
     robots                N, the robots that measure
     measurement_interval  Δt_m [s] between two measurements of one robot (``sim.dt``)
     noise_variance        σ_n^2 of the GP
-    length_scale          ℓ of the GP (squared-exponential kernel)
+    length_scale          ℓ of the GP (squared-exponential kernel), along x
+    length_scale_y        ℓ_y of an axis-aligned anisotropic kernel, along y (None: ℓ)
     """
 
     variance: np.ndarray
@@ -59,18 +60,26 @@ class InformationInputs:
     measurement_interval: float
     noise_variance: float
     length_scale: float
+    length_scale_y: float | None = None
 
     def __post_init__(self):
         v = np.asarray(self.variance, dtype=float)
         if v.ndim != 2 or not np.all(np.isfinite(v)) or np.any(v < 0) or float(v.max(initial=0.0)) <= 0:
             raise ValueError("information.variance must be a finite, >= 0, not all zero 2-D array")
         object.__setattr__(self, "variance", v)
-        for name in ("robots", "measurement_interval", "noise_variance", "length_scale"):
+        for name in ("robots", "measurement_interval", "noise_variance", "length_scale", "length_scale_y"):
             x = getattr(self, name)
+            if x is None and name == "length_scale_y":
+                continue
             if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)) \
                     or not math.isfinite(float(x)) or float(x) <= 0:
                 raise ValueError(f"information.{name} must be a finite number > 0, got {x!r}")
             object.__setattr__(self, name, float(x))
+
+    @property
+    def cross_length_scale(self) -> float:
+        """ℓ_y: ``length_scale_y``, or ``length_scale`` for an isotropic kernel."""
+        return self.length_scale if self.length_scale_y is None else float(self.length_scale_y)
 
     @property
     def rate(self) -> float:
@@ -82,7 +91,7 @@ class InformationInputs:
         if self.variance.shape != grid.shape:
             raise ValueError(f"information.variance has shape {self.variance.shape}, the planner grid is {grid.shape}")
         kx = spread_matrix(grid.nx, grid.dx, self.length_scale)
-        ky = spread_matrix(grid.ny, grid.dy, self.length_scale)
+        ky = spread_matrix(grid.ny, grid.dy, self.cross_length_scale)
         # the cell area turns densities into robot fractions; c into the matrices' scalar
         v0 = np.maximum(self.variance, 1e-12 * float(self.variance.max()))
         return np.concatenate([v0.ravel(order="F"), kx.ravel(order="F"), ky.ravel(order="F"),
@@ -91,6 +100,7 @@ class InformationInputs:
     def meta(self) -> dict:
         return {"robots": self.robots, "measurement_interval": self.measurement_interval,
                 "noise_variance": self.noise_variance, "length_scale": self.length_scale,
+                **({} if self.length_scale_y is None else {"length_scale_y": float(self.length_scale_y)}),
                 "sup_variance": float(self.variance.max()), "mean_variance": float(self.variance.mean())}
 
 
@@ -139,7 +149,7 @@ def predicted_variance(densities, inputs: InformationInputs, grid, times) -> np.
     (n, nx, ny) on ``grid``, at ``times`` (n,), from times[0]); returns (n, nx, ny)."""
     P = np.asarray(densities, dtype=float)
     kx = spread_matrix(grid.nx, grid.dx, inputs.length_scale)
-    ky = spread_matrix(grid.ny, grid.dy, inputs.length_scale)
+    ky = spread_matrix(grid.ny, grid.dy, inputs.cross_length_scale)
     dt = np.diff(np.asarray(times, dtype=float))
     cum = np.zeros_like(P)
     for l in range(1, P.shape[0]):

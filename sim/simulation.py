@@ -504,19 +504,28 @@ class Simulation:
 
     def information_inputs(self) -> dict:
         """``{"information": InformationInputs}`` for ``planner.objective = "information"`` (the current GP
-        variance on the grid, the working robots, Δt, the GP's σ_n^2 and ℓ; :mod:`ocp.objectives`), else {}."""
+        variance on the grid, the working robots, Δt, the GP's σ_n^2 and ℓ (ℓ_x, ℓ_y of an anisotropic kernel);
+        :mod:`ocp.objectives`), else {}."""
         if getattr(self.config.planner, "objective", "symmetric-kl") != "information":
             return {}
         from ..ocp.objectives import InformationInputs
         gs = self.gp.settings
-        var, ell = self.var, gs.length_scale
+        var, ell, ell_y = self.var, gs.length_scale, gs.length_scale_y
         if getattr(self.config.planner, "information_scale", "gp") == "stop-rule":
             # plan for the variance the stop rule judges by (sim.stopping.RobustThreshold: l_c <= l)
             judged = self.stop_rule_variance()
             if judged is not None:
                 var, ell = judged, self.stop_rule.check_scale(self.gp)
+                # a rule of one's own may bound l only
+                ell_y = getattr(self.stop_rule, "check_scale_y", lambda gp: gs.length_scale_y)(self.gp)
+        turn = gs.frame_angle % 180.0
+        if ell_y is not None and turn == 90.0:
+            ell, ell_y = ell_y, ell                      # l along the y axis
+        elif ell_y is not None and turn != 0.0:
+            # a rotated kernel is not separable on the planner's axes: the isotropic spread of the same area
+            ell, ell_y = math.sqrt(ell * ell_y), None
         return {"information": InformationInputs(var, int(self.alive.sum()), self.settings.dt,
-                                                 gs.noise_variance, ell)}
+                                                 gs.noise_variance, ell, ell_y)}
 
     def replan(self, p_f, snap: Snapshot | None) -> bool:
         """The reference for [t, t + T] (eqs. "optimization problem", "reference model"); False if the

@@ -106,6 +106,42 @@ def test_settings_reject_bad_objective():
         InformationInputs(np.ones((3, 3)), 0, 1.0, 0.04, 1.0)
 
 
+def test_anisotropic_spread_is_the_two_dimensional_kernel():
+    """With ℓ_y the mean-field update convolves with exp(-dx^2/ℓ_x^2 - dy^2/ℓ_y^2), checked against the full
+    (nx ny)^2 kernel matrix; ℓ_y = ℓ is the isotropic update."""
+    from swarmfield.ocp.grid import Grid
+    g = Grid((0.0, 8.0, 0.0, 6.0), 10, 8)
+    c = g.centers()
+    iso = _inputs(g)
+    aniso = InformationInputs(iso.variance, iso.robots, iso.measurement_interval, iso.noise_variance, 1.2, 0.5)
+    P = np.stack([_bump(g, 2.0, 2.0, 1.0), _bump(g, 5.0, 3.0, 1.5)])
+    times = np.array([0.0, 1.0])
+    K = np.exp(-(c[:, None, 0] - c[None, :, 0]) ** 2 / 1.2 ** 2 - (c[:, None, 1] - c[None, :, 1]) ** 2 / 0.5 ** 2)
+    G = aniso.rate * g.cell_area * (K @ (0.5 * (P[0] + P[1])).ravel()).reshape(g.shape)
+    V = predicted_variance(P, aniso, g, times)
+    np.testing.assert_allclose(V[1], iso.variance / (1 + iso.variance * G), rtol=1e-12)
+    same = InformationInputs(iso.variance, iso.robots, iso.measurement_interval, iso.noise_variance, 1.2, 1.2)
+    np.testing.assert_array_equal(same.parameters(g), iso.parameters(g))
+    assert not np.array_equal(aniso.parameters(g), iso.parameters(g))
+    assert aniso.meta()["length_scale_y"] == 0.5 and "length_scale_y" not in iso.meta()
+
+
+@pytest.mark.parametrize("angle, want", [(0.0, (3.0, 1.5)), (90.0, (1.5, 3.0)), (30.0, (4.5 ** 0.5, None))])
+def test_closed_loop_gives_the_planner_both_length_scales(angle, want):
+    """An axis-aligned anisotropic GP gives the planner (ℓ_x, ℓ_y); turned by 90° the two swap; at any other angle
+    the isotropic spread of the same area, sqrt(ℓ_x ℓ_y)."""
+    from swarmfield.sim.config import config_from_dict
+    from swarmfield.sim.simulation import Simulation
+    doc = {"planner": {"objective": "information", "nx": 10, "ny": 10, "n_intervals": 2, "n_modes_x": 2,
+                       "n_modes_y": 2}, "sim": {"robots": 7},
+           "gp": {"length_scale": 3.0, "length_scale_y": 1.5, "kernel_angle": angle}}
+    sim = Simulation(config_from_dict(doc))
+    sim.var = np.full(sim.grid.shape, 0.05)
+    inp = sim.information_inputs()["information"]
+    assert inp.length_scale == pytest.approx(want[0])
+    assert inp.length_scale_y == (None if want[1] is None else pytest.approx(want[1]))
+
+
 def test_closed_loop_supplies_gp_or_stop_rule_scale():
     """Simulation.information_inputs: the GP's V and l, or with information_scale = "stop-rule" the
     variance and length scale the stop rule judges by (here a stand-in rule with l_c = 0.7)."""
