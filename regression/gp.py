@@ -318,6 +318,9 @@ def _fitting_spacing_hint(domain, settings: GPSettings) -> str:
     h = float(f"{hi:.3g}")
     while nodes(h) > budget:    # rounding to 3 digits may have gone below the fitting spacing
         h = float(f"{h * 1.001:.3g}")
+    if settings.inducing_spacing is None and settings.length_scale_y is not None:
+        return (f"length scales of at least {2 * h:g} fit (the shorter of gp.length_scale and gp.length_scale_y sets "
+                f"the grid spacing, l / 2 = {h:g}), or set gp.inducing_spacing = {h:g}")
     if settings.inducing_spacing is None:
         return (f"a length scale of at least {2 * h:g} fits (gp.length_scale, whose grid spacing is l / 2 = {h:g}; "
                 f"[gp] length_scale = {2 * h:g} in a configuration file)")

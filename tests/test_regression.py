@@ -515,6 +515,13 @@ def test_grid_too_fine_names_the_length_scale_that_fits(domain):
     h = float(re.search(r"at least ([0-9.e+]+) fits", str(err.value)).group(1))
     assert GaussianProcess(GPSettings(length_scale=1.5 * h, inducing_spacing=h, max_inducing_points=budget),
                            domain=domain)._n_nodes <= budget
+    # anisotropic: the shorter length scale sets the grid, and the advice says so
+    with pytest.raises(ValueError, match="the shorter of gp.length_scale and gp.length_scale_y") as err:
+        GaussianProcess(GPSettings(length_scale=10 * ell, length_scale_y=0.5 * ell, max_inducing_points=budget),
+                        domain=domain)
+    ly = float(re.search(r"length scales of at least ([0-9.e+]+) fit", str(err.value)).group(1))
+    assert ly == ell and GaussianProcess(GPSettings(length_scale=10 * ell, length_scale_y=ly,
+                                                    max_inducing_points=budget), domain=domain)._n_nodes <= budget
 
 
 # ---------------------------------------------------------------------- hyperparameters
