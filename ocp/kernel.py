@@ -67,67 +67,77 @@ static void split_adj(long n, const double *v, double eps, const double *m, cons
     }
 }
 
-/* one explicit donor-cell sub-step q = p - rx (F_i - F_{i-1}) - ry (G_j - G_{j-1}); gprev: nx scratch */
-static void step(int nx, int ny, double rx, double ry, const double *xp, const double *xm,
-                 const double *yp, const double *ym, const double *p, double *q, double *gprev) {
+/* one explicit donor-cell sub-step q = p - rx (F_i - F_{i-1}) - ry (G_j - G_{j-1}).  Scratch: gprev (nx), the
+   y-face fluxes of the row below; fx (nx + 1), the row's x-face fluxes with fx[0] = fx[nx] = 0 (walls).
+   The fluxes of a row first, then the cells: no loop-carried value, so both loops vectorise. */
+static void step(int nx, int ny, double rx, double ry, const double *restrict xp, const double *restrict xm,
+                 const double *restrict yp, const double *restrict ym, const double *restrict p, double *restrict q,
+                 double *restrict gprev, double *restrict fx) {
     int mx = nx - 1;
     for (int i = 0; i < nx; i++) gprev[i] = 0.0;
+    fx[0] = 0.0;
+    fx[nx] = 0.0;
     for (int j = 0; j < ny; j++) {
         const double *pc = p + (long)nx * j;
         double *qc = q + (long)nx * j;
         const double *a = xp + (long)mx * j, *b = xm + (long)mx * j;
-        double fl = 0.0;
-        for (int i = 0; i < mx; i++) {
-            double fr = a[i] * pc[i] - b[i] * pc[i + 1];
-            qc[i] = pc[i] - rx * (fr - fl);
-            fl = fr;
-        }
-        qc[mx] = pc[mx] - rx * (0.0 - fl);
+        for (int i = 0; i < mx; i++) fx[i + 1] = a[i] * pc[i] - b[i] * pc[i + 1];
         if (j < ny - 1) {
             const double *pn = pc + nx, *c = yp + (long)nx * j, *d = ym + (long)nx * j;
             for (int i = 0; i < nx; i++) {
                 double gu = c[i] * pc[i] - d[i] * pn[i];
-                qc[i] = qc[i] - ry * (gu - gprev[i]);
+                qc[i] = (pc[i] - rx * (fx[i + 1] - fx[i])) - ry * (gu - gprev[i]);
                 gprev[i] = gu;
             }
         } else {
-            for (int i = 0; i < nx; i++) qc[i] = qc[i] - ry * (0.0 - gprev[i]);
+            for (int i = 0; i < nx; i++) qc[i] = (pc[i] - rx * (fx[i + 1] - fx[i])) - ry * (0.0 - gprev[i]);
         }
     }
 }
 
-/* adjoint of one sub-step: lp = (dq/dp)^T lq, accumulating the adjoints of v+ and v-
-   (gather form: each lp[i] is written once; gprev carries the y-face term of the column below) */
-static void step_adj(int nx, int ny, double rx, double ry, const double *xp, const double *xm,
-                     const double *yp, const double *ym, const double *p, const double *lq, double *lp,
-                     double *axp, double *axm, double *ayp, double *aym, double *gprev) {
+/* adjoint of one sub-step: lp = (dq/dp)^T lq, accumulating the adjoints of v+ and v- (gather form: each lp[i]
+   is written once).  Scratch: gprev (nx), the y-face term g v- of the row below; gx (nx) the row's x-face
+   seeds g = rx (lq[i+1] - lq[i]); gm (nx), g v- of the face left of cell i (gm[0] = 0).  No loop-carried value:
+   every loop vectorises, with the same arithmetic as the scalar sweep (the same results bit for bit). */
+static void step_adj(int nx, int ny, double rx, double ry, const double *restrict xp, const double *restrict xm,
+                     const double *restrict yp, const double *restrict ym, const double *restrict p,
+                     const double *restrict lq, double *restrict lp, double *restrict axp, double *restrict axm,
+                     double *restrict ayp, double *restrict aym, double *restrict gprev, double *restrict gx,
+                     double *restrict gm) {
     int mx = nx - 1;
     for (int i = 0; i < nx; i++) gprev[i] = 0.0;
+    gm[0] = 0.0;
     for (int j = 0; j < ny; j++) {
         const double *pc = p + (long)nx * j, *lc = lq + (long)nx * j;
         double *oc = lp + (long)nx * j;
         long o = (long)mx * j;
-        double gml = 0.0;                       /* g * v- of the face left of cell i */
+        const double *a = xp + o, *b = xm + o;
+        double *ap = axp + o, *am = axm + o;
         for (int i = 0; i < mx; i++) {
             double g = rx * (lc[i + 1] - lc[i]);
-            oc[i] = lc[i] + g * xp[o + i] - gml;
-            gml = g * xm[o + i];
-            axp[o + i] += g * pc[i];
-            axm[o + i] -= g * pc[i + 1];
+            gx[i] = g;
+            gm[i + 1] = g * b[i];
+            ap[i] += g * pc[i];
+            am[i] -= g * pc[i + 1];
         }
-        oc[mx] = lc[mx] - gml;
         if (j < ny - 1) {
             const double *ln = lc + nx, *pn = pc + nx, *c = yp + (long)nx * j, *d = ym + (long)nx * j;
             double *ac = ayp + (long)nx * j, *bc = aym + (long)nx * j;
-            for (int i = 0; i < nx; i++) {
+            for (int i = 0; i < mx; i++) {
                 double g = ry * (ln[i] - lc[i]);
-                oc[i] += g * c[i] - gprev[i];
+                oc[i] = (lc[i] + gx[i] * a[i] - gm[i]) + (g * c[i] - gprev[i]);
                 gprev[i] = g * d[i];
                 ac[i] += g * pc[i];
                 bc[i] -= g * pn[i];
             }
+            double g = ry * (ln[mx] - lc[mx]);
+            oc[mx] = (lc[mx] - gm[mx]) + (g * c[mx] - gprev[mx]);
+            gprev[mx] = g * d[mx];
+            ac[mx] += g * pc[mx];
+            bc[mx] -= g * pn[mx];
         } else {
-            for (int i = 0; i < nx; i++) oc[i] -= gprev[i];
+            for (int i = 0; i < mx; i++) oc[i] = (lc[i] + gx[i] * a[i] - gm[i]) - gprev[i];
+            oc[mx] = (lc[mx] - gm[mx]) - gprev[mx];
         }
     }
 }
@@ -429,16 +439,16 @@ int sf_adjoint_muscl(int nx, int ny, int N, int nsub, double rx, double ry, doub
 int sf_forward(int nx, int ny, int N, int nsub, double rx, double ry, double eps, const double *mx,
                const double *my, const double *vx, const double *vy, const double *p0, double *traj) {
     long n = (long)nx * ny, nfx = (long)(nx - 1) * ny, nfy = (long)nx * (ny - 1);
-    double *buf = (double *)malloc(sizeof(double) * (2 * nfx + 2 * nfy + nx));
+    double *buf = (double *)malloc(sizeof(double) * (2 * nfx + 2 * nfy + 2 * nx + 1));
     if (!buf) return 1;
-    double *xp = buf, *xm = xp + nfx, *yp = xm + nfx, *ym = yp + nfy, *scratch = ym + nfy;
+    double *xp = buf, *xm = xp + nfx, *yp = xm + nfx, *ym = yp + nfy, *scratch = ym + nfy, *fx = scratch + nx;
     memcpy(traj, p0, sizeof(double) * n);
     for (int l = 0; l < N; l++) {
         split(nfx, vx + nfx * l, eps * eps, mx, xp, xm);
         split(nfy, vy + nfy * l, eps * eps, my, yp, ym);
         for (int s = 0; s < nsub; s++) {
             long k = (long)l * nsub + s;
-            step(nx, ny, rx, ry, xp, xm, yp, ym, traj + n * k, traj + n * (k + 1), scratch);
+            step(nx, ny, rx, ry, xp, xm, yp, ym, traj + n * k, traj + n * (k + 1), scratch, fx);
         }
     }
     free(buf);
@@ -451,11 +461,11 @@ int sf_adjoint(int nx, int ny, int N, int nsub, double rx, double ry, double eps
                const double *my, const double *vx, const double *vy, const double *traj, const double *lsnap,
                double *gvx, double *gvy, double *gp0) {
     long n = (long)nx * ny, nfx = (long)(nx - 1) * ny, nfy = (long)nx * (ny - 1);
-    double *buf = (double *)malloc(sizeof(double) * (4 * nfx + 4 * nfy + 2 * n + nx));
+    double *buf = (double *)malloc(sizeof(double) * (4 * nfx + 4 * nfy + 2 * n + 3 * nx));
     if (!buf) return 1;
     double *xp = buf, *xm = xp + nfx, *yp = xm + nfx, *ym = yp + nfy;
     double *axp = ym + nfy, *axm = axp + nfx, *ayp = axm + nfx, *aym = ayp + nfy;
-    double *lam = aym + nfy, *tmp = lam + n, *scratch = tmp + n;
+    double *lam = aym + nfy, *tmp = lam + n, *scratch = tmp + n, *gx = scratch + nx, *gm = gx + nx;
     memcpy(lam, lsnap + n * N, sizeof(double) * n);
     for (int l = N - 1; l >= 0; l--) {
         const double *v = vx + nfx * l, *w = vy + nfy * l;
@@ -464,7 +474,7 @@ int sf_adjoint(int nx, int ny, int N, int nsub, double rx, double ry, double eps
         memset(axp, 0, sizeof(double) * (2 * nfx + 2 * nfy));
         for (int s = nsub - 1; s >= 0; s--) {
             long k = (long)l * nsub + s;
-            step_adj(nx, ny, rx, ry, xp, xm, yp, ym, traj + n * k, lam, tmp, axp, axm, ayp, aym, scratch);
+            step_adj(nx, ny, rx, ry, xp, xm, yp, ym, traj + n * k, lam, tmp, axp, axm, ayp, aym, scratch, gx, gm);
             double *t = lam; lam = tmp; tmp = t;
         }
         split_adj(nfx, v, eps, mx, axp, axm, gvx + nfx * l);
