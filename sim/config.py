@@ -344,7 +344,10 @@ class SimSettings:
         x0, x1, y0, y1 = self.domain
         b = self.start_box
         if b[0] < x0 or b[1] > x1 or b[2] < y0 or b[3] > y1:
-            raise ValueError(f"sim.start_box {list(b)} is not inside sim.domain {list(self.domain)}")
+            # the paper releases the swarm in the lower-left 35 % of its [0, 20]^2 square: the same corner here
+            hint = [x0, round(x0 + 0.35 * (x1 - x0), 3), y0, round(y0 + 0.35 * (y1 - y0), 3)]
+            raise ValueError(f"sim.start_box {list(b)} is not inside sim.domain {list(self.domain)}; set it "
+                             f"(--start-box or [sim] start_box), e.g. {hint}, the paper's lower-left corner scaled")
         if self.gamma > 0 and self.eta >= self.gamma:
             raise ValueError(f"sim.eta ({self.eta:g}) must be below sim.gamma ({self.gamma:g}): otherwise the target "
                              "p_f = max(V - eta, 0) is empty while sup V > gamma keeps the loop running")

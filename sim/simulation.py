@@ -527,6 +527,15 @@ class Simulation:
         return {"information": InformationInputs(var, int(self.alive.sum()), self.settings.dt,
                                                  gs.noise_variance, ell, ell_y)}
 
+    def _failure_hint(self, info: dict) -> str:
+        """What a user can set after a plan stopped at its iteration or time limit (empty otherwise)."""
+        status = str(info.get("status", ""))
+        pl = self.config.planner
+        if not status.startswith("Maximum_") or pl.accept_feasible_iterate:
+            return ""
+        return ("; planner.accept_feasible_iterate = true runs on with the last feasible iterate (the tuned "
+                f"preset does), or raise planner.ipopt.max_iter (now {pl.ipopt.max_iter})")
+
     def replan(self, p_f, snap: Snapshot | None) -> bool:
         """The reference for [t, t + T] (eqs. "optimization problem", "reference model"); False if the
         planner failed (the failure is recorded in ``result.replans`` and ``result.error``).  ``snap``:
@@ -543,7 +552,7 @@ class Simulation:
                                 "iterations": info.get("iterations", -1),
                                 "solve_time_s": time.perf_counter() - t_plan,
                                 "solve_cpu_s": time.process_time() - c_plan})
-            res.error = f"planner failed at t = {t:g} s (period {k}): {exc}"
+            res.error = f"planner failed at t = {t:g} s (period {k}): {exc}" + self._failure_hint(info)
             return False
         res.timings["planner"] += time.perf_counter() - t_plan
         cpu = time.process_time() - c_plan          # the whole call: a coarse start, IPOPT, the packaging

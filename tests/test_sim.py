@@ -297,6 +297,7 @@ def test_toml_round_trip_and_derived_settings(tmp_path):
     ({"sim": {"dt": "fast"}}, "sim.dt must be a number"),
     ({"sim": {"period": 7.5}}, "whole multiple"),
     ({"sim": {"start_box": [0, 30, 0, 7]}}, "not inside"),
+    ({"sim": {"domain": [0, 5, 0, 3]}}, r"e.g. \[0.0, 1.75, 0.0, 1.05\], the paper's lower-left corner scaled"),
     ({"sim": {"domain": [0, 20, 5, 1]}}, "y1 > y0"),
     ({"sim": {"speed": 3}}, "sim.speed"),
     ({"simulation": {}}, r"\[simulation\]"),

@@ -190,6 +190,7 @@ def test_planner_failure_exits_1_with_valid_outputs(tmp_path, cfg, capsys):
     assert code == 1
     last = err.strip().splitlines()[-1]
     assert last.startswith("simulate-swarm: error: planner failed at t = 0 s") and "Maximum_Iterations" in last
+    assert "planner.accept_feasible_iterate = true" in last and "planner.ipopt.max_iter (now 1)" in last
     summary = json.loads((out / "summary.json").read_text())
     assert summary["stop_reason"] == "planner_failed" and summary["planner"]["failures"] == 1
     rows = (out / "metrics.csv").read_text().splitlines()
