@@ -6,6 +6,10 @@
 * :mod:`control.feedback` -- the velocity of eq. "density feedback law using estimation",
   with a density floor and speed saturation (see that module for what they do to the
   stability results).
+* :mod:`control.stirring`, :mod:`control.poisson_flux` -- a divergence-free stirring flux and a global
+  transport flux added to the law's numerator (beyond the paper).
+* :mod:`control.spreading` -- best-candidate landing points: each robot's next measurement moved within a
+  small radius into the largest hole of the measurements so far (blue noise inside the planned density).
 
 * :mod:`control.flooded` -- distributed density estimation by flooded positions: every robot's own p̂
   and ∇p̂ as the centre's KDE of the positions that reached it within a hop bound per sub-step (the

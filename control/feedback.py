@@ -64,6 +64,9 @@ class FeedbackSettings:
             numerator (:mod:`control.poisson_flux`; beyond the paper): with it the error decays as
             dPhi/dt = div(alpha grad Phi) - beta Phi, through doors and around obstacles; 0 (default)
             is the paper's law.
+    spread_radius : radius r [m] within which each robot moves its next measurement into the largest
+            hole of the measurements taken so far (:mod:`control.spreading`; beyond the paper, applied by
+            the feedback controller, not by :func:`feedback_velocity`); 0 (default) is the paper's law.
     """
 
     alpha: float = 1.0
@@ -73,18 +76,19 @@ class FeedbackSettings:
     stir_speed: float = 0.0
     stir_cells: int = 2
     transport_rate: float = 0.0
+    spread_radius: float = 0.0
 
     def __post_init__(self):
         k = self.stir_cells
         if isinstance(k, bool) or not isinstance(k, (int, np.integer, float)) or k != int(k) or not 1 <= k <= 64:
             raise ValueError(f"feedback.stir_cells must be an integer in [1, 64], got {k!r}")
         object.__setattr__(self, "stir_cells", int(k))
-        for name in ("alpha", "sigma", "p_floor", "v_max", "stir_speed", "transport_rate"):
+        for name in ("alpha", "sigma", "p_floor", "v_max", "stir_speed", "transport_rate", "spread_radius"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)):
                 raise ValueError(f"feedback.{name} must be a number, got {v!r}")
             object.__setattr__(self, name, float(v))
-        for name in ("alpha", "sigma", "p_floor", "stir_speed", "transport_rate"):
+        for name in ("alpha", "sigma", "p_floor", "stir_speed", "transport_rate", "spread_radius"):
             if getattr(self, name) > MAX_MAGNITUDE:
                 raise ValueError(f"feedback.{name} must be <= {MAX_MAGNITUDE:g}, got {getattr(self, name)}")
         if not (math.isfinite(self.alpha) and self.alpha > 0):
@@ -97,6 +101,8 @@ class FeedbackSettings:
             raise ValueError(f"feedback.stir_speed must be finite and >= 0, got {self.stir_speed}")
         if not (math.isfinite(self.transport_rate) and self.transport_rate >= 0):
             raise ValueError(f"feedback.transport_rate must be finite and >= 0, got {self.transport_rate}")
+        if not (math.isfinite(self.spread_radius) and self.spread_radius >= 0):
+            raise ValueError(f"feedback.spread_radius must be finite and >= 0, got {self.spread_radius}")
         if not (self.v_max > 0) or math.isnan(self.v_max):
             raise ValueError(f"feedback.v_max must be > 0 (inf allowed), got {self.v_max}")
 

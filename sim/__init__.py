@@ -10,7 +10,8 @@
   travel-time limit; :mod:`sim.recorders` -- what a run keeps
 * :mod:`sim.controllers` -- the controller interface: the paper's feedback, open loop and baselines
   (diffusion, coverage, greedy, lawnmower, ergodic = :mod:`sim.ergodic`); a user's own strategy is one
-  ``Controller`` subclass
+  ``Controller`` subclass; :mod:`sim.spreading` -- the feedback's blue-noise spreading of the measurements
+  (``feedback.spread_radius``)
 * :mod:`sim.tracking` -- the feedback law alone towards a given plan (Theorems "Exponential
   stability" and "ISS" at the particle level)
 * :mod:`sim.comm`, :mod:`sim.network`, :mod:`sim.knowledge` -- a decentralized swarm (``sim.comm_radius``):

@@ -45,6 +45,7 @@ import numpy as np
 from ..control import feedback_velocity, saturate, tracking_velocity
 from ..control.stirring import stirring_pattern
 from .ergodic import SpectralCoverage
+from .spreading import MeasurementSpreading
 
 __all__ = ["Context", "Controller", "FeedbackController", "OpenLoopController", "DiffusionController",
            "CoverageController", "GreedyController", "LawnmowerController", "ErgodicController", "CONTROLLERS",
@@ -159,6 +160,16 @@ class FeedbackController(Controller):
         self.plan = self.estimate = None
         self.periods = 0          # periods started: selects the stirring pattern (control.stirring)
         self.stir = None
+        self.spreading = None     # feedback.spread_radius > 0: sim.spreading.MeasurementSpreading
+
+    def start(self, ctx):
+        r = self.config.feedback.spread_radius
+        if r > 0:
+            est = ctx.estimate
+            kde = getattr(est, "kde", None)
+            self.spreading = MeasurementSpreading(r, self.config.sim.dt, ctx.h,
+                                                  ctx.domain if ctx.region is None else ctx.region,
+                                                  None if kde is None else kde.fit)
 
     def start_period(self, ctx):
         self.plan, self.estimate = ctx.plan, ctx.estimate
@@ -170,6 +181,8 @@ class FeedbackController(Controller):
 
     def velocity(self, t, X, alive):
         fb = self.config.feedback
+        if self.spreading is not None:
+            return self._spread_velocity(t, X, alive)
         if alive.all():
             return tracking_velocity(X, self.plan, t, self.estimate(X), fb, self.stir)
         v = np.zeros_like(X)
@@ -177,6 +190,18 @@ class FeedbackController(Controller):
         if len(Xa):     # the KDE sees only the robots that report
             v[alive] = tracking_velocity(Xa, self.plan, t, self.estimate(Xa), fb, self.stir)
         return v
+
+    def _law(self, t, X, est):
+        return tracking_velocity(X, self.plan, t, est, self.config.feedback, self.stir)
+
+    def _spread_velocity(self, t, X, alive):
+        """The law plus the spreading velocity (``feedback.spread_radius``, :mod:`sim.spreading`)."""
+        v = np.zeros_like(X)
+        Xa = X[alive]
+        est = self.estimate(Xa if not alive.all() else X)
+        if len(Xa):
+            v[alive] = self._law(t, Xa, est)
+        return self.spreading.velocity(t, X, alive, v, self._law, est, self.v_max)
 
 
 class OpenLoopController(FeedbackController):

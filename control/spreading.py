@@ -1,0 +1,122 @@
+"""Blue-noise spreading of the measurements inside the planned density: best-candidate landing points.
+
+Beyond the paper.  The mean-field law (eq. "density feedback law using estimation") controls the
+robots' *density*; where each robot measures next is left to the flow and the Brownian motion, so the
+union of the measurements taken so far is spread like points drawn at random from the planned
+density.  For the map that is not the best one can do with the same number of measurements.  The GP's
+posterior standard deviation at x (the power function of the kernel) is bounded by a power of the
+*fill distance* there, the distance from x to the nearest measurement: for a Matérn-nu kernel
+sqrt(V(x)) <= C h(x)^nu (Wendland 2005, "Scattered Data Approximation", Thm. 11.13), so at a fixed
+count the measurements should leave no large holes.  Placing points one after the other at the point
+farthest from all earlier ones is the greedy k-centre rule, within a factor 2 of the smallest possible
+fill distance (Gonzalez 1985, "Clustering to minimize the maximum intercluster distance"); drawn from a
+handful of candidates it is Mitchell's best-candidate blue-noise sampler (Mitchell 1991, "Spectrally
+optimal sampling for distribution ray tracing").
+
+Here the rule is applied *locally*, so that the density law keeps the swarm on p_r.  Let x_i be
+robot i's position at a measurement, x̂_i where the feedback law alone would take it by the next
+measurement (the caller predicts it), M the positions measured so far and r the spreading radius.
+Robot i (in index order) lands at
+
+    y_i = argmax_{c in x̂_i + S_r}  min( d(c, M), min_{j < i} |c - y_j| ) - lambda |c - x̂_i|,
+
+S_r a hexagonal stencil of candidates in the disc of radius r (spacing r / 4, the centre included),
+lambda a small cost of the detour (:data:`DETOUR_COST`; among equally good holes the nearest wins).
+The robots earlier in the order count as measured where they will land, so two robots do not fill
+the same hole.  The controller adds the constant velocity w_i = (y_i - x̂_i) / Δt to the law over the
+step and saturates the sum at the law's v_max.
+
+What it does to the density: every landing point moves by at most r.  The landing density is the
+mean-field one with its mass moved within distances r, which changes it by O(r / h) at the scale h of
+the KDE (eq. "KDE"); with r below h the feedback sees it as an estimation error of that size
+(Theorem "ISS") and corrects it at the next sub-steps.  The stability results do not cover the term
+otherwise: it is a bounded disturbance |w| <= r / Δt of the velocity, like the saturation
+(:mod:`control.feedback`).  r = 0 is the law without it.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+__all__ = ["DETOUR_COST", "candidate_offsets", "hole_targets", "fill_distances"]
+
+#: lambda: how much nearer to a measurement (in metres) a landing point may be per metre of detour it saves
+DETOUR_COST = 0.2
+
+
+def candidate_offsets(radius: float, per_radius: int = 4) -> np.ndarray:
+    """Offsets (c, 2) of a hexagonal lattice of spacing ``radius / per_radius`` inside the disc of radius
+    ``radius``, sorted by length (the first is (0, 0)); ``radius = 0`` gives the centre alone."""
+    if not (math.isfinite(radius) and radius >= 0):
+        raise ValueError(f"spreading radius must be finite and >= 0, got {radius!r}")
+    if radius == 0:
+        return np.zeros((1, 2))
+    a = radius / int(per_radius)
+    k = int(per_radius) + 2
+    i, j = np.meshgrid(np.arange(-k, k + 1), np.arange(-k, k + 1), indexing="ij")
+    P = np.column_stack([(i + 0.5 * j).ravel() * a, (j * math.sqrt(3) / 2).ravel() * a])
+    d = np.hypot(P[:, 0], P[:, 1])
+    keep = d <= radius * (1 + 1e-12)
+    order = np.lexsort((P[keep, 1], P[keep, 0], np.round(d[keep], 12)))
+    return P[keep][order]
+
+
+def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost: float = DETOUR_COST,
+                 offsets=None) -> np.ndarray:
+    """Landing points y (m, 2) within ``radius`` of the ``predicted`` ones (m, 2) in the holes of ``measured``.
+
+    ``measured`` (k, 2): the positions measured so far (k may be 0).  ``inside``: optional callable
+    (q, 2) -> (q,) bool, the candidates a robot may land on (the free space); the predicted point itself
+    is always allowed.  ``offsets``: the candidate stencil (default :func:`candidate_offsets`).  Robots
+    are placed in index order, each counting the earlier ones' landing points as measured (module
+    docstring).  Returns float arrays; y = predicted where ``radius = 0``.
+    """
+    P = np.asarray(predicted, dtype=float)
+    if P.ndim != 2 or P.shape[1] != 2 or not np.all(np.isfinite(P)):
+        raise ValueError(f"predicted must be a finite (m, 2) array, got shape {P.shape}")
+    M = np.asarray(measured, dtype=float).reshape(-1, 2)
+    if not np.all(np.isfinite(M)):
+        raise ValueError("measured contains non-finite values (NaN or inf)")
+    if not (math.isfinite(detour_cost) and detour_cost >= 0):
+        raise ValueError(f"detour_cost must be finite and >= 0, got {detour_cost!r}")
+    S = candidate_offsets(radius) if offsets is None else np.asarray(offsets, dtype=float).reshape(-1, 2)
+    m, c = P.shape[0], S.shape[0]
+    if m == 0 or radius == 0 or c == 1:
+        return P.copy()
+    C = P[:, None, :] + S[None, :, :]                                # (m, c, 2) candidates
+    ok = np.ones((m, c), bool)
+    if inside is not None:
+        ok = np.asarray(inside(C.reshape(-1, 2)), dtype=bool).reshape(m, c)
+    ok[:, 0] = True                                                   # staying is always possible
+    if len(M):
+        dM, _ = cKDTree(M).query(C.reshape(-1, 2))
+        dM = dM.reshape(m, c)
+    else:
+        dM = np.full((m, c), np.inf)
+    penalty = detour_cost * np.hypot(S[:, 0], S[:, 1])[None, :]
+    # robot j's landing point can only matter to robot i's candidates if it is nearer than d(c, M) <= reach_i
+    reach = np.where(ok, dM, 0.0).max(axis=1)
+    near = cKDTree(P).query_ball_point(P, 2 * radius + np.minimum(reach, 1e300))
+    Y = P.copy()
+    for i in range(m):
+        d = dM[i]
+        earlier = [j for j in near[i] if j < i]
+        if earlier:
+            E = Y[earlier]
+            dE = np.sqrt(((C[i, :, None, :] - E[None, :, :]) ** 2).sum(-1)).min(axis=1)
+            d = np.minimum(d, dE)
+        score = np.where(ok[i], np.where(np.isfinite(d), d, 1e300) - penalty[0], -np.inf)
+        Y[i] = C[i, int(np.argmax(score))]
+    return Y
+
+
+def fill_distances(points, sites) -> np.ndarray:
+    """Distance from every site (q, 2) (e.g. the cell centres of a map) to the nearest of ``points`` (k, 2):
+    the local fill distance; its mean and largest value are the spread statistics of a set of measurements."""
+    Q = np.asarray(sites, dtype=float).reshape(-1, 2)
+    Pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    if len(Pts) == 0:
+        return np.full(len(Q), np.inf)
+    return cKDTree(Pts).query(Q)[0]

@@ -1,0 +1,75 @@
+"""The feedback controller's blue-noise spreading (``feedback.spread_radius``): memory, prediction, correction.
+
+:mod:`control.spreading` chooses, for every robot, a landing point within r of where the feedback law
+alone would take it by the next measurement, in the largest hole of the measurements taken so far.
+This module is the controller's side of it.  At the first sub-step after every measurement it
+
+1. adds the working robots' positions (the points just measured) to the memory M of measured positions;
+2. predicts the landing points x̂ by integrating the feedback law over the coming Δt without noise, in
+   the loop's sub-steps, the KDE refitted to the predicted positions at every sub-step as the loop
+   refits it to the real ones, and with the walls' (and obstacles') reflection;
+3. picks the landing points y (:func:`control.spreading.hole_targets`; with obstacles only candidates in
+   the free space) and holds the velocity w = (y - x̂) / Δt for the step.
+
+The loop then moves the robots under v = sat(v_law + w) with the Brownian motion: they land near y,
+the law's own velocity re-evaluated along the way.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..control import saturate
+from ..control.spreading import hole_targets
+from .dynamics import euler_maruyama_step
+
+__all__ = ["MeasurementSpreading"]
+
+
+class MeasurementSpreading:
+    """The spreading velocity of one run.  ``law(t, X, estimate) -> v`` is the feedback law without it.
+
+    ``radius`` [m], ``dt`` the measurement interval [s], ``h`` the sub-step [s], ``domain`` the rectangle
+    or the run's :class:`domain.Domain` (reflection and, with obstacles, the free space), ``refit(X)`` a
+    KDE of positions X (None: the estimate of the measured positions is held over the prediction)."""
+
+    def __init__(self, radius: float, dt: float, h: float, domain, refit=None):
+        self.radius, self.dt, self.h = float(radius), float(dt), float(h)
+        self.domain, self.refit = domain, refit
+        self.substeps = max(1, int(round(self.dt / self.h)))
+        self.memory: list[np.ndarray] = []
+        self.w = None
+        self._t = None
+        self.inside = domain.contains if hasattr(domain, "contains") else None
+
+    @property
+    def measured(self) -> np.ndarray:
+        """(k, 2) every position measured so far (as recorded at the steps' first sub-steps)."""
+        return np.concatenate(self.memory) if self.memory else np.zeros((0, 2))
+
+    def new_step(self, t: float) -> bool:
+        """Whether the call at ``t`` is the first sub-step after a measurement."""
+        return self._t is None or t >= self._t + self.dt - 0.5 * self.h
+
+    def predict(self, t: float, X: np.ndarray, v0: np.ndarray, law, estimate) -> np.ndarray:
+        """Where the noiseless law takes the robots X (m, 2) in Δt; ``v0`` the law's velocity at X now."""
+        Y = euler_maruyama_step(X, v0, self.h, 0.0, None, self.domain)
+        for i in range(1, self.substeps):
+            est = self.refit(Y) if self.refit is not None else estimate
+            Y = euler_maruyama_step(Y, law(t + i * self.h, Y, est), self.h, 0.0, None, self.domain)
+        return Y
+
+    def velocity(self, t: float, X: np.ndarray, alive: np.ndarray, v: np.ndarray, law, estimate,
+                 v_max: float) -> np.ndarray:
+        """The law's velocity ``v`` (n, 2) of all robots with the spreading velocity added, saturated at v_max."""
+        if self.new_step(t) or self.w is None or self.w.shape != X.shape:
+            self._t = float(t)
+            Xa, va = X[alive], v[alive]
+            self.memory.append(np.array(Xa, dtype=float))
+            w = np.zeros_like(X, dtype=float)
+            if len(Xa):
+                P = self.predict(t, Xa, va, law, estimate)
+                Y = hole_targets(P, self.measured, self.radius, inside=self.inside)
+                w[alive] = (Y - P) / self.dt
+            self.w = w
+        out = saturate(v + self.w, v_max)
+        return np.where(alive[:, None], out, 0.0)

@@ -1,0 +1,154 @@
+"""Blue-noise spreading of the measurements (control.spreading, sim.spreading, feedback.spread_radius):
+best-candidate landing points against a brute-force oracle, into the holes, within the radius, the union of
+measurements filling space more evenly than random points, and the speed limit in the closed loop."""
+import numpy as np
+import pytest
+from scipy.spatial.distance import cdist
+
+from swarmfield.control import FeedbackSettings
+from swarmfield.control.spreading import DETOUR_COST, candidate_offsets, fill_distances, hole_targets
+from swarmfield.sim.config import config_from_dict
+from swarmfield.sim.controllers import FeedbackController
+from swarmfield.sim.loop import run_simulation
+from swarmfield.sim.spreading import MeasurementSpreading
+
+
+def brute_force(P, M, radius, inside=None):
+    """The rule of the module docstring, robot by robot, every distance computed."""
+    S = candidate_offsets(radius)
+    lam = DETOUR_COST * np.hypot(S[:, 0], S[:, 1])
+    Y = []
+    for i, p in enumerate(P):
+        C = p + S
+        pts = np.concatenate([M.reshape(-1, 2), np.array(Y).reshape(-1, 2)])
+        d = cdist(C, pts).min(axis=1) if len(pts) else np.full(len(C), 1e300)
+        ok = np.ones(len(C), bool) if inside is None else inside(C)
+        ok[0] = True
+        Y.append(C[int(np.argmax(np.where(ok, d - lam, -np.inf)))])
+    return np.array(Y)
+
+
+def test_candidate_stencil_is_a_disc_sorted_by_length():
+    S = candidate_offsets(0.8)
+    r = np.hypot(S[:, 0], S[:, 1])
+    assert np.array_equal(S[0], [0.0, 0.0]) and np.all(np.diff(r) >= -1e-12) and r.max() <= 0.8 + 1e-12
+    assert 50 <= len(S) <= 70                                # ~ pi r^2 / (sqrt(3)/2 (r/4)^2) = 58
+    assert np.sort(cdist(S, S) + 9 * np.eye(len(S)), axis=1)[:, 0].min() == pytest.approx(0.2)
+    assert candidate_offsets(0.0).shape == (1, 2)
+    with pytest.raises(ValueError):
+        candidate_offsets(-1.0)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_targets_equal_the_brute_force_rule(seed):
+    rng = np.random.default_rng(seed)
+    P = rng.uniform(0, 6, (40, 2))
+    M = rng.uniform(0, 6, (150, 2))
+    inside = (lambda C: C[:, 0] < 5.0) if seed else None
+    Y = hole_targets(P, M, 0.7, inside=inside)
+    assert np.allclose(Y, brute_force(P, M, 0.7, inside), atol=1e-12)
+    assert np.all(np.hypot(*(Y - P).T) <= 0.7 + 1e-12)
+
+
+def test_a_robot_moves_away_from_the_measurement_it_would_land_on():
+    P = np.array([[5.0, 5.0]])
+    m = np.array([[5.15, 4.9]])
+    y = hole_targets(P, m, 0.6)[0]
+    away = (P[0] - m[0]) / np.linalg.norm(P[0] - m[0])
+    step = y - P[0]
+    assert np.linalg.norm(step) > 0.5                                     # to the edge of the disc
+    assert step @ away / np.linalg.norm(step) > 0.85                      # away from it (a 60-degree stencil)
+    assert np.allclose(hole_targets(P, [[5.15, 5.0]], 0.6), [[4.4, 5.0]])  # along a lattice line: straight away
+    # nothing measured: no reason to move; radius 0: the law alone
+    assert np.array_equal(hole_targets(P, np.zeros((0, 2)), 0.6), P)
+    assert np.array_equal(hole_targets(P, m, 0.0), P)
+
+
+def test_two_robots_bound_for_one_hole_fill_different_places():
+    P = np.array([[2.0, 2.0], [2.0, 2.0]])
+    M = np.array([[1.0, 2.0], [3.0, 2.0]])
+    Y = hole_targets(P, M, 0.8)
+    assert np.linalg.norm(Y[0] - Y[1]) > 0.6
+    assert np.allclose(Y, brute_force(P, M, 0.8))
+
+
+def test_the_union_of_spread_measurements_leaves_smaller_holes_than_random_points():
+    """17 rounds of 100 points drawn uniformly on 20 x 20 m (~1,700, the fine field's count at 2 T), each round
+    moved within 0.75 m into the holes of the earlier ones: the mean and the largest distance from a cell centre to
+    the nearest point drop below those of the random points (0.243 m mean for random points)."""
+    rng = np.random.default_rng(3)
+    g = (np.arange(40) + 0.5) * 0.5
+    cells = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
+
+    def inside(C):
+        return np.all((C >= 0) & (C <= 20), axis=1)
+    rand, spread = np.zeros((0, 2)), np.zeros((0, 2))
+    for _ in range(17):
+        P = rng.uniform(0, 20, (100, 2))
+        rand = np.concatenate([rand, P])
+        spread = np.concatenate([spread, hole_targets(P, spread, 0.75, inside=inside)])
+    d_rand, d_spread = fill_distances(rand, cells), fill_distances(spread, cells)
+    assert d_rand.mean() == pytest.approx(0.243, abs=0.015)
+    assert d_spread.mean() < 0.9 * d_rand.mean()
+    assert d_spread.max() < 0.85 * d_rand.max()
+
+
+def test_bad_inputs_are_rejected():
+    with pytest.raises(ValueError, match="predicted"):
+        hole_targets(np.zeros(3), np.zeros((0, 2)), 0.5)
+    with pytest.raises(ValueError, match="measured"):
+        hole_targets(np.zeros((1, 2)), np.array([[np.nan, 0.0]]), 0.5)
+    with pytest.raises(ValueError, match="spread_radius"):
+        FeedbackSettings(spread_radius=-0.5)
+    assert FeedbackSettings().spread_radius == 0.0
+
+
+def test_spreading_velocity_lands_the_noiseless_robot_on_its_target_and_respects_the_speed_limit():
+    dom = (0.0, 10.0, 0.0, 10.0)
+
+    def law(t, X, est):                       # a uniform drift to the east
+        return np.tile([1.0, 0.0], (len(X), 1))
+    s = MeasurementSpreading(0.6, dt=0.8, h=0.1, domain=dom)
+    X = np.array([[2.0, 5.0], [6.0, 5.0], [9.5, 9.5]])
+    alive = np.array([True, True, False])
+    s.memory.append(np.array([[2.85, 5.05]]))            # measured just beside robot 0's landing point
+    v0 = law(0.0, X, None)
+    v = s.velocity(0.0, X, alive, v0, law, None, v_max=1.3)
+    assert np.all(np.hypot(*v.T) <= 1.3 + 1e-12) and np.array_equal(v[2], [0.0, 0.0])
+    P = X[:2] + [0.8, 0.0]
+    Y = hole_targets(P, np.concatenate([[[2.85, 5.05]], X[:2]]), 0.6)
+    assert np.allclose(s.w[:2], (Y - P) / 0.8)
+    # without the limit, eight noiseless sub-steps of v0 + w end on the targets
+    v = s.velocity(0.0, X, alive, v0, law, None, v_max=np.inf)
+    Z = X[:2] + 0.8 * v[:2]
+    assert np.allclose(Z, Y)
+    assert np.linalg.norm(Y[0] - [2.85, 5.05]) > np.linalg.norm(P[0] - [2.85, 5.05])
+    # the same step's later sub-steps reuse w; the next step records the new measurements
+    s.velocity(0.35, X, alive, v0, law, None, v_max=np.inf)
+    assert len(s.memory) == 2
+    s.velocity(0.8, X, alive, v0, law, None, v_max=np.inf)
+    assert len(s.memory) == 3
+
+
+SMALL = {"sim": {"robots": 30, "domain": [0.0, 10.0, 0.0, 10.0], "start_box": [0.0, 4.0, 0.0, 4.0], "period": 1.75,
+                 "max_periods": 2, "substeps": 4, "gamma": 0.0},
+         "gp": {"length_scale": 1.5}, "kde": {"bins": [32, 32]},
+         "planner": {"nx": 16, "ny": 16, "n_intervals": 3, "n_modes_x": 3, "n_modes_y": 3},
+         "feedback": {"v_max": 2.0, "spread_radius": 0.6}}
+
+
+def test_closed_loop_with_spreading_keeps_the_speed_limit_and_remembers_every_measurement():
+    c = config_from_dict({k: dict(v) for k, v in SMALL.items()})
+
+    class Recording(FeedbackController):
+        fastest = 0.0
+
+        def velocity(self, t, X, alive):
+            v = super().velocity(t, X, alive)
+            self.fastest = max(self.fastest, float(np.hypot(*v.T).max()))
+            return v
+    ctrl = Recording(c)
+    res = run_simulation(c, controller=ctrl)
+    assert ctrl.spreading is not None and 0 < ctrl.fastest <= 2.0 + 1e-12
+    steps = len(res.positions) - 1                         # measured at t = 0 .. the last step but one
+    assert np.allclose(ctrl.spreading.measured, np.concatenate(res.positions[:steps]))
