@@ -58,6 +58,7 @@ from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict, g
 from ..regression import GPSettings
 from ..domain import DomainSettings
 from .presets import DEFAULT_PRESET, PRESETS, merge_under_preset
+from .site_scale import SITE_SCALE_RULES, scale_document, site_factor
 from .stopping import STOP_RULES
 
 __all__ = ["SimSettings", "KDESettings", "RunConfig", "load_config", "read_toml", "config_from_dict", "to_toml",
@@ -219,6 +220,10 @@ class SimSettings:
                     the end of their last plan and keep no map)
     comm_hops       relay bound: a measurement travels at most this many hops per measurement step (None,
                     default: through the whole connected component within the step)
+    site_scale      ``"off"`` (default): every setting as given; ``"area"`` (the tuned preset's): the preset's
+                    absolute lengths and speeds that the configuration does not give (:data:`sim.site_scale.SCALED`)
+                    scaled by s = max(1, sqrt(area of ``domain`` / 400 m^2)), so that a site larger than the
+                    paper's 20 m x 20 m gets them in proportion (:mod:`sim.site_scale`); s = 1 up to 400 m^2
     """
 
     robots: int = 100
@@ -260,6 +265,7 @@ class SimSettings:
     comm_density: str = "flooded"
     comm_fragments: bool = True
     comm_hops: int | None = None
+    site_scale: str = "off"
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -274,6 +280,9 @@ class SimSettings:
         set_("seed", _integer("seed", self.seed, 0))
         set_("substeps", _integer("substeps", self.substeps, 1))
         set_("ergodic_modes", _integer("ergodic_modes", self.ergodic_modes, 1))
+        if self.site_scale not in SITE_SCALE_RULES:
+            raise ValueError(f"sim.site_scale must be one of {', '.join(repr(r) for r in SITE_SCALE_RULES)}, "
+                             f"got {self.site_scale!r}")
         if self.stop_rule not in STOP_RULES:
             raise ValueError(f"sim.stop_rule must be one of {', '.join(sorted(STOP_RULES))}, got {self.stop_rule!r}")
         if self.stop_length_scale is not None:
@@ -514,12 +523,15 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
     mine = doc.get("planner", {})
     if mine.get("cell_size") is not None and (mine.get("nx") is not None or mine.get("ny") is not None):
         raise ValueError("give either planner.cell_size or planner.nx / planner.ny, not both")
+    given = doc
     doc = merge_under_preset(doc, name)
     if mine.get("nx") is not None or mine.get("ny") is not None:     # the user's cell counts beat a preset's cell size
         doc["planner"] = {k: v for k, v in doc["planner"].items() if k != "cell_size"}
     sim_map = dict(doc.get("sim", {}))
     sim_map.update({k: v for k, v in (overrides or {}).items() if v is not None})
     sim = dataclass_from_dict(SimSettings, sim_map, "sim")
+    doc, _ = scale_document(doc, given, site_factor(sim.domain, sim.site_scale),
+                            {"kde": KDESettings, "feedback": FeedbackSettings, "planner": PlannerSettings})
     gp_map = dict(doc.get("gp", {}))
     if (overrides or {}).get("noise_variance") is not None:      # e.g. --noise-sd over a run's config.toml
         gp_map.pop("noise_variance", None)

@@ -153,7 +153,12 @@ PRESETS: dict[str, dict] = {
         # at the next period start (docs/design/receding-horizon.md, docs/results/tuned-preset.md)
         # map_rmse_relative 0.3: the robust rule also asks for the GP's expected RMSE sqrt(mean V) <= 0.3 s_f, so that
         # it fires only when the map is good (sim.stopping, "The map condition"; docs/results/map-quality.md)
-        "sim": {"stop_rule": "robust", "eta_relative": 0.05, "replan_every": 2, "map_rmse_relative": 0.3},
+        # site_scale "area": the values above are those of the paper's 20 m x 20 m; on another site the absolute
+        # lengths and speeds of sim.site_scale.SCALED are scaled by s = sqrt(area / 400 m^2) (s = 1 on 400 m^2: no
+        # change).  The 1 m KDE bandwidth on a 60 m x 40 m yard made every robot see its own kernel as a crowd (p̂ / p_r
+        # ~ 1.7 at the robots) and the swarm crawl (docs/results/map-quality.md, "Larger sites")
+        "sim": {"stop_rule": "robust", "eta_relative": 0.05, "replan_every": 2, "map_rmse_relative": 0.3,
+                "site_scale": "area"},
     },
 }
 

@@ -1,0 +1,69 @@
+"""The tuned preset's absolute lengths scaled to the site (sim.site_scale, sim.site_scale module)."""
+import math
+
+import numpy as np
+import pytest
+
+from swarmfield.sim import config_from_dict
+from swarmfield.sim.site_scale import REFERENCE_AREA, SCALED, site_factor, site_summary
+
+YARD = {"sim": {"domain": [0.0, 60.0, 0.0, 40.0]}, "gp": {"length_scale": 2.0}}
+
+
+def test_factor_is_the_square_root_of_the_area_ratio_and_one_up_to_the_reference():
+    assert site_factor((0, 60, 0, 40), "area") == pytest.approx(math.sqrt(6.0), rel=1e-15)
+    assert site_factor((-10, 90, 5, 105), "area") == pytest.approx(5.0, rel=1e-15)
+    assert site_factor((0, 20, 0, 20), "area") == 1.0
+    assert site_factor((0, 40, 0, 10), "area") == 1.0          # 400 m^2, another shape
+    assert site_factor((0, 10, 0, 10), "area") == 1.0          # smaller sites keep the measured values
+    assert site_factor((0, 60, 0, 40), "off") == 1.0
+    with pytest.raises(ValueError, match="sim.site_scale must be one of 'off', 'area'"):
+        site_factor((0, 20, 0, 20), "diameter")
+
+
+def test_tuned_preset_on_the_paper_rectangle_resolves_to_the_same_settings():
+    on = config_from_dict({}, preset="tuned")
+    off = config_from_dict({"sim": {"site_scale": "off"}}, preset="tuned")
+    assert on.sim.site_scale == "area" and off.sim.site_scale == "off"
+    a, b = on.as_dict(), off.as_dict()
+    a["sim"].pop("site_scale"), b["sim"].pop("site_scale")
+    assert a == b                                                # every resolved value, to the bit
+    assert on.kde.bandwidth == 1.0 and site_summary(on)["factor"] == 1.0
+
+
+def test_yard_scales_the_bandwidth_unless_given_and_repeats_from_its_resolved_config():
+    cfg = config_from_dict(YARD, preset="tuned")
+    assert cfg.kde.bandwidth == pytest.approx(math.sqrt(6.0), rel=1e-15)
+    assert {(s, k) for s, k, _ in SCALED} == {("kde", "bandwidth")}
+    # a value the configuration gives is used as given
+    mine = config_from_dict({**YARD, "kde": {"bandwidth": 1.5}}, preset="tuned")
+    assert mine.kde.bandwidth == 1.5
+    # the resolved configuration (config.toml, compare-controllers' tasks) repeats the run: no second scaling
+    assert config_from_dict(cfg.as_dict()) == cfg
+    # off, and the paper preset: nothing scaled
+    assert config_from_dict({**YARD, "sim": {**YARD["sim"], "site_scale": "off"}}, preset="tuned").kde.bandwidth == 1.0
+    assert config_from_dict(YARD).kde.bandwidth is None and config_from_dict(YARD).sim.site_scale == "off"
+    s = site_summary(cfg)
+    assert s["rule"] == "area" and s["area_m2"] == 2400.0 and s["reference_area_m2"] == REFERENCE_AREA
+    assert s["factor"] == pytest.approx(math.sqrt(6.0)) and s["settings"] == {"kde.bandwidth": cfg.kde.bandwidth}
+    with pytest.raises(ValueError, match="sim.site_scale"):
+        config_from_dict({"sim": {"site_scale": "yes"}}, preset="tuned")
+
+
+def test_a_robots_own_kernel_weighs_the_same_against_the_uniform_density_on_both_sites():
+    """What the rule keeps: the KDE's value at a lone robot over the uniform density 1 / |Omega| (the crowd a
+    robot sees in itself), computed by the KDE itself on the paper's rectangle and on the yard."""
+    from swarmfield.control.kde import KernelDensity
+
+    def own(cfg):
+        x0, x1, y0, y1 = cfg.sim.domain
+        c = np.array([[0.5 * (x0 + x1) + 0.1, 0.5 * (y0 + y1) - 0.2]])
+        est = KernelDensity(cfg.sim.domain, cfg.kde.bandwidth, cfg.kde.bins).fit(c)
+        return float(est.evaluate(c)[0][0]) * (x1 - x0) * (y1 - y0)
+
+    paper = own(config_from_dict({}, preset="tuned"))
+    yard = own(config_from_dict(YARD, preset="tuned"))
+    unscaled = own(config_from_dict({**YARD, "sim": {**YARD["sim"], "site_scale": "off"}}, preset="tuned"))
+    assert paper == pytest.approx(400.0 / (2 * math.pi), rel=0.02)        # the Gaussian's peak 1 / (2 pi h^2)
+    assert yard == pytest.approx(paper, rel=0.02)
+    assert unscaled == pytest.approx(6.0 * paper, rel=0.02)               # unscaled: six times the crowd
