@@ -86,6 +86,9 @@ CONFIGS = {
     "gmrf2-l2.5-h0.8": {"gp": {"kernel": "gmrf2", "length_scale": 2.5, "inducing_spacing": 0.8}},
     "se-l2.5-h0.8": {"gp": {"length_scale": 2.5, "inducing_spacing": 0.8}},
     "se-l3.5": {"gp": {"length_scale": 3.5, "inducing_spacing": 0.5}},
+    "gmrf2-learn": {"gp": {"kernel": "gmrf2", "learn_hyperparameters": True}},
+    "gmrf2-learn-h0.8": {"gp": {"kernel": "gmrf2", "learn_hyperparameters": True, "length_scale": 1.2,
+                                "inducing_spacing": 0.8}},
 }
 
 
@@ -110,8 +113,8 @@ def step_time(n: int, every, periods: int, controller: str, config: str = "defau
     if seed is not None:
         doc["sim"]["seed"] = seed
     cfg = config_from_dict(doc)
-    cpu = {"planner": 0.0, "regression": 0.0}
-    wall = {"planner": 0.0, "regression": 0.0}
+    cpu = {"planner": 0.0, "regression": 0.0, "refit": 0.0}
+    wall = {"planner": 0.0, "regression": 0.0, "refit": 0.0}
 
     def timed(owner, name, key):
         f = getattr(owner, name)
@@ -129,14 +132,18 @@ def step_time(n: int, every, periods: int, controller: str, config: str = "defau
     timed(ReferencePlanner, "solve", "planner")
     timed(GaussianProcess, "add", "regression")
     timed(GaussianProcess, "predict", "regression")
+    from swarmfield.sim import simulation
+    timed(simulation, "refit_online", "refit")          # the online hyperparameter refit (once per period)
 
     class Clock(Recorder):                 # CPU and wall time from the end of the start to the end
         def start(self, sim):
             self.c0, self.w0, self.r0, self.p0 = time.process_time(), time.perf_counter(), cpu["regression"], cpu["planner"]
+            self.f0 = cpu["refit"]
             self.pw0 = wall["planner"]
 
         def finish(self, sim):
             self.c1, self.w1, self.r1, self.p1 = time.process_time(), time.perf_counter(), cpu["regression"], cpu["planner"]
+            self.f1 = cpu["refit"]
             self.pw1 = wall["planner"]
             self.steps = sim.step_index        # the run may stop before max_periods (V below eta everywhere)
 
@@ -146,8 +153,9 @@ def step_time(n: int, every, periods: int, controller: str, config: str = "defau
     planner_cpu = clock.p1 - clock.p0
     return {"wall": (clock.w1 - clock.w0 - (clock.pw1 - clock.pw0)) / steps,
             "cpu": (clock.c1 - clock.c0 - planner_cpu) / steps,
-            "cpu_regression": (clock.r1 - clock.r0) / steps,
+            "cpu_regression": (clock.r1 - clock.r0) / steps, "cpu_refit": (clock.f1 - clock.f0) / steps,
             "rmse": res.rows[-1]["rmse"], "rows": len(res.rows), "steps": steps,
+            "learned": None if res.kernel is None else [res.kernel["signal_variance"], res.kernel["length_scale"]],
             "peak_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
 
 
@@ -193,7 +201,10 @@ def main():
         r = json.loads(out.stdout.strip().splitlines()[-1])
         print(f"| {n:,} | {dom} | {config} | {every} | {kern} | {'default' if seed is None else seed} | {r['steps']} "
               f"| {r['rows']} | {1e3 * r['cpu']:.0f} | {1e3 * r['cpu_regression']:.0f} | {1e3 * r['wall']:.0f} "
-              f"| {r['peak_mib']:.0f} | {r['rmse']:.6g} |", flush=True)
+              f"| {r['peak_mib']:.0f} | {r['rmse']:.6g} |"
+              + ("" if r["learned"] is None else " learned s_f^2 = {:.4g}, l = {:.4g}; refit {:.1f} ms a step |".format(
+                  *r["learned"], 1e3 * r["cpu_refit"])),
+              flush=True)
         rmse.setdefault((n, dom, config, every, kern), []).append(r["rmse"])
     if len(args.seeds) > 1:
         print()

@@ -138,7 +138,7 @@ from ..runtime.validation import real_array
 from . import banded
 from .basis import BASIS_COEF, PRODUCT_COEF, SplineAxis, bspline_weights
 from .frame import Frame
-from .gmrf import GmrfPrior, band_of_blocks, gmrf_prior
+from .gmrf import GmrfPrior, band_of_blocks, gmrf_prior, gmrf_prior_derivative
 from .kernels import GMRF_KERNELS
 from .settings import GPSettings
 
@@ -1120,11 +1120,14 @@ class GaussianProcess:
 
             d log p / d log s_f^2 = 1/2 (mu^T Q_s mu + tr(Sigma Q_s) - M),
 
-        exact (tr(Sigma Q_s) needs Sigma only within Q's pattern: the selected inverse).  The length-scale
-        derivatives (through the lattice precision and its per-node normalisation) are central differences
-        of the log marginal likelihood in log l (step 1e-4); ``tied`` (an isotropic fit, l_x = l_y = l): one central
-        difference along l instead of one per axis (two prior builds instead of four, the bulk of an evaluation's
-        cost), returned as half of d log p / d log l in each of the two entries (their sum is what such a fit uses)."""
+        exact (tr(Sigma Q_s) needs Sigma only within Q's pattern: the selected inverse).  Likewise along a length
+        scale, with dQ and d log det Q from :func:`regression.gmrf.gmrf_prior_derivative` (through the lattice
+        precision and its per-node normalisation, exact; no further factorisation)::
+
+            d log p / d log l_d = -1/2 (mu^T dQ_s mu + tr(Sigma dQ_s) - d log det Q);
+
+        ``tied`` (an isotropic fit, l_x = l_y = l): the derivative along l alone, returned as half of
+        d log p / d log l in each of the two entries (their sum is what such a fit uses)."""
         lml, factor, mu, prior = self._gmrf_lml(s2, key, a, b)
         qs = prior.precision / s2
         sel = banded.selected_inverse(factor)
@@ -1132,18 +1135,13 @@ class GaussianProcess:
         qmu = banded.matvec(qs, mu)
         grad = np.empty(3)
         grad[0] = 0.5 * (float(mu @ qmu) + tr - self._n_nodes)
-        kernel, l_x, l_y = key
-        h = 1e-4
-        for k in ((0,) if tied else (1, 2)):
-            vals = []
-            for sign in (1.0, -1.0):
-                f = math.exp(sign * h)
-                kk = (kernel, l_x * f, l_y * f) if k == 0 else (kernel, l_x * f, l_y) if k == 1 else (kernel, l_x, l_y * f)
-                vals.append(self._gmrf_lml(s2, kk, a, b)[0])
-            if k == 0:
-                grad[1] = grad[2] = 0.25 * (vals[0] - vals[1]) / h
-            else:
-                grad[k] = (vals[0] - vals[1]) / (2.0 * h)
+        for k, (dx, dy) in (((1, (1.0, 1.0)),) if tied else ((1, (1.0, 0.0)), (2, (0.0, 1.0)))):
+            dq, dlogdet = gmrf_prior_derivative(prior, dx, dy)
+            dqs = dq / s2
+            tr = float(np.sum(sel[:, 0] * dqs[:, 0])) + 2.0 * float(np.sum(sel[:, 1:] * dqs[:, 1:]))
+            grad[k] = -0.5 * (float(mu @ banded.matvec(dqs, mu)) + tr - dlogdet)
+        if tied:
+            grad[1] = grad[2] = 0.5 * grad[1]
         return lml, grad
 
     def _lml_parts(self, s2: float, ell, a: np.ndarray, b: np.ndarray):
