@@ -89,6 +89,8 @@ CONFIGS = {
     "gmrf2-learn": {"gp": {"kernel": "gmrf2", "learn_hyperparameters": True}},
     "gmrf2-learn-h0.8": {"gp": {"kernel": "gmrf2", "learn_hyperparameters": True, "length_scale": 1.2,
                                 "inducing_spacing": 0.8}},
+    "gmrf2-learn-h0.8-it8": {"gp": {"kernel": "gmrf2", "learn_hyperparameters": True, "length_scale": 1.2,
+                                    "inducing_spacing": 0.8, "hyper_maxiter": 8}},
 }
 
 

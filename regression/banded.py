@@ -33,7 +33,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import blas, lapack
 
-__all__ = ["cholesky", "solve", "logdet", "selected_inverse", "matvec", "to_dense", "from_dense"]
+__all__ = ["cholesky", "solve", "logdet", "selected_inverse", "matvec", "quadratic", "trace_product", "to_dense",
+           "from_dense"]
 
 
 def _check(blocks: np.ndarray) -> tuple[int, int, int]:
@@ -66,9 +67,8 @@ def cholesky(blocks: np.ndarray, overwrite: bool = False) -> np.ndarray:
         # trailing update: block (k + d, k + e) -= L_{k+d,k} L_{k+e,k}^T for 1 <= e <= d <= wk (lower
         # triangle of C C^T only: dsyrk on the Fortran view col.T, whose "upper" triangle is C C^T's lower one)
         upd = blas.dsyrk(1.0, col.T, trans=1, lower=0).T
-        for e in range(1, wk + 1):
-            for d in range(e, wk + 1):
-                lf[k + e, d - e] -= upd[(d - 1) * b:d * b, (e - 1) * b:e * b]
+        for e in range(1, wk + 1):                   # blocks (k + d, k + e), d = e .. wk: lf[k + e, 0 .. wk - e]
+            lf[k + e, :wk - e + 1] -= upd[(e - 1) * b:, (e - 1) * b:e * b].reshape(wk - e + 1, b, b)
     return lf
 
 
@@ -134,6 +134,24 @@ def matvec(blocks: np.ndarray, z: np.ndarray) -> np.ndarray:
         out[d:] += np.einsum("krc,kc->kr", blocks[:nb - d, d], zb[:nb - d])      # block (k + d, k) z_k
         out[:nb - d] += np.einsum("krc,kr->kc", blocks[:nb - d, d], zb[d:])     # its transpose z_{k+d}
     return out.reshape(-1)
+
+
+def quadratic(blocks: np.ndarray, z: np.ndarray) -> float:
+    """z^T P z for the symmetric block band ``blocks`` and a vector z (one pass over the band)."""
+    nb, w, b = _check(blocks)
+    zb = np.asarray(z, dtype=float).reshape(nb, b)
+    shifted = np.zeros((nb, w + 1, b))                   # shifted[k, d] = z_{k+d}
+    for d in range(min(w, nb - 1) + 1):
+        shifted[:nb - d, d] = zb[d:]
+    bz = np.matmul(blocks, zb[:, None, :, None])[..., 0]  # block (k + d, k) z_k
+    return float(np.vdot(shifted[:, 0], bz[:, 0]) + 2.0 * np.vdot(shifted[:, 1:], bz[:, 1:]))
+
+
+def trace_product(a: np.ndarray, c: np.ndarray) -> float:
+    """tr(A C) for two symmetric block bands of the same shape (A's entries outside the band ignored: exact when C
+    vanishes there, as a precision does where the selected inverse A of another matrix of its pattern is not kept)."""
+    _check(a)
+    return float(np.vdot(a[:, 0], c[:, 0]) + 2.0 * np.vdot(a[:, 1:], c[:, 1:]))
 
 
 def to_dense(blocks: np.ndarray) -> np.ndarray:

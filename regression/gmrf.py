@@ -246,6 +246,7 @@ class GmrfPrior:
     spec: np.ndarray = field(repr=False)           # the eigenvalues of Q_0^{-1}
     lattice: _Lattice = field(repr=False)
     lengths: tuple = ()                            # (l_x, l_y, h_x, h_y)
+    states: tuple = field(default=(), repr=False)  # the normalisation's iterates
 
     @functools.cached_property
     def band(self) -> np.ndarray:
@@ -268,25 +269,29 @@ def _covariance_band(lat: _Lattice, spec: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray((lat.prx @ spec @ lat.pry.T).reshape(gx, _BAND, gy, _BAND).transpose(0, 2, 1, 3))
 
 
-def _normalise(lat: _Lattice, band0: np.ndarray, dband0: np.ndarray | None = None):
-    """The per-node scale S (gx, gy) and, given d band0, d log S (forward mode through the same iteration)."""
+def _normalise(lat: _Lattice, band0: np.ndarray):
+    """The per-node scale S (gx, gy) and the iteration's states (u, L u, the variance) for :func:`_normalise_tangent`."""
     local = np.take(band0, lat.local)                                # (n, 9, 9), symmetric per n
-    diag = band0[:, :, 3, 3]
-    scale = (1.0 / np.sqrt(diag)).reshape(-1)
-    if dband0 is not None:
-        dlocal = np.take(dband0, lat.local)
-        dlog = (-0.5 * dband0[:, :, 3, 3] / diag).reshape(-1)
+    scale = 1.0 / np.sqrt(band0[:, :, 3, 3].reshape(-1))
+    states = []
     for _ in range(_NORMALISE_ITERATIONS):
         u = lat.weights * scale[lat.nodes]                           # (n, 9)
         lu = np.matmul(local, u[:, :, None])[:, :, 0]
-        var = np.sum(u * lu, axis=1)
-        if dband0 is not None:
-            du = u * dlog[lat.nodes]
-            dvar = 2.0 * np.sum(du * lu, axis=1) + np.sum(u * np.matmul(dlocal, u[:, :, None])[:, :, 0], axis=1)
-            dlog = dlog - 0.5 * dvar / var
+        var = np.einsum("np,np->n", u, lu)
+        states.append((u, lu, var))
         scale = scale / np.sqrt(var)
-    shape = band0.shape[:2]
-    return scale.reshape(shape), (None if dband0 is None else dlog.reshape(shape))
+    return scale.reshape(band0.shape[:2]), tuple(states)
+
+
+def _normalise_tangent(lat: _Lattice, band0: np.ndarray, states: tuple, dband0: np.ndarray) -> np.ndarray:
+    """d log S for a change d band0 of the band of Q_0^{-1}: :func:`_normalise` differentiated (forward mode)."""
+    dlocal = np.take(dband0, lat.local)
+    dlog = (-0.5 * dband0[:, :, 3, 3] / band0[:, :, 3, 3]).reshape(-1)
+    for u, lu, var in states:
+        du = u * dlog[lat.nodes]
+        dvar = 2.0 * np.einsum("np,np->n", du, lu) + np.einsum("np,np->n", u, np.matmul(dlocal, u[:, :, None])[:, :, 0])
+        dlog = dlog - 0.5 * dvar / var
+    return dlog.reshape(band0.shape[:2])
 
 
 def gmrf_prior(gx: int, gy: int, hx: float, hy: float, lx: float, ly: float, nu: int = 1) -> GmrfPrior:
@@ -299,10 +304,10 @@ def gmrf_prior(gx: int, gy: int, hx: float, hy: float, lx: float, ly: float, nu:
     q0 = lat.precision(lat.coefficients(lx, ly, hx, hy))
     kappa, spec, logdet0 = _spectrum(lat, lx, ly, hx, hy)
     band0 = _covariance_band(lat, spec)
-    scale, _ = _normalise(lat, band0)
+    scale, states = _normalise(lat, band0)
     q = _scaled_blocks(q0, 1.0 / scale)
     logdet = logdet0 - 2.0 * float(np.sum(np.log(scale)))
-    return GmrfPrior(q, logdet, scale, band0, kappa, spec, lat, (lx, ly, hx, hy))
+    return GmrfPrior(q, logdet, scale, band0, kappa, spec, lat, (lx, ly, hx, hy), states)
 
 
 def gmrf_prior_derivative(prior: GmrfPrior, dx: float, dy: float) -> tuple[np.ndarray, float]:
@@ -316,6 +321,6 @@ def gmrf_prior_derivative(prior: GmrfPrior, dx: float, dy: float) -> tuple[np.nd
     c = 0.5 / lat.nu
     dkappa = 2.0 * c * (dx * lx * lx * lat.lamx[:, None] + dy * ly * ly * lat.lamy[None, :])
     dlog_q0 = -(dx + dy) + lat.alpha * dkappa / kappa               # d log of each eigenvalue of Q_0
-    _, dlog_s = _normalise(lat, prior.band0, _covariance_band(lat, -spec * dlog_q0))
+    dlog_s = _normalise_tangent(lat, prior.band0, prior.states, _covariance_band(lat, -spec * dlog_q0))
     dq = _scaled_blocks(dq0, 1.0 / prior.scale) - _scaled_blocks(prior.precision, None, dlog_s)
     return dq, float(np.sum(dlog_q0)) - 2.0 * float(np.sum(dlog_s))

@@ -126,6 +126,7 @@ spin-waiting on each other); set ``OPENBLAS_NUM_THREADS=1`` there.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import threading
 
@@ -188,13 +189,17 @@ class _Covariance:
 @dataclasses.dataclass
 class _GmrfCovariance:
     """Posterior of the ``"gmrf"`` prior (:mod:`regression.gmrf`) for data version ``version`` and ``hyper``:
-    the Cholesky factor of P = Q / s_f^2 + A as a block band (:mod:`regression.banded`) and Sigma = P^{-1}
-    between nodes at most 3 apart (``band``, (gx, gy, 7, 7), from the selected inverse)."""
+    the Cholesky factor of P = Q / s_f^2 + A as a block band (:mod:`regression.banded`), its selected inverse
+    (``inverse``, the same layout) and Sigma = P^{-1} between nodes at most 3 apart (``band``, (gx, gy, 7, 7))."""
     hyper: tuple
     version: int
     prior: GmrfPrior
     factor: np.ndarray
-    band: np.ndarray
+    inverse: np.ndarray
+
+    @functools.cached_property
+    def band(self) -> np.ndarray:
+        return band_of_blocks(self.inverse)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -815,7 +820,7 @@ class GaussianProcess:
             prior = self._gmrf_prior(hyper[1])
             a = self._assemble_a()
             factor = banded.cholesky(a + prior.precision / hyper[0], overwrite=True)
-            cov = _GmrfCovariance(hyper, self._version, prior, factor, band_of_blocks(banded.selected_inverse(factor)))
+            cov = _GmrfCovariance(hyper, self._version, prior, factor, banded.selected_inverse(factor))
             self._cov = cov
             self._pending, self._pending_n = [], 0
             self.n_factorizations += 1
@@ -1097,17 +1102,19 @@ class GaussianProcess:
     def _lml(self, s2: float, ell: float, a: np.ndarray, b: np.ndarray) -> float:
         return self._lml_parts(s2, ell, a, b)[0]
 
-    def _gmrf_lml(self, s2: float, key, a: np.ndarray, b: np.ndarray):
+    def _gmrf_lml(self, s2: float, key, a: np.ndarray, b: np.ndarray, factor: np.ndarray | None = None):
         """(log marginal likelihood, factor of P, mu, prior) of the ``"gmrf"`` prior, exact from the banded factors::
 
             log p = -1/2 [ r^T r / s_n^2 - b^T P^{-1} b + log det P - log det (Q / s_f^2) + n log(2 pi s_n^2) ]
 
-        (P = Q / s_f^2 + A; the same identity as :meth:`_lml_parts` with K_c = s_f^2 Q^{-1})."""
+        (P = Q / s_f^2 + A; the same identity as :meth:`_lml_parts` with K_c = s_f^2 Q^{-1}); ``factor``: P's
+        Cholesky factor if known."""
         sn2 = self._settings.noise_variance
         m = self.prior_mean
         rr = self._sum_y2 - 2.0 * m * self._sum_y + self._n * m * m
         prior = self._gmrf_prior(key)
-        factor = banded.cholesky(a + prior.precision / s2, overwrite=True)
+        if factor is None:
+            factor = banded.cholesky(a + prior.precision / s2, overwrite=True)
         mu = banded.solve(factor, b)
         logdet_q = prior.logdet - self._n_nodes * math.log(s2)
         lml = -0.5 * (rr / sn2 - float(b @ mu) + banded.logdet(factor) - logdet_q + self._n * math.log(2.0 * math.pi * sn2))
@@ -1128,18 +1135,26 @@ class GaussianProcess:
 
         ``tied`` (an isotropic fit, l_x = l_y = l): the derivative along l alone, returned as half of
         d log p / d log l in each of the two entries (their sum is what such a fit uses)."""
-        lml, factor, mu, prior = self._gmrf_lml(s2, key, a, b)
-        qs = prior.precision / s2
-        sel = banded.selected_inverse(factor)
-        tr = float(np.sum(sel[:, 0] * qs[:, 0])) + 2.0 * float(np.sum(sel[:, 1:] * qs[:, 1:]))
-        qmu = banded.matvec(qs, mu)
+        # the posterior at these hyperparameters is shared with predict (a refit starts where the last posterior was
+        # computed, and predict after the refit is at its last evaluation) when ``a`` is this GP's own A
+        hyper = (s2, key, self._settings.noise_variance)
+        own = self._assembled is not None and a is self._assembled[1]
+        cov = self._cov
+        if own and isinstance(cov, _GmrfCovariance) and cov.hyper == hyper and cov.version == self._version:
+            lml, factor, mu, prior = self._gmrf_lml(s2, key, a, b, factor=cov.factor)
+            sel = cov.inverse
+        else:
+            lml, factor, mu, prior = self._gmrf_lml(s2, key, a, b)
+            sel = banded.selected_inverse(factor)
+            if own:
+                self._cov = _GmrfCovariance(hyper, self._version, prior, factor, sel)
+                self._pending, self._pending_n = [], 0
+        q = prior.precision
         grad = np.empty(3)
-        grad[0] = 0.5 * (float(mu @ qmu) + tr - self._n_nodes)
+        grad[0] = 0.5 * ((banded.quadratic(q, mu) + banded.trace_product(sel, q)) / s2 - self._n_nodes)
         for k, (dx, dy) in (((1, (1.0, 1.0)),) if tied else ((1, (1.0, 0.0)), (2, (0.0, 1.0)))):
             dq, dlogdet = gmrf_prior_derivative(prior, dx, dy)
-            dqs = dq / s2
-            tr = float(np.sum(sel[:, 0] * dqs[:, 0])) + 2.0 * float(np.sum(sel[:, 1:] * dqs[:, 1:]))
-            grad[k] = -0.5 * (float(mu @ banded.matvec(dqs, mu)) + tr - dlogdet)
+            grad[k] = -0.5 * ((banded.quadratic(dq, mu) + banded.trace_product(sel, dq)) / s2 - dlogdet)
         if tied:
             grad[1] = grad[2] = 0.5 * grad[1]
         return lml, grad

@@ -276,3 +276,32 @@ def test_gmrf_prior_derivative_against_central_differences(dx, dy):
     fd = (up.precision - down.precision) / (2 * h)
     assert np.max(np.abs(dq - fd)) < 1e-6 * np.abs(fd).max()
     assert dlogdet == pytest.approx((up.logdet - down.logdet) / (2 * h), rel=1e-7, abs=1e-6)
+
+
+def test_banded_quadratic_form_and_trace_of_a_product():
+    rng = np.random.default_rng(7)
+    dense, blocks, inside = _random_band(rng, 6, 3, 4)
+    other, oblocks, _ = _random_band(rng, 6, 3, 4)
+    z = rng.normal(size=24)
+    assert banded.quadratic(blocks, z) == pytest.approx(z @ dense @ z, rel=1e-12)
+    assert banded.trace_product(blocks, oblocks) == pytest.approx(np.trace(dense @ other), rel=1e-12)
+
+
+def test_gmrf_refit_shares_its_last_posterior_with_predict():
+    """The refit's evaluation at the hyperparameters it returns is the posterior predict then uses (no second
+    factorisation), and it is the posterior a GP given those hyperparameters computes itself."""
+    from swarmfield.regression.hyper import refit_online
+    gp = _gmrf_draw("gmrf2", 2.0, 600, seed=1, domain=(0.0, 6.0, 0.0, 5.0))
+    gp.predict(np.array([[1.0, 1.0]]))
+    st = refit_online(gp)
+    before = gp.n_factorizations
+    q = np.array([[0.5, 0.5], [3.0, 2.5], [5.5, 4.0]])
+    mean, var = gp.predict(q)
+    assert gp.n_factorizations == before
+    twin = GaussianProcess(dataclasses.replace(st, learn_hyperparameters=False), (0.0, 6.0, 0.0, 5.0))
+    twin._mom[...], twin._momy[...] = gp._mom, gp._momy
+    twin._n, twin._sum_y, twin._sum_y2 = gp._n, gp._sum_y, gp._sum_y2
+    twin._version += 1
+    twin._pending = None
+    m2, v2 = twin.predict(q)
+    assert np.allclose(mean, m2, rtol=0, atol=1e-12) and np.allclose(var, v2, rtol=0, atol=1e-12)
