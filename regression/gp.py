@@ -366,6 +366,8 @@ class GaussianProcess:
             raise TypeError(f"settings must be a GPSettings, got {type(settings).__name__}")
         self._domain = _validate_domain(domain)
         x0, x1, y0, y1 = self._domain
+        if settings.spacing_on(self._domain) < settings.resolved_inducing_spacing:    # gp.grid_cells on a small site
+            settings = dataclasses.replace(settings, inducing_spacing=settings.spacing_on(self._domain))
         self._spacing = settings.resolved_inducing_spacing
         self._initial_settings = settings
         self._settings = settings

@@ -66,6 +66,13 @@ class GPSettings:
         approximation error per axis is about 7e-4 * signal_variance at h = l/2 and 3e-3 at
         h = l/1.5 (in 2-D: 1.4e-3 and 5.5e-3);
         the spacing must therefore be <= length_scale / 1.5.
+    grid_cells
+        With ``inducing_spacing`` unset: at least this many inducing-grid cells along the domain's longer side,
+        i.e. the spacing is min(l / 2, longer side / grid_cells) (``None``: l / 2 alone, the paper's).  The
+        shortest length scale a refit can learn is 1.5 x the spacing of the grid it is fitted on, so on a site
+        smaller than the paper's a grid that follows the configured l alone would cap the learned l at a
+        fixed 0.75 m (at l = 1 m) however dense the data; with ``grid_cells`` the cap follows the site (the
+        tuned preset's 40: 0.5 m on the paper's 20 m square, unchanged, 0.125 m on a 5 m bench).
     max_inducing_points
         Upper bound on the number of inducing grid nodes M = (cells_x + 3) * (cells_y + 3).
         ``predict`` after new data costs one dense Cholesky factorisation and inverse of order
@@ -146,6 +153,7 @@ class GPSettings:
     prior_mean: float | None = None
     inducing_spacing: float | None = None
     max_inducing_points: int = 4096
+    grid_cells: int | None = None
     learn_hyperparameters: bool = False
     hyper_prior_sd: float = 1.0
     hyper_maxiter: int = 15
@@ -206,6 +214,12 @@ class GPSettings:
                     f"inducing_spacing must be <= length_scale / 1.5 = {self.shortest_length_scale / 1.5:g} "
                     f"for an accurate kernel approximation, got {h:g}")
             object.__setattr__(self, "inducing_spacing", h)
+        gc = self.grid_cells
+        if gc is not None:
+            whole = isinstance(gc, numbers.Integral) or (isinstance(gc, float) and gc.is_integer())
+            if isinstance(gc, bool) or not whole or int(gc) < 4:
+                raise ValueError(f"grid_cells must be an integer >= 4 or unset, got {gc!r}")
+            object.__setattr__(self, "grid_cells", int(gc))
         mip = self.max_inducing_points
         integral = isinstance(mip, numbers.Integral) or (isinstance(mip, float) and mip.is_integer())
         if isinstance(mip, bool) or not integral or int(mip) < 16:
@@ -229,6 +243,15 @@ class GPSettings:
         for name in ("hyper_step_sd", "hyper_prior_sd_signal"):
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, _finite_positive(name, getattr(self, name)))
+
+    def spacing_on(self, domain) -> float:
+        """The inducing spacing on ``domain`` = (x0, x1, y0, y1): ``resolved_inducing_spacing``, at most the longer
+        side / ``grid_cells`` when that is set and ``inducing_spacing`` is not."""
+        h = self.resolved_inducing_spacing
+        if self.inducing_spacing is None and self.grid_cells is not None:
+            x0, x1, y0, y1 = domain
+            h = min(h, max(x1 - x0, y1 - y0) / self.grid_cells)
+        return h
 
     @property
     def resolved_inducing_spacing(self) -> float:

@@ -44,6 +44,39 @@ def test_a_length_scale_below_the_old_floor_is_learned_below_it():
     assert gp.settings.length_scale < 1.2
 
 
+def test_on_a_small_site_the_grid_follows_the_site_and_a_short_length_scale_is_learned():
+    """gp.grid_cells: on a 5 m x 3 m bench the spacing is 5 / 40 = 0.125 m instead of l / 2 = 0.5 m, so that a
+    planted l = 0.35 m is learned near it; with the l / 2 grid the refit sits at its 0.75 m floor (and says so).
+    On the paper's 20 m square the rule gives l / 2 and changes nothing."""
+    bench = (0.0, 5.0, 0.0, 3.0)
+    X, y, G, f = _sample(0.35, 1.0, 800, 0.0025, seed=3, domain=bench)
+    learned, rmse = {}, {}
+    for cells in (None, 40):
+        gp = GaussianProcess(GPSettings(signal_variance=1.0, learn_hyperparameters=True, signal_scale="data",
+                                        kernel="matern52", hyper_prior_sd=0.5, hyper_step_sd=1.0, grid_cells=cells),
+                             bench)
+        gp.add(X, y)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            for _ in range(4):
+                refit_online(gp)
+        learned[cells] = gp.settings.length_scale
+        inside = (G[:, 1] <= 3.0)
+        rmse[cells] = float(np.sqrt(np.mean((gp.predict(G[inside])[0] - f[inside]) ** 2)))
+        if cells is None:
+            assert gp.settings.resolved_inducing_spacing == 0.5
+            assert any("sits at its lower bound" in str(w.message) for w in caught)
+        else:
+            assert gp.settings.resolved_inducing_spacing == 0.125
+    assert learned[None] == pytest.approx(0.75, rel=0.02) and learned[40] < 0.6
+    assert rmse[40] < 0.5 * rmse[None]
+    square = GPSettings(learn_hyperparameters=True, grid_cells=40)
+    assert GaussianProcess(square, (0.0, 20.0, 0.0, 20.0)).settings == square     # l / 2 = 20 / 40: as before
+    for bad in (2, 2.5, True, "40"):
+        with pytest.raises(ValueError, match="grid_cells"):
+            GPSettings(grid_cells=bad)
+
+
 def test_band_coverage_of_a_gp_sample_with_known_hyperparameters_is_95_percent():
     """A GP sample (l = 1 m, s_f^2 = 4, noise 0.04) regressed with learned hyperparameters (online refits on
     standardized data): f̄ ± 1.96 sqrt(V) covers ~95 % of the true values, within 3 binomial sd (cells of one
