@@ -716,38 +716,61 @@ class TransportKernel:
 
 
 # ---------------------------------------------------------------------------------------- CasADi
-def transport_callback(kernel: TransportKernel, name: str = "transport"):
+def transport_callback(kernel: TransportKernel, name: str = "transport", velocities=None):
     """``casadi.Function`` P = F(VX, VY, p0): VX (n_fx, N), VY (n_fy, N), p0 (n_cell, 1) -> P (n_cell, N+1),
     the interval-boundary snapshots (column k = vec of p(t_k)).  Its reverse derivative runs
     :meth:`TransportKernel.adjoint` on the trajectory cached by the last forward call at the same
-    inputs (IPOPT evaluates f and then grad f at the same point; neither re-runs the other's work)."""
+    inputs (IPOPT evaluates f and then grad f at the same point; neither re-runs the other's work).
+
+    ``velocities``: a :class:`ocp.transport.FaceBasis`; the node is then P = F(a, p0) of the coefficients
+    a (n_coef, 1) (C order (l, d, i, j), as ``coef.ravel()``), the basis product of every interval done
+    here in NumPy (:meth:`~ocp.transport.FaceBasis.horizon_velocities`) and its reverse too: one node
+    instead of 2 N matrix products in CasADi's graph (each evaluated in its generic loops, forward and
+    reverse)."""
     class _Cache:
         key = None
         traj = None
+        vel = None
 
-        def get(self, VX, VY, p0):
-            key = (VX, VY, p0)
+        def get(self, *key):
+            """(VX, VY, trajectory) at the inputs ``key`` (the node's inputs, compared bit for bit)."""
             if self.key is not None and all(np.array_equal(a, b) for a, b in zip(self.key, key)):
-                return self.traj
+                return self.vel + (self.traj,)
             self.key = None
+            if velocities is None:
+                VX, VY, p0 = key
+            else:
+                VX, VY = velocities.horizon_velocities(key[0].reshape(kernel.N, 2, *velocities.shape))
+                p0 = key[1]
+            self.vel = (VX, VY)
             self.traj = kernel.forward(VX, VY, p0, out=self.traj)     # one buffer, reused
             self.key = tuple(np.array(a, copy=True) for a in key)
-            return self.traj
+            return self.vel + (self.traj,)
 
     cache = _Cache()
 
     N1 = kernel.N + 1
-    shapes_in = [(kernel.n_fx, kernel.N), (kernel.n_fy, kernel.N), (kernel.n_cell, 1)]
+    if velocities is None:
+        shapes_in = [(kernel.n_fx, kernel.N), (kernel.n_fy, kernel.N), (kernel.n_cell, 1)]
+    else:
+        shapes_in = [(kernel.N * 2 * velocities.shape[0] * velocities.shape[1], 1), (kernel.n_cell, 1)]
+
+    def inputs(xs):                  # the views of the node's inputs: (VX, VY, p0) or (a, p0), vectors flat
+        return (xs[0], xs[1], xs[2][0]) if velocities is None else (xs[0][0], xs[1][0])
 
     def forward(xs, P):
-        P[:] = kernel.snapshots(cache.get(xs[0], xs[1], xs[2][0]))
+        P[:] = kernel.snapshots(cache.get(*inputs(xs))[-1])
 
     def reverse(xs, seed, grads):
-        VX, VY, p0 = xs[0], xs[1], xs[2][0]
-        gvx, gvy, gp0 = kernel.adjoint(VX, VY, cache.get(VX, VY, p0), seed)
-        for g, v in zip(grads, (gvx, gvy, gp0[None, :])):
+        VX, VY, traj = cache.get(*inputs(xs))
+        gvx, gvy, gp0 = kernel.adjoint(VX, VY, traj, seed)
+        if velocities is None:
+            out = (gvx, gvy, gp0[None, :])
+        else:
+            out = (None if grads[0] is None else velocities.horizon_velocities_adjoint(gvx, gvy).reshape(1, -1),
+                   gp0[None, :])
+        for g, v in zip(grads, out):
             if g is not None:                                  # None: a sensitivity CasADi does not use (p0's)
                 g[:] = v
 
     return reverse_mode_function(name, shapes_in, (kernel.n_cell, N1), forward, reverse)
-

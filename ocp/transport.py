@@ -60,6 +60,39 @@ class FaceBasis:
         vy = self.Sx_cell @ coef_k[1] @ self.Sy_face.T
         return vx, vy
 
+    # the whole horizon at once, in the transport kernel's layout (ocp.kernel): row l of VX is the column-major
+    # vec of interval l's vx, i.e. the C-order ravel of vx^T = Sy_cell a_x^T Sx_face^T (likewise VY)
+    def horizon_velocities(self, coef: np.ndarray):
+        """``(VX (N, n_fx), VY (N, n_fy))``: the face velocities of every interval of ``coef`` (N, 2, I, J), each
+        row the column-major vec of :meth:`face_velocities`' arrays (the kernel's layout)."""
+        coef = np.asarray(coef, dtype=float)
+        n = coef.shape[0]
+        ax, ay = coef[:, 0].transpose(0, 2, 1), coef[:, 1].transpose(0, 2, 1)         # (N, J, I): a^T
+        if self.dense is not None:
+            Bx, By = self.dense
+            return ax.reshape(n, -1) @ Bx.T, ay.reshape(n, -1) @ By.T
+        VX = (self.Sy_cell @ ax @ self.Sx_face.T).reshape(n, -1)
+        VY = (self.Sy_face @ ay @ self.Sx_cell.T).reshape(n, -1)
+        return VX, VY
+
+    def horizon_velocities_adjoint(self, gvx: np.ndarray, gvy: np.ndarray) -> np.ndarray:
+        """The reverse of :meth:`horizon_velocities`: seeds ``gvx`` (N, n_fx), ``gvy`` (N, n_fy) on the face
+        velocities -> their sensitivity to the coefficients (N, 2, I, J)."""
+        g = self.grid
+        n = gvx.shape[0]
+        I, J = self.shape
+        out = np.empty((n, 2, I, J))
+        if self.dense is not None:
+            Bx, By = self.dense
+            out[:, 0] = (gvx @ Bx).reshape(n, J, I).transpose(0, 2, 1)
+            out[:, 1] = (gvy @ By).reshape(n, J, I).transpose(0, 2, 1)
+            return out
+        GX = np.asarray(gvx).reshape(n, g.ny, g.nx - 1)
+        GY = np.asarray(gvy).reshape(n, g.ny - 1, g.nx)
+        out[:, 0] = self.Sx_face.T @ GX.transpose(0, 2, 1) @ self.Sy_cell
+        out[:, 1] = self.Sx_cell.T @ GY.transpose(0, 2, 1) @ self.Sy_face
+        return out
+
 
 def upwind_split(v, eps: float):
     """Smoothed upwind split (v+, v-), v+ - v- = v, both >= 0."""

@@ -181,3 +181,22 @@ def test_full_jacobian_of_shooting_map_equals_casadi_graph(backend):
     jac = [np.array(ca.Function("j", [a], [ca.jacobian(P.shoot(a, p0), a)])(av)) for P in (ref, fast)]
     assert np.abs(jac[0]).max() > 0.1
     np.testing.assert_allclose(jac[1], jac[0], rtol=0, atol=1e-13 * np.abs(jac[0]).max())
+
+
+@pytest.mark.parametrize("basis", ["sine", "sine-cosine", "free-space"])
+def test_horizon_velocities_are_the_kernel_layout_and_their_adjoint_the_transpose(basis):
+    """FaceBasis.horizon_velocities (the transport node's basis product, in NumPy) equals the per-interval face
+    velocities in the kernel's layout, and its adjoint is the transpose (<G, V a> = <V^T G, a>)."""
+    free = np.ones((SMALL["nx"], SMALL["ny"]), bool)
+    free[5:7, 2:8] = False
+    P = TransportProblem(PlannerSettings(**SMALL, basis=basis, transport="numpy"), free=free)
+    rng = np.random.default_rng(4)
+    coef = rng.standard_normal((P.N, 2, P.I, P.J))
+    VX, VY = P.basis.horizon_velocities(coef)
+    RX, RY = P.face_velocities(coef)
+    np.testing.assert_allclose(VX, RX, rtol=0, atol=1e-14 * np.abs(RX).max())
+    np.testing.assert_allclose(VY, RY, rtol=0, atol=1e-14 * np.abs(RY).max())
+    GX, GY = rng.standard_normal(VX.shape), rng.standard_normal(VY.shape)
+    back = P.basis.horizon_velocities_adjoint(GX, GY)
+    assert back.shape == coef.shape
+    assert np.sum(back * coef) == pytest.approx(np.sum(GX * VX) + np.sum(GY * VY), rel=1e-12)
