@@ -486,6 +486,70 @@ int sf_adjoint(int nx, int ny, int N, int nsub, double rx, double ry, double eps
     free(buf);
     return 0;
 }
+
+/* Checkpointed pair (the planner's objective and gradient): the forward pass keeps the interval-boundary
+   snapshots only (N+1) * nx*ny, its sub-steps in two scratch states (in cache); the adjoint recomputes one
+   interval's sub-steps at a time from its snapshot (nsub states: in the L2 cache at the planner's sizes) and
+   sweeps back over them.  The same step() on the same inputs: the states, hence the results, are those of
+   sf_forward / sf_adjoint bit for bit, without writing and reading back the whole trajectory. */
+int sf_forward_snap(int nx, int ny, int N, int nsub, double rx, double ry, double eps, const double *mx,
+                    const double *my, const double *vx, const double *vy, const double *p0, double *snap) {
+    long n = (long)nx * ny, nfx = (long)(nx - 1) * ny, nfy = (long)nx * (ny - 1);
+    double *buf = (double *)malloc(sizeof(double) * (2 * nfx + 2 * nfy + 2 * nx + 1 + 2 * n));
+    if (!buf) return 1;
+    double *xp = buf, *xm = xp + nfx, *yp = xm + nfx, *ym = yp + nfy, *scratch = ym + nfy, *fx = scratch + nx;
+    double *ring[2] = {fx + nx + 1, fx + nx + 1 + n};
+    memcpy(snap, p0, sizeof(double) * n);
+    for (int l = 0; l < N; l++) {
+        split(nfx, vx + nfx * l, eps * eps, mx, xp, xm);
+        split(nfy, vy + nfy * l, eps * eps, my, yp, ym);
+        const double *src = snap + n * l;
+        for (int s = 0; s < nsub; s++) {
+            double *dst = (s == nsub - 1) ? snap + n * (l + 1) : ring[s & 1];
+            step(nx, ny, rx, ry, xp, xm, yp, ym, src, dst, scratch, fx);
+            src = dst;
+        }
+    }
+    free(buf);
+    return 0;
+}
+
+/* sf_adjoint from the snapshots of sf_forward_snap (snap: (N+1) * nx*ny) */
+int sf_adjoint_snap(int nx, int ny, int N, int nsub, double rx, double ry, double eps, const double *mx,
+                    const double *my, const double *vx, const double *vy, const double *snap, const double *lsnap,
+                    double *gvx, double *gvy, double *gp0) {
+    long n = (long)nx * ny, nfx = (long)(nx - 1) * ny, nfy = (long)nx * (ny - 1);
+    double *buf = (double *)malloc(sizeof(double) * (4 * nfx + 4 * nfy + 2 * n + 4 * nx + 1 + (long)nsub * n));
+    if (!buf) return 1;
+    double *xp = buf, *xm = xp + nfx, *yp = xm + nfx, *ym = yp + nfy;
+    double *axp = ym + nfy, *axm = axp + nfx, *ayp = axm + nfx, *aym = ayp + nfy;
+    double *lam = aym + nfy, *tmp = lam + n, *scratch = tmp + n, *gx = scratch + nx, *gm = gx + nx, *fx = gm + nx;
+    double *states = fx + nx + 1;                  /* the interval's states before each sub-step, 1..nsub-1 */
+    memcpy(lam, lsnap + n * N, sizeof(double) * n);
+    for (int l = N - 1; l >= 0; l--) {
+        const double *v = vx + nfx * l, *w = vy + nfy * l;
+        split(nfx, v, eps * eps, mx, xp, xm);
+        split(nfy, w, eps * eps, my, yp, ym);
+        const double *src = snap + n * l;
+        for (int s = 1; s < nsub; s++) {
+            step(nx, ny, rx, ry, xp, xm, yp, ym, src, states + n * s, scratch, fx);
+            src = states + n * s;
+        }
+        memset(axp, 0, sizeof(double) * (2 * nfx + 2 * nfy));
+        for (int s = nsub - 1; s >= 0; s--) {
+            const double *p = s ? states + n * s : snap + n * l;
+            step_adj(nx, ny, rx, ry, xp, xm, yp, ym, p, lam, tmp, axp, axm, ayp, aym, scratch, gx, gm);
+            double *t = lam; lam = tmp; tmp = t;
+        }
+        split_adj(nfx, v, eps, mx, axp, axm, gvx + nfx * l);
+        split_adj(nfy, w, eps, my, ayp, aym, gvy + nfy * l);
+        const double *ls = lsnap + n * l;
+        for (long k = 0; k < n; k++) lam[k] += ls[k];
+    }
+    memcpy(gp0, lam, sizeof(double) * n);
+    free(buf);
+    return 0;
+}
 """
 
 _SMOKE = r"""
@@ -509,6 +573,10 @@ def _declare(lib) -> None:
     lib.sf_forward.restype = i
     lib.sf_adjoint.argtypes = [i, i, i, i, d, d, d, dp, dp, dp, dp, dp, dp, dp, dp, dp]
     lib.sf_adjoint.restype = i
+    lib.sf_forward_snap.argtypes = lib.sf_forward.argtypes
+    lib.sf_forward_snap.restype = i
+    lib.sf_adjoint_snap.argtypes = lib.sf_adjoint.argtypes
+    lib.sf_adjoint_snap.restype = i
     vp = ctypes.c_void_p                        # the optional first-stage buffer (None = NULL)
     lib.sf_forward_muscl.argtypes = lib.sf_forward.argtypes + [vp]
     lib.sf_forward_muscl.restype = i
@@ -670,6 +738,48 @@ class TransportKernel:
         return (np.array_equal(key[1], vx) and np.array_equal(key[2], vy) and np.array_equal(key[3], traj[0])
                 and np.array_equal(key[4], traj[-1]))
 
+    # ---------------------------------------------------------------- checkpointed (snapshots only)
+    @property
+    def checkpoints(self) -> bool:
+        """True when :meth:`forward_snapshots` / :meth:`adjoint_snapshots` run without the whole trajectory
+        (the compiled upwind kernel); else they store it and fall back to :meth:`forward` / :meth:`adjoint`."""
+        return self.backend == "compiled" and self.scheme == "upwind"
+
+    def forward_snapshots(self, vx, vy, p0, out: np.ndarray | None = None) -> np.ndarray:
+        """The interval-boundary densities (N+1, n_cell) alone, the sub-steps in two scratch states (compiled
+        upwind kernel; :attr:`checkpoints`): equal bit for bit to ``snapshots(forward(...))`` without
+        writing the whole trajectory (N n_sub + 1 states, megabytes that no cache holds)."""
+        vx, vy, p0 = self._check(vx, vy, p0)
+        shape = (self.N + 1, self.n_cell)
+        if out is None or out.shape != shape or out.dtype != np.float64 or not out.flags.c_contiguous:
+            out = np.empty(shape)
+        if not self.checkpoints:
+            out[:] = self.snapshots(self.forward(vx, vy, p0))
+            return out
+        rc = _load().sf_forward_snap(self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, self.mask_x,
+                                     self.mask_y, vx, vy, p0, out)
+        if rc:
+            raise MemoryError("transport kernel: out of memory")
+        return out
+
+    def adjoint_snapshots(self, vx, vy, snaps, lsnap):
+        """:meth:`adjoint` from the snapshots of :meth:`forward_snapshots`: each interval's sub-steps are
+        recomputed from its snapshot (one interval's states at a time, in cache) and swept back; the same
+        results bit for bit."""
+        if not self.checkpoints:
+            return self.adjoint(vx, vy, self.forward(vx, vy, np.asarray(snaps)[0]), lsnap)
+        vx, vy, _ = self._check(vx, vy, snaps[0])
+        snaps = np.ascontiguousarray(snaps, dtype=float).reshape(self.N + 1, self.n_cell)
+        lsnap = np.ascontiguousarray(lsnap, dtype=float).reshape(self.N + 1, self.n_cell)
+        gvx = np.empty((self.N, self.n_fx))
+        gvy = np.empty((self.N, self.n_fy))
+        gp0 = np.empty(self.n_cell)
+        rc = _load().sf_adjoint_snap(self.nx, self.ny, self.N, self.n_sub, self.rx, self.ry, self.eps, self.mask_x,
+                                     self.mask_y, vx, vy, snaps, lsnap, gvx, gvy, gp0)
+        if rc:
+            raise MemoryError("transport kernel: out of memory")
+        return gvx, gvy, gp0
+
     def snapshots(self, traj) -> np.ndarray:
         """The interval-boundary densities (N+1, n_cell) of a trajectory."""
         return traj[:: self.n_sub]
@@ -718,24 +828,29 @@ class TransportKernel:
 # ---------------------------------------------------------------------------------------- CasADi
 def transport_callback(kernel: TransportKernel, name: str = "transport", velocities=None):
     """``casadi.Function`` P = F(VX, VY, p0): VX (n_fx, N), VY (n_fy, N), p0 (n_cell, 1) -> P (n_cell, N+1),
-    the interval-boundary snapshots (column k = vec of p(t_k)).  Its reverse derivative runs
-    :meth:`TransportKernel.adjoint` on the trajectory cached by the last forward call at the same
-    inputs (IPOPT evaluates f and then grad f at the same point; neither re-runs the other's work).
+    the interval-boundary snapshots (column k = vec of p(t_k)).  Its reverse derivative runs the kernel's
+    adjoint on the states cached by the last forward call at the same inputs (IPOPT evaluates f and then
+    grad f at the same point; neither re-runs the other's work): the snapshots alone with the compiled upwind
+    kernel (:meth:`TransportKernel.forward_snapshots`; its adjoint recomputes one interval's sub-steps at a
+    time, in cache), else the whole trajectory.
 
     ``velocities``: a :class:`ocp.transport.FaceBasis`; the node is then P = F(a, p0) of the coefficients
     a (n_coef, 1) (C order (l, d, i, j), as ``coef.ravel()``), the basis product of every interval done
     here in NumPy (:meth:`~ocp.transport.FaceBasis.horizon_velocities`) and its reverse too: one node
     instead of 2 N matrix products in CasADi's graph (each evaluated in its generic loops, forward and
     reverse)."""
+    checkpoints = kernel.checkpoints
+
     class _Cache:
         key = None
-        traj = None
+        states = None
         vel = None
 
         def get(self, *key):
-            """(VX, VY, trajectory) at the inputs ``key`` (the node's inputs, compared bit for bit)."""
+            """(VX, VY, states) at the inputs ``key`` (the node's inputs, compared bit for bit); the states are
+            the snapshots (checkpoints) or the whole trajectory."""
             if self.key is not None and all(np.array_equal(a, b) for a, b in zip(self.key, key)):
-                return self.vel + (self.traj,)
+                return self.vel + (self.states,)
             self.key = None
             if velocities is None:
                 VX, VY, p0 = key
@@ -743,9 +858,10 @@ def transport_callback(kernel: TransportKernel, name: str = "transport", velocit
                 VX, VY = velocities.horizon_velocities(key[0].reshape(kernel.N, 2, *velocities.shape))
                 p0 = key[1]
             self.vel = (VX, VY)
-            self.traj = kernel.forward(VX, VY, p0, out=self.traj)     # one buffer, reused
+            run = kernel.forward_snapshots if checkpoints else kernel.forward
+            self.states = run(VX, VY, p0, out=self.states)            # one buffer, reused
             self.key = tuple(np.array(a, copy=True) for a in key)
-            return self.vel + (self.traj,)
+            return self.vel + (self.states,)
 
     cache = _Cache()
 
@@ -759,11 +875,13 @@ def transport_callback(kernel: TransportKernel, name: str = "transport", velocit
         return (xs[0], xs[1], xs[2][0]) if velocities is None else (xs[0][0], xs[1][0])
 
     def forward(xs, P):
-        P[:] = kernel.snapshots(cache.get(*inputs(xs))[-1])
+        states = cache.get(*inputs(xs))[-1]
+        P[:] = states if checkpoints else kernel.snapshots(states)
 
     def reverse(xs, seed, grads):
-        VX, VY, traj = cache.get(*inputs(xs))
-        gvx, gvy, gp0 = kernel.adjoint(VX, VY, traj, seed)
+        VX, VY, states = cache.get(*inputs(xs))
+        adjoint = kernel.adjoint_snapshots if checkpoints else kernel.adjoint
+        gvx, gvy, gp0 = adjoint(VX, VY, states, seed)
         if velocities is None:
             out = (gvx, gvy, gp0[None, :])
         else:
