@@ -487,6 +487,60 @@ int sf_adjoint(int nx, int ny, int N, int nsub, double rx, double ry, double eps
     return 0;
 }
 
+/* The separable basis product of every interval, V_l = R A_l C^T (R: nr x I, C: nc x J, column-major; A_l the
+   (I, J) block of component d of interval l in coef (N, 2, I, J), C order), out: N * nr*nc, each V_l column-major
+   (the kernel's face layout).  Each sum runs over its inner index in ascending order from 0, without fused
+   multiply-adds: the order of CasADi's mtimes of (R A) C^T, so the face velocities are those of the planner's
+   CasADi graph bit for bit.  T: nr*J scratch. */
+void sf_basis_forward(int N, int I, int J, int d, int nr, int nc, const double *R, const double *C, const double *coef,
+                      double *out, double *T) {
+    for (int l = 0; l < N; l++) {
+        const double *A = coef + ((long)(2 * l + d) * I) * J;
+        double *V = out + (long)l * nr * nc;
+        for (long k = 0; k < (long)nr * J; k++) T[k] = 0.0;
+        for (int j = 0; j < J; j++)
+            for (int k = 0; k < I; k++) {
+                double a = A[(long)k * J + j];
+                const double *r = R + (long)nr * k;
+                double *t = T + (long)nr * j;
+                for (int i = 0; i < nr; i++) t[i] += r[i] * a;
+            }
+        for (long k = 0; k < (long)nr * nc; k++) V[k] = 0.0;
+        for (int c = 0; c < nc; c++)
+            for (int j = 0; j < J; j++) {
+                double b = C[c + (long)nc * j];
+                const double *t = T + (long)nr * j;
+                double *v = V + (long)nr * c;
+                for (int i = 0; i < nr; i++) v[i] += t[i] * b;
+            }
+    }
+}
+
+/* its reverse: seeds G_l (column-major nr x nc, N of them) -> the coefficients' sensitivities R^T (G_l C), written
+   into gcoef (N, 2, I, J) at component d; sums ascending as CasADi's reverse of the same product.  U: nr*J scratch. */
+void sf_basis_adjoint(int N, int I, int J, int d, int nr, int nc, const double *R, const double *C, const double *G,
+                      double *gcoef, double *U) {
+    for (int l = 0; l < N; l++) {
+        const double *Gl = G + (long)l * nr * nc;
+        double *gA = gcoef + ((long)(2 * l + d) * I) * J;
+        for (long k = 0; k < (long)nr * J; k++) U[k] = 0.0;
+        for (int j = 0; j < J; j++)
+            for (int c = 0; c < nc; c++) {
+                double b = C[c + (long)nc * j];
+                const double *g = Gl + (long)nr * c;
+                double *u = U + (long)nr * j;
+                for (int i = 0; i < nr; i++) u[i] += g[i] * b;
+            }
+        for (int k = 0; k < I; k++)
+            for (int j = 0; j < J; j++) {
+                const double *r = R + (long)nr * k, *u = U + (long)nr * j;
+                double s = 0.0;
+                for (int i = 0; i < nr; i++) s += r[i] * u[i];
+                gA[(long)k * J + j] = s;
+            }
+    }
+}
+
 /* Checkpointed pair (the planner's objective and gradient): the forward pass keeps the interval-boundary
    snapshots only (N+1) * nx*ny, its sub-steps in two scratch states (in cache); the adjoint recomputes one
    interval's sub-steps at a time from its snapshot (nsub states: in the L2 cache at the planner's sizes) and
@@ -573,6 +627,10 @@ def _declare(lib) -> None:
     lib.sf_forward.restype = i
     lib.sf_adjoint.argtypes = [i, i, i, i, d, d, d, dp, dp, dp, dp, dp, dp, dp, dp, dp]
     lib.sf_adjoint.restype = i
+    lib.sf_basis_forward.argtypes = [i, i, i, i, i, i, dp, dp, dp, dp, dp]
+    lib.sf_basis_forward.restype = None
+    lib.sf_basis_adjoint.argtypes = [i, i, i, i, i, i, dp, dp, dp, dp, dp]
+    lib.sf_basis_adjoint.restype = None
     lib.sf_forward_snap.argtypes = lib.sf_forward.argtypes
     lib.sf_forward_snap.restype = i
     lib.sf_adjoint_snap.argtypes = lib.sf_adjoint.argtypes
@@ -825,6 +883,46 @@ class TransportKernel:
         return out.ravel()
 
 
+class BasisProduct:
+    """The separable basis product of every interval in compiled code (``sf_basis_forward`` / ``_adjoint``):
+    :meth:`~ocp.transport.FaceBasis.horizon_velocities` and its reverse with each sum in the order of CasADi's
+    ``mtimes`` of (S_x A) S_y^T, so the face velocities and the coefficients' gradient are those of the planner's
+    CasADi graph bit for bit (the tests compare them), at a fraction of the cost of that graph's generic matrix
+    loops.  ``basis``: a :class:`~ocp.transport.FaceBasis` of a separable series (``basis.dense`` None)."""
+
+    def __init__(self, basis, n_intervals: int):
+        if basis.dense is not None:
+            raise ValueError("BasisProduct: a separable basis only (the free-space basis has dense face matrices)")
+        if _load() is None:
+            raise RuntimeError(f"compiled transport kernel unavailable: {compile_error()}")
+        self.N = int(n_intervals)
+        self.shape = tuple(int(v) for v in basis.shape)
+
+        def colmajor(M):
+            return np.ascontiguousarray(np.asarray(M, dtype=float).ravel(order="F"))
+        # v_x = Sx_face A_x Sy_cell^T on the x-faces, v_y = Sx_cell A_y Sy_face^T on the y-faces
+        self._factors = ((basis.Sx_face.shape[0], basis.Sy_cell.shape[0], colmajor(basis.Sx_face), colmajor(basis.Sy_cell)),
+                         (basis.Sx_cell.shape[0], basis.Sy_face.shape[0], colmajor(basis.Sx_cell), colmajor(basis.Sy_face)))
+
+    def horizon_velocities(self, coef):
+        """``(VX (N, n_fx), VY (N, n_fy))`` of ``coef`` (N, 2, I, J), the kernel's layout."""
+        coef = np.ascontiguousarray(coef, dtype=float).reshape(self.N, 2, *self.shape)
+        out = []
+        for d, (nr, nc, R, C) in enumerate(self._factors):
+            V = np.empty((self.N, nr * nc))
+            _load().sf_basis_forward(self.N, *self.shape, d, nr, nc, R, C, coef, V, np.empty(nr * self.shape[1]))
+            out.append(V)
+        return out[0], out[1]
+
+    def horizon_velocities_adjoint(self, gvx, gvy) -> np.ndarray:
+        """Seeds on the face velocities (N, n_fx), (N, n_fy) -> the coefficients' sensitivity (N, 2, I, J)."""
+        g = np.empty((self.N, 2) + self.shape)
+        for d, ((nr, nc, R, C), G) in enumerate(zip(self._factors, (gvx, gvy))):
+            G = np.ascontiguousarray(G, dtype=float).reshape(self.N, nr * nc)
+            _load().sf_basis_adjoint(self.N, *self.shape, d, nr, nc, R, C, G, g, np.empty(nr * self.shape[1]))
+        return g
+
+
 # ---------------------------------------------------------------------------------------- CasADi
 def transport_callback(kernel: TransportKernel, name: str = "transport", velocities=None):
     """``casadi.Function`` P = F(VX, VY, p0): VX (n_fx, N), VY (n_fy, N), p0 (n_cell, 1) -> P (n_cell, N+1),
@@ -834,11 +932,10 @@ def transport_callback(kernel: TransportKernel, name: str = "transport", velocit
     kernel (:meth:`TransportKernel.forward_snapshots`; its adjoint recomputes one interval's sub-steps at a
     time, in cache), else the whole trajectory.
 
-    ``velocities``: a :class:`ocp.transport.FaceBasis`; the node is then P = F(a, p0) of the coefficients
-    a (n_coef, 1) (C order (l, d, i, j), as ``coef.ravel()``), the basis product of every interval done
-    here in NumPy (:meth:`~ocp.transport.FaceBasis.horizon_velocities`) and its reverse too: one node
-    instead of 2 N matrix products in CasADi's graph (each evaluated in its generic loops, forward and
-    reverse)."""
+    ``velocities``: a :class:`BasisProduct` (or a :class:`~ocp.transport.FaceBasis`: the same in NumPy, to
+    round-off); the node is then P = F(a, p0) of the coefficients a (n_coef, 1) (C order (l, d, i, j), as
+    ``coef.ravel()``), the basis product of every interval and its reverse done here: one node instead of
+    2 N matrix products in CasADi's graph (each evaluated in its generic loops, forward and reverse)."""
     checkpoints = kernel.checkpoints
 
     class _Cache:

@@ -200,9 +200,22 @@ class TransportProblem:
             self.kernel = TransportKernel(nx, ny, N, self.n_sub, rx, ry, eps, backend=self.transport, free=self.free,
                                           walls=self.walls,
                                           scheme=s.scheme)
-            # the basis product of every interval inside the node too (NumPy; FaceBasis.horizon_velocities)
-            self._transport_fn = transport_callback(self.kernel, velocities=self.basis)
-            Pk = self._transport_fn(a, ca.vec(p0))
+            if self.basis.dense is None and self.transport == "compiled":
+                # the basis product of every interval inside the node too (compiled, in the order of the graph's
+                # mtimes below: the same face velocities and gradients bit for bit, without CasADi's matrix loops)
+                from .kernel import BasisProduct
+                self._transport_fn = transport_callback(self.kernel, velocities=BasisProduct(self.basis, N))
+                Pk = self._transport_fn(a, ca.vec(p0))
+            else:
+                self._transport_fn = transport_callback(self.kernel)
+                if self.basis.dense is None:
+                    VX = ca.horzcat(*[ca.vec(ca.mtimes([Sxf, ax_l, Syc_T])) for ax_l, _ in coefs])
+                    VY = ca.horzcat(*[ca.vec(ca.mtimes([Sxc, ay_l, Syf_T])) for _, ay_l in coefs])
+                else:
+                    Bx, By = (ca.DM(B) for B in self.basis.dense)
+                    VX = ca.horzcat(*[ca.mtimes(Bx, ca.vec(ax_l)) for ax_l, _ in coefs])
+                    VY = ca.horzcat(*[ca.mtimes(By, ca.vec(ay_l)) for _, ay_l in coefs])
+                Pk = self._transport_fn(VX, VY, ca.vec(p0))
             states = [ca.reshape(Pk[:, k], nx, ny) for k in range(N + 1)]
         # the cost's extra parameters (objective "information": V0, spread matrices, rate; ocp.objectives)
         self.info = ca.MX.sym("info", 0)

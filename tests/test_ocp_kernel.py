@@ -236,3 +236,31 @@ def test_checkpointed_forward_and_adjoint_equal_the_stored_trajectory_bit_for_bi
             dn = (VX - e, VY, p) if arr is VX else (VX, VY, p - e)
             fd = (np.sum(kern.forward_snapshots(*up) * lam) - np.sum(kern.forward_snapshots(*dn) * lam)) / (2 * h)
             assert grad[idx] == pytest.approx(fd, rel=1e-6, abs=1e-8 * np.abs(grad).max())
+
+
+@needs_cc
+@pytest.mark.parametrize("basis", ["sine", "sine-cosine"])
+def test_compiled_basis_product_is_the_casadi_graphs_bit_for_bit(basis):
+    """BasisProduct (the transport node's compiled basis product) gives the face velocities of the CasADi graph
+    (S_x A) S_y^T and their reverse (the coefficients' gradient) bit for bit, and equals the NumPy reference."""
+    P = TransportProblem(PlannerSettings(**SMALL, basis=basis, transport="casadi"))
+    B, N, I, J = P.basis, P.N, P.I, P.J
+    a = ca.MX.sym("a", P.n_coef)
+    A = ca.reshape(a, I * J, 2 * N)
+    blocks = [(ca.reshape(A[:, 2 * l], J, I).T, ca.reshape(A[:, 2 * l + 1], J, I).T) for l in range(N)]
+    Sxf, Sxc, Syf_T, Syc_T = (ca.DM(M) for M in (B.Sx_face, B.Sx_cell, B.Sy_face.T, B.Sy_cell.T))
+    VX = ca.horzcat(*[ca.vec(ca.mtimes([Sxf, ax, Syc_T])) for ax, _ in blocks])
+    VY = ca.horzcat(*[ca.vec(ca.mtimes([Sxc, ay, Syf_T])) for _, ay in blocks])
+    sx, sy = ca.MX.sym("sx", *VX.shape), ca.MX.sym("sy", *VY.shape)
+    graph = ca.Function("graph", [a, sx, sy], [VX, VY, ca.gradient(ca.dot(sx, VX) + ca.dot(sy, VY), a)])
+    rng = np.random.default_rng(6)
+    coef = rng.standard_normal((N, 2, I, J))
+    GX, GY = rng.standard_normal((N, VX.shape[0])), rng.standard_normal((N, VY.shape[0]))
+    rx, ry, rg = (np.array(v) for v in graph(coef.ravel(), GX.T, GY.T))
+    prod = K.BasisProduct(B, N)
+    vx, vy = prod.horizon_velocities(coef)
+    np.testing.assert_array_equal(vx, rx.T)
+    np.testing.assert_array_equal(vy, ry.T)
+    np.testing.assert_array_equal(prod.horizon_velocities_adjoint(GX, GY).ravel(), rg.ravel())
+    for got, ref in zip(prod.horizon_velocities(coef), B.horizon_velocities(coef)):
+        np.testing.assert_allclose(got, ref, rtol=0, atol=1e-14 * np.abs(ref).max())
