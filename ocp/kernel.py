@@ -954,10 +954,12 @@ def transport_callback(kernel: TransportKernel, name: str = "transport", velocit
             else:
                 VX, VY = velocities.horizon_velocities(key[0].reshape(kernel.N, 2, *velocities.shape))
                 p0 = key[1]
-            self.vel = (VX, VY)
             run = kernel.forward_snapshots if checkpoints else kernel.forward
             self.states = run(VX, VY, p0, out=self.states)            # one buffer, reused
             self.key = tuple(np.array(a, copy=True) for a in key)
+            # the velocities kept for the reverse pass: owned arrays (VX, VY given as inputs are views of
+            # CasADi's buffers, reused after the call: their copies in the key)
+            self.vel = self.key[:2] if velocities is None else (VX, VY)
             return self.vel + (self.states,)
 
     cache = _Cache()
