@@ -14,7 +14,9 @@ precision of this form with b = n_y and n_b = n_x (:mod:`regression.gmrf`).
   keeps the band (no fill beyond it), only the blocks inside it fill in.  Per block column: one b x b
   Cholesky factorisation, one triangular solve for the w b x b column below it and one symmetric rank-b
   update of the trailing (w b) x (w b) window.
-* :func:`solve`: P^{-1} z by forward and back substitution with L.
+* :func:`solve`: P^{-1} z by forward and back substitution with L: LAPACK's ``dpbtrs`` on L's entries gathered
+  into its band storage (half-width (w + 1) b - 1, which holds the block band; :func:`_lapack_band_index`), about
+  twice as fast as the substitution per block (:func:`block_solve`, the reference) at b = 28-43.
 * :func:`logdet`: log det P = 2 sum log diag L.
 * :func:`selected_inverse`: Sigma = P^{-1} within the block band, by the recurrence of Takahashi, Fagan &
   Chen (1973) (see also Rue & Held 2005, section 2.4.4, and Erisman & Tinney 1975): with
@@ -33,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import blas, lapack
 
-__all__ = ["cholesky", "solve", "logdet", "selected_inverse", "matvec", "quadratic", "trace_product", "to_dense",
+__all__ = ["cholesky", "solve", "block_solve", "logdet", "selected_inverse", "matvec", "quadratic", "trace_product", "to_dense",
            "from_dense"]
 
 
@@ -41,6 +43,31 @@ def _check(blocks: np.ndarray) -> tuple[int, int, int]:
     if blocks.ndim != 4 or blocks.shape[2] != blocks.shape[3] or blocks.shape[1] < 1:
         raise ValueError(f"blocks must have shape (n_b, w + 1, b, b), got {blocks.shape}")
     return blocks.shape[0], blocks.shape[1] - 1, blocks.shape[2]
+
+
+def _lapack_band_index(nb: int, w: int, b: int):
+    """(positions in the flat block band, positions in the flat (n, kd + 1) transposed LAPACK band, kd) of the
+    lower triangle's entries inside the block band: block (k + d, k) entry (r, c) is the matrix entry
+    (i, j) = ((k + d) b + r, k b + c), stored by LAPACK (lower, Fortran order) at ab[i - j, j], i.e. at
+    [j, i - j] of the C-ordered transpose."""
+    key = (nb, w, b)
+    hit = _BAND_INDEX.get(key)
+    if hit is None:
+        n = nb * b
+        kd = min((w + 1) * b - 1, n - 1)
+        k, d, r, c = np.meshgrid(np.arange(nb), np.arange(w + 1), np.arange(b), np.arange(b), indexing="ij")
+        keep = (k + d < nb) & ((d > 0) | (r >= c))
+        src = np.flatnonzero(keep)
+        j = (k * b + c)[keep]
+        off = (d * b + r - c)[keep]
+        hit = (src, j * (kd + 1) + off, kd)
+        if len(_BAND_INDEX) > 8:
+            _BAND_INDEX.clear()
+        _BAND_INDEX[key] = hit
+    return hit
+
+
+_BAND_INDEX: dict = {}
 
 
 def cholesky(blocks: np.ndarray, overwrite: bool = False) -> np.ndarray:
@@ -79,7 +106,20 @@ def logdet(factor: np.ndarray) -> float:
 
 
 def solve(factor: np.ndarray, z: np.ndarray) -> np.ndarray:
-    """P^{-1} z for the vector or (n, k) array ``z`` (n = n_b b), with P = L L^T given by its factor L."""
+    """P^{-1} z for the vector or (n, k) array ``z`` (n = n_b b), with P = L L^T given by its factor L
+    (LAPACK ``dpbtrs`` on the band storage)."""
+    nb, w, b = _check(factor)
+    src, dst, kd = _lapack_band_index(nb, w, b)
+    abt = np.zeros((nb * b, kd + 1))
+    abt.reshape(-1)[dst] = factor.reshape(-1)[src]
+    x, info = lapack.dpbtrs(abt.T, np.asarray(z, dtype=float), lower=1)
+    if info != 0:                                    # pragma: no cover - only for invalid arguments
+        raise np.linalg.LinAlgError(f"banded solve failed (info={info})")
+    return x
+
+
+def block_solve(factor: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """:func:`solve` by block forward and back substitution (the reference)."""
     nb, w, b = _check(factor)
     z = np.asarray(z, dtype=float)
     vec = z.ndim == 1

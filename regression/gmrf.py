@@ -214,17 +214,14 @@ def _scaled_band(band: np.ndarray, scale: np.ndarray) -> np.ndarray:
     return band * scale[:, :, None, None] * scale[i2, j2]
 
 
-def _scaled_blocks(blocks: np.ndarray, scale: np.ndarray, shift: np.ndarray | None = None) -> np.ndarray:
-    """S C S for S = diag(scale) (scale (gx, gy)) and C a block band (gx, w + 1, gy, gy); with ``shift`` (gx, gy)
-    instead (D_row + D_col) * C, D = diag(shift)."""
-    w1 = blocks.shape[1]
-    v = scale if shift is None else shift
-    rows = np.zeros(blocks.shape[:3])                   # rows: node (k + d, r) of block (k + d, k)
+def _node_outer(v: np.ndarray, w1: int, add: bool = False) -> np.ndarray:
+    """(gx, w1, gy, gy): v_row v_col (``add``: v_row + v_col) at every entry of a block band, v (gx, gy) per node
+    (rows: node (k + d, r) of block (k + d, k); columns: node (k, c); zero rows beyond the lattice)."""
+    rows = np.zeros((v.shape[0], w1, v.shape[1]))
     for d in range(w1):
         rows[:len(v) - d, d] = v[d:]
-    if shift is None:
-        return blocks * rows[:, :, :, None] * v[:, None, None, :]
-    return blocks * (rows[:, :, :, None] + v[:, None, None, :])
+    op = np.add if add else np.multiply
+    return op(rows[:, :, :, None], v[:, None, None, :])
 
 
 #: fixed-point iterations of the per-node normalisation (:func:`gmrf_prior`)
@@ -247,6 +244,7 @@ class GmrfPrior:
     lattice: _Lattice = field(repr=False)
     lengths: tuple = ()                            # (l_x, l_y, h_x, h_y)
     states: tuple = field(default=(), repr=False)  # the normalisation's iterates
+    inv_outer: np.ndarray = field(default=None, repr=False)   # S^{-1}_row S^{-1}_col on the block band
 
     @functools.cached_property
     def band(self) -> np.ndarray:
@@ -305,9 +303,10 @@ def gmrf_prior(gx: int, gy: int, hx: float, hy: float, lx: float, ly: float, nu:
     kappa, spec, logdet0 = _spectrum(lat, lx, ly, hx, hy)
     band0 = _covariance_band(lat, spec)
     scale, states = _normalise(lat, band0)
-    q = _scaled_blocks(q0, 1.0 / scale)
+    inv_outer = _node_outer(1.0 / scale, WIDTH + 1)
+    q = q0 * inv_outer
     logdet = logdet0 - 2.0 * float(np.sum(np.log(scale)))
-    return GmrfPrior(q, logdet, scale, band0, kappa, spec, lat, (lx, ly, hx, hy), states)
+    return GmrfPrior(q, logdet, scale, band0, kappa, spec, lat, (lx, ly, hx, hy), states, inv_outer)
 
 
 def gmrf_prior_derivative(prior: GmrfPrior, dx: float, dy: float) -> tuple[np.ndarray, float]:
@@ -322,5 +321,6 @@ def gmrf_prior_derivative(prior: GmrfPrior, dx: float, dy: float) -> tuple[np.nd
     dkappa = 2.0 * c * (dx * lx * lx * lat.lamx[:, None] + dy * ly * ly * lat.lamy[None, :])
     dlog_q0 = -(dx + dy) + lat.alpha * dkappa / kappa               # d log of each eigenvalue of Q_0
     dlog_s = _normalise_tangent(lat, prior.band0, prior.states, _covariance_band(lat, -spec * dlog_q0))
-    dq = _scaled_blocks(dq0, 1.0 / prior.scale) - _scaled_blocks(prior.precision, None, dlog_s)
+    dq = dq0 * prior.inv_outer
+    dq -= prior.precision * _node_outer(dlog_s, WIDTH + 1, add=True)
     return dq, float(np.sum(dlog_q0)) - 2.0 * float(np.sum(dlog_s))

@@ -31,6 +31,9 @@ def test_selected_inverse_matches_dense_inverse_within_the_band(nb, w, b):
     assert np.allclose(banded.solve(factor, z), np.linalg.solve(dense, z), atol=1e-12)
     assert np.allclose(banded.solve(factor, z[:, 0]), np.linalg.solve(dense, z[:, 0]), atol=1e-12)
     assert banded.logdet(factor) == pytest.approx(np.linalg.slogdet(dense)[1], abs=1e-10)
+    # LAPACK's band solve against the per-block reference
+    assert np.allclose(banded.solve(factor, z), banded.block_solve(factor, z), atol=1e-12)
+    assert np.allclose(banded.block_solve(factor, z[:, 0]), np.linalg.solve(dense, z[:, 0]), atol=1e-12)
 
 
 def test_cholesky_of_an_indefinite_band_is_an_error():
