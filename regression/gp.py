@@ -153,6 +153,8 @@ def kernel_key(settings: GPSettings, length_scale: float, length_scale_y: float 
 _N_POW = 7            # powers t^0 .. t^6 of the products w_p w_r
 _N_POW_Y = 4          # powers t^0 .. t^3 of the weights w_p
 _PREDICT_CHUNK = 4096
+#: :meth:`GaussianProcess.predict` keeps the query points' basis and band positions when there are at most this many
+_QUERY_CACHE = 8192
 #: Points per block in GaussianProcess.add: bounds its work arrays (~1 KB per point) for huge batches.
 _ADD_CHUNK = 65536
 
@@ -419,6 +421,7 @@ class GaussianProcess:
         self._band_offsets = None   # offsets in the band of the 16 x 16 node pairs of a cell
         self._idx_blocks = None     # kernel "gmrf": (lower (p, r) pairs, positions in A's block band)
         self._prior_var_cache = None  # kernel "gmrf": (prior band, points, prior variance there) of the last predict
+        self._query_cache = None      # (points, per chunk: slice, basis, band positions) of the last predict
         self._build_scatter_indices()
 
     # ------------------------------------------------------------------ properties
@@ -1016,11 +1019,23 @@ class GaussianProcess:
             hit = self._prior_var_cache
             if hit is not None and hit[0] is prior and np.array_equal(hit[1], pts):
                 prior_all = hit[2]
-        for start in range(0, npts, _PREDICT_CHUNK):
-            sl = slice(start, min(start + _PREDICT_CHUNK, npts))
-            nx_, ny_, wx, wy, node, phi = self._basis(pts[sl])
+        hit = self._query_cache
+        if hit is not None and np.array_equal(hit[0], pts):
+            chunks = hit[1]
+        else:
+            chunks = []
+            for start in range(0, npts, _PREDICT_CHUNK):
+                sl = slice(start, min(start + _PREDICT_CHUNK, npts))
+                basis = self._basis(pts[sl])
+                where = (basis[4][:, 0] * (_BAND * _BAND))[:, None, None] + self._band_offsets[None]
+                chunks.append((sl, basis, where))
+            # the loop asks the same cell centres at every step: their basis and band positions are kept (for
+            # up to _QUERY_CACHE points)
+            self._query_cache = (pts.copy(), chunks) if npts <= _QUERY_CACHE else None
+        for sl, (nx_, ny_, wx, wy, node, phi), where in chunks:
+            start = sl.start
             out_mean[sl] = mean + np.einsum("ij,ij->i", phi, mu[node])
-            local = flat[(node[:, 0] * (_BAND * _BAND))[:, None, None] + self._band_offsets[None]]
+            local = flat[where]
             post = np.einsum("ij,ijk,ik->i", phi, local, phi)
             if isinstance(prior, tuple):
                 kcx, kcy = prior
@@ -1030,7 +1045,7 @@ class GaussianProcess:
             elif prior_all is not None:
                 prior_var = prior_all[sl]
             else:                                           # the prior covariance's band (kernel "gmrf")
-                pl = prior.reshape(-1)[(node[:, 0] * (_BAND * _BAND))[:, None, None] + self._band_offsets[None]]
+                pl = prior.reshape(-1)[where]
                 prior_var = np.einsum("ij,ijk,ik->i", phi, pl, phi)
                 if start == 0:
                     self._prior_var_cache = (prior, pts, np.empty(npts))
