@@ -50,6 +50,11 @@ Two configurations for large swarms can be added to the table (``--configs``):
   (``inducing_spacing = 0.5``); ``gmrf2-l2.5-h0.8``: at l = 2.5 on 28 x 28 nodes (``inducing_spacing = 0.8``).
 * ``se-l2.5-h0.8``, ``se-l3.5``: the default squared exponential at the same length scales and lattices as
   ``gmrf2-l2.5-h0.8`` and ``gmrf2-l3.5`` (what the longer length scale alone buys).
+* ``gmrf2-learn``: ``gmrf2`` with (s_f^2, l) learned by the run's own online refit (``gp.learn_hyperparameters``,
+  once per period, the paper's priors centred on s_f^2 = 0.25 and l = 1, 43 x 43 nodes); ``gmrf2-learn-h0.8`` the
+  same on 28 x 28 nodes (``inducing_spacing = 0.8``, so l starts at, and is bounded below by, 1.5 x 0.8 = 1.2);
+  ``gmrf2-learn-h0.8-it8`` with the tuned preset's 8 refit iterations instead of 15.  The last column then gives
+  the learned values at the end and the refit's CPU per step (included in the step's CPU).
 
 ``--domains`` times the same step with obstacles (built-in domains, :mod:`domain`;
 target: within 1.3x of the empty rectangle at 10,000 robots); ``rectangle`` is the empty domain.
