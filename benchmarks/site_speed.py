@@ -11,9 +11,9 @@
 One tab-separated line per run and period: label, seed, period, the robots' mean speed [m/s], the fraction of robot
 velocities at the speed limit, medians at the robots of p̂ / p_r, of |v_r| (the planned reference velocity), of each
 numerator term of the law divided by p̂ (the gain term α|∇(p̂ - p_r)|, the reference flux |v_r| p_r, the stirring
-|J| and the transport |β ∇ψ|), the fraction of robots whose p̂ is below feedback.p_floor, the plan's largest |v_r|
-on its grid, and at the end of the period the time to the threshold (T, "inf" if not yet) and the RMSE.  Then the
-path length and the resolved settings a site rule scales.
+|J| and the transport |β ∇ψ|), the fraction of robots whose p̂ is below feedback.p_floor, and at the end of the period the time to the threshold (T, "inf" if not yet) and the RMSE.  Then the
+path length, the site rule's factor and resolved settings (``sim.site_scale``) and the other absolute
+settings tried.
 """
 from __future__ import annotations
 
@@ -70,8 +70,10 @@ def _probe(log):
 
 
 def _scaled(cfg) -> dict:
-    """The settings a site rule scales, as resolved."""
-    return {"kde.bandwidth": cfg.kde.bandwidth, "feedback.alpha": cfg.feedback.alpha,
+    """The site rule's factor and resolved settings (sim.site_scale), and the other absolute settings tried."""
+    from swarmfield.sim.site_scale import site_summary
+    site = site_summary(cfg)
+    return {"factor": site["factor"], **site["settings"], "feedback.alpha": cfg.feedback.alpha,
             "feedback.stir_speed": cfg.feedback.stir_speed, "feedback.p_floor": cfg.feedback.p_floor,
             "planner.reference_speed": cfg.planner.reference_speed}
 

@@ -157,10 +157,13 @@ PRESETS: dict[str, dict] = {
         # at the next period start (docs/design/receding-horizon.md, docs/results/tuned-preset.md)
         # map_rmse_relative 0.3: the robust rule also asks for the GP's expected RMSE sqrt(mean V) <= 0.3 s_f, so that
         # it fires only when the map is good (sim.stopping, "The map condition"; docs/results/map-quality.md)
-        # site_scale "area": the values above are those of the paper's 20 m x 20 m; on another site the absolute
-        # lengths and speeds of sim.site_scale.SCALED are scaled by s = sqrt(area / 400 m^2) (s = 1 on 400 m^2: no
-        # change).  The 1 m KDE bandwidth on a 60 m x 40 m yard made every robot see its own kernel as a crowd (p̂ / p_r
-        # ~ 1.7 at the robots) and the swarm crawl (docs/results/map-quality.md, "Larger sites")
+        # site_scale "area": the values above are those of the paper's 20 m x 20 m; on a larger site the settings of
+        # sim.site_scale.SCALED are scaled with s = sqrt(area / 400 m^2) (s = 1 up to 400 m^2: no change): the KDE's
+        # 1 m bandwidth x s (on a 60 m x 40 m yard every robot saw its own kernel as a crowd, p̂ / p_r ~ 1.7 at the
+        # robots) and the planner's energy weight w_v / s^2 (its integral grows with the area, the information terms
+        # do not).  On the yard, seeds 0 and 1: the threshold never within 4 T -> 3.25 / 3.00 T (greedy 3.25, the
+        # lawnmower 3.88 / 3.75), RMSE at 4 T 1.33x greedy's -> 0.95-0.98x, paths 56 -> 71 m in 4 T
+        # (docs/results/map-quality.md, "Larger sites")
         "sim": {"stop_rule": "robust", "eta_relative": 0.05, "replan_every": 2, "map_rmse_relative": 0.3,
                 "site_scale": "area"},
     },

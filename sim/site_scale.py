@@ -1,29 +1,40 @@
-"""The tuned preset's absolute lengths and speeds scaled to the site (``sim.site_scale``).
+"""The tuned preset's absolute lengths and weights scaled to the site (``sim.site_scale``).
 
 The tuned preset's settings were measured on the paper's 20 m x 20 m rectangle (docs/results/tuned-preset.md).
-Some of them are absolute lengths or speeds whose right value grows with the site.  The clearest is the KDE's
-bandwidth of 1 m: with 100 robots on 20 m x 20 m a robot's own kernel, 1 / (2 pi n h^2) = 1.6e-3 m^-2 at its
-centre, is 0.64 of the uniform density 1 / 400 m^-2; on a 60 m x 40 m yard it is 3.8 times the uniform density
-1 / 2400 m^-2, so every robot sees itself as a crowd, p̂ / p_r ~ 1.7 at the robots (measured), and the reference
-flux v_r p_r and the stirring J of eq. "density feedback law using estimation" are divided by that crowd: the
-swarm crawls where it should run (docs/results/map-quality.md, "Larger sites").
+Two of them, measured on a 60 m x 40 m yard (docs/results/map-quality.md, "Larger sites"), hold the swarm back on a
+larger site:
+
+* **the planner's energy weight** ``planner.w_v``: the cost w_v int int |v|^2 dx dt (eq. "optimization problem")
+  grows with the site's area, the information and KL terms are means over the cells and do not.  On the yard the
+  same reference velocities cost six times as much against the same information, and the plans moved slowly
+  (median planned |v_r| at the robots ~1.1-1.3 m/s in the second period);
+* **the KDE's bandwidth** ``kde.bandwidth`` (1 m): a robot's own kernel, 1 / (2 pi n h^2) = 1.6e-3 m^-2 at its
+  centre for 100 robots, is 0.64 of the uniform density 1 / 400 m^-2 on the paper's rectangle but 3.8 times the
+  uniform density 1 / 2400 m^-2 on the yard: every robot sees itself as a crowd (p̂ / p_r ~ 1.7 at the robots), and
+  the reference flux v_r p_r and the stirring J of eq. "density feedback law using estimation" are divided by it.
 
 With ``sim.site_scale = "area"`` (the tuned preset's) the settings of :data:`SCALED` are multiplied by a power of
 
     s = max(1, sqrt(|Omega| / A_ref)),    A_ref = 400 m^2 (the paper's 20 m x 20 m),
 
-|Omega| the area of ``sim.domain``'s rectangle (see :data:`SCALED` for the powers).  On any rectangle of at most
-400 m^2 s is 1 and nothing changes (not a bit): a bandwidth wider than the robots' spacing only smooths more, and
-the preset was not measured on smaller sites.  Only values the user's configuration does not give are
-scaled: the preset's values and the defaults; a value given in a ``--config`` file is used as given, so a run's own
-``DIR/config.toml`` (which spells out every resolved value) repeats it.  ``"off"`` (the paper preset's) keeps every
-value as given.  summary.json records the factor and the resolved values (:func:`site_summary`).
+|Omega| the area of ``sim.domain``'s rectangle: the bandwidth by s (the robots' spacing sqrt(|Omega| / n) grows
+with s), the energy weight by 1 / s^2 (the penalty on the site's mean |v|^2 stays the rectangle's).  On any
+rectangle of at most 400 m^2 s is 1 and nothing changes (not a bit): a bandwidth wider than the robots' spacing
+only smooths more, and the preset was not measured on smaller sites.  Only values the user's configuration does not
+give are scaled: the preset's values and the defaults; a value given in a ``--config`` file is used as given, so a
+run's own ``DIR/config.toml`` (which spells out every resolved value) repeats it.  ``"off"`` (the paper preset's)
+keeps every value as given.  summary.json records the factor and the resolved values (:func:`site_summary`).
+
+Not scaled, measured on the yard (same page): the reference speed (``planner.reference_speed`` x s: the plans did
+not use the budget they had, the same maps within the runs' spread) and the stirring speed (x s: the robots
+drove 79 m instead of 63 m in 4 T, and the map was worse).
 """
 from __future__ import annotations
 
 import math
 
-__all__ = ["SITE_SCALE_RULES", "REFERENCE_AREA", "SCALED", "site_factor", "scale_document", "site_summary"]
+__all__ = ["SITE_SCALE_RULES", "REFERENCE_AREA", "SCALED", "area_ratio", "site_factor", "scaled_value", "scale_document",
+           "site_summary"]
 
 #: ``sim.site_scale``: "off" (values as given) or "area" (scaled by s = max(1, sqrt(area / REFERENCE_AREA)))
 SITE_SCALE_RULES = ("off", "area")
@@ -32,14 +43,16 @@ SITE_SCALE_RULES = ("off", "area")
 REFERENCE_AREA = 400.0
 
 #: (section, key, power of s): the settings the rule scales.  kde.bandwidth is a length: the KDE resolves the
-#: robots' spacing sqrt(|Omega| / n), not the robots themselves, on every site
+#: robots' spacing sqrt(|Omega| / n), not the robots themselves, on every site; planner.w_v weighs an integral over
+#: the site's area against means over its cells
 SCALED: tuple[tuple[str, str, int], ...] = (
     ("kde", "bandwidth", 1),
+    ("planner", "w_v", -2),
 )
 
 
-def site_factor(domain, rule: str = "area") -> float:
-    """s = max(1, sqrt(area of ``domain`` = (x0, x1, y0, y1) / :data:`REFERENCE_AREA`)) for ``rule`` "area", 1.0 for
+def area_ratio(domain, rule: str = "area") -> float:
+    """s^2 = max(1, area of ``domain`` = (x0, x1, y0, y1) / :data:`REFERENCE_AREA`) for ``rule`` "area", 1.0 for
     "off"."""
     if rule not in SITE_SCALE_RULES:
         raise ValueError(f"sim.site_scale must be one of {', '.join(repr(r) for r in SITE_SCALE_RULES)}, got {rule!r}")
@@ -47,17 +60,30 @@ def site_factor(domain, rule: str = "area") -> float:
         return 1.0
     x0, x1, y0, y1 = (float(v) for v in domain)
     area = (x1 - x0) * (y1 - y0)
-    return math.sqrt(area / REFERENCE_AREA) if area > REFERENCE_AREA else 1.0
+    return area / REFERENCE_AREA if area > REFERENCE_AREA else 1.0
 
 
-def scale_document(doc: dict, given: dict, factor: float, defaults: dict) -> tuple[dict, dict]:
+def site_factor(domain, rule: str = "area") -> float:
+    """s = sqrt(:func:`area_ratio`): max(1, sqrt(area / :data:`REFERENCE_AREA`)) for "area", 1.0 for "off"."""
+    return math.sqrt(area_ratio(domain, rule))
+
+
+def scaled_value(value: float, ratio: float, power: int) -> float:
+    """``value`` x s^power with s^2 = ``ratio``: even powers by the ratio itself (w_v / ratio, not w_v / sqrt(ratio)^2),
+    odd ones with one sqrt(ratio); a negative power divides."""
+    k, odd = divmod(abs(int(power)), 2)
+    m = ratio ** k * (math.sqrt(ratio) if odd else 1.0)
+    return float(value) * m if power > 0 else float(value) / m
+
+
+def scale_document(doc: dict, given: dict, ratio: float, defaults: dict) -> tuple[dict, dict]:
     """``doc`` (a configuration document laid over its preset) with the :data:`SCALED` settings that ``given`` (the
-    user's own document) does not set multiplied by ``factor ** power``; ``defaults[section]`` is the settings class
-    whose default stands for a value the preset does not set either.  Returns (the new document, {"section.key":
-    [value before, value after]} of the values scaled).  A factor of exactly 1 returns ``doc`` itself; a value of
-    ``None`` (e.g. a Silverman bandwidth) is left alone."""
+    user's own document) does not set multiplied by s^power, s^2 = ``ratio`` (:func:`area_ratio`);
+    ``defaults[section]`` is the settings class whose default stands for a value the preset does not set either.
+    Returns (the new document, {"section.key": [value before, value after]} of the values scaled).  A ratio of
+    exactly 1 returns ``doc`` itself; a value of ``None`` (e.g. a Silverman bandwidth) is left alone."""
     scaled: dict = {}
-    if factor == 1.0:
+    if ratio == 1.0:
         return doc, scaled
     out = {k: (dict(v) if isinstance(v, dict) else v) for k, v in doc.items()}
     for section, key, power in SCALED:
@@ -70,7 +96,7 @@ def scale_document(doc: dict, given: dict, factor: float, defaults: dict) -> tup
         value = table.get(key, getattr(defaults[section], key, None))
         if value is None or isinstance(value, bool) or not isinstance(value, (int, float)):
             continue
-        new = float(value) * factor ** power
+        new = scaled_value(value, ratio, power)
         table[key] = new
         scaled[f"{section}.{key}"] = [float(value), new]
     return out, scaled

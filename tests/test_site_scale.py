@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from swarmfield.sim import config_from_dict
-from swarmfield.sim.site_scale import REFERENCE_AREA, SCALED, site_factor, site_summary
+from swarmfield.sim.site_scale import REFERENCE_AREA, SCALED, area_ratio, scaled_value, site_factor, site_summary
 
 YARD = {"sim": {"domain": [0.0, 60.0, 0.0, 40.0]}, "gp": {"length_scale": 2.0}}
 
@@ -19,6 +19,12 @@ def test_factor_is_the_square_root_of_the_area_ratio_and_one_up_to_the_reference
     assert site_factor((0, 60, 0, 40), "off") == 1.0
     with pytest.raises(ValueError, match="sim.site_scale must be one of 'off', 'area'"):
         site_factor((0, 20, 0, 20), "diameter")
+    assert area_ratio((0, 60, 0, 40)) == 6.0
+    # even powers by the ratio itself, odd ones with one square root, negative ones divide
+    assert scaled_value(0.01, 6.0, -2) == 0.01 / 6.0
+    assert scaled_value(1.0, 6.0, 1) == math.sqrt(6.0)
+    assert scaled_value(2.0, 6.0, 3) == 2.0 * 6.0 * math.sqrt(6.0)
+    assert scaled_value(3.0, 6.0, -1) == 3.0 / math.sqrt(6.0)
 
 
 def test_tuned_preset_on_the_paper_rectangle_resolves_to_the_same_settings():
@@ -28,24 +34,28 @@ def test_tuned_preset_on_the_paper_rectangle_resolves_to_the_same_settings():
     a, b = on.as_dict(), off.as_dict()
     a["sim"].pop("site_scale"), b["sim"].pop("site_scale")
     assert a == b                                                # every resolved value, to the bit
-    assert on.kde.bandwidth == 1.0 and site_summary(on)["factor"] == 1.0
+    assert on.kde.bandwidth == 1.0 and on.planner.w_v == 0.01 and site_summary(on)["factor"] == 1.0
 
 
-def test_yard_scales_the_bandwidth_unless_given_and_repeats_from_its_resolved_config():
+def test_yard_scales_bandwidth_and_energy_weight_unless_given_and_repeats_from_its_resolved_config():
     cfg = config_from_dict(YARD, preset="tuned")
-    assert cfg.kde.bandwidth == pytest.approx(math.sqrt(6.0), rel=1e-15)
-    assert {(s, k) for s, k, _ in SCALED} == {("kde", "bandwidth")}
+    assert cfg.kde.bandwidth == math.sqrt(6.0)
+    assert cfg.planner.w_v == 0.01 / 6.0                            # the paper's default, which the preset keeps
+    assert {(s, k) for s, k, _ in SCALED} == {("kde", "bandwidth"), ("planner", "w_v")}
     # a value the configuration gives is used as given
-    mine = config_from_dict({**YARD, "kde": {"bandwidth": 1.5}}, preset="tuned")
-    assert mine.kde.bandwidth == 1.5
+    mine = config_from_dict({**YARD, "kde": {"bandwidth": 1.5}, "planner": {"w_v": 0.02}}, preset="tuned")
+    assert mine.kde.bandwidth == 1.5 and mine.planner.w_v == 0.02
     # the resolved configuration (config.toml, compare-controllers' tasks) repeats the run: no second scaling
     assert config_from_dict(cfg.as_dict()) == cfg
     # off, and the paper preset: nothing scaled
-    assert config_from_dict({**YARD, "sim": {**YARD["sim"], "site_scale": "off"}}, preset="tuned").kde.bandwidth == 1.0
-    assert config_from_dict(YARD).kde.bandwidth is None and config_from_dict(YARD).sim.site_scale == "off"
+    off = config_from_dict({**YARD, "sim": {**YARD["sim"], "site_scale": "off"}}, preset="tuned")
+    assert off.kde.bandwidth == 1.0 and off.planner.w_v == 0.01
+    paper = config_from_dict(YARD)
+    assert paper.kde.bandwidth is None and paper.planner.w_v == 0.01 and paper.sim.site_scale == "off"
     s = site_summary(cfg)
     assert s["rule"] == "area" and s["area_m2"] == 2400.0 and s["reference_area_m2"] == REFERENCE_AREA
-    assert s["factor"] == pytest.approx(math.sqrt(6.0)) and s["settings"] == {"kde.bandwidth": cfg.kde.bandwidth}
+    assert s["factor"] == pytest.approx(math.sqrt(6.0))
+    assert s["settings"] == {"kde.bandwidth": cfg.kde.bandwidth, "planner.w_v": cfg.planner.w_v}
     with pytest.raises(ValueError, match="sim.site_scale"):
         config_from_dict({"sim": {"site_scale": "yes"}}, preset="tuned")
 
@@ -67,3 +77,31 @@ def test_a_robots_own_kernel_weighs_the_same_against_the_uniform_density_on_both
     assert paper == pytest.approx(400.0 / (2 * math.pi), rel=0.02)        # the Gaussian's peak 1 / (2 pi h^2)
     assert yard == pytest.approx(paper, rel=0.02)
     assert unscaled == pytest.approx(6.0 * paper, rel=0.02)               # unscaled: six times the crowd
+
+
+def test_the_energy_weight_charges_the_same_speeds_what_it_does_on_the_paper_rectangle():
+    """The planner's energy w_v int int |v|^2 dx dt grows with the area for the same speeds (integrated here by the
+    midpoint rule from the velocity basis, not from the planner's closed form); the information and KL terms are
+    means over the cells and do not.  With the scaled w_v the yard's velocity field (the same coefficients: the
+    paper's field stretched to the yard, the same speeds) costs what it costs on the paper's rectangle."""
+    from swarmfield.ocp.basis import velocity_on_grid
+
+    def energy_per_area(cfg):
+        p = cfg.planner
+        x0, x1, y0, y1 = cfg.sim.domain
+        coef = np.zeros((2, p.n_modes_x, p.n_modes_y))                # one interval's (2, I, J)
+        coef[0, 1, 2], coef[1, 0, 1], coef[0, 3, 0] = 1.5, -0.7, 0.4
+        n = 400
+        x = x0 + (np.arange(n) + 0.5) * (x1 - x0) / n
+        y = y0 + (np.arange(n) + 0.5) * (y1 - y0) / n
+        v = velocity_on_grid(coef, cfg.sim.domain, x, y, basis=p.basis)
+        integral = float(np.sum(v ** 2)) * (x1 - x0) * (y1 - y0) / n ** 2
+        return p.w_v * integral / ((x1 - x0) * (y1 - y0)), p.w_v * integral
+
+    paper, paper_total = energy_per_area(config_from_dict({}, preset="tuned"))
+    yard, yard_total = energy_per_area(config_from_dict(YARD, preset="tuned"))
+    _, unscaled_total = energy_per_area(config_from_dict({**YARD, "sim": {**YARD["sim"], "site_scale": "off"}},
+                                                        preset="tuned"))
+    assert yard == pytest.approx(paper / 6.0, rel=1e-12)           # per square metre: w_v / 6
+    assert yard_total == pytest.approx(paper_total, rel=1e-12)     # the whole site's: the rectangle's
+    assert unscaled_total == pytest.approx(6.0 * paper_total, rel=1e-12)
