@@ -27,9 +27,10 @@ def test_large_swarm_step_times_the_measurement_step_per_kernel():
     sys.path.insert(0, str(ROOT / "benchmarks"))
     try:
         bench = importlib.import_module("suite.bench_closed_loop").LargeSwarmStep
-        assert bench.params == ["squared-exponential", "gmrf2"] and callable(bench.track_step_cpu_ms)
+        assert bench.params == ["squared-exponential", "gmrf2", "gmrf2-learned"] and callable(bench.track_step_cpu_ms)
         for kernel in bench.params:
             cfg = bench._config(kernel)
-            assert (cfg.gp.kernel, cfg.sim.robots, cfg.sim.metrics_every) == (kernel, 10_000, 1)
+            assert (cfg.gp.kernel, cfg.sim.robots, cfg.sim.metrics_every) == (kernel.removesuffix("-learned"), 10_000, 1)
+            assert cfg.gp.learn_hyperparameters == kernel.endswith("-learned")
     finally:
         sys.path.remove(str(ROOT / "benchmarks"))

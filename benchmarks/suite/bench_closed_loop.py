@@ -62,10 +62,14 @@ class TunedCost:
     track_max_replan_cpu_over_interval.unit = "ratio"
 
 
-#: GP settings of the kernels :class:`LargeSwarmStep` compares: the paper's squared exponential and the
-#: banded GMRF prior (Matérn nu = 2 at the length scale the paper's field prefers, on 28 x 28 nodes)
+#: GP settings of the kernels :class:`LargeSwarmStep` compares: the paper's squared exponential, the banded GMRF
+#: prior (Matérn nu = 2 at the length scale the paper's field prefers, on 28 x 28 nodes) and the same prior with
+#: (s_f^2, l) learned by the run's refit at the period's start (``benchmarks/measurement_step.py --configs
+#: gmrf2-learn-h0.8``; its refit is in ``track_cpu_ms_per_step``, not in ``track_step_cpu_ms``)
 KERNEL_SETTINGS = {"squared-exponential": {},
-                   "gmrf2": {"kernel": "gmrf2", "length_scale": 2.5, "inducing_spacing": 0.8}}
+                   "gmrf2": {"kernel": "gmrf2", "length_scale": 2.5, "inducing_spacing": 0.8},
+                   "gmrf2-learned": {"kernel": "gmrf2", "learn_hyperparameters": True, "length_scale": 1.2,
+                                     "inducing_spacing": 0.8}}
 
 
 class LargeSwarmStep:
