@@ -308,3 +308,24 @@ def test_gmrf_refit_shares_its_last_posterior_with_predict():
     twin._pending = None
     m2, v2 = twin.predict(q)
     assert np.allclose(mean, m2, rtol=0, atol=1e-12) and np.allclose(var, v2, rtol=0, atol=1e-12)
+
+
+def test_gmrf_lml_gradient_per_axis_is_exact_from_one_prior(monkeypatch):
+    """The log marginal likelihood's gradient along log l_x and log l_y (an anisotropic fit) against central
+    differences, to the differences' own accuracy, from the one prior at the point (no prior built at l +- h)."""
+    import swarmfield.regression.gp as gp_module
+    rng = np.random.default_rng(8)
+    gp = GaussianProcess(GPSettings(kernel="gmrf2", length_scale=1.3, length_scale_y=1.1), SMALL)
+    x = np.column_stack([rng.uniform(0, 4, 80), rng.uniform(0, 3, 80)])
+    gp.add(x, np.sin(x[:, 0]) + 0.2 * rng.normal(size=80))
+    a, b = gp._assemble(gp.prior_mean)
+    built = []
+    build = gp_module.gmrf_prior
+    monkeypatch.setattr(gp_module, "gmrf_prior", lambda *args: built.append(args) or build(*args))
+    _, grad = gp._lml_and_gradient(0.4, ("gmrf2", 1.3, 1.1), a, b)
+    assert len(built) == 1
+    h = 1e-4
+    for k, step in ((1, (math.exp(h), 1.0)), (2, (1.0, math.exp(h)))):
+        up = gp._lml(0.4, ("gmrf2", 1.3 * step[0], 1.1 * step[1]), a, b)
+        down = gp._lml(0.4, ("gmrf2", 1.3 / step[0], 1.1 / step[1]), a, b)
+        assert grad[k] == pytest.approx((up - down) / (2 * h), rel=1e-6, abs=1e-8)
