@@ -492,8 +492,8 @@ int sf_adjoint(int nx, int ny, int N, int nsub, double rx, double ry, double eps
    (the kernel's face layout).  Each sum runs over its inner index in ascending order from 0, without fused
    multiply-adds: the order of CasADi's mtimes of (R A) C^T, so the face velocities are those of the planner's
    CasADi graph bit for bit.  T: nr*J scratch. */
-void sf_basis_forward(int N, int I, int J, int d, int nr, int nc, const double *R, const double *C, const double *coef,
-                      double *out, double *T) {
+void sf_basis_forward(int N, int I, int J, int d, int nr, int nc, const double *restrict R, const double *restrict C, const double *restrict coef,
+                      double *restrict out, double *restrict T) {
     for (int l = 0; l < N; l++) {
         const double *A = coef + ((long)(2 * l + d) * I) * J;
         double *V = out + (long)l * nr * nc;
@@ -501,16 +501,16 @@ void sf_basis_forward(int N, int I, int J, int d, int nr, int nc, const double *
         for (int j = 0; j < J; j++)
             for (int k = 0; k < I; k++) {
                 double a = A[(long)k * J + j];
-                const double *r = R + (long)nr * k;
-                double *t = T + (long)nr * j;
+                const double *restrict r = R + (long)nr * k;
+                double *restrict t = T + (long)nr * j;
                 for (int i = 0; i < nr; i++) t[i] += r[i] * a;
             }
         for (long k = 0; k < (long)nr * nc; k++) V[k] = 0.0;
         for (int c = 0; c < nc; c++)
             for (int j = 0; j < J; j++) {
                 double b = C[c + (long)nc * j];
-                const double *t = T + (long)nr * j;
-                double *v = V + (long)nr * c;
+                const double *restrict t = T + (long)nr * j;
+                double *restrict v = V + (long)nr * c;
                 for (int i = 0; i < nr; i++) v[i] += t[i] * b;
             }
     }
@@ -518,8 +518,8 @@ void sf_basis_forward(int N, int I, int J, int d, int nr, int nc, const double *
 
 /* its reverse: seeds G_l (column-major nr x nc, N of them) -> the coefficients' sensitivities R^T (G_l C), written
    into gcoef (N, 2, I, J) at component d; sums ascending as CasADi's reverse of the same product.  U: nr*J scratch. */
-void sf_basis_adjoint(int N, int I, int J, int d, int nr, int nc, const double *R, const double *C, const double *G,
-                      double *gcoef, double *U) {
+void sf_basis_adjoint(int N, int I, int J, int d, int nr, int nc, const double *restrict R, const double *restrict C, const double *restrict G,
+                      double *restrict gcoef, double *restrict U) {
     for (int l = 0; l < N; l++) {
         const double *Gl = G + (long)l * nr * nc;
         double *gA = gcoef + ((long)(2 * l + d) * I) * J;
@@ -527,8 +527,8 @@ void sf_basis_adjoint(int N, int I, int J, int d, int nr, int nc, const double *
         for (int j = 0; j < J; j++)
             for (int c = 0; c < nc; c++) {
                 double b = C[c + (long)nc * j];
-                const double *g = Gl + (long)nr * c;
-                double *u = U + (long)nr * j;
+                const double *restrict g = Gl + (long)nr * c;
+                double *restrict u = U + (long)nr * j;
                 for (int i = 0; i < nr; i++) u[i] += g[i] * b;
             }
         for (int k = 0; k < I; k++)
