@@ -124,3 +124,45 @@ class Formulations:
         return self.planner.solve(self.p0, self.target).meta["objective"]
 
     track_objective.unit = "objective"
+
+
+class TransportNode:
+    """One point of the tuned preset's transport node, the compiled kernel's share of an IPOPT iteration (at 40 x 40,
+    12 intervals of 45 sub-steps): the forward pass keeping the snapshots (the objective), the checkpointed
+    adjoint (the gradient; it recomputes each interval's sub-steps), the forward pass storing the whole
+    trajectory that the adjoint used to read, and the basis product with its reverse
+    (docs/results/realtime-plans.md, "Cheaper iterations: the transport node")."""
+
+    timer = TIMER
+    number = 20
+    repeat = 5
+    warmup_time = 0.0
+
+    def setup(self):
+        limit_threads()
+        import numpy as np
+        from swarmfield.ocp import ReferencePlanner, kernel
+        if not kernel.compiled_available():
+            raise NotImplementedError("no compiled transport kernel")          # asv: skipped
+        P = ReferencePlanner(tuned_planner_settings()).problem                 # the reference speed resolved
+        self.kernel, self.product = P.kernel, kernel.BasisProduct(P.basis, P.N)
+        rng = np.random.default_rng(0)
+        self.coef = 0.5 * rng.standard_normal((P.N, 2, P.I, P.J))
+        self.VX, self.VY = self.product.horizon_velocities(self.coef)
+        p0, _, _ = first_step(P.grid, "symmetric-kl")
+        self.p0 = np.asarray(p0, dtype=float).ravel(order="F")
+        self.snaps = self.kernel.forward_snapshots(self.VX, self.VY, self.p0)
+        self.traj = self.kernel.forward(self.VX, self.VY, self.p0)
+        self.seed = rng.standard_normal(self.snaps.shape)
+
+    def time_forward_snapshots(self):
+        self.kernel.forward_snapshots(self.VX, self.VY, self.p0, out=self.snaps)
+
+    def time_adjoint_checkpointed(self):
+        self.kernel.adjoint_snapshots(self.VX, self.VY, self.snaps, self.seed)
+
+    def time_forward_whole_trajectory(self):
+        self.kernel.forward(self.VX, self.VY, self.p0, out=self.traj)
+
+    def time_basis_product_and_reverse(self):
+        self.product.horizon_velocities_adjoint(*self.product.horizon_velocities(self.coef))
