@@ -105,8 +105,11 @@ def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost
         earlier = [j for j in near[i] if j < i]
         if earlier:
             E = Y[earlier]
-            dE = np.sqrt(((C[i, :, None, :] - E[None, :, :]) ** 2).sum(-1)).min(axis=1)
-            d = np.minimum(d, dE)
+            E = E[(E[:, 0] - P[i, 0]) ** 2 + (E[:, 1] - P[i, 1]) ** 2 < (radius + reach[i]) ** 2]
+            if len(E):
+                dx = C[i, :, 0, None] - E[None, :, 0]
+                dy = C[i, :, 1, None] - E[None, :, 1]
+                d = np.minimum(d, np.sqrt((dx * dx + dy * dy).min(axis=1)))
         score = np.where(ok[i], np.where(np.isfinite(d), d, 1e300) - penalty[0], -np.inf)
         Y[i] = C[i, int(np.argmax(score))]
     return Y
