@@ -50,6 +50,27 @@ def test_targets_equal_the_brute_force_rule(seed):
     assert np.all(np.hypot(*(Y - P).T) <= 0.7 + 1e-12)
 
 
+def test_large_swarms_are_placed_in_blocks_that_see_the_earlier_blocks(monkeypatch):
+    import swarmfield.control.spreading as sp
+    monkeypatch.setattr(sp, "SEQUENTIAL_UP_TO", 10)
+    monkeypatch.setattr(sp, "BLOCKS", 4)
+    rng = np.random.default_rng(5)
+    P = rng.uniform(0, 5, (30, 2))
+    M = rng.uniform(0, 5, (80, 2))
+    Y = sp.hole_targets(P, M, 0.6)
+    S = candidate_offsets(0.6)
+    lam = DETOUR_COST * np.hypot(S[:, 0], S[:, 1])
+    expect = P.copy()
+    edges = np.linspace(0, 30, 5).astype(int)
+    for s, e in zip(edges[:-1], edges[1:]):
+        pts = np.concatenate([M, expect[:s]])
+        for i in range(s, e):
+            C = P[i] + S
+            expect[i] = C[int(np.argmax(cdist(C, pts).min(axis=1) - lam))]
+    assert np.allclose(Y, expect, atol=1e-12)
+    assert not np.allclose(Y, brute_force(P, M, 0.6))           # the one-by-one rule differs inside a block
+
+
 def test_a_robot_moves_away_from_the_measurement_it_would_land_on():
     P = np.array([[5.0, 5.0]])
     m = np.array([[5.15, 4.9]])
