@@ -112,6 +112,15 @@ PRESETS: dict[str, dict] = {
             # 1.75 -> 1.38 T; never -> 2.1-2.5 T on an office map it was not tuned on; the held-out fields on
             # the empty rectangle equal or one step faster)
             "transport_rate": 3.0,
+            # best-candidate landing points (control.spreading): at every measurement each robot moves its next
+            # measurement point by up to 0.75 m (below the KDE's 1 m) into the largest hole of the measurements so
+            # far, so that their union fills space evenly instead of like random points inside p_r.  The map at 2T
+            # on the fine field 0.155 / 0.151 / 0.146 / 0.145 -> 0.138 / 0.138 / 0.138 / 0.137 (seeds 0-3; greedy's
+            # 0.140 / 0.139 / 0.150 / 0.143), the hotspot and the anisotropic field 3-7 % better on every seed, bumps
+            # level; the best map at 2T of all four controllers on 17 of 20 tuning cases (8 without it, the same code)
+            # and on 4 of 4 held-out ones (1 without), the threshold first or level on 20 of 20 (16 without)
+            # (docs/results/map-quality.md, "Spreading the measurements")
+            "spread_radius": 0.75,
         },
         # a fixed KDE bandwidth of 1 m (Silverman's rule gives ~2-3 m once the swarm has spread):
         # the law resolves gaps of the robots' own size.  With obstacles the heat kernel of the free
