@@ -105,3 +105,25 @@ def test_the_energy_weight_charges_the_same_speeds_what_it_does_on_the_paper_rec
     assert yard == pytest.approx(paper / 6.0, rel=1e-12)           # per square metre: w_v / 6
     assert yard_total == pytest.approx(paper_total, rel=1e-12)     # the whole site's: the rectangle's
     assert unscaled_total == pytest.approx(6.0 * paper_total, rel=1e-12)
+
+
+def test_a_run_on_a_larger_site_records_the_scaling_and_repeats_from_its_config_toml(tmp_path, capsys):
+    import json
+
+    from swarmfield.cli.simulate_swarm import main as simulate_main
+
+    small = ('[sim]\nrobots = 20\ndomain = [0.0, 30.0, 0.0, 30.0]\nstart_box = [0.0, 4.0, 0.0, 4.0]\nperiod = 1.75\n'
+             'max_periods = 1\nsubsteps = 2\n[gp]\nlength_scale = 1.5\n[kde]\nbins = [32, 32]\n'
+             '[planner]\nnx = 12\nny = 12\nn_intervals = 3\nn_modes_x = 3\nn_modes_y = 3\n')
+    (tmp_path / "site.toml").write_text(small)
+    out, again = tmp_path / "run", tmp_path / "again"
+    assert simulate_main(["--config", str(tmp_path / "site.toml"), "--preset", "tuned", "--out", str(out), "--quiet",
+                          "--no-figures"]) == 0, capsys.readouterr().err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["site_scale"]["factor"] == 1.5 and summary["site_scale"]["rule"] == "area"
+    assert summary["site_scale"]["settings"] == {"kde.bandwidth": 1.5, "planner.w_v": 0.01 / 2.25}
+    assert summary["config"]["kde"]["bandwidth"] == 1.5 and summary["config"]["planner"]["w_v"] == 0.01 / 2.25
+    # the resolved config.toml spells the scaled values out: the run repeats, scaled once
+    assert simulate_main(["--config", str(out / "config.toml"), "--out", str(again), "--quiet", "--no-figures"]) == 0
+    assert (again / "metrics.csv").read_text() == (out / "metrics.csv").read_text()
+    assert json.loads((again / "summary.json").read_text())["site_scale"]["settings"] == summary["site_scale"]["settings"]
