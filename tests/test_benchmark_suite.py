@@ -32,5 +32,6 @@ def test_large_swarm_step_times_the_measurement_step_per_kernel():
             cfg = bench._config(kernel)
             assert (cfg.gp.kernel, cfg.sim.robots, cfg.sim.metrics_every) == (kernel.removesuffix("-learned"), 10_000, 1)
             assert cfg.gp.learn_hyperparameters == kernel.endswith("-learned")
+            assert cfg.sim.controller == "feedback"        # the GP's cost, not greedy's target search
     finally:
         sys.path.remove(str(ROOT / "benchmarks"))
