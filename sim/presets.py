@@ -171,8 +171,10 @@ PRESETS: dict[str, dict] = {
         # 1 m bandwidth x s (on a 60 m x 40 m yard every robot saw its own kernel as a crowd, p̂ / p_r ~ 1.7 at the
         # robots) and the planner's energy weight w_v / s^2 (its integral grows with the area, the information terms
         # do not).  On the yard, seeds 0 and 1: the threshold never within 4 T -> 3.25 / 3.00 T (greedy 3.25, the
-        # lawnmower 3.88 / 3.75), RMSE at 4 T 1.33x greedy's -> 0.95-0.98x, paths 56 -> 71 m in 4 T
-        # (docs/results/map-quality.md, "Larger sites")
+        # lawnmower 3.88 / 3.75), RMSE at 4 T 1.27 / 1.20x greedy's -> 0.98 / 0.95x, paths 56 -> 71 m in 4 T; with the
+        # spreading too, on the yard and two sites drawn afterwards (seeds 0-3): the threshold first on 12 of 12, the
+        # map at 4 T the best of four controllers on 12 of 12, at 2 T on 6 (docs/results/map-quality.md, "Larger
+        # sites").  Not scaled, measured: the reference speed, the stirring speed, alpha, p_floor, spread_radius
         "sim": {"stop_rule": "robust", "eta_relative": 0.05, "replan_every": 2, "map_rmse_relative": 0.3,
                 "site_scale": "area"},
     },
