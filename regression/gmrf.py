@@ -46,6 +46,16 @@ itself is a fixed combination of the lattice's L_x^i (x) L_y^j with coefficients
 normalisation's three-point stencils per axis are precomputed per lattice, so that the derivatives along log l_x,
 log l_y (for the refit's gradient, :func:`gmrf_prior_derivative`) are exact and as cheap as the prior.
 
+*Barriers* (``GPSettings.barrier``; Bakka et al. 2019, "Non-stationary Gaussian models with physical barriers",
+Spatial Statistics 29, 131-146).  Walls and obstacles stop the diffusion of the SPDE: on the lattice the
+Laplacian's links whose segment crosses blocked space are cut (a reflecting, Neumann, boundary on the walls;
+:func:`lattice_cuts`), so that L_x, L_y become graph Laplacians of the remaining links and K = I + t_x L_x + t_y L_y a
+general sparse operator.  Q_0 = a_0 K^alpha keeps its stencil (within the block band of width 3), but the cosine
+spectrum no longer diagonalises it: :func:`barrier_prior` builds it as a sparse product and takes log det Q_0 and
+the band of Q_0^{-1} from its block-banded Cholesky factor and selected inverse (:mod:`regression.banded`); the
+per-node normalisation is the same.  With no link cut it is the prior above to round-off; its derivative along
+the length scales (:func:`barrier_prior_derivative`) is by central differences.
+
 *Why banded.*  The posterior precision P = Q / s_f^2 + A (A = sum phi phi^T / s_n^2 couples nodes at
 most 3 apart per axis, Q at most 2 or 3) has in natural lattice order (x-node i as block row, y-node j inside
 the block) a block band of width 3: the block-banded Cholesky factorisation and the selected inverse of
@@ -245,6 +255,7 @@ class GmrfPrior:
     lengths: tuple = ()                            # (l_x, l_y, h_x, h_y)
     states: tuple = field(default=(), repr=False)  # the normalisation's iterates
     inv_outer: np.ndarray = field(default=None, repr=False)   # S^{-1}_row S^{-1}_col on the block band
+    cuts: tuple | None = field(default=None, repr=False)      # barrier prior: the cut links (cut_x, cut_y)
 
     @functools.cached_property
     def band(self) -> np.ndarray:
@@ -324,3 +335,109 @@ def gmrf_prior_derivative(prior: GmrfPrior, dx: float, dy: float) -> tuple[np.nd
     dq = dq0 * prior.inv_outer
     dq -= prior.precision * _node_outer(dlog_s, WIDTH + 1, add=True)
     return dq, float(np.sum(dlog_q0)) - 2.0 * float(np.sum(dlog_s))
+
+
+def lattice_cuts(nodes_x: np.ndarray, nodes_y: np.ndarray, blocked, step: float, to_world=None,
+                 box: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The links of the node lattice ``nodes_x`` x ``nodes_y`` whose segment crosses blocked space: (cut_x (gx - 1,
+    gy), cut_y (gx, gy - 1)) bool, cut_x[i, j] the link (i, j)-(i + 1, j).
+
+    ``blocked``: a callable, (m, 2) world points -> (m,) bool; each segment is sampled every ``step`` at most (both
+    ends included; ``step`` about half the map's pixel).  ``to_world``: lattice coordinates (m, 2) -> world points
+    (default: the identity); ``box`` (x0, x1, y0, y1): the world points are clipped into it first (the lattice's
+    outer nodes lie outside the domain, where nothing is blocked but its edge)."""
+    nodes_x, nodes_y = np.asarray(nodes_x, float), np.asarray(nodes_y, float)
+    step = float(step)
+    if not (math.isfinite(step) and step > 0):
+        raise ValueError(f"step must be positive and finite, got {step}")
+
+    def crossing(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        n = max(2, int(math.ceil(float(np.max(np.hypot(*(b - a).T))) / step)) + 1)
+        t = np.linspace(0.0, 1.0, n)
+        pts = (a[:, None, :] + t[None, :, None] * (b - a)[:, None, :]).reshape(-1, 2)
+        if to_world is not None:
+            pts = to_world(pts)
+        if box is not None:
+            pts = np.column_stack([np.clip(pts[:, 0], box[0], box[1]), np.clip(pts[:, 1], box[2], box[3])])
+        return np.asarray(blocked(pts), bool).reshape(len(a), n).any(axis=1)
+
+    gx, gy = len(nodes_x), len(nodes_y)
+    X, Y = np.meshgrid(nodes_x, nodes_y, indexing="ij")
+    P = np.stack([X, Y], axis=-1)
+    cut_x = crossing(P[:-1].reshape(-1, 2), P[1:].reshape(-1, 2)).reshape(gx - 1, gy)
+    cut_y = crossing(P[:, :-1].reshape(-1, 2), P[:, 1:].reshape(-1, 2)).reshape(gx, gy - 1)
+    return cut_x, cut_y
+
+
+def _cut_laplacians(gx: int, gy: int, hx: float, hy: float, cut_x: np.ndarray, cut_y: np.ndarray):
+    """(L_x, L_y) sparse (M x M, natural order i gy + j): the graph Laplacians of the lattice's x and y links that are
+    not cut, divided by h^2 (:func:`_second_differences` per axis when nothing is cut)."""
+    idx = np.arange(gx * gy).reshape(gx, gy)
+    out = []
+    for a, b, cut, h in ((idx[:-1], idx[1:], cut_x, hx), (idx[:, :-1], idx[:, 1:], cut_y, hy)):
+        keep = ~np.asarray(cut, bool)
+        i, j = a[keep], b[keep]
+        w = np.full(len(i), 1.0 / (h * h))
+        adj = sparse.coo_matrix((np.r_[w, w], (np.r_[i, j], np.r_[j, i])), shape=(gx * gy, gx * gy)).tocsr()
+        out.append(sparse.diags(np.asarray(adj.sum(axis=1)).ravel()) - adj)
+    return out
+
+
+def _sparse_to_blocks(q: sparse.spmatrix, gx: int, gy: int) -> np.ndarray:
+    """A symmetric sparse matrix whose entries lie at most WIDTH x-nodes apart as a block band (gx, WIDTH + 1, gy, gy)."""
+    coo = q.tocoo()
+    r, c, v = coo.row, coo.col, coo.data
+    kr, kc = r // gy, c // gy
+    lower = kr >= kc
+    d = (kr - kc)[lower]
+    if d.size and d.max() > WIDTH:                      # pragma: no cover - K^alpha has x-reach alpha <= 3
+        raise AssertionError("the barrier precision reaches beyond the block band")
+    out = np.zeros((gx, WIDTH + 1, gy, gy))
+    np.add.at(out, (kc[lower], d, (r % gy)[lower], (c % gy)[lower]), v[lower])
+    return out
+
+
+def barrier_precision(gx: int, gy: int, hx: float, hy: float, lx: float, ly: float, nu: int,
+                      cut_x: np.ndarray, cut_y: np.ndarray) -> np.ndarray:
+    """Q_0 = a_0 K^alpha with the cut links' Laplacian (module docstring, *Barriers*) as a block band."""
+    lap_x, lap_y = _cut_laplacians(gx, gy, hx, hy, cut_x, cut_y)
+    c = 0.5 / nu
+    k = sparse.identity(gx * gy, format="csr") + c * lx * lx * lap_x + c * ly * ly * lap_y
+    q = k
+    for _ in range(nu):
+        q = q @ k
+    return _sparse_to_blocks(q * (hx * hy / (2.0 * math.pi * lx * ly)), gx, gy)
+
+
+def barrier_prior(gx: int, gy: int, hx: float, hy: float, lx: float, ly: float, nu: int,
+                  cut_x: np.ndarray, cut_y: np.ndarray) -> GmrfPrior:
+    """The normalised GMRF prior of :func:`gmrf_prior` with the lattice links ``cut_x`` (gx - 1, gy), ``cut_y``
+    (gx, gy - 1) cut (module docstring, *Barriers*): log det Q_0 and the band of Q_0^{-1} from the block-banded
+    Cholesky factor and selected inverse of Q_0."""
+    cut_x, cut_y = np.asarray(cut_x, bool), np.asarray(cut_y, bool)
+    if cut_x.shape != (gx - 1, gy) or cut_y.shape != (gx, gy - 1):
+        raise ValueError(f"cut links of shapes {cut_x.shape}, {cut_y.shape} do not fit a {gx} x {gy} lattice")
+    lat = _lattice(gx, gy, float(hx), float(hy), int(nu))
+    q0 = barrier_precision(gx, gy, hx, hy, lx, ly, int(nu), cut_x, cut_y)
+    factor = banded.cholesky(q0)
+    logdet0 = banded.logdet(factor)
+    band0 = band_of_blocks(banded.selected_inverse(factor))
+    scale, states = _normalise(lat, band0)
+    inv_outer = _node_outer(1.0 / scale, WIDTH + 1)
+    logdet = logdet0 - 2.0 * float(np.sum(np.log(scale)))
+    return GmrfPrior(q0 * inv_outer, logdet, scale, band0, None, None, lat, (lx, ly, hx, hy), states, inv_outer,
+                     cuts=(cut_x, cut_y))
+
+
+#: the step in log l of :func:`barrier_prior_derivative`'s central differences
+_BARRIER_STEP = 1e-4
+
+
+def barrier_prior_derivative(prior: GmrfPrior, dx: float, dy: float) -> tuple[np.ndarray, float]:
+    """(dQ, d log det Q) of a :func:`barrier_prior` along dx d/d log l_x + dy d/d log l_y, by central differences
+    (two more priors; relative error ~1e-8)."""
+    lx, ly, hx, hy = prior.lengths
+    lat, e = prior.lattice, _BARRIER_STEP
+    plus, minus = (barrier_prior(lat.gx, lat.gy, hx, hy, lx * math.exp(s * e * dx), ly * math.exp(s * e * dy), lat.nu,
+                                 *prior.cuts) for s in (1.0, -1.0))
+    return (plus.precision - minus.precision) / (2.0 * e), (plus.logdet - minus.logdet) / (2.0 * e)

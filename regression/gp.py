@@ -93,6 +93,8 @@ P = Q / s_f^2 + A is block-banded and every posterior is a block-banded Cholesky
 inversion (:mod:`regression.banded`): mu = P^{-1} b and Sigma's band (nodes at most 3 apart, all :meth:`predict`
 reads) in ~10-15 ms at M = 1849 whatever the number of new points; no Woodbury updates and no prior truncation,
 and :meth:`update_fits` is always true.  The log marginal likelihood is exact from the banded factors.
+With ``GPSettings.barrier`` and a blocked-space predicate (:meth:`set_barrier`) the prior's lattice links through
+walls are cut (:func:`regression.gmrf.barrier_prior`): data do not inform the field across a wall.
 
 Alternatives considered: the projected-process (DTC) statistics with the exact k_u(x) touch a
 w^2 x w^2 block of A per observation (w ~ 12 nodes per axis for a 3 l cut-off at h = l/2, i.e.
@@ -138,8 +140,9 @@ from scipy.optimize import minimize
 from ..runtime.validation import real_array
 from . import banded
 from .basis import BASIS_COEF, PRODUCT_COEF, SplineAxis, bspline_weights
-from .frame import Frame
-from .gmrf import GmrfPrior, band_of_blocks, gmrf_prior, gmrf_prior_derivative
+from .frame import Frame, rotation
+from .gmrf import (GmrfPrior, band_of_blocks, barrier_prior, barrier_prior_derivative, gmrf_prior,
+                   gmrf_prior_derivative, lattice_cuts)
 from .kernels import GMRF_KERNELS
 from .settings import GPSettings
 
@@ -386,6 +389,7 @@ class GaussianProcess:
         self._followers: list[GaussianProcess] = []
         #: v_y of the first data with ``signal_scale = "data"`` (:mod:`regression.scale`), else None
         self.data_variance = None
+        self._barrier = None        # (blocked, step) of :meth:`set_barrier`
         self._build_lattice(frame)
 
     def _build_lattice(self, frame: Frame | None) -> None:
@@ -422,7 +426,44 @@ class GaussianProcess:
         self._idx_blocks = None     # kernel "gmrf": (lower (p, r) pairs, positions in A's block band)
         self._prior_var_cache = None  # kernel "gmrf": (prior band, points, prior variance there) of the last predict
         self._query_cache = None      # (points, per chunk: slice, basis, band positions) of the last predict
+        self._cuts = None             # the barrier's cut lattice links (cut_x, cut_y), made on first use
         self._build_scatter_indices()
+
+    def set_barrier(self, blocked, step: float) -> None:
+        """Cut the GMRF prior's lattice links through blocked space (``GPSettings.barrier``; :mod:`regression.gmrf`,
+        *Barriers*): ``blocked`` maps (m, 2) world points to (m,) bool, each link is sampled every ``step`` at most
+        (about half the map's pixel).  Needs a ``"gmrf"`` / ``"gmrf2"`` kernel; the posterior is recomputed."""
+        if self._settings.kernel not in GMRF_KERNELS:
+            raise ValueError(f"a barrier needs a GMRF kernel (gmrf, gmrf2), got {self._settings.kernel!r}")
+        if not callable(blocked):
+            raise TypeError("blocked must be a callable of (m, 2) points")
+        step = float(step)
+        if not (math.isfinite(step) and step > 0):
+            raise ValueError(f"step must be positive and finite, got {step}")
+        self._barrier = (blocked, step)
+        self._cuts, self._cov, self._mu, self._prior_var_cache = None, None, None, None
+        self._bases.clear()
+        for f in self._followers:
+            f.set_barrier(blocked, step)
+
+    @property
+    def barrier_cuts(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The cut links (cut_x (g_x - 1, g_y), cut_y (g_x, g_y - 1)) of :meth:`set_barrier` on this lattice, or None."""
+        if self._barrier is None:
+            return None
+        if self._cuts is None:
+            frame = self._frame
+
+            def to_world(U):
+                if frame.identity:
+                    return U
+                c, s = rotation(frame.angle)
+                return np.column_stack([frame.centre[0] + c * U[:, 0] - s * U[:, 1],
+                                        frame.centre[1] + s * U[:, 0] + c * U[:, 1]])
+
+            self._cuts = lattice_cuts(self._ax.nodes, self._ay.nodes, self._barrier[0], self._barrier[1], to_world,
+                                      self._domain)
+        return self._cuts
 
     # ------------------------------------------------------------------ properties
     @property
@@ -807,7 +848,13 @@ class GaussianProcess:
         kernel, l_x, l_y = key
         hit = self._bases.get(key)
         if hit is None:
-            hit = gmrf_prior(self._ax.n_nodes, self._ay.n_nodes, self._ax.h, self._ay.h, l_x, l_y, GMRF_KERNELS[kernel])
+            cuts = self.barrier_cuts
+            if cuts is not None and (cuts[0].any() or cuts[1].any()):
+                hit = barrier_prior(self._ax.n_nodes, self._ay.n_nodes, self._ax.h, self._ay.h, l_x, l_y,
+                                    GMRF_KERNELS[kernel], *cuts)
+            else:
+                hit = gmrf_prior(self._ax.n_nodes, self._ay.n_nodes, self._ax.h, self._ay.h, l_x, l_y,
+                                 GMRF_KERNELS[kernel])
             if len(self._bases) > 8:
                 self._bases.clear()
             self._bases[key] = hit
@@ -1113,6 +1160,8 @@ class GaussianProcess:
         f._n, f._sum_y, f._sum_y2 = self._n, self._sum_y, self._sum_y2
         f._version = 1
         f._pending, f._pending_n = None, 0        # first posterior from the power sums
+        if self._barrier is not None and new.kernel in GMRF_KERNELS:
+            f.set_barrier(*self._barrier)
         self._followers.append(f)
         return f
 
@@ -1170,7 +1219,7 @@ class GaussianProcess:
         grad = np.empty(3)
         grad[0] = 0.5 * ((banded.quadratic(q, mu) + banded.trace_product(sel, q)) / s2 - self._n_nodes)
         for k, (dx, dy) in (((1, (1.0, 1.0)),) if tied else ((1, (1.0, 0.0)), (2, (0.0, 1.0)))):
-            dq, dlogdet = gmrf_prior_derivative(prior, dx, dy)
+            dq, dlogdet = (gmrf_prior_derivative if prior.cuts is None else barrier_prior_derivative)(prior, dx, dy)
             grad[k] = -0.5 * ((banded.quadratic(dq, mu) + banded.trace_product(sel, dq)) / s2 - dlogdet)
         if tied:
             grad[1] = grad[2] = 0.5 * grad[1]

@@ -119,6 +119,11 @@ class GPSettings:
         refinement (the best MAP log posterior of each candidate's fit to the data seen so far;
         :func:`regression.hyper.choose_kernel_angle`; the data are kept until then).  Any angle
         other than 0 gives the kernel a length scale per axis (``length_scale_y`` defaults to ``length_scale``).
+    barrier
+        With a GMRF kernel on a domain with obstacles: the barrier model (Bakka et al. 2019): the prior's lattice
+        links through walls and obstacles are cut, so that data do not inform the field across a wall
+        (:mod:`regression.gmrf`, *Barriers*; the simulation passes the GP its obstacles,
+        :meth:`regression.gp.GaussianProcess.set_barrier`).  False (the default): the walls are transparent.
     signal_scale
         ``"absolute"`` (the paper): ``signal_variance`` is in field units squared.  ``"data"``: the GP
         works on standardized data: ``signal_variance`` (and the centre of the learned s_f^2's prior and its
@@ -165,6 +170,7 @@ class GPSettings:
     hyper_step_sd: float | None = None
     hyper_prior_sd_signal: float | None = None
     kernel_angle: float | str = 0.0
+    barrier: bool = False
 
     def __post_init__(self):
         object.__setattr__(self, "signal_variance", _finite_positive("signal_variance", self.signal_variance))
@@ -174,9 +180,13 @@ class GPSettings:
             if getattr(self, name) > MAX_VARIANCE:
                 raise ValueError(f"{name} must be <= {MAX_VARIANCE:g} (variances are stored as float32 in run "
                                  f"snapshots), got {getattr(self, name):g}")
-        from .kernels import GP_KERNELS
+        from .kernels import GMRF_KERNELS, GP_KERNELS
         if self.kernel not in GP_KERNELS:
             raise ValueError(f"kernel must be one of {', '.join(GP_KERNELS)}, got {self.kernel!r}")
+        if not isinstance(self.barrier, bool):
+            raise ValueError(f"barrier must be true or false, got {self.barrier!r}")
+        if self.barrier and self.kernel not in GMRF_KERNELS:
+            raise ValueError(f"barrier = true needs kernel = \"gmrf\" or \"gmrf2\", got {self.kernel!r}")
         if self.length_scale_y is not None:
             object.__setattr__(self, "length_scale_y", _finite_positive("length_scale_y", self.length_scale_y))
         ang = self.kernel_angle

@@ -208,7 +208,10 @@ class Simulation:
                           stacklevel=2)
 
         self.rng = np.random.default_rng(s.seed)
-        self.gp = GaussianProcess(config.gp, domain=s.domain)
+        if config.gp.barrier and self.region is None:
+            raise ValueError("gp.barrier = true needs a domain with obstacles (domain.source): it cuts the GMRF "
+                             "prior's links through them")
+        self.gp = self.attach_barrier(GaussianProcess(config.gp, domain=s.domain))
         self.estimate = LatestEstimate(KernelDensity(domain=s.domain, bandwidth=config.kde.bandwidth,
                                                      bins=config.kde.bins, free=self.free,
                                                      obstacle_kernel=config.kde.obstacles, walls=self.walls),
@@ -232,6 +235,14 @@ class Simulation:
         self.plan, self.sup_v, self.speed = None, math.nan, 0.0
         self.interrupted = False
         self.finished = False
+
+    def attach_barrier(self, gp):
+        """``gp`` with its GMRF prior's lattice links through the obstacles cut when ``gp.barrier`` is set
+        (:meth:`regression.gp.GaussianProcess.set_barrier`; the links are sampled every half pixel of the map)."""
+        if gp.settings.barrier and self.region is not None:
+            region = self.region
+            gp.set_barrier(lambda P: ~region.contains(P), 0.5 * min(region.pixel))
+        return gp
 
     # ----------------------------------------------------------------------------- the loop
     def run(self, threads: int | None = COMMAND_THREADS) -> SimulationResult:
