@@ -71,13 +71,20 @@ __all__ = ["Simulation", "LatestEstimate", "check_config", "data_scale_note"]
 DATA_SCALE_RATIO = 25.0
 
 
+#: the one line for ``gp.barrier`` without obstacles
+_BARRIER_NEEDS_DOMAIN = ("gp.barrier = true needs a domain with obstacles (domain.source, --domain): it cuts the GMRF "
+                         "prior's lattice links through them")
+
+
 def check_config(config: RunConfig) -> None:
     """Fail early (``ValueError``) on settings that the components would reject only mid-run:
     a GP inducing grid above ``max_inducing_points``, a fixed KDE bandwidth needing too many bins,
-    an unknown stop rule, a bad domain (:func:`resolve_domain`)."""
+    an unknown stop rule, a bad domain (:func:`resolve_domain`), ``gp.barrier`` without one."""
     s = config.sim
     GaussianProcess(config.gp, domain=s.domain)
     make_stop_rule(s)
+    if config.gp.barrier and not config.domain.source:
+        raise ValueError(_BARRIER_NEEDS_DOMAIN)
     free = None
     if config.domain.source:           # a bad domain fails here, in one line (warnings come with the run)
         from ..ocp import Grid
@@ -209,8 +216,7 @@ class Simulation:
 
         self.rng = np.random.default_rng(s.seed)
         if config.gp.barrier and self.region is None:
-            raise ValueError("gp.barrier = true needs a domain with obstacles (domain.source): it cuts the GMRF "
-                             "prior's links through them")
+            raise ValueError(_BARRIER_NEEDS_DOMAIN)
         self.gp = self.attach_barrier(GaussianProcess(config.gp, domain=s.domain))
         self.estimate = LatestEstimate(KernelDensity(domain=s.domain, bandwidth=config.kde.bandwidth,
                                                      bins=config.kde.bins, free=self.free,

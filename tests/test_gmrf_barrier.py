@@ -92,3 +92,30 @@ def test_barrier_lml_gradient_and_settings():
         GPSettings(barrier=True)
     with pytest.raises(ValueError, match="needs a GMRF kernel"):
         GaussianProcess(GPSettings(), (0.0, 4.0, 0.0, 4.0)).set_barrier(lambda P: P[:, 0] > 2, 0.1)
+
+
+def test_a_run_cuts_the_links_through_its_walls_and_refuses_a_barrier_without_walls(tmp_path, capsys):
+    from swarmfield.cli.simulate_swarm import main
+    from swarmfield.domain import Domain
+    from swarmfield.sim.config import config_from_dict
+    from swarmfield.sim.simulation import Simulation
+    free = np.ones((200, 200), bool)
+    free[100, :] = False                                 # a 0.1 m wall at x = 10
+    free[100, 95:105] = True                             # a 1 m door
+    wall = Domain.from_raster(free, (0.0, 20.0, 0.0, 20.0), start_box=(0.0, 7.0, 0.0, 7.0))
+    cfg = config_from_dict({"sim": {"controller": "lawnmower", "max_periods": 1, "robots": 20},
+                            "gp": {"kernel": "gmrf2", "barrier": True}})
+    sim = Simulation(cfg, domain=wall)
+    cut_x, cut_y = sim.gp.barrier_cuts
+    xs = sim.gp._ax.nodes
+    crossing = (xs[:-1] < 10.1) & (xs[1:] >= 10.0)      # the x-links touching the wall column [10, 10.1]
+    ys = sim.gp._ay.nodes
+    door = (ys >= 9.5) & (ys < 10.5)                     # the door's pixel rows [9.5, 10.5)
+    assert cut_x[crossing][:, ~door].all() and not cut_x[crossing][:, door].any()
+    assert not cut_x[~crossing].any()
+    np.savez(tmp_path / "f.npz", values=np.zeros((3, 3)), extent=np.array([0.0, 20.0, 0.0, 20.0]))
+    (tmp_path / "b.toml").write_text('[gp]\nkernel = "gmrf2"\nbarrier = true\n')
+    code = main(["--config", str(tmp_path / "b.toml"), "--controller", "lawnmower", "--out", str(tmp_path / "o"),
+                 "--quiet"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and "needs a domain with obstacles" in err
