@@ -7,7 +7,8 @@
 ``SCENARIO``: ``fine``, ``aniso``, ``hotspot`` (the fields of ``scripts/map_quality_fields.py`` in ``fields/``, the
 hotspot with a noise sd of 5), ``bumps``, ``floor`` (bumps on the floor map); ``SEEDS`` comma-separated.  The tuned
 preset, 3 T, the stop rule recorded and not stopping (as ``compare-controllers``), with ``--set`` changes laid over it
-(``--set feedback.stir_speed=8``).  ``--seek R,U,S`` tries a variant that is not a setting: after every measurement
+(``--set feedback.stir_speed=8``; the tuned preset spreads its measurements, ``feedback.spread_radius = 0.75``:
+``--set feedback.spread_radius=0`` is the feedback without it).  ``--seek R,U,S`` tries a variant that is not a setting: after every measurement
 each feedback robot picks the cell of largest GP variance within R metres (robots in random order, a chosen cell
 excluding the cells within S metres for the next ones, as greedy does) and adds a velocity of at most U m/s towards it
 to the feedback law's (which then saturates at feedback.v_max).  ``--stir-every-replan``: the stirring pattern
