@@ -102,8 +102,10 @@ class FragmentMaps:
                 gs = sim.gp.settings
                 # the main map's rotation (a fragment's GP is not refitted: it cannot choose an "auto" angle)
                 angle = getattr(gs, "frame_angle", sim.config.gp.frame_angle)
-                gp = sim.attach_barrier(GaussianProcess(dataclasses.replace(sim.config.gp, kernel_angle=angle),
-                                                        domain=sim.settings.domain))
+                gp = GaussianProcess(dataclasses.replace(sim.config.gp, kernel_angle=angle),
+                                     domain=sim.settings.domain)
+                if gp.settings.barrier:
+                    gp = sim.attach_barrier(gp)
                 # every learned value of the main map, l_y of an anisotropic kernel included
                 gp.set_hyperparameters(gs.signal_variance, gs.length_scale, getattr(gs, "length_scale_y", None))
                 f = _Fragment(gp, items)

@@ -198,8 +198,10 @@ class Decentralized:
         if rebuild:
             from ..regression import GaussianProcess
             gs = sim.gp.settings
-            gp = sim.attach_barrier(GaussianProcess(dataclasses.replace(sim.config.gp, kernel_angle=gs.kernel_angle),
-                                                    domain=sim.settings.domain))      # the map's rotation
+            gp = GaussianProcess(dataclasses.replace(sim.config.gp, kernel_angle=gs.kernel_angle),   # the map's rotation
+                                 domain=sim.settings.domain)
+            if gp.settings.barrier:
+                gp = sim.attach_barrier(gp)
             gp.set_hyperparameters(gs.signal_variance, gs.length_scale)
             sim.gp = gp
         kg = self.knowledge
