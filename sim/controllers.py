@@ -38,6 +38,7 @@ in ``simulate-swarm`` / ``compare-controllers`` (``sim.controller`` in a configu
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -164,6 +165,14 @@ class FeedbackController(Controller):
 
     def start(self, ctx):
         r = self.config.feedback.spread_radius
+        radius = self.config.sim.comm_radius
+        if r > 0 and radius is not None and math.isfinite(radius):
+            # every landing point is chosen against every position measured so far and the other robots' choices:
+            # knowledge only a communication centre has (a robot of a decentralized swarm holds its component's)
+            warnings.warn("feedback.spread_radius is off in a decentralized run (sim.comm_radius): choosing the "
+                          "landing points needs every measured position and every robot's choice, which only a "
+                          "communication centre has", UserWarning, stacklevel=2)
+            r = 0.0
         if r > 0:
             est = ctx.estimate
             kde = getattr(est, "kde", None)

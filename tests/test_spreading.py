@@ -173,3 +173,22 @@ def test_closed_loop_with_spreading_keeps_the_speed_limit_and_remembers_every_me
     assert ctrl.spreading is not None and 0 < ctrl.fastest <= 2.0 + 1e-12
     steps = len(res.positions) - 1                         # measured at t = 0 .. the last step but one
     assert np.allclose(ctrl.spreading.measured, np.concatenate(res.positions[:steps]))
+
+
+def test_a_decentralized_swarm_does_not_spread_and_says_so():
+    """Choosing the landing points needs every measured position and every robot's choice: knowledge of a
+    communication centre.  With sim.comm_radius the spreading is off (one warning) and the run is the same as
+    with spread_radius = 0."""
+    import warnings
+    doc = {k: dict(v) for k, v in SMALL.items()}
+    doc["sim"]["comm_radius"] = 3.0
+    c = config_from_dict(doc)
+    ctrl = FeedbackController(c)
+    with pytest.warns(UserWarning, match="spread_radius is off in a decentralized run"):
+        res = run_simulation(c, controller=ctrl)
+    assert ctrl.spreading is None
+    doc["feedback"]["spread_radius"] = 0.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        off = run_simulation(config_from_dict(doc))
+    np.testing.assert_array_equal(res.positions[-1], off.positions[-1])
