@@ -40,14 +40,20 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["DETOUR_COST", "SEQUENTIAL_UP_TO", "BLOCKS", "candidate_offsets", "hole_targets", "fill_distances"]
+__all__ = ["DETOUR_COST", "SEQUENTIAL_UP_TO", "BLOCKS", "RASTER_PER_RADIUS", "DistanceRaster", "candidate_offsets",
+           "hole_targets", "fill_distances"]
 
 #: swarms up to this many robots are placed one robot after the other (the rule of the module docstring, a
 #: Python loop of ~0.2 ms a robot); larger ones in :data:`BLOCKS` vectorised blocks, a robot counting the landing
 #: points of the earlier blocks but not of its own (at 10,000 robots on the paper's domain a block's robots are
-#: ~2 m apart, so they seldom compete for one hole)
+#: ~2 m apart, so they seldom compete for one hole), the distances read off a :class:`DistanceRaster`
 SEQUENTIAL_UP_TO = 2000
 BLOCKS = 16
+
+#: the large-swarm path's raster: cell size radius / RASTER_PER_RADIUS (the candidates' spacing)
+RASTER_PER_RADIUS = 4
+
+_FAR = 1e300          # "no point yet" in a raster (finite, so that interpolation stays finite)
 
 #: lambda: how much nearer to a measurement (in metres) a landing point may be per metre of detour it saves
 DETOUR_COST = 0.2
@@ -71,7 +77,7 @@ def candidate_offsets(radius: float, per_radius: int = 4) -> np.ndarray:
 
 
 def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost: float = DETOUR_COST,
-                 offsets=None) -> np.ndarray:
+                 offsets=None, field=None) -> np.ndarray:
     """Landing points y (m, 2) within ``radius`` of the ``predicted`` ones (m, 2) in the holes of ``measured``.
 
     ``measured`` (k, 2): the positions measured so far (k may be 0).  ``inside``: optional callable
@@ -79,11 +85,16 @@ def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost
     is always allowed.  ``offsets``: the candidate stencil (default :func:`candidate_offsets`).  Robots
     are placed in index order, each counting the earlier ones' landing points as measured (module
     docstring).  Returns float arrays; y = predicted where ``radius = 0``.
+
+    Above :data:`SEQUENTIAL_UP_TO` robots the distances to ``measured`` and to the earlier blocks' landing
+    points are read off a :class:`DistanceRaster` (exact at its nodes, bilinear in between: within
+    sqrt(2) x its cell of the exact ones): ``field``, one the caller keeps up to date with ``measured`` (not
+    changed here; ``measured`` is then not read), or one built from ``measured``.
     """
     P = np.asarray(predicted, dtype=float)
     if P.ndim != 2 or P.shape[1] != 2 or not np.all(np.isfinite(P)):
         raise ValueError(f"predicted must be a finite (m, 2) array, got shape {P.shape}")
-    M = np.asarray(measured, dtype=float).reshape(-1, 2)
+    M = np.zeros((0, 2)) if field is not None else np.asarray(measured, dtype=float).reshape(-1, 2)
     if not np.all(np.isfinite(M)):
         raise ValueError("measured contains non-finite values (NaN or inf)")
     if not (math.isfinite(detour_cost) and detour_cost >= 0):
@@ -97,14 +108,18 @@ def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost
     if inside is not None:
         ok = np.asarray(inside(C.reshape(-1, 2)), dtype=bool).reshape(m, c)
     ok[:, 0] = True                                                   # staying is always possible
+    if m > SEQUENTIAL_UP_TO:
+        if field is None:
+            field = DistanceRaster.covering(np.concatenate([P, M]), radius, radius / RASTER_PER_RADIUS)
+            field.add(M)
+        penalty = detour_cost * np.hypot(S[:, 0], S[:, 1])
+        return _in_blocks(P, C, ok, field, penalty, radius)
     if len(M):
         dM, _ = cKDTree(M).query(C.reshape(-1, 2))
         dM = dM.reshape(m, c)
     else:
         dM = np.full((m, c), np.inf)
     penalty = detour_cost * np.hypot(S[:, 0], S[:, 1])[None, :]
-    if m > SEQUENTIAL_UP_TO:
-        return _in_blocks(P, C, ok, dM, penalty[0])
     # robot j's landing point can only matter to robot i's candidates if it is nearer than d(c, M) <= reach_i
     reach = np.where(ok, dM, 0.0).max(axis=1)
     near = cKDTree(P).query_ball_point(P, 2 * radius + np.minimum(reach, 1e300))
@@ -124,20 +139,107 @@ def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost
     return Y
 
 
-def _in_blocks(P, C, ok, dM, penalty):
+def _in_blocks(P, C, ok, field, penalty, radius):
     """Large swarms: :data:`BLOCKS` blocks of robots in index order, each robot counting the landing points of
-    the earlier blocks (not of its own block's robots) as measured; vectorised per block."""
-    m, c = dM.shape
+    the earlier blocks (not of its own block's robots) as measured; vectorised per block, the distances read off
+    a copy of ``field`` into which every block's landing points are stamped."""
+    m, c = C.shape[:2]
+    work = field.copy()
     Y = P.copy()
     edges = np.linspace(0, m, BLOCKS + 1).astype(int)
     for s, e in zip(edges[:-1], edges[1:]):
-        d = dM[s:e]
-        if s > 0:
-            dY, _ = cKDTree(Y[:s]).query(C[s:e].reshape(-1, 2))
-            d = np.minimum(d, dY.reshape(e - s, c))
+        d = work.distance(C[s:e].reshape(-1, 2)).reshape(e - s, c)
         score = np.where(ok[s:e], np.where(np.isfinite(d), d, 1e300) - penalty[None, :], -np.inf)
         Y[s:e] = C[np.arange(s, e), np.argmax(score, axis=1)]
+        if e < m:
+            work.stamp(Y[s:e], 2 * radius)
     return Y
+
+
+class DistanceRaster:
+    """The distance from the nodes of a square raster to the nearest of a growing set of points.
+
+    Nodes ``lo + cell * (i, j)``, 0 <= i < nx, 0 <= j < ny; ``D`` (nx, ny) the distance of every node to the
+    nearest point added so far (1e300 before any).  :meth:`add` keeps ``D`` exact with a k-d tree of the new
+    points only, so its cost does not grow with the history; :meth:`distance` interpolates ``D`` bilinearly
+    (the distance is 1-Lipschitz, so within sqrt(2) ``cell`` of the exact one; outside the raster the value
+    at the nearest point of the raster plus the way there); :meth:`stamp` lowers ``D`` near some points only.
+    """
+
+    def __init__(self, lo, cell: float, shape):
+        if not (math.isfinite(cell) and cell > 0):
+            raise ValueError(f"raster cell must be finite and > 0, got {cell!r}")
+        self.lo = np.asarray(lo, dtype=float).reshape(2)
+        self.cell = float(cell)
+        self.shape = (max(2, int(shape[0])), max(2, int(shape[1])))
+        self.D = np.full(self.shape, _FAR)
+        ax = [self.lo[k] + self.cell * np.arange(self.shape[k]) for k in range(2)]
+        gx, gy = np.meshgrid(*ax, indexing="ij")
+        self.nodes = np.column_stack([gx.ravel(), gy.ravel()])
+
+    @classmethod
+    def covering(cls, points, margin: float, cell: float) -> "DistanceRaster":
+        """An empty raster over the bounding box of ``points`` (q, 2) widened by ``margin`` on every side."""
+        Q = np.asarray(points, dtype=float).reshape(-1, 2)
+        lo, hi = Q.min(axis=0) - margin - cell, Q.max(axis=0) + margin + cell
+        return cls(lo, cell, np.ceil((hi - lo) / cell).astype(int) + 1)
+
+    @property
+    def hi(self) -> np.ndarray:
+        """The last node (x, y)."""
+        return self.lo + self.cell * (np.array(self.shape) - 1)
+
+    def covers(self, points, margin: float = 0.0) -> bool:
+        """Whether every point (q, 2) lies at least ``margin`` inside the raster."""
+        Q = np.asarray(points, dtype=float).reshape(-1, 2)
+        return len(Q) == 0 or bool(np.all(Q.min(axis=0) - margin >= self.lo)
+                                   and np.all(Q.max(axis=0) + margin <= self.hi))
+
+    def copy(self) -> "DistanceRaster":
+        """A raster on the same nodes with its own copy of ``D``."""
+        out = object.__new__(DistanceRaster)
+        out.lo, out.cell, out.shape, out.nodes = self.lo, self.cell, self.shape, self.nodes
+        out.D = self.D.copy()
+        return out
+
+    def add(self, points) -> None:
+        """Lower ``D`` to the exact distances to ``points`` (k, 2) where they are nearer."""
+        Q = np.asarray(points, dtype=float).reshape(-1, 2)
+        if len(Q) == 0:
+            return
+        flat = self.D.reshape(-1)
+        top = float(flat.max())
+        d, _ = cKDTree(Q).query(self.nodes, distance_upper_bound=np.inf if top >= _FAR else top)
+        np.minimum(flat, d, out=flat)
+
+    def stamp(self, points, reach: float) -> None:
+        """Lower ``D`` to the distances to ``points`` (k, 2) at the nodes within ``reach`` of one of them: exact,
+        like :meth:`add`, where ``reach`` is at least the largest distance in the raster."""
+        Q = np.asarray(points, dtype=float).reshape(-1, 2)
+        if len(Q) == 0:
+            return
+        w = int(math.ceil(min(float(reach), float(self.D.max())) / self.cell))
+        base = np.floor((Q - self.lo) / self.cell).astype(np.int64)
+        o = np.arange(-w, w + 2)
+        ox, oy = np.meshgrid(o, o, indexing="ij")
+        ix = base[:, 0, None] + ox.ravel()[None, :]
+        iy = base[:, 1, None] + oy.ravel()[None, :]
+        keep = (ix >= 0) & (ix < self.shape[0]) & (iy >= 0) & (iy < self.shape[1])
+        d = np.hypot(self.lo[0] + self.cell * ix - Q[:, 0, None], self.lo[1] + self.cell * iy - Q[:, 1, None])
+        np.minimum.at(self.D.reshape(-1), (ix * self.shape[1] + iy)[keep], d[keep])
+
+    def distance(self, points) -> np.ndarray:
+        """``D`` interpolated bilinearly at ``points`` (q, 2); inf where no point was added yet."""
+        Q = np.asarray(points, dtype=float).reshape(-1, 2)
+        inside = np.clip(Q, self.lo, self.hi)
+        u = (inside - self.lo) / self.cell
+        i = np.clip(np.floor(u).astype(np.int64), 0, np.array(self.shape) - 2)
+        fx, fy = (u - i).T
+        ix, iy, D = i[:, 0], i[:, 1], self.D
+        out = ((1 - fx) * ((1 - fy) * D[ix, iy] + fy * D[ix, iy + 1])
+               + fx * ((1 - fy) * D[ix + 1, iy] + fy * D[ix + 1, iy + 1]))
+        out += np.hypot(*(Q - inside).T)
+        return np.where(out >= 0.5 * _FAR, np.inf, out)
 
 
 def fill_distances(points, sites) -> np.ndarray:

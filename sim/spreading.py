@@ -11,6 +11,10 @@ This module is the controller's side of it.  At the first sub-step after every m
 3. picks the landing points y (:func:`control.spreading.hole_targets`; with obstacles only candidates in
    the free space) and holds the velocity w = (y - x̂) / Δt for the step.
 
+Above :data:`control.spreading.SEQUENTIAL_UP_TO` robots the memory is also kept as a
+:class:`control.spreading.DistanceRaster` over the domain (cell r / 4), lowered by each step's new points
+only, so that a step's cost does not grow with the number of positions measured so far.
+
 The loop then moves the robots under v = sat(v_law + w) with the Brownian motion: they land near y,
 the law's own velocity re-evaluated along the way.
 """
@@ -19,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..control import saturate
-from ..control.spreading import hole_targets
+from ..control.spreading import RASTER_PER_RADIUS, SEQUENTIAL_UP_TO, DistanceRaster, hole_targets
 from .dynamics import euler_maruyama_step
 
 __all__ = ["MeasurementSpreading"]
@@ -40,6 +44,7 @@ class MeasurementSpreading:
         self.w = None
         self._t = None
         self.inside = domain.contains if hasattr(domain, "contains") else None
+        self.field = None         # the memory as a DistanceRaster, from the first step with a large swarm on
 
     @property
     def measured(self) -> np.ndarray:
@@ -49,6 +54,20 @@ class MeasurementSpreading:
     def new_step(self, t: float) -> bool:
         """Whether the call at ``t`` is the first sub-step after a measurement."""
         return self._t is None or t >= self._t + self.dt - 0.5 * self.h
+
+    def _field(self, P: np.ndarray) -> DistanceRaster:
+        """The memory as a raster covering the domain and the candidates around ``P`` (built, or rebuilt wider,
+        from the whole memory when it does not)."""
+        if self.field is None or not self.field.covers(P, self.radius):
+            ext = getattr(self.domain, "extent", self.domain)
+            corners = [[ext[0], ext[2]], [ext[1], ext[3]]]
+            if self.field is not None:
+                corners += [self.field.lo, self.field.hi]
+            self.field = DistanceRaster.covering(np.concatenate([corners, P]), self.radius,
+                                                 self.radius / RASTER_PER_RADIUS)
+            for pts in self.memory:
+                self.field.add(pts)
+        return self.field
 
     def predict(self, t: float, X: np.ndarray, v0: np.ndarray, law, estimate) -> np.ndarray:
         """Where the noiseless law takes the robots X (m, 2) in Δt; ``v0`` the law's velocity at X now."""
@@ -65,10 +84,15 @@ class MeasurementSpreading:
             self._t = float(t)
             Xa, va = X[alive], v[alive]
             self.memory.append(np.array(Xa, dtype=float))
+            if self.field is not None:
+                self.field.add(self.memory[-1])
             w = np.zeros_like(X, dtype=float)
             if len(Xa):
                 P = self.predict(t, Xa, va, law, estimate)
-                Y = hole_targets(P, self.measured, self.radius, inside=self.inside)
+                if len(P) > SEQUENTIAL_UP_TO:
+                    Y = hole_targets(P, None, self.radius, inside=self.inside, field=self._field(P))
+                else:
+                    Y = hole_targets(P, self.measured, self.radius, inside=self.inside)
                 w[alive] = (Y - P) / self.dt
             self.w = w
         out = saturate(v + self.w, v_max)

@@ -51,24 +51,51 @@ def test_targets_equal_the_brute_force_rule(seed):
 
 
 def test_large_swarms_are_placed_in_blocks_that_see_the_earlier_blocks(monkeypatch):
+    # the block rule with exact distances, against the raster's choice: the same candidate up to the raster's
+    # error (its score within 2 sqrt(2) cells of the best exact score; on average within a fifth of a cell)
     import swarmfield.control.spreading as sp
     monkeypatch.setattr(sp, "SEQUENTIAL_UP_TO", 10)
     monkeypatch.setattr(sp, "BLOCKS", 4)
     rng = np.random.default_rng(5)
-    P = rng.uniform(0, 5, (30, 2))
-    M = rng.uniform(0, 5, (80, 2))
+    P = rng.uniform(0, 5, (300, 2))
+    M = rng.uniform(0, 5, (800, 2))
     Y = sp.hole_targets(P, M, 0.6)
     S = candidate_offsets(0.6)
     lam = DETOUR_COST * np.hypot(S[:, 0], S[:, 1])
-    expect = P.copy()
-    edges = np.linspace(0, 30, 5).astype(int)
+    edges = np.linspace(0, len(P), 5).astype(int)
+    loss, same, slack = [], 0, 2 * np.sqrt(2) * 0.6 / sp.RASTER_PER_RADIUS
     for s, e in zip(edges[:-1], edges[1:]):
-        pts = np.concatenate([M, expect[:s]])
+        pts = np.concatenate([M, Y[:s]])
         for i in range(s, e):
             C = P[i] + S
-            expect[i] = C[int(np.argmax(cdist(C, pts).min(axis=1) - lam))]
-    assert np.allclose(Y, expect, atol=1e-12)
-    assert not np.allclose(Y, brute_force(P, M, 0.6))           # the one-by-one rule differs inside a block
+            score = cdist(C, pts).min(axis=1) - lam
+            k = int(np.argmin(np.hypot(*(C - Y[i]).T)))
+            assert np.allclose(C[k], Y[i], atol=1e-12)              # a candidate of its own
+            assert score[k] >= score.max() - slack
+            same += k == int(np.argmax(score))
+            loss.append(score.max() - score[k])
+    assert same >= 0.45 * len(P) and np.mean(loss) <= 0.2 * 0.6 / sp.RASTER_PER_RADIUS    # measured: 53 %, 0.014 m
+
+
+def test_distance_raster_is_exact_at_its_nodes_and_lipschitz_close_between():
+    from scipy.spatial import cKDTree
+
+    from swarmfield.control.spreading import DistanceRaster
+    rng = np.random.default_rng(2)
+    A, B = rng.uniform(0, 4, (200, 2)), rng.uniform(1, 3, (50, 2))
+    f = DistanceRaster.covering([[0, 0], [4, 4]], 0.5, 0.2)
+    assert np.all(np.isinf(f.distance([[1.0, 1.0]])))
+    f.add(A)
+    f.add(B)                                        # incremental: the history is not re-read
+    both = np.concatenate([A, B])
+    assert np.allclose(f.D.ravel(), cKDTree(both).query(f.nodes)[0], atol=1e-12)
+    q = rng.uniform(-1, 5, (2000, 2))               # some outside the raster
+    err = f.distance(q) - cKDTree(both).query(q)[0]
+    assert np.all(np.abs(err) <= np.sqrt(2) * 0.2 + 1e-12)
+    g = DistanceRaster.covering([[0, 0], [4, 4]], 0.5, 0.2)
+    g.add(A)
+    g.stamp(B, 10.0)                                 # a reach beyond the largest distance: exact like add
+    assert np.allclose(g.D, f.D, atol=1e-12)
 
 
 def test_a_robot_moves_away_from_the_measurement_it_would_land_on():
