@@ -55,6 +55,9 @@ Two configurations for large swarms can be added to the table (``--configs``):
   same on 28 x 28 nodes (``inducing_spacing = 0.8``, so l starts at, and is bounded below by, 1.5 x 0.8 = 1.2);
   ``gmrf2-learn-h0.8-it8`` with the tuned preset's 8 refit iterations instead of 15.  The last column then gives
   the learned values at the end and the refit's CPU per step (included in the step's CPU).
+* ``tuned-feedback``: the tuned preset's feedback table (stirring, transport flux, the spreading of the
+  measurements, ``feedback.spread_radius = 0.75``) and its 1 m KDE bandwidth, the paper's GP and planner;
+  ``tuned-feedback-nospread`` the same with ``spread_radius = 0`` (what the spreading costs).
 
 ``--domains`` times the same step with obstacles (built-in domains, :mod:`domain`;
 target: within 1.3x of the empty rectangle at 10,000 robots); ``rectangle`` is the empty domain.
@@ -76,6 +79,8 @@ import subprocess
 import sys
 import time
 
+from swarmfield.sim.presets import PRESETS
+
 CONFIGS = {
     "default": {},
     "coarse-gp": {"gp": {"inducing_spacing": 1.0 / 1.5}},
@@ -96,6 +101,9 @@ CONFIGS = {
                                 "inducing_spacing": 0.8}},
     "gmrf2-learn-h0.8-it8": {"gp": {"kernel": "gmrf2", "learn_hyperparameters": True, "length_scale": 1.2,
                                     "inducing_spacing": 0.8, "hyper_maxiter": 8}},
+    "tuned-feedback": {"feedback": dict(PRESETS["tuned"]["feedback"]), "kde": {"bandwidth": 1.0}},
+    "tuned-feedback-nospread": {"feedback": dict(PRESETS["tuned"]["feedback"], spread_radius=0.0),
+                                "kde": {"bandwidth": 1.0}},
 }
 
 
