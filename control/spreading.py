@@ -38,6 +38,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.ndimage import maximum_filter
 from scipy.spatial import cKDTree
 
 __all__ = ["DETOUR_COST", "SEQUENTIAL_UP_TO", "BLOCKS", "RASTER_PER_RADIUS", "DistanceRaster", "candidate_offsets",
@@ -213,32 +214,44 @@ class DistanceRaster:
         np.minimum(flat, d, out=flat)
 
     def stamp(self, points, reach: float) -> None:
-        """Lower ``D`` to the distances to ``points`` (k, 2) at the nodes within ``reach`` of one of them: exact,
-        like :meth:`add`, where ``reach`` is at least the largest distance in the raster."""
+        """Lower ``D`` to the distances to ``points`` (k, 2) at the nodes within ``reach`` of one of them (exact,
+        like :meth:`add`, where ``reach`` is at least the largest distance in the raster).  A point only
+        lowers the nodes nearer to it than their distance, so its window is cut to the largest distance
+        within ``reach`` of it (a few cells inside a dense swarm)."""
         Q = np.asarray(points, dtype=float).reshape(-1, 2)
         if len(Q) == 0:
             return
-        w = int(math.ceil(min(float(reach), float(self.D.max())) / self.cell))
+        wmax = int(math.ceil(min(float(reach), float(self.D.max())) / self.cell))
         base = np.floor((Q - self.lo) / self.cell).astype(np.int64)
-        o = np.arange(-w, w + 2)
-        ox, oy = np.meshgrid(o, o, indexing="ij")
-        ix = base[:, 0, None] + ox.ravel()[None, :]
-        iy = base[:, 1, None] + oy.ravel()[None, :]
-        keep = (ix >= 0) & (ix < self.shape[0]) & (iy >= 0) & (iy < self.shape[1])
-        d = np.hypot(self.lo[0] + self.cell * ix - Q[:, 0, None], self.lo[1] + self.cell * iy - Q[:, 1, None])
-        np.minimum.at(self.D.reshape(-1), (ix * self.shape[1] + iy)[keep], d[keep])
+        bx = np.clip(base[:, 0], 0, self.shape[0] - 1)
+        by = np.clip(base[:, 1], 0, self.shape[1] - 1)
+        local = maximum_filter(self.D, size=2 * wmax + 3, mode="nearest")[bx, by]
+        w = np.minimum(np.ceil(np.minimum(local, reach) / self.cell), wmax).astype(np.int64)
+        flat = self.D.reshape(-1)
+        for wk in np.unique(w):
+            sel = w == wk
+            o = np.arange(-wk, wk + 2)
+            ox, oy = np.meshgrid(o, o, indexing="ij")
+            ix = base[sel, 0, None] + ox.ravel()[None, :]
+            iy = base[sel, 1, None] + oy.ravel()[None, :]
+            keep = (ix >= 0) & (ix < self.shape[0]) & (iy >= 0) & (iy < self.shape[1])
+            d = np.hypot(self.lo[0] + self.cell * ix - Q[sel, 0, None], self.lo[1] + self.cell * iy - Q[sel, 1, None])
+            np.minimum.at(flat, (ix * self.shape[1] + iy)[keep], d[keep])
 
     def distance(self, points) -> np.ndarray:
         """``D`` interpolated bilinearly at ``points`` (q, 2); inf where no point was added yet."""
         Q = np.asarray(points, dtype=float).reshape(-1, 2)
-        inside = np.clip(Q, self.lo, self.hi)
-        u = (inside - self.lo) / self.cell
-        i = np.clip(np.floor(u).astype(np.int64), 0, np.array(self.shape) - 2)
-        fx, fy = (u - i).T
-        ix, iy, D = i[:, 0], i[:, 1], self.D
-        out = ((1 - fx) * ((1 - fy) * D[ix, iy] + fy * D[ix, iy + 1])
-               + fx * ((1 - fy) * D[ix + 1, iy] + fy * D[ix + 1, iy + 1]))
-        out += np.hypot(*(Q - inside).T)
+        x = np.minimum(np.maximum(Q[:, 0], self.lo[0]), self.hi[0])
+        y = np.minimum(np.maximum(Q[:, 1], self.lo[1]), self.hi[1])
+        ux, uy = (x - self.lo[0]) / self.cell, (y - self.lo[1]) / self.cell
+        ix = np.minimum(ux.astype(np.int64), self.shape[0] - 2)
+        iy = np.minimum(uy.astype(np.int64), self.shape[1] - 2)
+        fx, fy = ux - ix, uy - iy
+        flat, ny = self.D.reshape(-1), self.shape[1]
+        k = ix * ny + iy
+        out = ((1 - fx) * ((1 - fy) * flat[k] + fy * flat[k + 1])
+               + fx * ((1 - fy) * flat[k + ny] + fy * flat[k + ny + 1]))
+        out += np.hypot(Q[:, 0] - x, Q[:, 1] - y)
         return np.where(out >= 0.5 * _FAR, np.inf, out)
 
 

@@ -96,6 +96,12 @@ def test_distance_raster_is_exact_at_its_nodes_and_lipschitz_close_between():
     g.add(A)
     g.stamp(B, 10.0)                                 # a reach beyond the largest distance: exact like add
     assert np.allclose(g.D, f.D, atol=1e-12)
+    h = DistanceRaster.covering([[0, 0], [4, 4]], 0.5, 0.2)
+    h.add(A)
+    h.stamp(B, 0.3)                                  # a short reach: exact within it, never below the exact
+    dB = cKDTree(B).query(h.nodes)[0]
+    assert np.all(h.D.ravel() >= f.D.ravel() - 1e-12)
+    assert np.allclose(h.D.ravel()[dB <= 0.3], f.D.ravel()[dB <= 0.3], atol=1e-12)
 
 
 def test_a_robot_moves_away_from_the_measurement_it_would_land_on():
