@@ -148,8 +148,9 @@ def _in_blocks(P, C, ok, field, penalty, radius):
     work = field.copy()
     Y = P.copy()
     edges = np.linspace(0, m, BLOCKS + 1).astype(int)
+    k, W, way = work.locate(C.reshape(-1, 2))
     for s, e in zip(edges[:-1], edges[1:]):
-        d = work.distance(C[s:e].reshape(-1, 2)).reshape(e - s, c)
+        d = work.distance(located=(k[s * c:e * c], W[:, s * c:e * c], way[s * c:e * c])).reshape(e - s, c)
         score = np.where(ok[s:e], np.where(np.isfinite(d), d, 1e300) - penalty[None, :], -np.inf)
         Y[s:e] = C[np.arange(s, e), np.argmax(score, axis=1)]
         if e < m:
@@ -238,8 +239,10 @@ class DistanceRaster:
             d = np.hypot(self.lo[0] + self.cell * ix - Q[sel, 0, None], self.lo[1] + self.cell * iy - Q[sel, 1, None])
             np.minimum.at(flat, (ix * self.shape[1] + iy)[keep], d[keep])
 
-    def distance(self, points) -> np.ndarray:
-        """``D`` interpolated bilinearly at ``points`` (q, 2); inf where no point was added yet."""
+    def locate(self, points):
+        """The interpolation of ``points`` (q, 2): the flat index k (q,) of each one's lower-left node, the
+        bilinear weights (4, q) of the nodes k, k + 1, k + ny, k + ny + 1 and the way (q,) from outside the
+        raster to it; for :meth:`distance` of the same points after ``D`` changed."""
         Q = np.asarray(points, dtype=float).reshape(-1, 2)
         x = np.minimum(np.maximum(Q[:, 0], self.lo[0]), self.hi[0])
         y = np.minimum(np.maximum(Q[:, 1], self.lo[1]), self.hi[1])
@@ -247,11 +250,15 @@ class DistanceRaster:
         ix = np.minimum(ux.astype(np.int64), self.shape[0] - 2)
         iy = np.minimum(uy.astype(np.int64), self.shape[1] - 2)
         fx, fy = ux - ix, uy - iy
+        W = np.stack([(1 - fx) * (1 - fy), (1 - fx) * fy, fx * (1 - fy), fx * fy])
+        return ix * self.shape[1] + iy, W, np.hypot(Q[:, 0] - x, Q[:, 1] - y)
+
+    def distance(self, points=None, located=None) -> np.ndarray:
+        """``D`` interpolated bilinearly at ``points`` (q, 2) or at the points of ``located`` (:meth:`locate`);
+        inf where no point was added yet."""
+        k, W, way = self.locate(points) if located is None else located
         flat, ny = self.D.reshape(-1), self.shape[1]
-        k = ix * ny + iy
-        out = ((1 - fx) * ((1 - fy) * flat[k] + fy * flat[k + 1])
-               + fx * ((1 - fy) * flat[k + ny] + fy * flat[k + ny + 1]))
-        out += np.hypot(Q[:, 0] - x, Q[:, 1] - y)
+        out = W[0] * flat[k] + W[1] * flat[k + 1] + W[2] * flat[k + ny] + W[3] * flat[k + ny + 1] + way
         return np.where(out >= 0.5 * _FAR, np.inf, out)
 
 
