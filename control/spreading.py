@@ -87,10 +87,12 @@ def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost
     are placed in index order, each counting the earlier ones' landing points as measured (module
     docstring).  Returns float arrays; y = predicted where ``radius = 0``.
 
-    Above :data:`SEQUENTIAL_UP_TO` robots the distances to ``measured`` and to the earlier blocks' landing
-    points are read off a :class:`DistanceRaster` (exact at its nodes, bilinear in between: within
-    sqrt(2) x its cell of the exact ones): ``field``, one the caller keeps up to date with ``measured`` (not
-    changed here; ``measured`` is then not read), or one built from ``measured``.
+    Above :data:`SEQUENTIAL_UP_TO` robots (in blocks, :data:`BLOCKS`) the candidates are the nodes of a
+    :class:`DistanceRaster` of cell ``radius`` / :data:`RASTER_PER_RADIUS` within ``radius`` of the predicted
+    point, and the point itself (``offsets`` is not used), so that their distances to ``measured`` and to
+    the earlier blocks' landing points are exact look-ups (the point's own: bilinear, within sqrt(2) cells):
+    ``field``, a raster the caller keeps up to date with ``measured`` (not changed here; ``measured`` is then
+    not read), or one built from ``measured``.
     """
     P = np.asarray(predicted, dtype=float)
     if P.ndim != 2 or P.shape[1] != 2 or not np.all(np.isfinite(P)):
@@ -104,17 +106,16 @@ def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost
     m, c = P.shape[0], S.shape[0]
     if m == 0 or radius == 0 or c == 1:
         return P.copy()
+    if m > SEQUENTIAL_UP_TO:
+        if field is None:
+            field = DistanceRaster.covering(np.concatenate([P, M]), radius, radius / RASTER_PER_RADIUS)
+            field.add(M)
+        return _in_blocks(P, field, radius, detour_cost, inside)
     C = P[:, None, :] + S[None, :, :]                                # (m, c, 2) candidates
     ok = np.ones((m, c), bool)
     if inside is not None:
         ok = np.asarray(inside(C.reshape(-1, 2)), dtype=bool).reshape(m, c)
     ok[:, 0] = True                                                   # staying is always possible
-    if m > SEQUENTIAL_UP_TO:
-        if field is None:
-            field = DistanceRaster.covering(np.concatenate([P, M]), radius, radius / RASTER_PER_RADIUS)
-            field.add(M)
-        penalty = detour_cost * np.hypot(S[:, 0], S[:, 1])
-        return _in_blocks(P, C, ok, field, penalty, radius)
     if len(M):
         dM, _ = cKDTree(M).query(C.reshape(-1, 2))
         dM = dM.reshape(m, c)
@@ -140,19 +141,46 @@ def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost
     return Y
 
 
-def _in_blocks(P, C, ok, field, penalty, radius):
+def _in_blocks(P, field, radius, detour_cost, inside):
     """Large swarms: :data:`BLOCKS` blocks of robots in index order, each robot counting the landing points of
-    the earlier blocks (not of its own block's robots) as measured; vectorised per block, the distances read off
-    a copy of ``field`` into which every block's landing points are stamped."""
-    m, c = C.shape[:2]
+    the earlier blocks (not of its own block's robots) as measured.  The candidates are the raster's nodes
+    within ``radius`` of the predicted point (whatever the node, at most ``radius`` away) and the point
+    itself, so that a candidate's distance is a look-up of ``D`` (the point's own interpolated); every
+    block's landing points are stamped into a copy of ``field``."""
+    m, a, ny = len(P), field.cell, field.shape[1]
+    reach = radius / a - math.sqrt(0.5)                 # a node this near the nearest one is within radius
+    if reach < 0:
+        return P.copy()
+    w = int(math.floor(reach))
+    o = np.arange(-w, w + 1)
+    ox, oy = (g.ravel() for g in np.meshgrid(o, o, indexing="ij"))
+    sel = ox * ox + oy * oy <= reach * reach
+    ox, oy = ox[sel], oy[sel]
+    b = np.rint((P - field.lo) / a).astype(np.int64)
+    bx = np.clip(b[:, 0], w, field.shape[0] - 1 - w)    # the raster covers the domain and radius around it
+    by = np.clip(b[:, 1], w, ny - 1 - w)
+    K = (bx * ny + by)[:, None] + (ox * ny + oy)[None, :]          # (m, c) flat node indices
+    dx = (field.lo[0] + a * bx - P[:, 0])[:, None] + a * ox[None, :]
+    dy = (field.lo[1] + a * by - P[:, 1])[:, None] + a * oy[None, :]
+    detour = np.hypot(dx, dy)
+    pen = detour_cost * detour
+    ok = detour <= radius * (1 + 1e-12)
+    if inside is not None:
+        ok &= field.free(inside).reshape(-1)[K]
+    here = field.locate(P)
     work = field.copy()
+    flat = work.D.reshape(-1)
     Y = P.copy()
     edges = np.linspace(0, m, BLOCKS + 1).astype(int)
-    k, W, way = work.locate(C.reshape(-1, 2))
     for s, e in zip(edges[:-1], edges[1:]):
-        d = work.distance(located=(k[s * c:e * c], W[:, s * c:e * c], way[s * c:e * c])).reshape(e - s, c)
-        score = np.where(ok[s:e], np.where(np.isfinite(d), d, 1e300) - penalty[None, :], -np.inf)
-        Y[s:e] = C[np.arange(s, e), np.argmax(score, axis=1)]
+        d = flat[K[s:e]]
+        score = np.where(ok[s:e], np.where(d < 0.5 * _FAR, d, 1e300) - pen[s:e], -np.inf)
+        j = np.argmax(score, axis=1)
+        best = score[np.arange(e - s), j]
+        d0 = work.distance(located=(here[0][s:e], here[1][:, s:e], here[2][s:e]))
+        stay = np.where(np.isfinite(d0), d0, 1e300) >= best          # the point itself (ties: no detour)
+        jj = K[np.arange(s, e), j]
+        Y[s:e] = np.where(stay[:, None], P[s:e], field.lo + a * np.column_stack([jj // ny, jj % ny]))
         if e < m:
             work.stamp(Y[s:e], 2 * radius)
     return Y
@@ -178,6 +206,7 @@ class DistanceRaster:
         ax = [self.lo[k] + self.cell * np.arange(self.shape[k]) for k in range(2)]
         gx, gy = np.meshgrid(*ax, indexing="ij")
         self.nodes = np.column_stack([gx.ravel(), gy.ravel()])
+        self._free = None
 
     @classmethod
     def covering(cls, points, margin: float, cell: float) -> "DistanceRaster":
@@ -200,9 +229,15 @@ class DistanceRaster:
     def copy(self) -> "DistanceRaster":
         """A raster on the same nodes with its own copy of ``D``."""
         out = object.__new__(DistanceRaster)
-        out.lo, out.cell, out.shape, out.nodes = self.lo, self.cell, self.shape, self.nodes
+        out.lo, out.cell, out.shape, out.nodes, out._free = self.lo, self.cell, self.shape, self.nodes, self._free
         out.D = self.D.copy()
         return out
+
+    def free(self, inside) -> np.ndarray:
+        """``inside(nodes)`` (nx, ny) bool, computed once per ``inside``."""
+        if self._free is None or self._free[0] is not inside:
+            self._free = (inside, np.asarray(inside(self.nodes), dtype=bool).reshape(self.shape))
+        return self._free[1]
 
     def add(self, points) -> None:
         """Lower ``D`` to the exact distances to ``points`` (k, 2) where they are nearer."""
