@@ -162,19 +162,22 @@ def _in_blocks(P, field, radius, detour_cost, inside):
     K = (bx * ny + by)[:, None] + (ox * ny + oy)[None, :]          # (m, c) flat node indices
     dx = (field.lo[0] + a * bx - P[:, 0])[:, None] + a * ox[None, :]
     dy = (field.lo[1] + a * by - P[:, 1])[:, None] + a * oy[None, :]
-    detour = np.hypot(dx, dy)
-    pen = detour_cost * detour
-    ok = detour <= radius * (1 + 1e-12)
+    pen = np.hypot(dx, dy)
+    ok = pen <= radius * (1 + 1e-12)
+    pen *= detour_cost
     if inside is not None:
         ok &= field.free(inside).reshape(-1)[K]
+    if ok.all():
+        ok = None
     here = field.locate(P)
     work = field.copy()
     flat = work.D.reshape(-1)
     Y = P.copy()
     edges = np.linspace(0, m, BLOCKS + 1).astype(int)
     for s, e in zip(edges[:-1], edges[1:]):
-        d = flat[K[s:e]]
-        score = np.where(ok[s:e], np.where(d < 0.5 * _FAR, d, 1e300) - pen[s:e], -np.inf)
+        score = flat[K[s:e]] - pen[s:e]                  # "no point yet" is 1e300, like the exact rule's inf
+        if ok is not None:
+            score[~ok[s:e]] = -np.inf
         j = np.argmax(score, axis=1)
         best = score[np.arange(e - s), j]
         d0 = work.distance(located=(here[0][s:e], here[1][:, s:e], here[2][s:e]))
@@ -182,7 +185,7 @@ def _in_blocks(P, field, radius, detour_cost, inside):
         jj = K[np.arange(s, e), j]
         Y[s:e] = np.where(stay[:, None], P[s:e], field.lo + a * np.column_stack([jj // ny, jj % ny]))
         if e < m:
-            work.stamp(Y[s:e], 2 * radius)
+            work.stamp(Y[s:e], radius)
     return Y
 
 
