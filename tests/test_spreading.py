@@ -235,3 +235,27 @@ def test_a_decentralized_swarm_does_not_spread_and_says_so():
         warnings.simplefilter("ignore")
         off = run_simulation(config_from_dict(doc))
     np.testing.assert_array_equal(res.positions[-1], off.positions[-1])
+
+
+def test_large_swarm_controller_keeps_its_raster_incrementally_and_holds_the_law_over_the_prediction(monkeypatch):
+    import swarmfield.control.spreading as csp
+    import swarmfield.sim.spreading as ssp
+    monkeypatch.setattr(ssp, "SEQUENTIAL_UP_TO", 5)
+    monkeypatch.setattr(csp, "SEQUENTIAL_UP_TO", 5)
+    calls = []
+
+    def law(t, X, est):                       # a drift that turns after the first sub-step
+        calls.append(t)
+        return np.tile([1.0, 0.0] if t < 0.05 else [0.0, 1.0], (len(X), 1))
+    rng = np.random.default_rng(3)
+    s = MeasurementSpreading(0.6, dt=0.8, h=0.1, domain=(0.0, 10.0, 0.0, 10.0))
+    X = rng.uniform(2, 8, (12, 2))
+    alive = np.ones(12, bool)
+    assert np.allclose(s.predict(0.0, X, law(0.0, X, None), law, None), X + [0.8, 0.0])
+    assert len(calls) == 1                    # held: the law is not evaluated again
+    for k in range(3):
+        X = rng.uniform(2, 8, (12, 2))
+        s.velocity(0.8 * k, X, alive, law(0.8 * k, X, None), law, None, v_max=np.inf)
+    fresh = csp.DistanceRaster(s.field.lo, s.field.cell, s.field.shape)
+    fresh.add(s.measured)
+    assert np.allclose(s.field.D, fresh.D, atol=1e-12) and len(s.memory) == 3
