@@ -26,7 +26,7 @@ import numpy as np
 from ..ocp.plan import ReferencePlan
 from ..regression import GaussianProcess, target_density
 
-__all__ = ["FragmentMaps", "GridTarget", "MIN_ROBOTS"]
+__all__ = ["FragmentMaps", "GridTarget", "MIN_ROBOTS", "empty_map_like"]
 
 #: the smallest component that keeps a map of its own
 MIN_ROBOTS = 2
@@ -71,6 +71,18 @@ class _Fragment:
         self.sup_v = np.inf
 
 
+def empty_map_like(sim, kernel_angle) -> GaussianProcess:
+    """A GP without data at the main map's (``sim.gp``) learned values, l_y of an anisotropic kernel included, its
+    kernel turned by ``kernel_angle`` and, with ``gp.barrier``, its lattice links through the walls cut: a fragment's
+    new map, or the main map rebuilt from what the designated robot's component holds."""
+    gs = sim.gp.settings
+    gp = GaussianProcess(dataclasses.replace(sim.config.gp, kernel_angle=kernel_angle), domain=sim.settings.domain)
+    if gp.settings.barrier:
+        gp = sim.attach_barrier(gp)
+    gp.set_hyperparameters(gs.signal_variance, gs.length_scale, getattr(gs, "length_scale_y", None))
+    return gp
+
+
 class FragmentMaps:
     """The GP maps of the fragments, keyed by knowledge group (module docstring)."""
 
@@ -99,16 +111,9 @@ class FragmentMaps:
                 fits = [(int(o.has.sum()), k) for k, o in spare.items() if not np.any(o.has & ~mask)]
                 f = spare.pop(max(fits)[1]) if fits else None
             if f is None:
-                gs = sim.gp.settings
                 # the main map's rotation (a fragment's GP is not refitted: it cannot choose an "auto" angle)
-                angle = getattr(gs, "frame_angle", sim.config.gp.frame_angle)
-                gp = GaussianProcess(dataclasses.replace(sim.config.gp, kernel_angle=angle),
-                                     domain=sim.settings.domain)
-                if gp.settings.barrier:
-                    gp = sim.attach_barrier(gp)
-                # every learned value of the main map, l_y of an anisotropic kernel included
-                gp.set_hyperparameters(gs.signal_variance, gs.length_scale, getattr(gs, "length_scale_y", None))
-                f = _Fragment(gp, items)
+                gs = sim.gp.settings
+                f = _Fragment(empty_map_like(sim, getattr(gs, "frame_angle", sim.config.gp.frame_angle)), items)
             add = np.flatnonzero(mask & ~f.has)
             if add.size:
                 f.gp.add(knowledge.X[add], knowledge.y[add])

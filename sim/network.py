@@ -40,7 +40,7 @@ from scipy import sparse
 from ..control.consensus import CosineMoments, PIConsensus, RobotDensities, metropolis_laplacian, neighbour_kde
 from ..control.flooded import FloodedDensities, flooded_densities, table_ages
 from .comm import FLOAT_BYTES, INT_BYTES, MessageLog, disk_graph
-from .fragments import FragmentMaps
+from .fragments import FragmentMaps, empty_map_like
 from .knowledge import ITEM_BYTES, KnowledgeGroups
 
 __all__ = ["Centralized", "Decentralized", "make_network", "EXTRA_COLUMNS", "RobotPlans", "HeldPlan"]
@@ -196,14 +196,7 @@ class Decentralized:
         if self.pi is not None and self.anchored:
             self.anchor(sim, labels, count)
         if rebuild:
-            from ..regression import GaussianProcess
-            gs = sim.gp.settings
-            gp = GaussianProcess(dataclasses.replace(sim.config.gp, kernel_angle=gs.kernel_angle),   # the map's rotation
-                                 domain=sim.settings.domain)
-            if gp.settings.barrier:
-                gp = sim.attach_barrier(gp)
-            gp.set_hyperparameters(gs.signal_variance, gs.length_scale)
-            sim.gp = gp
+            sim.gp = empty_map_like(sim, sim.gp.settings.kernel_angle)        # the map's rotation ("auto": still open)
         kg = self.knowledge
         n_new = len(y)
         if missing.size == n_new and n_new and missing[0] == kg.items - n_new and not rebuild:
