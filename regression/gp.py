@@ -1153,17 +1153,24 @@ class GaussianProcess:
         new = dataclasses.replace(s, signal_variance=s.signal_variance if signal_variance is None else signal_variance,
                                   length_scale=s.length_scale if length_scale is None else length_scale,
                                   inducing_spacing=self._spacing, learn_hyperparameters=False)
-        f = GaussianProcess(new, self._domain, frame=self._frame)
-        f._raw = None                             # re-framed by this GP if its angle is still to be chosen
-        f._mom[...] = self._mom
-        f._momy[...] = self._momy
-        f._n, f._sum_y, f._sum_y2 = self._n, self._sum_y, self._sum_y2
-        f._version = 1
-        f._pending, f._pending_n = None, 0        # first posterior from the power sums
+        f = self._twin(new)                       # re-framed by this GP if its angle is still to be chosen
         if self._barrier is not None and new.kernel in GMRF_KERNELS:
             f.set_barrier(*self._barrier)
         self._followers.append(f)
         return f
+
+    def _twin(self, settings: GPSettings) -> "GaussianProcess":
+        """A GP in this GP's frame holding its data (a copy of the running sums), at ``settings`` (whose inducing
+        spacing must be this GP's): its first posterior comes from the power sums.  Not a follower: later data of
+        this GP do not reach it."""
+        t = GaussianProcess(settings, self._domain, frame=self._frame)
+        t._raw = None
+        t._mom[...] = self._mom
+        t._momy[...] = self._momy
+        t._n, t._sum_y, t._sum_y2 = self._n, self._sum_y, self._sum_y2
+        t._version = 1
+        t._pending, t._pending_n = None, 0
+        return t
 
     def _lml(self, s2: float, ell: float, a: np.ndarray, b: np.ndarray) -> float:
         return self._lml_parts(s2, ell, a, b)[0]

@@ -296,13 +296,7 @@ def compare_kernels(gp: GaussianProcess, kernels=None, maxiter: int = 30, factor
     for k in (KERNELS if kernels is None else kernels):
         s = dataclasses.replace(gp.settings, kernel=k, inducing_spacing=gp.settings.resolved_inducing_spacing,
                                 learn_hyperparameters=False)
-        twin = GaussianProcess(s, gp.domain, frame=gp.frame)
-        twin._raw = None
-        twin._mom[...] = gp._mom
-        twin._momy[...] = gp._momy
-        twin._n, twin._sum_y, twin._sum_y2 = gp._n, gp._sum_y, gp._sum_y2
-        twin._version += 1
-        twin._pending, twin._pending_n = None, 0
+        twin = gp._twin(s)
         s2, ell, *rest = refit(twin, None, maxiter, factor)
         ell_y = rest[0] if len(rest) == 2 else None
         lml = twin._lml(s2, kernel_key(s, ell, ell_y), *twin._assemble(twin.prior_mean))

@@ -301,11 +301,7 @@ def test_gmrf_refit_shares_its_last_posterior_with_predict():
     q = np.array([[0.5, 0.5], [3.0, 2.5], [5.5, 4.0]])
     mean, var = gp.predict(q)
     assert gp.n_factorizations == before
-    twin = GaussianProcess(dataclasses.replace(st, learn_hyperparameters=False), (0.0, 6.0, 0.0, 5.0))
-    twin._mom[...], twin._momy[...] = gp._mom, gp._momy
-    twin._n, twin._sum_y, twin._sum_y2 = gp._n, gp._sum_y, gp._sum_y2
-    twin._version += 1
-    twin._pending = None
+    twin = gp._twin(dataclasses.replace(st, learn_hyperparameters=False))
     m2, v2 = twin.predict(q)
     assert np.allclose(mean, m2, rtol=0, atol=1e-12) and np.allclose(var, v2, rtol=0, atol=1e-12)
 
