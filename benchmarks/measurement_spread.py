@@ -82,11 +82,12 @@ def _switching():
     return Switching
 
 
-def _set(doc, item):
+def set_option(doc, item, prog="measurement_spread.py"):
+    """Lay ``--set SECTION.KEY=VALUE`` (VALUE as JSON, else a string) over the configuration document ``doc``."""
     key, _, value = item.partition("=")
     section, _, name = key.partition(".")
     if not (section and name and value):
-        raise SystemExit(f"measurement_spread.py: --set wants SECTION.KEY=VALUE, got {item!r}")
+        raise SystemExit(f"{prog}: --set wants SECTION.KEY=VALUE, got {item!r}")
     try:
         v = json.loads(value)
     except json.JSONDecodeError:
@@ -121,7 +122,7 @@ def main(argv=None) -> int:
     for seed in (int(s) for s in a.seeds.split(",")):
         doc: dict = {}
         for item in a.set:
-            _set(doc, item)
+            set_option(doc, item)
         doc.setdefault("sim", {}).update(controller=a.controller, field=field, seed=seed, max_periods=3)
         if noise_var:
             doc["sim"]["noise_variance"] = noise_var

@@ -20,20 +20,13 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 
-
-def _set(doc, item):
-    key, _, value = item.partition("=")
-    section, _, name = key.partition(".")
-    if not (section and name and value):
-        raise SystemExit(f"site_speed.py: --set wants SECTION.KEY=VALUE, got {item!r}")
-    try:
-        v = json.loads(value)
-    except json.JSONDecodeError:
-        v = value
-    doc.setdefault(section, {})[name] = v
+sys.path.insert(0, str(Path(__file__).resolve().parent))     # the sibling script, also when loaded by path
+from measurement_spread import set_option  # noqa: E402  --set SECTION.KEY=VALUE
 
 
 def _probe(log):
@@ -97,7 +90,7 @@ def main(argv=None) -> int:
         doc: dict = read_toml(a.config) if a.config else {}
         doc.pop("preset", None)
         for item in a.set:
-            _set(doc, item)
+            set_option(doc, item, "site_speed.py")
         doc.setdefault("sim", {}).update(controller=a.controller, field=a.field, seed=seed, max_periods=a.periods)
         if a.noise_sd is not None:
             doc["sim"]["noise_variance"] = a.noise_sd ** 2
