@@ -140,8 +140,9 @@ from scipy.optimize import minimize
 from ..runtime.validation import real_array
 from . import banded
 from .basis import BASIS_COEF, PRODUCT_COEF, SplineAxis, bspline_weights
+from .cut_basis import CutBasis, CutPrior, cut_prior, cut_prior_derivative
 from .frame import Frame, rotation
-from .gmrf import (GmrfPrior, band_of_blocks, barrier_prior, barrier_prior_derivative, gmrf_prior,
+from .gmrf import (WIDTH, GmrfPrior, band_of_blocks, barrier_prior, barrier_prior_derivative, gmrf_prior,
                    gmrf_prior_derivative, lattice_cuts)
 from .kernels import GMRF_KERNELS
 from .settings import GPSettings
@@ -427,6 +428,12 @@ class GaussianProcess:
         self._prior_var_cache = None  # kernel "gmrf": (prior band, points, prior variance there) of the last predict
         self._query_cache = None      # (points, per chunk: slice, basis, band positions) of the last predict
         self._cuts = None             # the barrier's cut lattice links (cut_x, cut_y), made on first use
+        self._cut = None              # barrier_basis "cut": the CutBasis of the barrier on this lattice
+        self._vmom = self._vmomy = None   # ... and the power sums per (cell, group) of its pieces
+        self._cut_scatter = None      # ... A's block-band positions of each group's 16 x 16
+        self._cut_query = None        # ... (points, extended indices, weights, band positions) of the last predict
+        if self._barrier is not None and settings.barrier_basis == "cut":
+            self._make_cut()
         self._build_scatter_indices()
 
     def set_barrier(self, blocked, step: float) -> None:
@@ -440,11 +447,45 @@ class GaussianProcess:
         step = float(step)
         if not (math.isfinite(step) and step > 0):
             raise ValueError(f"step must be positive and finite, got {step}")
+        same = self._barrier is not None and self._barrier[0] is blocked and self._barrier[1] == step
+        if self._settings.barrier_basis == "cut" and not (same and self._cut is not None) and self._n:
+            raise ValueError("set_barrier with barrier_basis = \"cut\" needs a GP without data (the power sums of "
+                             "the basis's pieces start empty)")
         self._barrier = (blocked, step)
-        self._cuts, self._cov, self._mu, self._prior_var_cache = None, None, None, None
+        self._cov, self._mu, self._prior_var_cache = None, None, None
         self._bases.clear()
+        if not (same and (self._cut is not None or self._settings.barrier_basis != "cut")):
+            self._cuts, self._cut = None, None
+            if self._settings.barrier_basis == "cut":
+                self._make_cut()
         for f in self._followers:
             f.set_barrier(blocked, step)
+
+    def _make_cut(self) -> None:
+        """The :class:`regression.cut_basis.CutBasis` of the barrier on this lattice and empty per-piece power sums."""
+        self._cut = CutBasis(self._ax, self._ay, self._barrier[0], self._barrier[1], self.barrier_cuts, self._to_world,
+                             self._domain)
+        self._vmom = np.zeros((self._cut.n_groups, _N_POW, _N_POW))
+        self._vmomy = np.zeros((self._cut.n_groups, _N_POW_Y, _N_POW_Y))
+        self._cut_scatter, self._cut_query, self._assembled = None, None, None
+
+    @property
+    def _cut_active(self) -> bool:
+        """True when the field is the cut basis's (a GMRF kernel, ``barrier_basis = "cut"``, a node split by a wall)."""
+        return self._cut is not None and self._cut.split and self._settings.kernel in GMRF_KERNELS
+
+    @property
+    def _n_coef(self) -> int:
+        """Number of coefficients of the posterior: M, or the cut basis's padded extended lattice."""
+        return self._cut.size if self._cut_active else self._n_nodes
+
+    def _to_world(self, U: np.ndarray) -> np.ndarray:
+        """Lattice-frame points -> world points."""
+        frame = self._frame
+        if frame.identity:
+            return U
+        c, s = rotation(frame.angle)
+        return np.column_stack([frame.centre[0] + c * U[:, 0] - s * U[:, 1], frame.centre[1] + s * U[:, 0] + c * U[:, 1]])
 
     @property
     def barrier_cuts(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -452,17 +493,8 @@ class GaussianProcess:
         if self._barrier is None:
             return None
         if self._cuts is None:
-            frame = self._frame
-
-            def to_world(U):
-                if frame.identity:
-                    return U
-                c, s = rotation(frame.angle)
-                return np.column_stack([frame.centre[0] + c * U[:, 0] - s * U[:, 1],
-                                        frame.centre[1] + s * U[:, 0] + c * U[:, 1]])
-
-            self._cuts = lattice_cuts(self._ax.nodes, self._ay.nodes, self._barrier[0], self._barrier[1], to_world,
-                                      self._domain)
+            self._cuts = lattice_cuts(self._ax.nodes, self._ay.nodes, self._barrier[0], self._barrier[1],
+                                      self._to_world, self._domain)
         return self._cuts
 
     # ------------------------------------------------------------------ properties
@@ -613,12 +645,21 @@ class GaussianProcess:
             sums = self._power_sums_numpy(X, y)
         self._mom += sums[:, : _N_POW * _N_POW].reshape(n_cells, _N_POW, _N_POW)
         self._momy += sums[:, _N_POW * _N_POW:].reshape(n_cells, _N_POW_Y, _N_POW_Y)
+        if self._cut is not None:                 # the same sums per (cell, group) of the cut basis's pieces
+            ng = self._vmom.shape[0]
+            sums = self._power_sums_numpy(X, y, self._cut.locate(X), ng)
+            self._vmom += sums[:, : _N_POW * _N_POW].reshape(ng, _N_POW, _N_POW)
+            self._vmomy += sums[:, _N_POW * _N_POW:].reshape(ng, _N_POW_Y, _N_POW_Y)
 
-    def _power_sums_numpy(self, X: np.ndarray, y: np.ndarray) -> np.ndarray:
+    def _power_sums_numpy(self, X: np.ndarray, y: np.ndarray, cell: np.ndarray | None = None,
+                          n_cells: int | None = None) -> np.ndarray:
+        """The power sums of the points per cell (default: the spline cell each lies in; ``cell`` given: those
+        indices, ``n_cells`` of them)."""
         n = y.shape[0]
         ix, tx = self._ax.locate(X[:, 0])
         iy, ty = self._ay.locate(X[:, 1])
-        cell = ix * self._ay.n_cells + iy
+        if cell is None:
+            cell = ix * self._ay.n_cells + iy
         px = np.empty((n, _N_POW))
         py = np.empty((n, _N_POW))
         px[:, 0] = 1.0
@@ -630,7 +671,8 @@ class GaussianProcess:
         both[:, : _N_POW * _N_POW] = (px[:, :, None] * py[:, None, :]).reshape(n, -1)
         both[:, _N_POW * _N_POW:] = (px[:, :_N_POW_Y, None] * (py[:, None, :_N_POW_Y] * y[:, None, None])).reshape(n, -1)
         # per-cell sums as a (cells x n) 0/1 matrix times the features: O(65 n)
-        n_cells = self._mom.shape[0]
+        if n_cells is None:
+            n_cells = self._mom.shape[0]
         member = sparse.csr_matrix((np.ones(n), (cell, np.arange(n))), shape=(n_cells, n))
         return np.asarray(member @ both)
 
@@ -661,10 +703,24 @@ class GaussianProcess:
         """A of :meth:`_assemble` (it does not depend on the prior mean), cached per data version and noise."""
         sn2 = self._settings.noise_variance
         gmrf = self._settings.kernel in GMRF_KERNELS
-        key = (self._version, sn2, gmrf)
+        cut = self._cut_active
+        key = (self._version, sn2, gmrf, cut)
         if self._assembled is not None and self._assembled[0] == key:
             return self._assembled[1]
         pc = PRODUCT_COEF.reshape(16, _N_POW)                    # [(p, r), a]
+        if cut:                                                  # per (cell, group), on the extended lattice
+            c = self._cut
+            if self._cut_scatter is None:
+                keep, flat = c.scatter_index()
+                self._cut_scatter = (keep, flat[keep])
+            keep, flat = self._cut_scatter
+            z = pc @ (self._vmom @ pc.T)                         # [group, (p, r), (q, s)]
+            # (p, r), (q, s) -> node pair ((p, q), (r, s)) of the group's 16 (p-major)
+            z = z.reshape(-1, 4, 4, 4, 4).transpose(0, 1, 3, 2, 4).reshape(-1, 256)
+            a = np.bincount(flat, weights=z[keep] / sn2, minlength=c.gx * (WIDTH + 1) * c.block * c.block)
+            a = a.reshape(c.gx, WIDTH + 1, c.block, c.block)
+            self._assembled = (key, a)
+            return a
         u = self._mom @ pc.T                                     # [cell, a, (q, s)]
         z = pc @ u                                               # [cell, (p, r), (q, s)]
         gx, gy = self._ax.n_nodes, self._ay.n_nodes
@@ -697,6 +753,11 @@ class GaussianProcess:
 
     def _assemble_b(self, mean: float) -> np.ndarray:
         """b = sum phi (y - m) / s_n^2 from the power sums (O(cells), no M x M work)."""
+        if self._cut_active:
+            resid = self._vmomy - mean * self._vmom[:, :_N_POW_Y, :_N_POW_Y]
+            bl = BASIS_COEF @ resid @ BASIS_COEF.T               # [group, p, q]
+            return np.bincount(self._cut.group_ids.reshape(-1), weights=bl.reshape(-1) / self._settings.noise_variance,
+                               minlength=self._cut.size)
         resid = self._momy - mean * self._mom[:, :_N_POW_Y, :_N_POW_Y]
         bl = BASIS_COEF @ resid @ BASIS_COEF.T                   # [cell, p, q]
         return np.bincount(self._idx_b, weights=bl.reshape(-1) / self._settings.noise_variance,
@@ -849,7 +910,9 @@ class GaussianProcess:
         hit = self._bases.get(key)
         if hit is None:
             cuts = self.barrier_cuts
-            if cuts is not None and (cuts[0].any() or cuts[1].any()):
+            if self._cut_active:
+                hit = cut_prior(self._cut, l_x, l_y, GMRF_KERNELS[kernel])
+            elif cuts is not None and (cuts[0].any() or cuts[1].any()):
                 hit = barrier_prior(self._ax.n_nodes, self._ay.n_nodes, self._ax.h, self._ay.h, l_x, l_y,
                                     GMRF_KERNELS[kernel], *cuts)
             else:
@@ -863,6 +926,11 @@ class GaussianProcess:
     def _gmrf_posterior(self):
         """(m, mu, band of Sigma, band of the prior covariance) of the ``"gmrf"`` prior: P = Q / s_f^2 + A
         factorised as a block band, Sigma's band by selected inversion, mu = P^{-1} b (:mod:`regression.gmrf`)."""
+        mean, mu, cov = self._gmrf_state()
+        return mean, mu, cov.band, cov.prior.band
+
+    def _gmrf_state(self):
+        """(m, mu, :class:`_GmrfCovariance`) of a GMRF prior for the current data and hyperparameters."""
         s = self._settings
         mean = self.prior_mean
         hyper = (s.signal_variance, s.kernel_key, s.noise_variance)
@@ -879,7 +947,7 @@ class GaussianProcess:
         key = (self._version, hyper, mean)
         if self._mu is None or self._mu[0] != key:
             self._mu = (key, banded.solve(cov.factor, self._assemble_b(mean)))
-        return mean, self._mu[1], cov.band, cov.prior.band
+        return mean, self._mu[1], cov
 
     def _get_posterior(self):
         """(m, mu, band of Sigma, prior) for the current data, hyperparameters and prior mean; ``prior`` is
@@ -1050,6 +1118,8 @@ class GaussianProcess:
         npts = pts.shape[0]
         if self._n == 0:
             return np.full(npts, self.prior_mean), np.full(npts, s.signal_variance)
+        if self._cut_active:
+            return self._predict_cut(pts)
         mean, mu, band, prior = self._get_posterior()
         if self._band_offsets is None:
             # node pair (p, q), (r, s) of a cell with first node (i, j): band entry [i + p, j + q, r - p + 3, s - q + 3]
@@ -1099,6 +1169,26 @@ class GaussianProcess:
                 self._prior_var_cache[2][sl] = prior_var
             out_var[sl] = np.maximum(post, 0.0) / prior_var
         return out_mean, out_var
+
+    def _predict_cut(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`predict` on the cut basis (:mod:`regression.cut_basis`): each point's 16 extended nodes (the
+        pieces it lies in), Sigma and the prior covariance between them from their block bands."""
+        mean, mu, cov = self._gmrf_state()
+        hit = self._cut_query
+        if hit is not None and np.array_equal(hit[0], pts):
+            ids, phi, where = hit[1:]
+        else:
+            ids, phi = self._cut.basis(pts)
+            where = self._cut.band_index(ids[:, :, None], ids[:, None, :])
+            self._cut_query = (pts.copy(), ids, phi, where) if len(pts) <= _QUERY_CACHE else None
+        sig, pri = cov.inverse.reshape(-1), cov.prior.cov.reshape(-1)
+        out_var = np.empty(len(pts))
+        for start in range(0, len(pts), _PREDICT_CHUNK):
+            sl = slice(start, start + _PREDICT_CHUNK)
+            w, f = where[sl], phi[sl]
+            post = np.einsum("ij,ijk,ik->i", f, sig[w], f)
+            out_var[sl] = np.maximum(post, 0.0) / np.einsum("ij,ijk,ik->i", f, pri[w], f)
+        return mean + np.einsum("ij,ij->i", phi, mu[ids]), out_var
 
     # ------------------------------------------------------------------ hyperparameters
     def log_marginal_likelihood(self, signal_variance: float | None = None, length_scale: float | None = None) -> float:
@@ -1168,6 +1258,9 @@ class GaussianProcess:
         t._mom[...] = self._mom
         t._momy[...] = self._momy
         t._n, t._sum_y, t._sum_y2 = self._n, self._sum_y, self._sum_y2
+        if self._cut is not None and settings.kernel in GMRF_KERNELS:     # the cut basis and its per-piece sums
+            t._barrier, t._cuts, t._cut = self._barrier, self._cuts, self._cut
+            t._vmom, t._vmomy = self._vmom.copy(), self._vmomy.copy()
         t._version = 1
         t._pending, t._pending_n = None, 0
         return t
@@ -1189,7 +1282,7 @@ class GaussianProcess:
         if factor is None:
             factor = banded.cholesky(a + prior.precision / s2, overwrite=True)
         mu = banded.solve(factor, b)
-        logdet_q = prior.logdet - self._n_nodes * math.log(s2)
+        logdet_q = prior.logdet - self._n_coef * math.log(s2)
         lml = -0.5 * (rr / sn2 - float(b @ mu) + banded.logdet(factor) - logdet_q + self._n * math.log(2.0 * math.pi * sn2))
         return lml, factor, mu, prior
 
@@ -1224,9 +1317,13 @@ class GaussianProcess:
                 self._pending, self._pending_n = [], 0
         q = prior.precision
         grad = np.empty(3)
-        grad[0] = 0.5 * ((banded.quadratic(q, mu) + banded.trace_product(sel, q)) / s2 - self._n_nodes)
+        grad[0] = 0.5 * ((banded.quadratic(q, mu) + banded.trace_product(sel, q)) / s2 - self._n_coef)
         for k, (dx, dy) in (((1, (1.0, 1.0)),) if tied else ((1, (1.0, 0.0)), (2, (0.0, 1.0)))):
-            dq, dlogdet = (gmrf_prior_derivative if prior.cuts is None else barrier_prior_derivative)(prior, dx, dy)
+            if isinstance(prior, CutPrior):
+                derivative = cut_prior_derivative
+            else:
+                derivative = gmrf_prior_derivative if prior.cuts is None else barrier_prior_derivative
+            dq, dlogdet = derivative(prior, dx, dy)
             grad[k] = -0.5 * ((banded.quadratic(dq, mu) + banded.trace_product(sel, dq)) / s2 - dlogdet)
         if tied:
             grad[1] = grad[2] = 0.5 * grad[1]

@@ -124,6 +124,11 @@ class GPSettings:
         links through walls and obstacles are cut, so that data do not inform the field across a wall
         (:mod:`regression.gmrf`, *Barriers*; the simulation passes the GP its obstacles,
         :meth:`regression.gp.GaussianProcess.set_barrier`).  False (the default): the walls are transparent.
+    barrier_basis
+        With ``barrier``: ``"cut"`` (the default) also cuts the spline basis at the walls -- a B-spline whose support
+        a wall splits into unconnected pieces gets one copy per piece (:mod:`regression.cut_basis`), so that the
+        field may jump across a thin wall; ``"lattice"``: only the prior's links are cut (the field stays one C^2
+        spline, a jump is smoothed over about +-2 inducing spacings).
     signal_scale
         ``"absolute"`` (the paper): ``signal_variance`` is in field units squared.  ``"data"``: the GP
         works on standardized data: ``signal_variance`` (and the centre of the learned s_f^2's prior and its
@@ -171,6 +176,7 @@ class GPSettings:
     hyper_prior_sd_signal: float | None = None
     kernel_angle: float | str = 0.0
     barrier: bool = False
+    barrier_basis: str = "cut"
 
     def __post_init__(self):
         object.__setattr__(self, "signal_variance", _finite_positive("signal_variance", self.signal_variance))
@@ -185,6 +191,8 @@ class GPSettings:
             raise ValueError(f"kernel must be one of {', '.join(GP_KERNELS)}, got {self.kernel!r}")
         if not isinstance(self.barrier, bool):
             raise ValueError(f"barrier must be true or false, got {self.barrier!r}")
+        if self.barrier_basis not in ("cut", "lattice"):
+            raise ValueError(f"barrier_basis must be \"cut\" or \"lattice\", got {self.barrier_basis!r}")
         if self.barrier and self.kernel not in GMRF_KERNELS:
             raise ValueError(f"barrier = true needs kernel = \"gmrf\" or \"gmrf2\", got {self.kernel!r}")
         if self.length_scale_y is not None:
