@@ -78,7 +78,7 @@ def candidate_offsets(radius: float, per_radius: int = 4) -> np.ndarray:
 
 
 def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost: float = DETOUR_COST,
-                 offsets=None, field=None) -> np.ndarray:
+                 offsets=None, field=None, holds=None) -> np.ndarray:
     """Landing points y (m, 2) within ``radius`` of the ``predicted`` ones (m, 2) in the holes of ``measured``.
 
     ``measured`` (k, 2): the positions measured so far (k may be 0).  ``inside``: optional callable
@@ -93,6 +93,10 @@ def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost
     the earlier blocks' landing points are exact look-ups (the point's own: bilinear, within sqrt(2) cells):
     ``field``, a raster the caller keeps up to date with ``measured`` (not changed here; ``measured`` is then
     not read), or one built from ``measured``.
+
+    ``holds`` (m, k) bool: robot i knows only the measurements ``measured[holds[i]]`` (robots whose
+    knowledge differs, e.g. a decentralized swarm with a relay bound, :mod:`sim.local_spreading`); always
+    placed one robot after the other, whatever m.  None: every robot knows all of ``measured``.
     """
     P = np.asarray(predicted, dtype=float)
     if P.ndim != 2 or P.shape[1] != 2 or not np.all(np.isfinite(P)):
@@ -106,7 +110,11 @@ def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost
     m, c = P.shape[0], S.shape[0]
     if m == 0 or radius == 0 or c == 1:
         return P.copy()
-    if m > SEQUENTIAL_UP_TO:
+    if holds is not None:
+        holds = np.asarray(holds, dtype=bool)
+        if holds.shape != (m, len(M)):
+            raise ValueError(f"holds must be a ({m}, {len(M)}) bool array, got shape {holds.shape}")
+    if m > SEQUENTIAL_UP_TO and holds is None:
         if field is None:
             field = DistanceRaster.covering(np.concatenate([P, M]), radius, radius / RASTER_PER_RADIUS)
             field.add(M)
@@ -116,7 +124,15 @@ def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost
     if inside is not None:
         ok = np.asarray(inside(C.reshape(-1, 2)), dtype=bool).reshape(m, c)
     ok[:, 0] = True                                                   # staying is always possible
-    if len(M):
+    if holds is not None:                                            # each robot its own measurements
+        dM = np.full((m, c), np.inf)
+        keys, inv = np.unique(holds, axis=0, return_inverse=True)
+        inv = inv.ravel()
+        for k, row in enumerate(keys):
+            if row.any():
+                sel = inv == k
+                dM[sel] = cKDTree(M[row]).query(C[sel].reshape(-1, 2))[0].reshape(-1, c)
+    elif len(M):
         dM, _ = cKDTree(M).query(C.reshape(-1, 2))
         dM = dM.reshape(m, c)
     else:

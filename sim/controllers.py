@@ -38,7 +38,6 @@ in ``simulate-swarm`` / ``compare-controllers`` (``sim.controller`` in a configu
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -89,6 +88,9 @@ class Context:
     #: the faces between free cells that walls thinner than a cell close, two bool arrays of x faces and
     #: y faces (from domain.Domain.closed_faces), None when there is none
     walls: tuple | None = None
+    #: the run's communication strategy (:mod:`sim.network`: the centre, or robots that talk to neighbours); None
+    #: outside :class:`sim.simulation.Simulation`
+    network: object = None
 
 
 class Controller:
@@ -165,20 +167,14 @@ class FeedbackController(Controller):
 
     def start(self, ctx):
         r = self.config.feedback.spread_radius
-        radius = self.config.sim.comm_radius
-        if r > 0 and radius is not None and math.isfinite(radius):
-            # every landing point is chosen against every position measured so far and the other robots' choices:
-            # knowledge only a communication centre has (a robot of a decentralized swarm holds its component's)
-            warnings.warn("feedback.spread_radius is off in a decentralized run (sim.comm_radius): choosing the "
-                          "landing points needs every measured position and every robot's choice, which only a "
-                          "communication centre has", UserWarning, stacklevel=2)
-            r = 0.0
         if r > 0:
-            est = ctx.estimate
-            kde = getattr(est, "kde", None)
-            self.spreading = MeasurementSpreading(r, self.config.sim.dt, ctx.h,
-                                                  ctx.domain if ctx.region is None else ctx.region,
-                                                  None if kde is None else kde.fit)
+            # the communication strategy decides what the landing points are chosen against: every measured
+            # position and every robot's choice (the centre), or each component's own (sim.local_spreading)
+            kde = getattr(ctx.estimate, "kde", None)
+            args = (r, self.config.sim.dt, ctx.h, ctx.domain if ctx.region is None else ctx.region,
+                    None if kde is None else kde.fit)
+            make = getattr(ctx.network, "spreading", None)
+            self.spreading = MeasurementSpreading(*args) if make is None else make(*args)
 
     def start_period(self, ctx):
         self.plan, self.estimate = ctx.plan, ctx.estimate

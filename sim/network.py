@@ -42,6 +42,8 @@ from ..control.flooded import FloodedDensities, flooded_densities, table_ages
 from .comm import FLOAT_BYTES, INT_BYTES, MessageLog, disk_graph
 from .fragments import FragmentMaps, empty_map_like
 from .knowledge import ITEM_BYTES, KnowledgeGroups
+from .local_spreading import ComponentSpreading
+from .spreading import MeasurementSpreading
 
 __all__ = ["Centralized", "Decentralized", "make_network", "EXTRA_COLUMNS", "RobotPlans", "HeldPlan"]
 
@@ -80,6 +82,11 @@ class Centralized:
     def planning_density(self, sim):
         """The density the reference is planned from: the centre's p̂ on the planner grid."""
         return sim.p_hat
+
+    def spreading(self, radius: float, dt: float, h: float, domain, refit):
+        """The feedback's spreading of the measurements (``feedback.spread_radius``): the centre knows every
+        measured position and every robot's choice (:class:`sim.spreading.MeasurementSpreading`)."""
+        return MeasurementSpreading(radius, dt, h, domain, refit)
 
     def planned(self, sim) -> None:
         pass
@@ -228,6 +235,12 @@ class Decentralized:
         """The stop by max-consensus of sup V over the components: the main map's rule is met, and every
         fragment's map meets it too (:mod:`sim.fragments`)."""
         return self.fragments is None or self.fragments.all_done
+
+    def spreading(self, radius: float, dt: float, h: float, domain, refit):
+        """The feedback's spreading of the measurements on every component's own knowledge: the measurements its
+        robots hold and its robots' announced choices (:class:`sim.local_spreading.ComponentSpreading`; the
+        prediction refits each component's KDE, ``refit`` is not used)."""
+        return ComponentSpreading(radius, dt, h, domain, self)
 
     def planning_density(self, sim):
         """The designated robot's own estimate of p̂ on the planner grid (the centre's when it hears everyone)."""

@@ -657,7 +657,7 @@ class Simulation:
                        var=self.var, centers=self.centers, domain=self.settings.domain, h=self.h,
                        plan=self.network.robot_plan(self) if self.controller.needs_plan else None,
                        estimate=self.network.estimator(self),
-                       rng=self.rng, free=self.free, region=self.region, walls=self.walls)
+                       rng=self.rng, free=self.free, region=self.region, walls=self.walls, network=self.network)
 
     def _notify(self, event: str) -> None:
         for r in self.recorders:

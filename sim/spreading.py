@@ -92,17 +92,25 @@ class MeasurementSpreading:
         if self.new_step(t) or self.w is None or self.w.shape != X.shape:
             self._t = float(t)
             Xa, va = X[alive], v[alive]
-            self.memory.append(np.array(Xa, dtype=float))
-            if self.field is not None:
-                self.field.add(self.memory[-1])
+            self.remember(Xa, alive)
             w = np.zeros_like(X, dtype=float)
             if len(Xa):
                 P = self.predict(t, Xa, va, law, estimate)
-                if len(P) > SEQUENTIAL_UP_TO:
-                    Y = hole_targets(P, None, self.radius, inside=self.inside, field=self._field(P))
-                else:
-                    Y = hole_targets(P, self.measured, self.radius, inside=self.inside)
-                w[alive] = (Y - P) / self.dt
+                w[alive] = (self.land(P, alive) - P) / self.dt
             self.w = w
         out = saturate(v + self.w, v_max)
         return np.where(alive[:, None], out, 0.0)
+
+    def remember(self, Xa: np.ndarray, alive: np.ndarray) -> None:
+        """The working robots' positions ``Xa`` (the points just measured) into the memory M."""
+        self.memory.append(np.array(Xa, dtype=float))
+        if self.field is not None:
+            self.field.add(self.memory[-1])
+
+    def land(self, P: np.ndarray, alive: np.ndarray) -> np.ndarray:
+        """The landing points of the working robots (``alive``) predicted at ``P``: the rule of
+        :func:`control.spreading.hole_targets` against every position measured so far and, in index order, the
+        earlier robots' landing points (what a communication centre knows)."""
+        if len(P) > SEQUENTIAL_UP_TO:
+            return hole_targets(P, None, self.radius, inside=self.inside, field=self._field(P))
+        return hole_targets(P, self.measured, self.radius, inside=self.inside)

@@ -218,25 +218,6 @@ def test_closed_loop_with_spreading_keeps_the_speed_limit_and_remembers_every_me
     assert np.allclose(ctrl.spreading.measured, np.concatenate(res.positions[:steps]))
 
 
-def test_a_decentralized_swarm_does_not_spread_and_says_so():
-    """Choosing the landing points needs every measured position and every robot's choice: knowledge of a
-    communication centre.  With sim.comm_radius the spreading is off (one warning) and the run is the same as
-    with spread_radius = 0."""
-    import warnings
-    doc = {k: dict(v) for k, v in SMALL.items()}
-    doc["sim"]["comm_radius"] = 3.0
-    c = config_from_dict(doc)
-    ctrl = FeedbackController(c)
-    with pytest.warns(UserWarning, match="spread_radius is off in a decentralized run"):
-        res = run_simulation(c, controller=ctrl)
-    assert ctrl.spreading is None
-    doc["feedback"]["spread_radius"] = 0.0
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        off = run_simulation(config_from_dict(doc))
-    np.testing.assert_array_equal(res.positions[-1], off.positions[-1])
-
-
 def test_large_swarm_controller_keeps_its_raster_incrementally_and_holds_the_law_over_the_prediction(monkeypatch):
     import swarmfield.control.spreading as csp
     import swarmfield.sim.spreading as ssp
