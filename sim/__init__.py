@@ -17,7 +17,8 @@
 * :mod:`sim.comm`, :mod:`sim.network`, :mod:`sim.knowledge` -- a decentralized swarm (``sim.comm_radius``):
   the communication graph and message accounting, the communication strategy of the loop (the paper's
   centre, or robots that talk to neighbours), measurements relayed through components and the designated
-  robot's map
+  robot's map; :mod:`sim.fragments` the maps of a swarm that fell apart; :mod:`sim.local_spreading` the
+  spreading of the measurements on every component's own knowledge
 * :mod:`sim.metrics`, :mod:`sim.outputs`, :mod:`sim.figures` -- metrics.csv, summary.json, figures
 
     from swarmfield.sim import RunConfig, run_simulation

@@ -20,7 +20,9 @@ positions, and each computes the centralized estimate itself: the run is then th
 bit; with flooded positions so is a run whose graph stays within ``comm_rounds`` hops of every robot.  The
 swarm may fall apart: each connected component then estimates the density of its own robots, an isolated
 robot its own kernel; a one-line warning names the number of components.  Robots that join the main
-component get its current plan from a neighbour at once.
+component get its current plan from a neighbour at once.  The feedback's spreading of the measurements
+(``feedback.spread_radius``) chooses every component's landing points on what its robots know
+(:meth:`Decentralized.spreading`, :mod:`sim.local_spreading`).
 
 Metrics of a decentralized run add ``density_error`` (mean over the working robots of
 ||p̂_i - p̂||_L2 / ||p̂||_L2 on the planner grid, p̂ the centralized KDE of the same positions),
