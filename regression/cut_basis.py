@@ -26,7 +26,9 @@ node's centre for the copy whose piece holds it).
 *Layout.*  Copies of a node of x-column i are stored in the block of column i, after the column's g_y original
 nodes, and every block is padded to the same size b = g_y + (most copies in a column) with dummy nodes (Q = 1, no
 data; they add nothing to the log marginal likelihood): the posterior precision keeps the block band of width 3 of
-:mod:`regression.banded`, at ((b / g_y)^3) times the cost (a wall along y through the lattice: b ~ 2 g_y).
+:mod:`regression.banded`, at (b / g_y)^3 times the cost.  Or by y-rows, whichever is cheaper: a wall along y through
+the lattice doubles the blocks of the 3-4 columns it crosses (b ~ 2 g_y, ~7x the cost) but adds only ~4 nodes to each
+row (b = g_x + 4, ~1.3x).
 
 *Sufficient statistics.*  A spline cell whose 16 active nodes' pieces do not all agree over the cell falls apart
 into *groups* of samples with the same pieces; the GP keeps the power sums per (cell, group) (:meth:`CutBasis.locate`),
@@ -63,8 +65,9 @@ class CutBasis:
     it first (beyond the domain nothing is blocked but its edge); ``cuts``: the lattice links through blocked space
     (:func:`regression.gmrf.lattice_cuts`) for the links between nodes that are not copied.
 
-    Attributes: ``gx``, ``gy``, ``block`` (b, the padded block size), ``size`` (gx b), ``split`` (True if any node
-    has more than one piece), ``real`` (size,) bool (False: a dummy), ``links_x``/``links_y`` (pairs of extended
+    Attributes: ``gx``, ``gy``, ``axis`` (0: blocks of x-columns, 1: of y-rows), ``n_blocks``, ``block`` (b, the
+    padded block size), ``size`` (n_blocks b), ``home`` (gx, gy) the extended index of each node's first copy,
+    ``split`` (True if any node has more than one piece), ``real`` (size,) bool (False: a dummy), ``links_x``/``links_y`` (pairs of extended
     indices), ``n_groups`` and ``group_ids`` (n_groups, 16) extended indices of each (cell, group)."""
 
     def __init__(self, ax, ay, blocked, step: float, cuts, to_world=None, box=None):
@@ -108,23 +111,33 @@ class CutBasis:
             self.labels[(int(i), int(j))] = lab
             self.pieces[i, j] = k
         self.split = bool(self.labels)
-        extra = (self.pieces - 1).sum(axis=1)
-        b = gy + int(extra.max())
-        self.block, self.size = b, gx * b
-        # extended indices: copy 0 of (i, j) at i b + j, copies 1 .. k-1 at i b + gy + running index
+        # blocks along the axis that gives the cheaper block band (n_blocks b^3): a wall along y puts its copies in a
+        # few x-columns, which would double their blocks, but adds only a few nodes to each y-row
+        extra = (self.pieces - 1).sum(axis=1), (self.pieces - 1).sum(axis=0)
+        b0, b1 = gy + int(extra[0].max()), gx + int(extra[1].max())
+        self.axis = 0 if gx * b0 ** 3 <= gy * b1 ** 3 else 1
+        inner = (gy, gx)[self.axis]
+        b = (b0, b1)[self.axis]
+        self.n_blocks = (gx, gy)[self.axis]
+        self.block, self.size = b, self.n_blocks * b
+        # extended indices: copy 0 of (i, j) at k b + (its place in the block), k = i (axis 0) or j (axis 1); copies
+        # 1 .. k-1 of the block's nodes after its lattice nodes, then dummies
+        i, j = np.meshgrid(np.arange(gx), np.arange(gy), indexing="ij")
+        self.home = i * b + j if self.axis == 0 else j * b + i
         self.copy_base = np.full((gx, gy), -1, np.int64)
-        nxt = np.full(gx, gy, np.int64)
+        nxt = np.full(self.n_blocks, inner, np.int64)
         self.real = np.zeros(self.size, bool)
-        self.real[(np.arange(gx)[:, None] * b + np.arange(gy)[None, :]).reshape(-1)] = True
+        self.real[self.home.reshape(-1)] = True
         self.owner = {}                                               # extended index -> (i, j, piece)
         for (i, j), lab in sorted(self.labels.items()):
             k = int(self.pieces[i, j])
-            self.copy_base[i, j] = i * b + nxt[i]
+            blk = (i, j)[self.axis]
+            self.copy_base[i, j] = blk * b + nxt[blk]
             for p in range(1, k):
-                e = i * b + nxt[i] + p - 1
+                e = blk * b + nxt[blk] + p - 1
                 self.real[e] = True
                 self.owner[e] = (i, j, p)
-            nxt[i] += k - 1
+            nxt[blk] += k - 1
         self._links(cuts)
         self._cells()
         self._representatives()
@@ -133,7 +146,7 @@ class CutBasis:
     def ext(self, i, j, piece) -> np.ndarray:
         """Extended indices of node(s) (i, j) in piece(s) ``piece`` (arrays broadcast)."""
         i, j, piece = np.broadcast_arrays(np.asarray(i), np.asarray(j), np.asarray(piece))
-        base = np.where(piece > 0, self.copy_base[i, j] + piece - 1, i * self.block + j)
+        base = np.where(piece > 0, self.copy_base[i, j] + piece - 1, self.home[i, j])
         return base
 
     def _piece_at(self, i: int, j: int, kx: np.ndarray, ky: np.ndarray) -> np.ndarray:
@@ -159,8 +172,7 @@ class CutBasis:
                     if 0 <= a < ni and 0 <= c < nj:
                         plain[a, c] = False
             keep = plain & ~np.asarray(cut, bool)
-            pairs.append(np.column_stack([ii[keep] * self.block + jj[keep],
-                                          (ii[keep] + di) * self.block + jj[keep] + dj]))
+            pairs.append(np.column_stack([self.home[ii[keep], jj[keep]], self.home[ii[keep] + di, jj[keep] + dj]]))
             for a, c in zip(*np.nonzero(~plain)):
                 a, c = int(a), int(c)
                 # the overlap of the two supports: samples [(a+di) m, (a+4) m) x [(c+dj) m, (c+4) m)
@@ -197,7 +209,7 @@ class CutBasis:
             for q in range(4):
                 win |= copied[p:p + ncx, q:q + ncy]
         ci, cj = np.meshgrid(np.arange(ncx), np.arange(ncy), indexing="ij")
-        base = ((ci[:, :, None, None] + o[:, None]) * self.block + cj[:, :, None, None] + o[None, :]).reshape(ncx * ncy, 16)
+        base = self.home[ci[:, :, None, None] + o[:, None], cj[:, :, None, None] + o[None, :]].reshape(ncx * ncy, 16)
         n = 0
         for c in range(ncx * ncy):
             i, j = divmod(c, ncy)
@@ -254,7 +266,7 @@ class CutBasis:
         sx, sy = self.sample
         # copy 0: the node centre clipped into the lattice's cells (its centre is in piece 0 by construction)
         i, j = np.meshgrid(np.arange(gx), np.arange(gy), indexing="ij")
-        e0 = (i * self.block + j).reshape(-1)
+        e0 = self.home.reshape(-1)
         pts[e0, 0] = np.clip(self.ax.nodes[i.reshape(-1)], self.ax.lo, self.ax.hi)
         pts[e0, 1] = np.clip(self.ay.nodes[j.reshape(-1)], self.ay.lo, self.ay.hi)
         weight = self._bx[:, None] * self._bx[None, :]
@@ -288,8 +300,8 @@ class CutBasis:
 
     # ------------------------------------------------------------------ band positions
     def band_index(self, e1: np.ndarray, e2: np.ndarray) -> np.ndarray:
-        """Flat positions of the entries (e1, e2) (x-columns at most 3 apart) in a lower block band
-        (gx, 4, b, b) of :mod:`regression.banded` (symmetric: (e2, e1) when e2's column is the larger)."""
+        """Flat positions of the entries (e1, e2) (blocks at most 3 apart) in a lower block band
+        (n_blocks, 4, b, b) of :mod:`regression.banded` (symmetric: (e2, e1) when e2's block is the larger)."""
         b = self.block
         k1, r1 = np.divmod(e1, b)
         k2, r2 = np.divmod(e2, b)
@@ -345,7 +357,7 @@ def cut_prior(basis: CutBasis, lx: float, ly: float, nu: int) -> CutPrior:
     Laplacians of its links, log det Q_0 and Q_0^{-1}'s band from the block-banded Cholesky factor and selected
     inverse, S from the fixed-point normalisation at the nodes' representative samples."""
     hx, hy = basis.ax.h, basis.ay.h
-    n, gx, b = basis.size, basis.gx, basis.block
+    n, gx, b = basis.size, basis.n_blocks, basis.block
     c = 0.5 / nu
     k = sparse.identity(n, format="csr") + c * lx * lx * _laplacian(n, basis.links_x, hx) \
         + c * ly * ly * _laplacian(n, basis.links_y, hy)

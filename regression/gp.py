@@ -717,8 +717,8 @@ class GaussianProcess:
             z = pc @ (self._vmom @ pc.T)                         # [group, (p, r), (q, s)]
             # (p, r), (q, s) -> node pair ((p, q), (r, s)) of the group's 16 (p-major)
             z = z.reshape(-1, 4, 4, 4, 4).transpose(0, 1, 3, 2, 4).reshape(-1, 256)
-            a = np.bincount(flat, weights=z[keep] / sn2, minlength=c.gx * (WIDTH + 1) * c.block * c.block)
-            a = a.reshape(c.gx, WIDTH + 1, c.block, c.block)
+            a = np.bincount(flat, weights=z[keep] / sn2, minlength=c.size * (WIDTH + 1) * c.block)
+            a = a.reshape(c.n_blocks, WIDTH + 1, c.block, c.block)
             self._assembled = (key, a)
             return a
         u = self._mom @ pc.T                                     # [cell, a, (q, s)]
