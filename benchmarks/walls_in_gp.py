@@ -11,7 +11,8 @@ the map files are written into ``--maps`` (default: a folder ``walls-maps`` besi
 0.1 (rooms, deep) or the preset's (floor, clinic); 100 robots; the stop rule is recorded, never applied.  One CSV row
 per run: the time sup V first falls to the threshold (in T), RMSE and 95 % band coverage over the free planner cells
 at 2 T and 3 T, and the same within 1.5 m of a wall (cells whose centre is within 1.5 m of blocked space) and farther
-from it, the learned (s_f^2, l) at the end and the run's wall time.
+from it, the learned (s_f^2, l) at the end and the run's CPU time; beside the CSV, one ``.npz`` per run with the maps
+(f̄, V) at 2 T and 3 T, the true values, the free and near-wall cells.
 """
 from __future__ import annotations
 
@@ -61,7 +62,7 @@ def _map(name: str, out: Path) -> tuple[dict, object]:
     raise SystemExit(f"unknown map {name!r}")
 
 
-def run_one(doc: dict, field, controller: str, variant: str, seed: int, periods: int) -> dict:
+def run_one(doc: dict, field, controller: str, variant: str, seed: int, periods: int, save=None) -> dict:
     from scipy import ndimage
 
     from swarmfield.sim.config import config_from_dict
@@ -125,6 +126,9 @@ def run_one(doc: dict, field, controller: str, variant: str, seed: int, periods:
             row[f"rmse{name}_{k}T"] = round(float(np.sqrt(np.mean(err[sel] ** 2))), 5) if sel.any() else float("nan")
             row[f"cover{name}_{k}T"] = round(float(inside[sel].mean()), 4) if sel.any() else float("nan")
     row["near_cells"] = int((free & near).sum())
+    if save is not None:                                   # the maps at 2 T and 3 T, for analyses after the fact
+        np.savez_compressed(save, f_true=f, free=free, near=near, centres=centres,
+                            **{f"{q}_{k}T": at[k][i] for k in at for i, q in enumerate(("mean", "var"))})
     row["s_f2"] = round(float(sim.gp.settings.signal_variance), 4)
     row["ell"] = round(float(sim.gp.settings.length_scale), 3)
     row["cpu_s"] = round(time.process_time() - t0, 1)
@@ -146,7 +150,8 @@ def main(argv=None) -> int:
     for controller in args.controllers:
         for seed in args.seeds:
             for variant in args.variants:
-                row = {"map": args.map, **run_one(doc, field, controller, variant, seed, args.periods)}
+                save = args.csv.with_name(f"{args.csv.stem}-{controller}-{variant}-{seed}.npz")
+                row = {"map": args.map, **run_one(doc, field, controller, variant, seed, args.periods, save)}
                 rows.append(row)
                 print(json.dumps(row), flush=True)
                 keys = list(dict.fromkeys(k for r in rows for k in r))
