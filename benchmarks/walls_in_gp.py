@@ -4,6 +4,7 @@ preset's own kernel (``preset``: Matérn 5/2, no barrier), on maps with walls (d
 
     python benchmarks/walls_in_gp.py --map rooms --controllers greedy feedback --variants none lattice cut \
         --seeds 0 1 --periods 3 --csv rooms.csv [--maps DIR]
+    python benchmarks/walls_in_gp.py table rooms.csv deep.csv ...      # a Markdown table, seeds in order
 
 Maps: ``rooms`` and its field ``jump`` (benchmarks/barrier_rooms.py), ``deep`` (benchmarks/deep_room.py's thin.png and
 temp.npz), ``floor`` (the built-in floor, field sinc), ``clinic`` (scripts/building_floors.py's clinic, field sinc);
@@ -135,7 +136,42 @@ def run_one(doc: dict, field, controller: str, variant: str, seed: int, periods:
     return row
 
 
+def table(paths) -> str:
+    """A Markdown table of CSVs of runs: per map, controller and variant, the seeds' values in seed order."""
+    rows = []
+    for p in paths:
+        with open(p, newline="") as fh:
+            rows += list(csv.DictReader(fh))
+    order = {"preset": 0, "none": 1, "lattice": 2, "cut": 3}
+    groups: dict = {}
+    for r in rows:
+        groups.setdefault((r["map"], r["controller"], r["variant"]), []).append(r)
+    cols = [("threshold_T", "sup V ≤ threshold [T]", "{:.3g}"), ("rmse_2T", "RMSE 2 T", "{:.3f}"),
+            ("rmse_3T", "RMSE 3 T", "{:.3f}"), ("rmse_near_3T", "RMSE 3 T near walls", "{:.3f}"),
+            ("cover_3T", "95 % coverage 3 T", "{:.2f}"), ("cover_near_3T", "coverage 3 T near walls", "{:.2f}"),
+            ("cpu_s", "CPU s", "{:.0f}")]
+    out = ["| map, controller, GP | " + " | ".join(c[1] for c in cols) + " |", "|---" * (len(cols) + 1) + "|"]
+    names = {"preset": "tuned preset (Matérn 5/2)", "none": "gmrf2", "lattice": "gmrf2, links-only barrier",
+             "cut": "**gmrf2, cut basis**"}
+    for key in sorted(groups, key=lambda k: (k[0], k[1], order[k[2]])):
+        rs = sorted(groups[key], key=lambda r: int(r["seed"]))
+
+        def fmt(col, f):
+            vals = []
+            for r in rs:
+                v = r.get(col, "")
+                vals.append("never" if v in ("", "nan") and col == "threshold_T" else
+                            ("–" if v in ("", "nan") else f.format(float(v))))
+            return ", ".join(vals)
+        out.append(f"| {key[0]}, {key[1]}, {names[key[2]]} | " + " | ".join(fmt(c, f) for c, _, f in cols) + " |")
+    return "\n".join(out)
+
+
 def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv and argv[0] == "table":                  # python benchmarks/walls_in_gp.py table A.csv B.csv ...
+        print(table(argv[1:]))
+        return 0
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--map", required=True, choices=("rooms", "deep", "floor", "clinic"))
     ap.add_argument("--controllers", nargs="+", default=["greedy", "feedback"])
