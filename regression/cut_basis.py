@@ -108,7 +108,7 @@ class CutBasis:
             c = int(lab[centre, centre])                              # the piece of the centre keeps the node's slot
             if c:
                 lab = np.where(lab == c, 0, np.where(lab == 0, c, lab))
-            self.labels[(int(i), int(j))] = lab
+            self.labels[(int(i), int(j))] = lab.astype(np.int16)
             self.pieces[i, j] = k
         self.split = bool(self.labels)
         # blocks along the axis that gives the cheaper block band (n_blocks b^3): a wall along y puts its copies in a
@@ -184,7 +184,7 @@ class CutBasis:
                     continue
                 p1 = self._piece_at(a, c, KX[free], KY[free])
                 p2 = self._piece_at(a + di, c + dj, KX[free], KY[free])
-                combo = np.unique(p1 * 1000 + p2)
+                combo = np.unique(p1.astype(np.int64) * 1000 + p2)
                 e1 = self.ext(a, c, combo // 1000)
                 e2 = self.ext(a + di, c + dj, combo % 1000)
                 pairs.append(np.column_stack([np.atleast_1d(e1), np.atleast_1d(e2)]))
@@ -231,7 +231,7 @@ class CutBasis:
                 maps.append(inv.reshape(m, m))
             n += len(sig)
         self.cell_first, self.cell_split = first, split_row
-        self.group_map = np.array(maps, np.int64).reshape(-1, m, m)
+        self.group_map = np.array(maps, np.int16).reshape(-1, m, m)
         self.group_ids = np.concatenate(ids).astype(np.int64)
         self.n_groups = n
 
