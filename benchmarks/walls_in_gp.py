@@ -1,6 +1,7 @@
 """Walls in the GP, measured in closed loop: the tuned preset with a GMRF kernel (``gmrf2``) without a barrier, with
 the links-only barrier (``barrier_basis = "lattice"``) and with the basis cut at the walls (``"cut"``), and the tuned
-preset's own kernel (``preset``: Matérn 5/2, no barrier), on maps with walls (docs/results/buildings.md, "Walls in the GP").
+preset's own kernel (``preset``: Matérn 5/2, no barrier) and ``auto`` (``gp.barrier = "auto"``: the refits choose), on maps
+with walls (docs/results/buildings.md, "Walls in the GP").
 
     python benchmarks/walls_in_gp.py --map rooms --controllers greedy feedback --variants none lattice cut \
         --seeds 0 1 --periods 3 --csv rooms.csv [--maps DIR]
@@ -12,7 +13,8 @@ the map files are written into ``--maps`` (default: a folder ``walls-maps`` besi
 0.1 (rooms, deep) or the preset's (floor, clinic); 100 robots; the stop rule is recorded, never applied.  One CSV row
 per run: the time sup V first falls to the threshold (in T), RMSE and 95 % band coverage over the free planner cells
 at 2 T and 3 T, and the same within 1.5 m of a wall (cells whose centre is within 1.5 m of blocked space) and farther
-from it, the learned (s_f^2, l) at the end and the run's CPU time; beside the CSV, one ``.npz`` per run with the maps
+from it, the learned (s_f^2, l) at the end, the run's CPU time and, with ``auto``, each refit's choice (b: barrier, -:
+none); beside the CSV, one ``.npz`` per run with the maps
 (f̄, V) at 2 T and 3 T, the true values, the free and near-wall cells.
 """
 from __future__ import annotations
@@ -74,7 +76,9 @@ def run_one(doc: dict, field, controller: str, variant: str, seed: int, periods:
                                       "metrics_every": 1, "field": field})
     if variant != "preset":                     # "preset": the tuned preset's own kernel (Matérn 5/2), no barrier
         gp = {"kernel": "gmrf2"}
-        if variant != "none":
+        if variant == "auto":
+            gp["barrier"] = "auto"
+        elif variant != "none":
             gp.update({"barrier": True, "barrier_basis": variant})
         doc["gp"] = gp
     cfg = config_from_dict(doc, preset="tuned")
@@ -133,6 +137,7 @@ def run_one(doc: dict, field, controller: str, variant: str, seed: int, periods:
     row["s_f2"] = round(float(sim.gp.settings.signal_variance), 4)
     row["ell"] = round(float(sim.gp.settings.length_scale), 3)
     row["cpu_s"] = round(time.process_time() - t0, 1)
+    row["barrier_chosen"] = "".join("b" if w >= wo else "-" for _, w, wo in sim.gp.barrier_choices)
     return row
 
 
@@ -142,7 +147,7 @@ def table(paths) -> str:
     for p in paths:
         with open(p, newline="") as fh:
             rows += list(csv.DictReader(fh))
-    order = {"preset": 0, "none": 1, "lattice": 2, "cut": 3}
+    order = {"preset": 0, "none": 1, "lattice": 2, "cut": 3, "auto": 4}
     groups: dict = {}
     for r in rows:
         groups.setdefault((r["map"], r["controller"], r["variant"]), []).append(r)
@@ -152,7 +157,7 @@ def table(paths) -> str:
             ("cpu_s", "CPU s", "{:.0f}")]
     out = ["| map, controller, GP | " + " | ".join(c[1] for c in cols) + " |", "|---" * (len(cols) + 1) + "|"]
     names = {"preset": "tuned preset (Matérn 5/2)", "none": "gmrf2", "lattice": "gmrf2, links-only barrier",
-             "cut": "**gmrf2, cut basis**"}
+             "cut": "**gmrf2, cut basis**", "auto": "gmrf2, barrier auto"}
     for key in sorted(groups, key=lambda k: (k[0], k[1], order[k[2]])):
         rs = sorted(groups[key], key=lambda r: int(r["seed"]))
 
@@ -175,7 +180,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--map", required=True, choices=("rooms", "deep", "floor", "clinic"))
     ap.add_argument("--controllers", nargs="+", default=["greedy", "feedback"])
-    ap.add_argument("--variants", nargs="+", default=["none", "lattice", "cut"], choices=("preset", "none", "lattice", "cut"))
+    ap.add_argument("--variants", nargs="+", default=["none", "lattice", "cut"], choices=("preset", "none", "lattice", "cut", "auto"))
     ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1])
     ap.add_argument("--periods", type=int, default=3)
     ap.add_argument("--csv", type=Path, required=True)

@@ -391,6 +391,9 @@ class GaussianProcess:
         #: v_y of the first data with ``signal_scale = "data"`` (:mod:`regression.scale`), else None
         self.data_variance = None
         self._barrier = None        # (blocked, step) of :meth:`set_barrier`
+        self.barrier_on = True      # the barrier in use (``barrier = "auto"`` chooses at each refit, :meth:`use_barrier`)
+        #: ``barrier = "auto"``: (data points, log posterior with the barrier, without) of each refit's choice
+        self.barrier_choices: list = []
         self._build_lattice(frame)
 
     def _build_lattice(self, frame: Frame | None) -> None:
@@ -469,10 +472,21 @@ class GaussianProcess:
         self._vmomy = np.zeros((self._cut.n_groups, _N_POW_Y, _N_POW_Y))
         self._cut_scatter, self._cut_query, self._assembled = None, None, None
 
+    def use_barrier(self, on: bool) -> None:
+        """Use the barrier of :meth:`set_barrier` (``on``) or the plain GP on the same data (``gp.barrier = "auto"``
+        switches at each refit, :func:`regression.hyper.refit_online`); followers follow."""
+        on = bool(on)
+        if on != self.barrier_on:
+            self.barrier_on = on
+            self._cov, self._mu, self._prior_var_cache, self._assembled, self._cut_query = None, None, None, None, None
+            self._bases.clear()
+        for f in self._followers:
+            f.use_barrier(on)
+
     @property
     def _cut_active(self) -> bool:
         """True when the field is the cut basis's (a GMRF kernel, ``barrier_basis = "cut"``, a node split by a wall)."""
-        return self._cut is not None and self._cut.split and self._settings.kernel in GMRF_KERNELS
+        return self._cut is not None and self._cut.split and self._settings.kernel in GMRF_KERNELS and self.barrier_on
 
     @property
     def _n_coef(self) -> int:
@@ -909,7 +923,7 @@ class GaussianProcess:
         kernel, l_x, l_y = key
         hit = self._bases.get(key)
         if hit is None:
-            cuts = self.barrier_cuts
+            cuts = self.barrier_cuts if self.barrier_on else None
             if self._cut_active:
                 hit = cut_prior(self._cut, l_x, l_y, GMRF_KERNELS[kernel])
             elif cuts is not None and (cuts[0].any() or cuts[1].any()):
@@ -1246,6 +1260,7 @@ class GaussianProcess:
         f = self._twin(new)                       # re-framed by this GP if its angle is still to be chosen
         if self._barrier is not None and new.kernel in GMRF_KERNELS:
             f.set_barrier(*self._barrier)
+            f.use_barrier(self.barrier_on)
         self._followers.append(f)
         return f
 
@@ -1259,7 +1274,7 @@ class GaussianProcess:
         t._momy[...] = self._momy
         t._n, t._sum_y, t._sum_y2 = self._n, self._sum_y, self._sum_y2
         if self._cut is not None and settings.kernel in GMRF_KERNELS:     # the cut basis and its per-piece sums
-            t._barrier, t._cuts, t._cut = self._barrier, self._cuts, self._cut
+            t._barrier, t._cuts, t._cut, t.barrier_on = self._barrier, self._cuts, self._cut, self.barrier_on
             t._vmom, t._vmomy = self._vmom.copy(), self._vmomy.copy()
         t._version = 1
         t._pending, t._pending_n = None, 0

@@ -237,6 +237,25 @@ def _at(value: float, bound: float) -> bool:
     return abs(math.log(value / bound)) < 1e-3
 
 
+def _choose_barrier(gp: GaussianProcess, prior, previous: list):
+    """``gp.barrier = "auto"``: the refit of :func:`refit_online` with the barrier and without it (a GMRF kernel: on
+    the GP's own lattice, from the same start and with the same priors and trust region), and the GP left on the one of
+    the larger log posterior (log marginal likelihood plus the priors' exponents: Bayesian model choice by evidence at
+    the MAP values, the one extra hyperparameter being the model itself).  Returns that fit; appends (points, log
+    posterior with, without) to ``gp.barrier_choices``."""
+    s0 = gp.initial_settings
+    fits = {}
+    for on in (gp.barrier_on, not gp.barrier_on):            # the model in use first
+        gp.use_barrier(on)
+        gp.set_hyperparameters(*previous)
+        out = {}
+        fits[on] = (refit(gp, prior, s0.hyper_maxiter, 1, step_sd=s0.hyper_step_sd, out=out), out["log_posterior"])
+    best = fits[True][1] >= fits[False][1]
+    gp.use_barrier(best)
+    gp.barrier_choices.append((gp.n_observations, fits[True][1], fits[False][1]))
+    return fits[best][0]
+
+
 def refit_online(gp: GaussianProcess):
     """One online MAP refit of gp (``settings.learn_hyperparameters``), warm-started from the current
     values, ``hyper_maxiter`` iterations, with the log-normal prior of :func:`_prior` and, with
@@ -256,7 +275,10 @@ def refit_online(gp: GaussianProcess):
     c = coarsening_factor(gp, s0.hyper_coarsening)
     cur = gp.settings
     previous = [cur.signal_variance, cur.length_scale] + ([cur.length_scale_y] if cur.length_scale_y is not None else [])
-    s2, ell, *rest = refit(gp, prior, s0.hyper_maxiter, c, step_sd=s0.hyper_step_sd)
+    if s0.barrier == "auto" and gp._barrier is not None:
+        s2, ell, *rest = _choose_barrier(gp, prior, previous)
+    else:
+        s2, ell, *rest = refit(gp, prior, s0.hyper_maxiter, c, step_sd=s0.hyper_step_sd)
     ell_y = rest[0] if len(rest) == 2 else None
     lo, hi = length_scale_bounds(gp, c)
     if c > 1 and min(ell, ell_y or ell) <= lo * 1.02:

@@ -124,6 +124,10 @@ class GPSettings:
         links through walls and obstacles are cut, so that data do not inform the field across a wall
         (:mod:`regression.gmrf`, *Barriers*; the simulation passes the GP its obstacles,
         :meth:`regression.gp.GaussianProcess.set_barrier`).  False (the default): the walls are transparent.
+        ``"auto"``: the data decide -- every online refit fits the GP with and without the barrier and keeps the
+        one of the larger log posterior (marginal likelihood and the hyperparameters' priors; a field that jumps
+        at the walls favours the barrier by hundreds of nats, one continuous through them the plain GP);
+        without obstacles it is the plain GP.
     barrier_basis
         With ``barrier``: ``"cut"`` (the default) also cuts the spline basis at the walls -- a B-spline whose support
         a wall splits into unconnected pieces gets one copy per piece (:mod:`regression.cut_basis`), so that the
@@ -175,7 +179,7 @@ class GPSettings:
     hyper_step_sd: float | None = None
     hyper_prior_sd_signal: float | None = None
     kernel_angle: float | str = 0.0
-    barrier: bool = False
+    barrier: bool | str = False
     barrier_basis: str = "cut"
 
     def __post_init__(self):
@@ -189,8 +193,10 @@ class GPSettings:
         from .kernels import GMRF_KERNELS, GP_KERNELS
         if self.kernel not in GP_KERNELS:
             raise ValueError(f"kernel must be one of {', '.join(GP_KERNELS)}, got {self.kernel!r}")
-        if not isinstance(self.barrier, bool):
-            raise ValueError(f"barrier must be true or false, got {self.barrier!r}")
+        if isinstance(self.barrier, str) and self.barrier.strip().lower() == "auto":
+            object.__setattr__(self, "barrier", "auto")
+        elif not isinstance(self.barrier, bool):
+            raise ValueError(f"barrier must be true, false or \"auto\", got {self.barrier!r}")
         if self.barrier_basis not in ("cut", "lattice"):
             raise ValueError(f"barrier_basis must be \"cut\" or \"lattice\", got {self.barrier_basis!r}")
         if self.barrier and self.kernel not in GMRF_KERNELS:

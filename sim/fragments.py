@@ -79,6 +79,7 @@ def empty_map_like(sim, kernel_angle) -> GaussianProcess:
     gp = GaussianProcess(dataclasses.replace(sim.config.gp, kernel_angle=kernel_angle), domain=sim.settings.domain)
     if gp.settings.barrier:
         gp = sim.attach_barrier(gp)
+        gp.use_barrier(sim.gp.barrier_on)            # barrier = "auto": the main map's choice
     gp.set_hyperparameters(gs.signal_variance, gs.length_scale, getattr(gs, "length_scale_y", None))
     return gp
 

@@ -83,7 +83,7 @@ def check_config(config: RunConfig) -> None:
     s = config.sim
     GaussianProcess(config.gp, domain=s.domain)
     make_stop_rule(s)
-    if config.gp.barrier and not config.domain.source:
+    if config.gp.barrier is True and not config.domain.source:          # "auto" without obstacles: the plain GP
         raise ValueError(_BARRIER_NEEDS_DOMAIN)
     free = None
     if config.domain.source:           # a bad domain fails here, in one line (warnings come with the run)
@@ -215,7 +215,7 @@ class Simulation:
                           stacklevel=2)
 
         self.rng = np.random.default_rng(s.seed)
-        if config.gp.barrier and self.region is None:
+        if config.gp.barrier is True and self.region is None:
             raise ValueError(_BARRIER_NEEDS_DOMAIN)
         self.gp = self.attach_barrier(GaussianProcess(config.gp, domain=s.domain))
         self.estimate = LatestEstimate(KernelDensity(domain=s.domain, bandwidth=config.kde.bandwidth,

@@ -138,3 +138,36 @@ def test_an_obstacle_that_splits_no_support_is_the_lattice_barrier_and_a_followe
         gp2.set_barrier(_wall(), 0.0125)
     with pytest.raises(ValueError, match="barrier_basis"):
         GPSettings(**BASE, barrier=True, barrier_basis="mesh")
+
+
+@pytest.mark.parametrize("jump, chosen", [(2.0, True), (0.0, False)])
+def test_barrier_auto_keeps_the_barrier_where_the_field_jumps_at_the_wall_and_drops_it_where_not(jump, chosen):
+    import warnings
+
+    from swarmfield.regression.hyper import refit_online
+    rng = np.random.default_rng(9)
+    X = rng.uniform([0.0, 0.0], [12.0, 6.0], (800, 2))
+    X = X[~_wall()(X)]
+    y = np.sin(X[:, 0] / 1.7) * np.cos(X[:, 1] / 2.1) + jump * (X[:, 0] > WALL) + 0.1 * rng.standard_normal(len(X))
+    gp = GaussianProcess(GPSettings(kernel="gmrf2", length_scale=1.0, signal_variance=1.0, noise_variance=0.01,
+                                    barrier="Auto", learn_hyperparameters=True), (0.0, 12.0, 0.0, 6.0))
+    assert gp.settings.barrier == "auto"
+    gp.set_barrier(_wall(), 0.0125)
+    f = gp.follower(length_scale=2.0)
+    gp.add(X, y)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        refit_online(gp)
+    (n, with_, without), = gp.barrier_choices
+    assert n == len(X) and gp.barrier_on is chosen and f.barrier_on is chosen
+    assert abs(with_ - without) > 10.0                    # hundreds of nats with the jump; ~15 without it
+    # the plain choice is the plain GP: the same numbers as a GP built without a barrier at the same values
+    if not chosen:
+        s = gp.settings
+        plain = GaussianProcess(GPSettings(kernel="gmrf2", length_scale=s.length_scale, signal_variance=s.signal_variance,
+                                           noise_variance=0.01, inducing_spacing=s.inducing_spacing), (0.0, 12.0, 0.0, 6.0))
+        plain.add(X, y)
+        for u, w in zip(gp.predict(X[:50]), plain.predict(X[:50])):
+            np.testing.assert_allclose(u, w, rtol=1e-12, atol=1e-12)
+    with pytest.raises(ValueError, match="barrier must be"):
+        GPSettings(kernel="gmrf2", barrier="sometimes")
