@@ -646,7 +646,7 @@ class GaussianProcess:
         self.data_variance = reference_variance(y, s.noise_variance)
         lo, hi = signal_variance_limits(s.noise_variance)
         s2 = min(max(s.signal_variance * self.data_variance, lo), hi)
-        self._settings = dataclasses.replace(s, signal_variance=s2,
+        self._settings = dataclasses.replace(s, signal_variance=s2, nugget=s.nugget * self.data_variance,
                                              signal_scale="absolute", inducing_spacing=self._spacing)
 
     def _accumulate(self, X: np.ndarray, y: np.ndarray) -> None:
@@ -715,7 +715,7 @@ class GaussianProcess:
 
     def _assemble_a(self) -> np.ndarray:
         """A of :meth:`_assemble` (it does not depend on the prior mean), cached per data version and noise."""
-        sn2 = self._settings.noise_variance
+        sn2 = self._settings.residual_variance
         gmrf = self._settings.kernel in GMRF_KERNELS
         cut = self._cut_active
         key = (self._version, sn2, gmrf, cut)
@@ -770,11 +770,11 @@ class GaussianProcess:
         if self._cut_active:
             resid = self._vmomy - mean * self._vmom[:, :_N_POW_Y, :_N_POW_Y]
             bl = BASIS_COEF @ resid @ BASIS_COEF.T               # [group, p, q]
-            return np.bincount(self._cut.group_ids.reshape(-1), weights=bl.reshape(-1) / self._settings.noise_variance,
+            return np.bincount(self._cut.group_ids.reshape(-1), weights=bl.reshape(-1) / self._settings.residual_variance,
                                minlength=self._cut.size)
         resid = self._momy - mean * self._mom[:, :_N_POW_Y, :_N_POW_Y]
         bl = BASIS_COEF @ resid @ BASIS_COEF.T                   # [cell, p, q]
-        return np.bincount(self._idx_b, weights=bl.reshape(-1) / self._settings.noise_variance,
+        return np.bincount(self._idx_b, weights=bl.reshape(-1) / self._settings.residual_variance,
                            minlength=self._n_nodes)
 
     def _prior_basis(self, length_scale) -> _PriorBasis:
@@ -947,7 +947,7 @@ class GaussianProcess:
         """(m, mu, :class:`_GmrfCovariance`) of a GMRF prior for the current data and hyperparameters."""
         s = self._settings
         mean = self.prior_mean
-        hyper = (s.signal_variance, s.kernel_key, s.noise_variance)
+        hyper = (s.signal_variance, s.kernel_key, s.residual_variance)
         cov = self._cov
         if cov is None or cov.hyper != hyper or cov.version != self._version:
             self._cov = None
@@ -970,7 +970,7 @@ class GaussianProcess:
             return self._gmrf_posterior()
         s = self._settings
         mean = self.prior_mean
-        hyper = (s.signal_variance, s.kernel_key, s.noise_variance)
+        hyper = (s.signal_variance, s.kernel_key, s.residual_variance)
         cov = self._cov
         if cov is None or cov.hyper != hyper or cov.version != self._version:
             cov = self._update_covariance(hyper)
@@ -1121,7 +1121,9 @@ class GaussianProcess:
         """Predictive mean f̄(x) and variance V(x) = Var[f̄(x)] of the latent field.
 
         ``points`` has shape (m, 2) inside the domain. Returns ``(mean, var)``, each of shape
-        (m,), ``var >= 0`` without the noise variance. Before any data: the prior
+        (m,), ``var >= 0`` without the noise variance and without the nugget: V is the variance of the resolvable
+        (spline) field; the map's uncertainty about the field's value at a point is V + ``settings.nugget``
+        (:meth:`map_variance`). Before any data: the prior
         (``prior_mean``, 0 if it is None; ``signal_variance``). After new data the first call
         updates the M x M posterior: a Woodbury update of rank k = number of new points, O(k M^2),
         if k <= ``max_update_rank``, else a factorisation, O(M^3) (module docstring); both are
@@ -1184,6 +1186,12 @@ class GaussianProcess:
             out_var[sl] = np.maximum(post, 0.0) / prior_var
         return out_mean, out_var
 
+    def map_variance(self, var: np.ndarray) -> np.ndarray:
+        """V + tau^2: the uncertainty of the field's value (resolvable part plus the nugget's micro-scale variation,
+        ``GPSettings.nugget``) given the variance V of :meth:`predict`; ``var`` itself without a nugget."""
+        tau2 = self._settings.nugget
+        return var + tau2 if tau2 else var
+
     def _predict_cut(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`predict` on the cut basis (:mod:`regression.cut_basis`): each point's 16 extended nodes (the
         pieces it lies in), Sigma and the prior covariance between them from their block bands."""
@@ -1234,12 +1242,14 @@ class GaussianProcess:
         return self._initial_settings
 
     def set_hyperparameters(self, signal_variance: float, length_scale: float,
-                            length_scale_y: float | None = None) -> GPSettings:
-        """Replace (s_f^2, l) (and l_y of an anisotropic kernel, kept if None), keeping the inducing grid; the
-        posterior is recomputed at the next :meth:`predict`.  Returns the new settings."""
+                            length_scale_y: float | None = None, nugget: float | None = None) -> GPSettings:
+        """Replace (s_f^2, l) (and l_y of an anisotropic kernel, and the nugget tau^2, each kept if None), keeping the
+        inducing grid; the posterior is recomputed at the next :meth:`predict` (a new nugget changes the likelihood's
+        noise variance s_n^2 + tau^2: from the power sums, not by a Woodbury update).  Returns the new settings."""
         ly = self._settings.length_scale_y if length_scale_y is None else float(length_scale_y)
+        tau2 = self._settings.nugget if nugget is None else float(nugget)
         self._settings = dataclasses.replace(self._settings, signal_variance=float(signal_variance),
-                                             length_scale=float(length_scale), length_scale_y=ly,
+                                             length_scale=float(length_scale), length_scale_y=ly, nugget=tau2,
                                              inducing_spacing=self._spacing)
         return self._settings
 
@@ -1283,14 +1293,16 @@ class GaussianProcess:
     def _lml(self, s2: float, ell: float, a: np.ndarray, b: np.ndarray) -> float:
         return self._lml_parts(s2, ell, a, b)[0]
 
-    def _gmrf_lml(self, s2: float, key, a: np.ndarray, b: np.ndarray, factor: np.ndarray | None = None):
+    def _gmrf_lml(self, s2: float, key, a: np.ndarray, b: np.ndarray, factor: np.ndarray | None = None,
+                  noise: float | None = None):
         """(log marginal likelihood, factor of P, mu, prior) of the ``"gmrf"`` prior, exact from the banded factors::
 
             log p = -1/2 [ r^T r / s_n^2 - b^T P^{-1} b + log det P - log det (Q / s_f^2) + n log(2 pi s_n^2) ]
 
         (P = Q / s_f^2 + A; the same identity as :meth:`_lml_parts` with K_c = s_f^2 Q^{-1}); ``factor``: P's
-        Cholesky factor if known."""
-        sn2 = self._settings.noise_variance
+        Cholesky factor if known; ``noise``: the residual variance s_n^2 (+ tau^2) that ``a`` and ``b`` were divided
+        by (default the settings')."""
+        sn2 = self._settings.residual_variance if noise is None else float(noise)
         m = self.prior_mean
         rr = self._sum_y2 - 2.0 * m * self._sum_y + self._n * m * m
         prior = self._gmrf_prior(key)
@@ -1302,7 +1314,7 @@ class GaussianProcess:
         return lml, factor, mu, prior
 
     def _gmrf_lml_and_gradient(self, s2: float, key, a: np.ndarray, b: np.ndarray,
-                               tied: bool = False) -> tuple[float, np.ndarray]:
+                               tied: bool = False, noise: float | None = None) -> tuple[float, np.ndarray]:
         """:meth:`_lml_and_gradient` of the ``"gmrf"`` prior.  With Q_s = Q / s_f^2, d Q_s / d log s_f^2 = -Q_s and
         (d log det P - d log det Q_s - d b^T P^{-1} b) = tr(Sigma dQ_s) - tr(Q_s^{-1} dQ_s) + mu^T dQ_s mu::
 
@@ -1315,24 +1327,34 @@ class GaussianProcess:
             d log p / d log l_d = -1/2 (mu^T dQ_s mu + tr(Sigma dQ_s) - d log det Q);
 
         ``tied`` (an isotropic fit, l_x = l_y = l): the derivative along l alone, returned as half of
-        d log p / d log l in each of the two entries (their sum is what such a fit uses)."""
+        d log p / d log l in each of the two entries (their sum is what such a fit uses).  ``noise`` given (the
+        residual variance s^2 = s_n^2 + tau^2 that ``a`` and ``b`` were divided by): a fourth entry, with
+        tr(Sigma A) = n_c - tr(Sigma Q_s) and mu^T A mu = mu^T b - mu^T Q_s mu (:meth:`_lml_and_gradient`)::
+
+            d log p / d log s^2 = 1/2 (r^T r / s^2 - mu^T b - mu^T Q_s mu - n + n_c - tr(Sigma Q_s))."""
         # the posterior at these hyperparameters is shared with predict (a refit starts where the last posterior was
         # computed, and predict after the refit is at its last evaluation) when ``a`` is this GP's own A
-        hyper = (s2, key, self._settings.noise_variance)
-        own = self._assembled is not None and a is self._assembled[1]
+        sn2 = self._settings.residual_variance if noise is None else float(noise)
+        hyper = (s2, key, sn2)
+        own = self._assembled is not None and a is self._assembled[1] and sn2 == self._settings.residual_variance
         cov = self._cov
         if own and isinstance(cov, _GmrfCovariance) and cov.hyper == hyper and cov.version == self._version:
-            lml, factor, mu, prior = self._gmrf_lml(s2, key, a, b, factor=cov.factor)
+            lml, factor, mu, prior = self._gmrf_lml(s2, key, a, b, factor=cov.factor, noise=sn2)
             sel = cov.inverse
         else:
-            lml, factor, mu, prior = self._gmrf_lml(s2, key, a, b)
+            lml, factor, mu, prior = self._gmrf_lml(s2, key, a, b, noise=sn2)
             sel = banded.selected_inverse(factor)
             if own:
                 self._cov = _GmrfCovariance(hyper, self._version, prior, factor, sel)
                 self._pending, self._pending_n = [], 0
         q = prior.precision
-        grad = np.empty(3)
-        grad[0] = 0.5 * ((banded.quadratic(q, mu) + banded.trace_product(sel, q)) / s2 - self._n_coef)
+        grad = np.empty(3 if noise is None else 4)
+        quad_q, tr_q = banded.quadratic(q, mu) / s2, banded.trace_product(sel, q) / s2
+        grad[0] = 0.5 * (quad_q + tr_q - self._n_coef)
+        if noise is not None:
+            m = self.prior_mean
+            rr = self._sum_y2 - 2.0 * m * self._sum_y + self._n * m * m
+            grad[3] = 0.5 * (rr / sn2 - float(b @ mu) - quad_q - self._n + self._n_coef - tr_q)
         for k, (dx, dy) in (((1, (1.0, 1.0)),) if tied else ((1, (1.0, 0.0)), (2, (0.0, 1.0)))):
             if isinstance(prior, CutPrior):
                 derivative = cut_prior_derivative
@@ -1344,11 +1366,12 @@ class GaussianProcess:
             grad[1] = grad[2] = 0.5 * grad[1]
         return lml, grad
 
-    def _lml_parts(self, s2: float, ell, a: np.ndarray, b: np.ndarray):
-        """(log marginal likelihood, Cholesky factor L of B, prior basis, S_K^T b, B^{-1} S_K^T b)."""
+    def _lml_parts(self, s2: float, ell, a: np.ndarray, b: np.ndarray, noise: float | None = None):
+        """(log marginal likelihood, Cholesky factor L of B, prior basis, S_K^T b, B^{-1} S_K^T b); ``noise``: the
+        residual variance s_n^2 (+ tau^2) that ``a`` and ``b`` were divided by (default the settings')."""
         if isinstance(ell, tuple) and ell[0] in GMRF_KERNELS:
-            return self._gmrf_lml(s2, ell, a, b)
-        sn2 = self._settings.noise_variance
+            return self._gmrf_lml(s2, ell, a, b, noise=noise)
+        sn2 = self._settings.residual_variance if noise is None else float(noise)
         m = self.prior_mean
         rr = self._sum_y2 - 2.0 * m * self._sum_y + self._n * m * m
         chol, basis = self._factorize(s2, ell, a)
@@ -1363,7 +1386,7 @@ class GaussianProcess:
         return -0.5 * (rr / sn2 - quad + logdet + self._n * math.log(2.0 * math.pi * sn2)), chol, basis, sb, v[:, 0]
 
     def _lml_and_gradient(self, s2: float, ell, a: np.ndarray, b: np.ndarray,
-                          tied: bool = False) -> tuple[float, np.ndarray]:
+                          tied: bool = False, noise: float | None = None) -> tuple[float, np.ndarray]:
         """The log marginal likelihood (as :meth:`_lml`) and its gradient with respect to (log s_f^2, log l_x, log l_y).
 
         With K = s_f^2 S_K S_K^T the coefficients' prior covariance, u = b - A mu, the standard identity
@@ -1381,10 +1404,20 @@ class GaussianProcess:
         :meth:`_lml` instead of the three or four of finite differences, and is exact for the spline model
         (up to the prior truncation's change of the kept directions with l, ``prior_truncation`` x s_f^2).
         ``tied``: only the sum of the two length-scale entries is needed (an isotropic fit); a GMRF prior then
-        computes that sum alone (:meth:`_gmrf_lml_and_gradient`)."""
+        computes that sum alone (:meth:`_gmrf_lml_and_gradient`).
+
+        ``noise`` given: ``a`` and ``b`` are divided by this residual variance s^2 = s_n^2 + tau^2 (the nugget's
+        refit, :mod:`regression.hyper`), and a fourth entry is d log p / d log s^2.  With the marginal covariance
+        C = Phi K Phi^T + s^2 I, d log p / d s^2 = 1/2 (|C^{-1} r|^2 - tr C^{-1}), where C^{-1} r = (r - Phi mu) / s^2
+        and tr C^{-1} = (n - tr(Sigma A)) / s^2; in the prior directions (tr(Sigma A) = r - tr B^{-1},
+        mu^T b = s_f^2 v^T S_K^T b, mu^T A mu = s_f^2 (v^T S_K^T b - |v|^2))::
+
+            d / d log s^2 = 1/2 (r^T r / s^2 - s_f^2 v^T S_K^T b - s_f^2 |v|^2 - n + r - tr B^{-1})
+
+        (the four entries sum to 1/2 (r^T C^{-1} r - n): scaling every variance scales C)."""
         if isinstance(ell, tuple) and ell[0] in GMRF_KERNELS:
-            return self._gmrf_lml_and_gradient(s2, ell, a, b, tied=tied)
-        lml, chol, basis, sb, v = self._lml_parts(s2, ell, a, b)
+            return self._gmrf_lml_and_gradient(s2, ell, a, b, tied=tied, noise=noise)
+        lml, chol, basis, sb, v = self._lml_parts(s2, ell, a, b, noise=noise)
         if isinstance(ell, tuple):
             kernel, l_x, l_y = ell
         else:
@@ -1419,8 +1452,13 @@ class GaussianProcess:
             kept[basis.keep] = 1.0
             kept = kept.reshape(cx, cy)
             nq, np_ = kept.sum(axis=1), kept.sum(axis=0)
-        grad = np.empty(3)
+        grad = np.empty(3 if noise is None else 4)
         grad[0] = 0.5 * (s2 * float(v @ v) - r + float(np.trace(cxx)))
+        if noise is not None:
+            m = self.prior_mean
+            rr = self._sum_y2 - 2.0 * m * self._sum_y + self._n * m * m
+            grad[3] = 0.5 * (rr / float(noise) - s2 * float(sb[:, 0] @ v) - s2 * float(v @ v) - self._n + r
+                             - float(np.trace(cxx)))
         for k, (axis, ell_k, c_k, part, count) in enumerate(((self._ax, l_x, cx, cxx, nq), (self._ay, l_y, cy, cyy, np_))):
             _, lam, vec = axis.prior_factor(ell_k, kernel)
             w = vec[:, :c_k] / np.sqrt(lam[:c_k])

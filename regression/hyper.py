@@ -22,6 +22,21 @@ prior depends on the lattice spacing, and its banded likelihood is cheap there.
 log s_f^2 and log l, centred at the initial settings, sd ``hyper_prior_sd``) over (log s_f^2, log l)
 with L-BFGS-B, warm-started from the current values, at most ``hyper_maxiter`` iterations: the
 online refit of Algorithm 1's GP, once per period.
+
+Nugget (``GPSettings.learn_nugget``).  The likelihood's noise variance is s_n^2 + tau^2: the sensor's (known, in
+field units) plus the nugget tau^2, the variance of the field's micro-scale variation the kernel does not resolve
+(y = f + micro + noise; the geostatistical nugget effect).  tau^2 is learned jointly with (s_f^2, l[, l_y]) as
+the extra coordinate t = tau^2 / v_y (v_y the data's variance, :func:`regression.scale.running_variance`: affine
+invariant, tau^2 scales with a^2) in [0, :data:`NUGGET_BOUNDS` upper]; *linear*, not logarithmic, so that the
+refit can leave and reach 0 (in log tau^2 the gradient vanishes near 0 and a nugget started at ~0 never moves).
+Its prior is exponential with mean :data:`NUGGET_PRIOR_MEAN` v_y (log density -t / 0.1: mode at 0, a field that
+does not need a nugget keeps ~0; 10 nats against a nugget as large as the data's variance); it is outside the
+soft trust region (a nugget is needed from the first data on, and its scale is the data's own).  The data enter
+A and b divided by s_n^2 + tau^2, so the refit rescales the assembled A and b by the ratio of the residual
+variances (exact) and the gradient has a fourth entry (:meth:`GaussianProcess._lml_and_gradient`).  The lower
+bound (0) is the "no nugget" model and gets no warning; the upper bound does, and so does a nugget larger than the
+learned s_f^2 (a nugget-to-sill ratio above one half: most of the data's variance is unresolved; the upper bound
+itself is reached only by data without any spatial structure).
 """
 from __future__ import annotations
 
@@ -37,7 +52,7 @@ from .kernels import GMRF_KERNELS
 from .scale import SIGNAL_BOUNDS, running_variance
 
 __all__ = ["coarsening_factor", "coarsened", "refit", "refit_online", "length_scale_bounds", "signal_variance_bounds",
-           "compare_kernels", "choose_kernel_angle"]
+           "compare_kernels", "choose_kernel_angle", "nugget_bounds", "NUGGET_BOUNDS", "NUGGET_PRIOR_MEAN"]
 
 #: the refit's objective (negative log posterior per data point) is multiplied by this: L-BFGS-B's first step on a
 #: box-bounded problem is minus the gradient, and the per-point curvature in (log s_f^2, log l) is ~0.05-0.5, so
@@ -47,6 +62,11 @@ _SCALE = 10.0
 _GTOL = 1e-5
 #: prior truncation of the refit's likelihood on the coarse grid (:func:`refit`)
 REFIT_TRUNCATION = 1e-12
+#: bounds of a learned nugget tau^2 as multiples of the data's variance v_y (module docstring, *Nugget*): 0 (none)
+#: and v_y (all of the data's variance beyond the sensor's noise would be micro-scale: no field resolved)
+NUGGET_BOUNDS = (0.0, 1.0)
+#: mean of the exponential prior on a learned nugget, as a multiple of the data's variance v_y
+NUGGET_PRIOR_MEAN = 0.1
 
 
 def _offset_maps(c: int, n_pow: int) -> np.ndarray:
@@ -131,8 +151,14 @@ def signal_variance_bounds(gp) -> tuple[float, float]:
     return min(lo, hi / 1.0001), hi          # the numerical limits win over the data's scale
 
 
+def nugget_bounds(gp) -> tuple[float, float]:
+    """(lower, upper) of a learned nugget tau^2: :data:`NUGGET_BOUNDS` times the data's variance."""
+    v = running_variance(gp)
+    return NUGGET_BOUNDS[0] * v, NUGGET_BOUNDS[1] * v
+
+
 def refit(gp, prior, maxiter: int, factor: int = 2, signal_variance_bounds=None, step_sd: float | None = None,
-          length_scale_bounds=None, start=None, out: dict | None = None):
+          length_scale_bounds=None, start=None, out: dict | None = None, nugget: bool | None = None):
     """MAP (or ML if ``prior`` is None) (s_f^2, l) from gp's running sums on a grid ``factor`` times
     coarser; returns (s_f^2, l, number of likelihood evaluations), or (s_f^2, l_x, l_y, evaluations) when gp's
     kernel has a length scale per axis (``GPSettings.length_scale_y``).
@@ -146,7 +172,9 @@ def refit(gp, prior, maxiter: int, factor: int = 2, signal_variance_bounds=None,
     ``start`` = (s_f^2, l) / (s_f^2, l_x, l_y) if given (the trust region stays centred on gp's current values).
     The gradient is analytic (:meth:`GaussianProcess._lml_and_gradient`).  ``out``: a dict given receives
     ``"log_posterior"``, the objective's value at the result (log marginal likelihood on the coarse grid plus the
-    log-normal priors' exponents, without their normalising constants).
+    log-normal priors' exponents, without their normalising constants), and ``"nugget"``, the nugget tau^2 at the
+    result.  ``nugget``: learn tau^2 too (module docstring, *Nugget*; default ``gp.settings.learn_nugget``), from
+    gp's current value; otherwise it stays at gp's.
     """
     if gp.n_observations < 2:
         raise ValueError("a hyperparameter refit needs at least two observations")
@@ -166,6 +194,13 @@ def refit(gp, prior, maxiter: int, factor: int = 2, signal_variance_bounds=None,
     a, b = coarse._assemble(coarse.prior_mean)
     n = gp.n_observations
     current = [s.signal_variance, s.length_scale] + ([s.length_scale_y] if ard else [])
+    learn_tau = s.learn_nugget if nugget is None else bool(nugget)
+    k_tau = len(bounds)                                  # the nugget's coordinate t = tau^2 / v_y, if learned
+    if learn_tau:
+        v_y = running_variance(gp)
+        res0 = coarse.settings.residual_variance          # the variance a and b were divided by
+        sn2 = s.noise_variance
+        bounds.append((NUGGET_BOUNDS[0], NUGGET_BOUNDS[1]))
     if prior is not None:
         l0 = float(prior[1])
         ly0 = gp.initial_settings.length_scale_y or l0
@@ -181,23 +216,37 @@ def refit(gp, prior, maxiter: int, factor: int = 2, signal_variance_bounds=None,
     def objective(theta):
         evals[0] += 1
         try:
-            lml, g = coarse._lml_and_gradient(math.exp(theta[0]), key(theta), a, b, tied=not ard)
+            if learn_tau:
+                res = sn2 + theta[k_tau] * v_y
+                ratio = res0 / res
+                lml, g = coarse._lml_and_gradient(math.exp(theta[0]), key(theta), a * ratio, b * ratio,
+                                                  tied=not ard, noise=res)
+            else:
+                lml, g = coarse._lml_and_gradient(math.exp(theta[0]), key(theta), a, b, tied=not ard)
         except np.linalg.LinAlgError:
             return np.inf, np.zeros_like(theta)
         val = -lml
-        grad = -(g if ard else np.array([g[0], g[1] + g[2]]))        # isotropic: l_x = l_y = l
+        grad = np.zeros_like(theta)
+        grad[:k_tau] = -(g[:3] if ard else np.array([g[0], g[1] + g[2]]))        # isotropic: l_x = l_y = l
+        if learn_tau:                       # d / dt = v_y d / d s^2 = v_y / s^2 d / d log s^2; exponential prior
+            val += theta[k_tau] / NUGGET_PRIOR_MEAN
+            grad[k_tau] = -g[3] * v_y / res + 1.0 / NUGGET_PRIOR_MEAN
+        lg = theta[:k_tau]
         if prior is not None:
-            val += 0.5 * float(np.sum(((theta - centre) / sd) ** 2))
-            grad += (theta - centre) / sd ** 2
+            val += 0.5 * float(np.sum(((lg - centre) / sd) ** 2))
+            grad[:k_tau] += (lg - centre) / sd ** 2
         if step_sd is not None:
-            val += 0.5 * float(np.sum(((theta - here) / step_sd) ** 2))
-            grad += (theta - here) / step_sd ** 2
+            val += 0.5 * float(np.sum(((lg - here) / step_sd) ** 2))
+            grad[:k_tau] += (lg - here) / step_sd ** 2
         # + 1/2 log(2 pi s_n^2) per point: the negative log likelihood of the standardized data y / s_n, whose value
         # (and so L-BFGS-B's relative stopping test) does not depend on the field's units
         return _SCALE * (val / n - unit_shift), _SCALE * grad / n
 
     unit_shift = 0.5 * math.log(2.0 * math.pi * s.noise_variance)
-    theta0 = np.array([np.clip(math.log(v), *bd) for v, bd in zip(current if start is None else start, bounds)])
+    theta0 = [np.clip(math.log(v), *bd) for v, bd in zip(current if start is None else start, bounds)]
+    if learn_tau:
+        theta0.append(float(np.clip(s.nugget / v_y, *bounds[k_tau])))
+    theta0 = np.array(theta0)
     # the analytic gradient (GaussianProcess._lml_and_gradient): one factorisation and one triangular inversion per
     # point instead of the 3-4 factorisations of a finite-difference gradient; the first evaluation is L-BFGS-B's own
     f0 = {}
@@ -213,7 +262,8 @@ def refit(gp, prior, maxiter: int, factor: int = 2, signal_variance_bounds=None,
     theta = res.x if accepted else theta0
     if out is not None:
         out["log_posterior"] = -n * ((float(res.fun) if accepted else f0["f"]) / _SCALE + unit_shift)
-    return (*(float(math.exp(t)) for t in theta), evals[0])
+        out["nugget"] = float(theta[k_tau]) * v_y if learn_tau else s.nugget
+    return (*(float(math.exp(t)) for t in theta[:k_tau]), evals[0])
 
 
 _default_length_bounds = length_scale_bounds
@@ -237,20 +287,21 @@ def _at(value: float, bound: float) -> bool:
     return abs(math.log(value / bound)) < 1e-3
 
 
-def _choose_barrier(gp: GaussianProcess, prior, previous: list):
+def _choose_barrier(gp: GaussianProcess, prior, previous: list, out: dict):
     """``gp.barrier = "auto"``: the refit of :func:`refit_online` with the barrier and without it (a GMRF kernel: on
     the GP's own lattice, from the same start and with the same priors and trust region), and the GP left on the one of
     the larger log posterior (log marginal likelihood plus the priors' exponents: Bayesian model choice by evidence at
     the MAP values, the one extra hyperparameter being the model itself).  Returns that fit; appends (points, log
-    posterior with, without) to ``gp.barrier_choices``."""
+    posterior with, without) to ``gp.barrier_choices``; ``out`` receives that fit's ``refit`` outputs (the nugget)."""
     s0 = gp.initial_settings
     fits = {}
     for on in (gp.barrier_on, not gp.barrier_on):            # the model in use first
         gp.use_barrier(on)
         gp.set_hyperparameters(*previous)
-        out = {}
-        fits[on] = (refit(gp, prior, s0.hyper_maxiter, 1, step_sd=s0.hyper_step_sd, out=out), out["log_posterior"])
+        fit = {}
+        fits[on] = (refit(gp, prior, s0.hyper_maxiter, 1, step_sd=s0.hyper_step_sd, out=fit), fit["log_posterior"], fit)
     best = fits[True][1] >= fits[False][1]
+    out.update(fits[best][2])
     gp.use_barrier(best)
     gp.barrier_choices.append((gp.n_observations, fits[True][1], fits[False][1]))
     return fits[best][0]
@@ -275,36 +326,48 @@ def refit_online(gp: GaussianProcess):
     c = coarsening_factor(gp, s0.hyper_coarsening)
     cur = gp.settings
     previous = [cur.signal_variance, cur.length_scale] + ([cur.length_scale_y] if cur.length_scale_y is not None else [])
+    out = {}
     if s0.barrier == "auto" and gp._barrier is not None:
-        s2, ell, *rest = _choose_barrier(gp, prior, previous)
+        s2, ell, *rest = _choose_barrier(gp, prior, previous, out)
     else:
-        s2, ell, *rest = refit(gp, prior, s0.hyper_maxiter, c, step_sd=s0.hyper_step_sd)
+        s2, ell, *rest = refit(gp, prior, s0.hyper_maxiter, c, step_sd=s0.hyper_step_sd, out=out)
     ell_y = rest[0] if len(rest) == 2 else None
     lo, hi = length_scale_bounds(gp, c)
     if c > 1 and min(ell, ell_y or ell) <= lo * 1.02:
         fine = length_scale_bounds(gp, 1)[0]
-        gp.set_hyperparameters(s2, max(ell, fine), None if ell_y is None else max(ell_y, fine))
+        gp.set_hyperparameters(s2, max(ell, fine), None if ell_y is None else max(ell_y, fine), nugget=out["nugget"])
         # warm start from the previous refit's values (typically learned on this grid too, and near the new optimum);
         # the objective is unchanged (its trust region is centred on the coarse fit, as before)
-        s2, ell, *rest = refit(gp, prior, s0.hyper_maxiter, 1, step_sd=s0.hyper_step_sd, start=previous)
+        s2, ell, *rest = refit(gp, prior, s0.hyper_maxiter, 1, step_sd=s0.hyper_step_sd, start=previous, out=out)
         ell_y = rest[0] if len(rest) == 2 else None
         lo, hi = length_scale_bounds(gp, 1)
+    tau2 = out["nugget"]
     sv_lo, sv_hi = signal_variance_bounds(gp)
     warned = gp.__dict__.setdefault("_bound_warnings", set())
     short, long_ = min(ell, ell_y or ell), max(ell, ell_y or ell)
     for name, value, bound, side, unit in (("length scale", short, lo, "lower", " m"), ("length scale", long_, hi, "upper", " m"),
                                            ("signal variance", s2, sv_lo, "lower", ""),
-                                           ("signal variance", s2, sv_hi, "upper", "")):
-        if _at(value, bound) and (name, side) not in warned:
+                                           ("signal variance", s2, sv_hi, "upper", ""),
+                                           ("nugget", tau2 if gp.settings.learn_nugget else 0.0,
+                                            nugget_bounds(gp)[1], "upper", "")):
+        if value > 0 and _at(value, bound) and (name, side) not in warned:
             warned.add((name, side))
             why = {"length scale lower": "the field may have finer structure than the GP's inducing grid resolves "
                                          "(a smaller gp.length_scale or gp.inducing_spacing refines it)",
                    "length scale upper": "the data look constant over the domain",
                    "signal variance lower": "the data look like noise alone",
-                   "signal variance upper": "the data's own variance is far below the fitted signal"}[f"{name} {side}"]
+                   "signal variance upper": "the data's own variance is far below the fitted signal",
+                   "nugget upper": "the data vary from point to point as much as over the domain: the GP resolves "
+                                   "no spatial structure (a finer grid, gp.length_scale, may resolve it)"
+                   }[f"{name} {side}"]
             warnings.warn(f"learned {name} {value:.4g}{unit} sits at its {side} bound {bound:.4g}{unit}: {why}",
                           UserWarning, stacklevel=2)
-    return gp.set_hyperparameters(s2, ell, ell_y)
+    if gp.settings.learn_nugget and tau2 > s2 and ("nugget", "sill") not in warned:
+        warned.add(("nugget", "sill"))
+        warnings.warn(f"learned nugget {tau2:.4g} exceeds the signal variance {s2:.4g}: most of the data's variance "
+                      "is micro-scale variation the GP does not resolve (the map's band is wide; a finer grid, "
+                      "gp.length_scale, may resolve more)", UserWarning, stacklevel=2)
+    return gp.set_hyperparameters(s2, ell, ell_y, nugget=tau2)
 
 
 def compare_kernels(gp: GaussianProcess, kernels=None, maxiter: int = 30, factor: int = 1) -> dict:
@@ -319,8 +382,10 @@ def compare_kernels(gp: GaussianProcess, kernels=None, maxiter: int = 30, factor
         s = dataclasses.replace(gp.settings, kernel=k, inducing_spacing=gp.settings.resolved_inducing_spacing,
                                 learn_hyperparameters=False)
         twin = gp._twin(s)
-        s2, ell, *rest = refit(twin, None, maxiter, factor)
+        fit = {}
+        s2, ell, *rest = refit(twin, None, maxiter, factor, out=fit)
         ell_y = rest[0] if len(rest) == 2 else None
+        twin.set_hyperparameters(s2, ell, ell_y, nugget=fit["nugget"])       # a learned nugget (learn_nugget)
         lml = twin._lml(s2, kernel_key(s, ell, ell_y), *twin._assemble(twin.prior_mean))
         out[k] = (float(lml), s2, ell)
     return out
@@ -398,7 +463,7 @@ def choose_kernel_angle(gp: GaussianProcess, angles=None, maxiter: int = 50, win
         out = {}
         s2, l1, l2, _ = refit(twin, _prior(twin), maxiter, 1, length_scale_bounds=(lo, max(x1 - x0, y1 - y0, 2 * lo)),
                               out=out)
-        scores[twin.settings.kernel_angle] = (out["log_posterior"], s2, l1, l2)
+        scores[twin.settings.kernel_angle] = (out["log_posterior"], s2, l1, l2, out["nugget"])
 
     for angle in (ANGLE_CANDIDATES if angles is None else angles):
         score(angle)
@@ -413,6 +478,6 @@ def choose_kernel_angle(gp: GaussianProcess, angles=None, maxiter: int = 50, win
                 score(round(best + shift, 1) % 90.0)
                 best = max(scores, key=lambda a: scores[a][0])
     gp.set_kernel_angle(best)
-    _, s2, l1, l2 = scores[best]
-    gp.set_hyperparameters(s2, l1, l2)
-    return scores
+    _, s2, l1, l2, tau2 = scores[best]
+    gp.set_hyperparameters(s2, l1, l2, nugget=tau2 if gp.settings.learn_nugget else None)
+    return {a: v[:4] for a, v in scores.items()}

@@ -149,6 +149,19 @@ class GPSettings:
     hyper_prior_sd_signal
         Standard deviation of the log-normal prior on s_f^2 when ``signal_scale = "data"`` (centred on the
         data's variance; None: ``hyper_prior_sd``).
+    nugget
+        The nugget effect tau^2 >= 0 (geostatistics: micro-scale variation): variance of the field's structure
+        finer than the inducing grid resolves, added to the sensor's ``noise_variance`` in the likelihood
+        (y = f + micro + noise, the micro part independent from point to point).  0 (the default): none, every
+        result bit for bit as without it.  In field units squared with ``signal_scale = "absolute"``, a multiple
+        of the data's variance with ``"data"`` (as ``signal_variance``).  The GP's V stays the variance of the
+        resolvable (spline) field; the map's uncertainty at a point is V + tau^2
+        (:meth:`regression.GaussianProcess.predict`, ``total=True``).
+    learn_nugget
+        Learn tau^2 at each online refit (with ``learn_hyperparameters``) jointly with (s_f^2, l): MAP with an
+        exponential prior of mean :data:`regression.hyper.NUGGET_PRIOR_MEAN` x the data's variance (mode 0: a
+        field that does not need a nugget keeps ~0), bounded by the data's variance (:mod:`regression.hyper`,
+        *Nugget*); ``nugget`` is its start value.
     prior_truncation
         Directions of the spline prior whose variance is below this multiple of signal_variance
         are left out of the posterior (products of per-axis eigenvectors: a Karhunen-Loeve
@@ -181,6 +194,8 @@ class GPSettings:
     kernel_angle: float | str = 0.0
     barrier: bool | str = False
     barrier_basis: str = "cut"
+    nugget: float = 0.0
+    learn_nugget: bool = False
 
     def __post_init__(self):
         object.__setattr__(self, "signal_variance", _finite_positive("signal_variance", self.signal_variance))
@@ -264,6 +279,12 @@ class GPSettings:
         if isinstance(tr, bool) or not isinstance(tr, numbers.Real) or not 0.0 <= float(tr) <= 1e-4:
             raise ValueError(f"prior_truncation must be a number in [0, 1e-4], got {tr!r}")
         object.__setattr__(self, "prior_truncation", float(tr))
+        nug = self.nugget
+        if isinstance(nug, bool) or not isinstance(nug, numbers.Real) or not 0.0 <= float(nug) <= MAX_VARIANCE:
+            raise ValueError(f"nugget must be a number in [0, {MAX_VARIANCE:g}] (a variance), got {nug!r}")
+        object.__setattr__(self, "nugget", float(nug))
+        if not isinstance(self.learn_nugget, bool):
+            raise ValueError(f"learn_nugget must be true or false, got {self.learn_nugget!r}")
         for name in ("hyper_step_sd", "hyper_prior_sd_signal"):
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, _finite_positive(name, getattr(self, name)))
@@ -276,6 +297,12 @@ class GPSettings:
             x0, x1, y0, y1 = domain
             h = min(h, max(x1 - x0, y1 - y0) / self.grid_cells)
         return h
+
+    @property
+    def residual_variance(self) -> float:
+        """s_n^2 + tau^2: the variance of an observation about the resolvable field (sensor noise plus nugget), the
+        noise variance of the likelihood."""
+        return self.noise_variance + self.nugget if self.nugget else self.noise_variance
 
     @property
     def resolved_inducing_spacing(self) -> float:
