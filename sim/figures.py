@@ -26,6 +26,7 @@ resolution, and free space outside the planner cells the swarm can reach in ligh
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -287,7 +288,9 @@ def make_panels(result, periods=PANEL_PERIODS):
         axes[r].set_ylabel(f"{lab}\ny [m]")
     _colorbar(fig, im0, cax[0], "p̂ [1/m²]")
     _colorbar(fig, im1, cax[1], "f̄ [field units]", np.array(means))
-    _colorbar(fig, im2, cax[2], "√V [field units]")
+    tau2 = (getattr(result, "kernel", None) or {}).get("nugget") or 0.0
+    # with a nugget V is the resolvable field's variance; the map's uncertainty adds tau^2 everywhere
+    _colorbar(fig, im2, cax[2], "√V [field units]" + (f" (resolvable; + nugget τ = {math.sqrt(tau2):.3g})" if tau2 else ""))
     if q is not None:
         _colorbar(fig, q, cax[3], "|v| [m/s]")
     else:

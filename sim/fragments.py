@@ -80,7 +80,8 @@ def empty_map_like(sim, kernel_angle) -> GaussianProcess:
     if gp.settings.barrier:
         gp = sim.attach_barrier(gp)
         gp.use_barrier(sim.gp.barrier_on)            # barrier = "auto": the main map's choice
-    gp.set_hyperparameters(gs.signal_variance, gs.length_scale, getattr(gs, "length_scale_y", None))
+    gp.set_hyperparameters(gs.signal_variance, gs.length_scale, getattr(gs, "length_scale_y", None),
+                           nugget=getattr(gs, "nugget", None))
     return gp
 
 

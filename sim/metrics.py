@@ -15,8 +15,10 @@ p_f and the reference p_r live; 40 x 40 cells of 0.5 m by default):
                     ``gp.learn_hyperparameters``)
 ``threshold``       the stopping threshold in effect, in field units squared (sim.stopping): sim.gamma, or
                     gamma_relative * signal_variance (scaled down by the robust rule)
-``coverage``        the fraction of cells whose true value lies in the 95 % band f̄ ± 1.96 sqrt(V)
-                    (calibration of the GP's uncertainty; about 0.95 for a well-calibrated GP)
+``coverage``        the fraction of cells whose true value lies in the 95 % band f̄ ± 1.96 sqrt(V + tau^2)
+                    (calibration of the GP's uncertainty; about 0.95 for a well-calibrated GP); tau^2 is the
+                    GP's nugget (``gp.nugget``, 0 unless set or learned): the micro-scale variation of the
+                    field the spline does not resolve, part of the map's uncertainty about the true value
 
 With obstacles (:mod:`domain`) every field figure is taken over the free cells the swarm can
 reach only (``free``): sup V, mean V, RMSE (mean over free cells) and the L2 error (sum over free

@@ -76,7 +76,7 @@ class MetricsRecorder(Recorder):
                 "mean_variance": float(var.mean() if free is None else var[free].mean()),
                 "rmse": rmse(res.f_true, mean, free), "l2_error": l2_norm(mean - res.f_true, grid.cell_area, free),
                 "signal_variance": gp.settings.signal_variance, "length_scale": gp.settings.length_scale,
-                "threshold": sim.stop_rule.threshold(gp), "coverage": band_coverage(res.f_true, mean, var, free)}
+                "threshold": sim.stop_rule.threshold(gp), "coverage": band_coverage(res.f_true, mean, gp.map_variance(var), free)}
 
     def _record(self, sim, p_r) -> None:
         res, gp, grid = sim.result, sim.gp, sim.grid

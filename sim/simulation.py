@@ -455,7 +455,8 @@ class Simulation:
             gs = self.gp.settings
             self.result.kernel = {"kernel": gs.kernel, "signal_variance": gs.signal_variance,
                                   "length_scale": gs.length_scale, "length_scale_y": gs.length_scale_y,
-                                  "kernel_angle": gs.kernel_angle}
+                                  "kernel_angle": gs.kernel_angle,
+                                  **({"nugget": gs.nugget} if gs.learn_nugget or gs.nugget else {})}
             self.mean, self.var = self.predict()
             self.result.timings["regression"] += time.perf_counter() - t0
             self._notify("refitted")

@@ -59,6 +59,16 @@ for sqrt(mean V) <= q s_f (s_f at the signal floor for a signal under the noise)
 itself expects an RMSE of at most q times the field's standard deviation.  It is folded into the reported
 threshold as the level sup V must reach, sup V * q^2 s_f^2 / mean V, when that is lower.
 
+With a nugget tau^2 (``gp.nugget`` / ``gp.learn_nugget``: micro-scale variation the spline does not resolve) the
+GP's V is the variance of the resolvable field, and the map's expected squared error at a cell is V + tau^2.  The
+two conditions then judge different things, on purpose: sup V <= gamma_r s_f^2 (and its check at l_c) stays on the
+resolvable part -- "every cell has data near it", which more measurements can always meet (tau^2 does not shrink
+with data) -- while the map condition is the map's own: sqrt(mean V + tau^2) <= q sqrt(s_f^2 + tau^2), the
+expected RMSE against the field's standard deviation (resolvable and micro-scale variance together).  Folded into
+the threshold: sup V * (q^2 (s_f^2 + tau^2) - tau^2) / mean V.  A nugget above q^2 / (1 - q^2) s_f^2 (about 0.1 s_f^2
+at q = 0.3) makes the map condition unreachable (threshold 0): the data cannot resolve the field to that
+accuracy, and the run keeps measuring to ``sim.max_periods``.
+
 The reported threshold (``threshold`` in the run's rows and in compare-controllers' runs.csv) is the
 level sup V_(s_f^2, l) must reach for both conditions to hold:
 gamma_r s_f^2 * min(1, sup V / sup V_c), and at the floor sup V * gamma_r s_f'^2 / max(sup V', sup V'_c).
@@ -204,8 +214,9 @@ class RobustThreshold(RelativeThreshold):
         if twin is None:
             twin = self._twins[role] = gp.follower(signal_variance=signal_variance, length_scale=length_scale)
         t = twin.settings
-        if (t.signal_variance, t.length_scale, t.length_scale_y) != (signal_variance, length_scale, ly):
-            twin.set_hyperparameters(signal_variance, length_scale, ly)
+        if (t.signal_variance, t.length_scale, t.length_scale_y, t.nugget) != (signal_variance, length_scale, ly,
+                                                                              s.nugget):
+            twin.set_hyperparameters(signal_variance, length_scale, ly, nugget=s.nugget)   # gp's (learned) nugget
         return twin.predict(self.points)[1]
 
     def check_variance(self, gp) -> np.ndarray | None:
@@ -232,11 +243,12 @@ class RobustThreshold(RelativeThreshold):
         # level sup V must reach (V scaled by c meets it for c <= target / mean V)
         v = gp.predict(self.points)[1]
         mean_v, sup_v = float(v.mean()), float(v.max())
+        tau2 = gp.settings.nugget           # the map's error includes the unresolved micro-scale variation
         s2 = max(gp.settings.signal_variance, self.signal_floor * gp.settings.noise_variance)
-        target = q * q * s2
+        target = q * q * (s2 + tau2) - tau2
         if mean_v <= target or mean_v <= 0.0:
             return thr
-        return min(thr, sup_v * target / mean_v)
+        return min(thr, sup_v * max(target, 0.0) / mean_v)
 
     def _variance_threshold(self, gp):
         base = super().threshold(gp)
