@@ -690,7 +690,8 @@ def _sweep_and_publish(args, argv, tasks, gamma, times, folder, client=None) -> 
                      f"robust; sim.stopping), in field units squared; runs.csv records it per row (threshold).  "
                      f"Judged by the map: \"RMSE ≤ k× best\" is the first time the RMSE falls below k times the best "
                      f"final RMSE of any run of the scenario (its own column), \"95 % band coverage\" the fraction of "
-                     f"cells whose true value lies in f̄ ± 1.96 √V where sup V first reached γ (at the end if never); "
+                     f"cells whose true value lies in f̄ ± 1.96 √(V + τ²) (τ² the GP's nugget, 0 without one) where "
+                     f"sup V first reached γ (at the end if never); "
                      f"† marks an RMSE taken before its time because a run had stopped (its last estimate stands).  "
                      f"Median [min–max] over seeds {args.seeds}; runs of "
                      f"{args.max_periods} T = {args.max_periods * tasks[0]['config']['sim']['period']:g} s.\n\n{table}")

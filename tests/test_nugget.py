@@ -181,3 +181,24 @@ def test_refit_without_learn_nugget_keeps_it():
     out = {}
     refit(gp, None, 5, out=out)
     assert gp.settings.nugget == pytest.approx(0.5 * gp.data_variance) and out["nugget"] == gp.settings.nugget
+
+
+def test_map_condition_of_the_stop_counts_the_nugget():
+    """The robust rule's map condition sqrt(mean V + tau^2) <= q sqrt(s_f^2 + tau^2): with a nugget the level sup V
+    must reach is lower, and 0 (never) once tau^2 > q^2 / (1 - q^2) s_f^2; sup V's own condition is unchanged."""
+    from swarmfield.sim.config import SimSettings
+    from swarmfield.sim.stopping import RobustThreshold
+    rng = np.random.default_rng(7)
+    X = rng.uniform(0, L, size=(20, 2))
+    y = np.sin(X[:, 0]) + 0.3 * rng.standard_normal(20)
+    levels = []
+    for tau2 in (0.0, 0.01, 0.2):
+        gp = GaussianProcess(GPSettings(signal_variance=1.0, length_scale=2.0, noise_variance=0.09, nugget=tau2,
+                                        grid_cells=12), DOMAIN)
+        gp.add(X, y)
+        rule = RobustThreshold(SimSettings(stop_rule="robust", gamma_relative=0.4, map_rmse_relative=0.3)).bind(GRID)
+        v = gp.predict(GRID)[1]
+        target = 0.09 * (1.0 + tau2) - tau2
+        assert rule.threshold(gp) == pytest.approx(min(0.4, v.max() * max(target, 0.0) / v.mean()), rel=1e-9)
+        levels.append(rule.threshold(gp))
+    assert levels[0] > levels[1] > levels[2] == 0.0
