@@ -25,9 +25,10 @@
 NumPy/SciPy (and the system C compiler when present); the reference (p_r, v_r) comes from
 :class:`ocp.plan.ReferencePlan`.
 """
-from .feedback import FeedbackSettings, feedback_velocity, saturate, tracking_velocity
+from .feedback import SPREAD_PRIORITIES, FeedbackSettings, add_within_speed, feedback_velocity, saturate, tracking_velocity
 from .kde import DensityEstimate, KernelDensity, silverman_bandwidth
 from . import robot_kernel
 
 __all__ = ["KernelDensity", "DensityEstimate", "silverman_bandwidth",
-           "FeedbackSettings", "feedback_velocity", "tracking_velocity", "saturate"]
+           "FeedbackSettings", "feedback_velocity", "tracking_velocity", "saturate", "add_within_speed",
+           "SPREAD_PRIORITIES"]

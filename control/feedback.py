@@ -44,7 +44,13 @@ import numpy as np
 
 from ..runtime.validation import MAX_MAGNITUDE
 
-__all__ = ["FeedbackSettings", "feedback_velocity", "tracking_velocity", "saturate"]
+__all__ = ["FeedbackSettings", "feedback_velocity", "tracking_velocity", "saturate", "SPREAD_PRIORITIES",
+           "add_within_speed"]
+
+#: ``feedback.spread_priority``: how the spreading velocity w is added to the law's v under the speed limit;
+#: "sum" sat(v + w), "law" v + lambda w with the largest lambda in [0, 1] that keeps |v + lambda w| <= v_max
+#: (:func:`add_within_speed`)
+SPREAD_PRIORITIES = ("sum", "law")
 
 
 @dataclass(frozen=True)
@@ -67,6 +73,11 @@ class FeedbackSettings:
     spread_radius : radius r [m] within which each robot moves its next measurement into the largest
             hole of the measurements taken so far (:mod:`control.spreading`; beyond the paper, applied by
             the feedback controller, not by :func:`feedback_velocity`); 0 (default) is the paper's law.
+    spread_priority : how the spreading velocity w joins the law's v under the speed limit
+            (:data:`SPREAD_PRIORITIES`): ``"sum"`` (default) saturates v + w, so that a robot the law already
+            drives at v_max gives up speed along the law's direction to a sideways w; ``"law"`` adds w only within
+            the speed the law leaves (:func:`add_within_speed`): where the law saturates, the robot follows the
+            law alone.
     """
 
     alpha: float = 1.0
@@ -77,8 +88,12 @@ class FeedbackSettings:
     stir_cells: int = 2
     transport_rate: float = 0.0
     spread_radius: float = 0.0
+    spread_priority: str = "sum"
 
     def __post_init__(self):
+        if self.spread_priority not in SPREAD_PRIORITIES:
+            raise ValueError(f"feedback.spread_priority must be one of {', '.join(repr(p) for p in SPREAD_PRIORITIES)}, "
+                             f"got {self.spread_priority!r}")
         k = self.stir_cells
         if isinstance(k, bool) or not isinstance(k, (int, np.integer, float)) or k != int(k) or not 1 <= k <= 64:
             raise ValueError(f"feedback.stir_cells must be an integer in [1, 64], got {k!r}")
@@ -138,6 +153,31 @@ def saturate(v: np.ndarray, v_max: float) -> np.ndarray:
         v = v.copy()
         v[over] *= (v_max / speed[over])[:, None]
     return v
+
+
+def add_within_speed(v: np.ndarray, w: np.ndarray, v_max: float) -> np.ndarray:
+    """v + lambda w row by row, lambda the largest number in [0, 1] with |v + lambda w| <= v_max: the law's velocity
+    ``v`` (m, 2), already saturated, keeps priority and an added velocity ``w`` (m, 2) uses only the speed it leaves.
+
+    lambda solves |v|^2 + 2 lambda v.w + lambda^2 |w|^2 = v_max^2 (the larger root, clipped to [0, 1]).  Where
+    v + w is within the limit lambda = 1 and the result is the sum, as ``saturate(v + w, v_max)``; where the law
+    drives at v_max and w has a component along v or across it, lambda = 0 and the robot follows the law exactly
+    (``saturate(v + w)`` would turn it by up to arcsin(|w| / v_max) and slow it along v).  A w against v is
+    added as it is.  Rows with |v| > v_max (not from :func:`saturate`) are saturated first; with v_max = inf the
+    sum v + w.  The saturation's disturbance d of the module docstring is then the law's own (eq. "density
+    feedback law using estimation"): the added velocity acts only where the robot has speed to spare."""
+    v = np.asarray(v, dtype=float)
+    w = np.asarray(w, dtype=float)
+    if math.isinf(v_max):
+        return v + w
+    v = saturate(v, v_max)
+    vw = np.einsum("ij,ij->i", v, w)
+    ww = np.einsum("ij,ij->i", w, w)
+    slack = np.maximum(v_max ** 2 - np.einsum("ij,ij->i", v, v), 0.0)
+    safe = np.where(ww > 0, ww, 1.0)
+    lam = np.where(ww > 0, (-vw + np.sqrt(vw * vw + ww * slack)) / safe, 0.0)
+    lam = np.clip(lam, 0.0, 1.0)
+    return saturate(v + lam[:, None] * w, v_max)     # round-off only
 
 
 def feedback_velocity(p_hat, grad_p_hat, p_r, grad_p_r, v_r, settings: FeedbackSettings,

@@ -175,6 +175,7 @@ class FeedbackController(Controller):
                     None if kde is None else kde.fit)
             make = getattr(ctx.network, "spreading", None)
             self.spreading = MeasurementSpreading(*args) if make is None else make(*args)
+            self.spreading.priority = self.config.feedback.spread_priority     # how w joins the law's v
 
     def start_period(self, ctx):
         self.plan, self.estimate = ctx.plan, ctx.estimate

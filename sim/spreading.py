@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..control import saturate
+from ..control import add_within_speed, saturate
 from ..control.spreading import RASTER_PER_RADIUS, SEQUENTIAL_UP_TO, DistanceRaster, hole_targets
 from .dynamics import euler_maruyama_step
 
@@ -38,7 +38,12 @@ class MeasurementSpreading:
 
     ``radius`` [m], ``dt`` the measurement interval [s], ``h`` the sub-step [s], ``domain`` the rectangle
     or the run's :class:`domain.Domain` (reflection and, with obstacles, the free space), ``refit(X)`` a
-    KDE of positions X (None: the estimate of the measured positions is held over the prediction)."""
+    KDE of positions X (None: the estimate of the measured positions is held over the prediction).
+    :attr:`priority` (``feedback.spread_priority``, set by the controller) is how w joins the law's velocity under
+    the speed limit: ``"sum"`` sat(v + w), ``"law"`` :func:`control.feedback.add_within_speed`."""
+
+    #: "sum" or "law" (control.feedback.SPREAD_PRIORITIES)
+    priority = "sum"
 
     def __init__(self, radius: float, dt: float, h: float, domain, refit=None):
         self.radius, self.dt, self.h = float(radius), float(dt), float(h)
@@ -88,7 +93,8 @@ class MeasurementSpreading:
 
     def velocity(self, t: float, X: np.ndarray, alive: np.ndarray, v: np.ndarray, law, estimate,
                  v_max: float) -> np.ndarray:
-        """The law's velocity ``v`` (n, 2) of all robots with the spreading velocity added, saturated at v_max."""
+        """The law's velocity ``v`` (n, 2) of all robots with the spreading velocity added, saturated at v_max
+        (:attr:`priority` "law": added within the speed the law leaves)."""
         if self.new_step(t) or self.w is None or self.w.shape != X.shape:
             self._t = float(t)
             Xa, va = X[alive], v[alive]
@@ -98,7 +104,7 @@ class MeasurementSpreading:
                 P = self.predict(t, Xa, va, law, estimate)
                 w[alive] = (self.land(P, alive) - P) / self.dt
             self.w = w
-        out = saturate(v + self.w, v_max)
+        out = add_within_speed(v, self.w, v_max) if self.priority == "law" else saturate(v + self.w, v_max)
         return np.where(alive[:, None], out, 0.0)
 
     def remember(self, Xa: np.ndarray, alive: np.ndarray) -> None:

@@ -240,3 +240,55 @@ def test_large_swarm_controller_keeps_its_raster_incrementally_and_holds_the_law
     fresh = csp.DistanceRaster(s.field.lo, s.field.cell, s.field.shape)
     fresh.add(s.measured)
     assert np.allclose(s.field.D, fresh.D, atol=1e-12) and len(s.memory) == 3
+
+
+def test_add_within_speed_keeps_the_law_and_uses_only_the_speed_it_leaves():
+    """control.feedback.add_within_speed against a brute-force search for the largest lambda in [0, 1] with
+    |v + lambda w| <= v_max; where the law drives at the limit and w is across or along it, the law alone."""
+    from swarmfield.control import add_within_speed, saturate
+
+    rng = np.random.default_rng(7)
+    v = saturate(rng.normal(0.0, 2.0, (400, 2)), 3.0)
+    w = rng.normal(0.0, 1.0, (400, 2))
+    out = add_within_speed(v, w, 3.0)
+    grid = np.linspace(0.0, 1.0, 20001)
+    for i in range(len(v)):
+        ok = np.hypot(*(v[i] + grid[:, None] * w[i]).T) <= 3.0 + 1e-12
+        lam = grid[ok].max() if ok.any() else 0.0
+        assert np.allclose(out[i], v[i] + lam * w[i], atol=2e-4)
+    assert np.all(np.hypot(*out.T) <= 3.0 + 1e-12)
+    # within the limit: the plain sum, as saturate(v + w)
+    small = v * 0.3
+    assert np.allclose(add_within_speed(small, 0.1 * w, 3.0), saturate(small + 0.1 * w, 3.0), rtol=0, atol=1e-15)
+    # a robot at the limit with a sideways or forward w follows the law exactly; saturate(v + w) slows it along v
+    law = np.array([[3.0, 0.0], [0.0, -3.0]])
+    side = np.array([[0.0, 0.8], [0.5, -0.5]])
+    assert np.array_equal(add_within_speed(law, side, 3.0), law)
+    assert saturate(law + side, 3.0)[0, 0] < 2.9
+    assert np.allclose(add_within_speed(law, side, np.inf), law + side)
+
+
+def test_spreading_with_the_law_first_keeps_a_saturated_robot_on_the_law():
+    """feedback.spread_priority "law": a robot the law drives at v_max keeps the law's velocity, one with speed to
+    spare gets the spreading velocity as with "sum"."""
+    dom = (0.0, 10.0, 0.0, 10.0)
+
+    def law(t, X, est):
+        return np.array([[1.3, 0.0], [0.2, 0.0]])[: len(X)]
+    X = np.array([[2.0, 5.0], [6.0, 5.0]])
+    alive = np.array([True, True])
+    v0 = law(0.0, X, None)
+    both = {}
+    for priority in ("sum", "law"):
+        s = MeasurementSpreading(0.6, dt=0.8, h=0.1, domain=dom)
+        s.priority = priority
+        s.memory.append(np.array([[3.04, 5.5]]))               # beside robot 0's landing point
+        both[priority] = (s.velocity(0.0, X, alive, v0, law, None, v_max=1.3), s.w)
+    (v_sum, w), (v_law, w_law) = both["sum"], both["law"]
+    assert np.array_equal(w, w_law) and np.hypot(*w[0]) > 0.05 and w[0] @ v0[0] >= 0
+    assert np.array_equal(v_law[0], v0[0])                       # at the limit: the law alone
+    assert v_sum[0, 0] < 1.3 - 1e-3                               # the sum: slower along the law
+    assert np.allclose(v_law[1], v_sum[1])                        # speed to spare: the same
+    with pytest.raises(ValueError, match="spread_priority"):
+        FeedbackSettings(spread_priority="front")
+    assert FeedbackSettings().spread_priority == "sum"
