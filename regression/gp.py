@@ -131,6 +131,7 @@ import dataclasses
 import functools
 import math
 import threading
+import warnings
 
 import numpy as np
 from scipy import sparse
@@ -307,28 +308,49 @@ def _validate_domain(domain) -> tuple[float, float, float, float]:
     return vals
 
 
-def _fitting_spacing_hint(domain, settings: GPSettings) -> str:
-    """The settings that fit ``domain``'s inducing grid into ``settings.max_inducing_points``, as advice.
-
-    The smallest spacing h (to 3 significant digits, rounded up) with ``(ceil(Lx/h) + 3) (ceil(Ly/h) + 3)``
-    nodes within the budget, and the length scale ``2 h`` whose default grid that is (h = l / 2); with
-    ``inducing_spacing`` unset the length scale is the one setting to change.
-    """
+def _lattice_sides(domain, angle: float) -> tuple[float, float]:
+    """The sides of the box an inducing lattice at ``angle`` (degrees) must cover: the domain's, or its rotated
+    bounding box's (:meth:`regression.frame.Frame.for_domain`, before rounding to whole cells)."""
     x0, x1, y0, y1 = domain
-    lx, ly, budget = x1 - x0, y1 - y0, settings.max_inducing_points
+    w, h = x1 - x0, y1 - y0
+    if angle == 0.0:
+        return w, h
+    c, s = rotation(angle)
+    return w * abs(c) + h * abs(s), w * abs(s) + h * abs(c)
+
+
+def _fitting_spacing(sides: tuple[float, float], budget: int, lo: float) -> float | None:
+    """The smallest spacing h >= ``lo`` (to 3 significant digits, rounded up) whose lattice over a box of ``sides``
+    has at most ``budget`` nodes, ``(ceil(Lx / h) + 3) (ceil(Ly / h) + 3)``; None if not even one cell per axis
+    fits."""
+    lx, ly = sides
 
     def nodes(h):
         return (math.ceil(lx / h - 1e-9) + 3) * (math.ceil(ly / h - 1e-9) + 3)
 
-    lo, hi = settings.resolved_inducing_spacing, max(lx, ly)
-    if nodes(hi) > budget:      # not even one cell per axis fits (budget < 16 is refused by the settings)
-        return "use a larger inducing_spacing or length_scale"
+    hi = max(lx, ly)
+    if nodes(hi) > budget:      # budget < 16 is refused by the settings
+        return None
     for _ in range(200):        # bisection on the monotone node count
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if nodes(mid) > budget else (lo, mid)
     h = float(f"{hi:.3g}")
     while nodes(h) > budget:    # rounding to 3 digits may have gone below the fitting spacing
         h = float(f"{h * 1.001:.3g}")
+    return h
+
+
+def _fitting_spacing_hint(domain, settings: GPSettings) -> str:
+    """The settings that fit ``domain``'s inducing grid into ``settings.max_inducing_points``, as advice.
+
+    The smallest spacing h with the lattice within the budget (:func:`_fitting_spacing`), and the length scale
+    ``2 h`` whose default grid that is (h = l / 2); with ``inducing_spacing`` unset the length scale is the one
+    setting to change.
+    """
+    x0, x1, y0, y1 = domain
+    h = _fitting_spacing((x1 - x0, y1 - y0), settings.max_inducing_points, settings.resolved_inducing_spacing)
+    if h is None:
+        return "use a larger inducing_spacing or length_scale"
     if settings.inducing_spacing is None and settings.length_scale_y is not None:
         return (f"length scales of at least {2 * h:g} fit (the shorter of gp.length_scale and gp.length_scale_y sets "
                 f"the grid spacing, l / 2 = {h:g}), or set gp.inducing_spacing = {h:g}")
@@ -336,6 +358,36 @@ def _fitting_spacing_hint(domain, settings: GPSettings) -> str:
         return (f"a length scale of at least {2 * h:g} fits (gp.length_scale, whose grid spacing is l / 2 = {h:g}; "
                 f"[gp] length_scale = {2 * h:g} in a configuration file)")
     return f"an inducing spacing of at least {h:g} fits (gp.inducing_spacing, with gp.length_scale >= {1.5 * h:.3g})"
+
+
+def _within_budget(domain, settings: GPSettings) -> GPSettings:
+    """``settings`` with ``grid_budget = "coarsen"``: the inducing spacing widened to the finest whose lattice on
+    ``domain`` fits ``max_inducing_points`` (:func:`_fitting_spacing`), the length scales raised to 1.5 x it where
+    they are shorter (the kernel approximation's limit), with one warning; unchanged if the lattice fits."""
+    h = settings.spacing_on(domain)
+    sides = _lattice_sides(domain, settings.frame_angle)
+    budget = settings.max_inducing_points
+    if (math.ceil(sides[0] / h - 1e-9) + 3) * (math.ceil(sides[1] / h - 1e-9) + 3) <= budget:
+        return settings
+    fit = _fitting_spacing(sides, budget, h)
+    if fit is None:
+        return settings             # the lattice's own check names the problem
+    # a rotated lattice's box is rounded to whole cells (and to a multiple of the refit's coarsening): widen until
+    # that box fits too
+    while True:
+        box = Frame.for_domain(domain, settings.frame_angle, fit, settings.hyper_coarsening).box
+        if (SplineAxis(box[0], box[1], fit).n_nodes * SplineAxis(box[2], box[3], fit).n_nodes) <= budget:
+            break
+        fit = float(f"{fit * 1.01:.3g}")
+    raise_by = max(1.0, 1.5 * fit / settings.shortest_length_scale)
+    ell = settings.length_scale * raise_by
+    ell_y = None if settings.length_scale_y is None else settings.length_scale_y * raise_by
+    raised = "" if raise_by == 1.0 else (f"; the prior length scale raised to {ell:.3g}"
+                                         + ("" if ell_y is None else f" (l_y {ell_y:.3g})"))
+    warnings.warn(f"the GP's inducing grid at spacing {h:g} would have more than max_inducing_points = {budget} "
+                  f"nodes: spacing {fit:g} instead (gp.grid_budget = \"coarsen\"), so learned length scales stay "
+                  f">= {1.5 * fit:.3g}{raised}", UserWarning, stacklevel=3)
+    return dataclasses.replace(settings, inducing_spacing=fit, length_scale=ell, length_scale_y=ell_y)
 
 
 class GaussianProcess:
@@ -374,6 +426,8 @@ class GaussianProcess:
         x0, x1, y0, y1 = self._domain
         if settings.spacing_on(self._domain) < settings.resolved_inducing_spacing:    # gp.grid_cells on a small site
             settings = dataclasses.replace(settings, inducing_spacing=settings.spacing_on(self._domain))
+        if settings.grid_budget == "coarsen":                                        # a site too large for the grid
+            settings = _within_budget(self._domain, settings)
         self._spacing = settings.resolved_inducing_spacing
         self._initial_settings = settings
         self._settings = settings
@@ -412,7 +466,8 @@ class GaussianProcess:
             raise ValueError(
                 f"the inducing grid would have {self._ax.n_nodes} x {self._ay.n_nodes} = {self._n_nodes} nodes "
                 f"(spacing {self._spacing:g} on domain {self._domain}{rotated}), more than max_inducing_points = "
-                f"{settings.max_inducing_points}; {_fitting_spacing_hint(frame.box, settings)}, or raise "
+                f"{settings.max_inducing_points}; {_fitting_spacing_hint(frame.box, settings)}, or set "
+                "gp.grid_budget = \"coarsen\" (the finest spacing that fits, chosen for you), or raise "
                 "max_inducing_points (prediction costs O(M^3))")
         n_cells = self._ax.n_cells * self._ay.n_cells
         self._mom = np.zeros((n_cells, _N_POW, _N_POW))          # sum t1^a t2^b

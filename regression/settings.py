@@ -24,6 +24,8 @@ def signal_variance_limits(noise_variance: float) -> tuple[float, float]:
 
 #: choices of :attr:`GPSettings.signal_scale`
 SIGNAL_SCALES = ("absolute", "data")
+#: choices of :attr:`GPSettings.grid_budget`
+GRID_BUDGETS = ("error", "coarsen")
 
 
 def _finite_positive(name: str, value) -> float:
@@ -73,6 +75,13 @@ class GPSettings:
         smaller than the paper's a grid that follows the configured l alone would cap the learned l at a
         fixed 0.75 m (at l = 1 m) however dense the data; with ``grid_cells`` the cap follows the site (the
         tuned preset's 40: 0.5 m on the paper's 20 m square, unchanged, 0.125 m on a 5 m bench).
+    grid_budget
+        What a GP does when its inducing grid would have more than ``max_inducing_points`` nodes: ``"error"``
+        (the default) refuses with the settings that fit; ``"coarsen"`` (the tuned preset's) widens the spacing to
+        the finest that fits, raises the length scales to 1.5 x that spacing where they are shorter (the kernel
+        approximation's limit, see ``inducing_spacing``) and says so in one warning.  A site larger than the
+        paper's then runs as given (a 40 m x 25 m site at l = 1 m: spacing 0.521 m instead of 0.5 m), at the
+        price of a floor 1.5 x the spacing under the length scales a refit can learn.
     max_inducing_points
         Upper bound on the number of inducing grid nodes M = (cells_x + 3) * (cells_y + 3).
         ``predict`` after new data costs one dense Cholesky factorisation and inverse of order
@@ -181,6 +190,7 @@ class GPSettings:
     inducing_spacing: float | None = None
     max_inducing_points: int = 4096
     grid_cells: int | None = None
+    grid_budget: str = "error"
     learn_hyperparameters: bool = False
     hyper_prior_sd: float = 1.0
     hyper_maxiter: int = 15
@@ -259,6 +269,9 @@ class GPSettings:
             if isinstance(gc, bool) or not whole or int(gc) < 4:
                 raise ValueError(f"grid_cells must be an integer >= 4 or unset, got {gc!r}")
             object.__setattr__(self, "grid_cells", int(gc))
+        if self.grid_budget not in GRID_BUDGETS:
+            raise ValueError(f"grid_budget must be one of {', '.join(repr(b) for b in GRID_BUDGETS)}, "
+                             f"got {self.grid_budget!r}")
         mip = self.max_inducing_points
         integral = isinstance(mip, numbers.Integral) or (isinstance(mip, float) and mip.is_integer())
         if isinstance(mip, bool) or not integral or int(mip) < 16:

@@ -151,8 +151,11 @@ PRESETS: dict[str, dict] = {
         # the shortest learnable l follows the site (0.5 m spacing on the paper's 20 m square, as before; 0.125 m on a
         # 5 m x 3 m bench, where the l / 2 grid capped the learned l at 0.75 m: RMSE at 3T 0.016 -> 0.009, 95 % band
         # coverage at the stop 0.75-0.86 -> 0.94-0.97 over four controllers; docs/results/map-quality.md, "A bench")
+        # grid_budget "coarsen": on a site whose l / 2 grid exceeds max_inducing_points (a 40 m x 25 m warehouse at
+        # l = 1 m) the spacing widens to the finest that fits, with a warning, instead of refusing the run
         "gp": {"learn_hyperparameters": True, "hyper_maxiter": 8, "signal_scale": "data", "signal_variance": 1.0,
-               "kernel": "matern52", "hyper_prior_sd": 0.5, "hyper_step_sd": 1.0, "grid_cells": 40},
+               "kernel": "matern52", "hyper_prior_sd": 0.5, "hyper_step_sd": 1.0, "grid_cells": 40,
+               "grid_budget": "coarsen"},
         # a learned s_f^2 changes the scale of V: stop at sup V <= 0.4 s_f^2 and target
         # max(V - 0.2 s_f^2, 0), the paper's 0.1 and 0.05 relative to its s_f^2 = 0.25
         # eta_relative 0.05: keep planning until sup V < 0.05 s_f^2, the map keeps improving

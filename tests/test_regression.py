@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 
 import re
+import warnings
 
 import numpy as np
 import pytest
@@ -496,6 +497,33 @@ def test_domain_and_grid_size_validation():
         GaussianProcess(GPSettings(length_scale=0.1), domain=(0.0, 20.0, 0.0, 20.0))
     with pytest.raises(TypeError):
         GaussianProcess({"length_scale": 1.0})
+
+
+@pytest.mark.parametrize("angle", [0.0, 30.0])
+def test_grid_budget_coarsen_widens_the_spacing_to_fit(angle):
+    # a 40 m x 25 m site at l = 1 m: the l / 2 grid has 83 x 53 > 4096 nodes; "coarsen" takes the finest spacing that
+    # fits (the error's advice without the user's edit), raises l only where the spacing needs it, and says so
+    budget = 4096
+    with pytest.raises(ValueError, match='gp.grid_budget = "coarsen"'):
+        GaussianProcess(GPSettings(grid_cells=40, kernel_angle=angle), (0.0, 40.0, 0.0, 25.0))
+    with pytest.warns(UserWarning, match=r"spacing 0.5 would have more than max_inducing_points = 4096 nodes: spacing"):
+        gp = GaussianProcess(GPSettings(grid_cells=40, kernel_angle=angle, grid_budget="coarsen"), (0.0, 40.0, 0.0, 25.0))
+    nx, ny = gp.inducing_shape
+    h = gp.settings.inducing_spacing
+    assert nx * ny <= budget and h > 0.5
+    assert gp.settings.shortest_length_scale >= 1.5 * h * (1 - 1e-12)
+    assert gp.settings.length_scale == (1.0 if 1.5 * h <= 1.0 else pytest.approx(1.5 * h))
+    if angle == 0.0:
+        assert h == pytest.approx(0.521)        # the same spacing the "error" advice names (2 h = 1.042 there)
+        with pytest.raises(ValueError, match="max_inducing_points"):  # and 1 % finer does not fit
+            GaussianProcess(GPSettings(grid_cells=40, inducing_spacing=0.99 * h), (0.0, 40.0, 0.0, 25.0))
+    with warnings.catch_warnings():                 # within the budget nothing changes, and nothing is said
+        warnings.simplefilter("error")
+        small = GaussianProcess(GPSettings(grid_cells=40, grid_budget="coarsen"), (0.0, 20.0, 0.0, 20.0))
+    assert dataclasses.replace(small.settings, grid_budget="error") == \
+        GaussianProcess(GPSettings(grid_cells=40), (0.0, 20.0, 0.0, 20.0)).settings
+    with pytest.raises(ValueError, match="grid_budget must be one of"):
+        GPSettings(grid_budget="shrink")
 
 
 @pytest.mark.parametrize("domain", [(0.0, 60.0, 0.0, 40.0), (0.0, 2000.0, 0.0, 1000.0), (-3.0, 17.0, 5.0, 9.0)])
