@@ -334,10 +334,11 @@ def _fitting_spacing(sides: tuple[float, float], budget: int, lo: float) -> floa
     for _ in range(200):        # bisection on the monotone node count
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if nodes(mid) > budget else (lo, mid)
-    h = float(f"{hi:.3g}")
-    while nodes(h) > budget:    # rounding to 3 digits may have gone below the fitting spacing
-        h = float(f"{h * 1.001:.3g}")
-    return h
+    q = 10.0 ** (math.floor(math.log10(hi)) - 2)      # the third significant digit's unit
+    k = math.ceil(hi / q - 1e-9)
+    while nodes(float(f"{k * q:.3g}")) > budget:     # round up, one unit at a time (not by a factor: 1.22 x 1.001
+        k += 1                                          # rounds back to 1.22)
+    return float(f"{k * q:.3g}")
 
 
 def _fitting_spacing_hint(domain, settings: GPSettings) -> str:
@@ -378,7 +379,7 @@ def _within_budget(domain, settings: GPSettings) -> GPSettings:
         box = Frame.for_domain(domain, settings.frame_angle, fit, settings.hyper_coarsening).box
         if (SplineAxis(box[0], box[1], fit).n_nodes * SplineAxis(box[2], box[3], fit).n_nodes) <= budget:
             break
-        fit = float(f"{fit * 1.01:.3g}")
+        fit = float(f"{fit + 10.0 ** (math.floor(math.log10(fit)) - 2):.3g}")     # one unit of the third digit up
     raise_by = max(1.0, 1.5 * fit / settings.shortest_length_scale)
     ell = settings.length_scale * raise_by
     ell_y = None if settings.length_scale_y is None else settings.length_scale_y * raise_by

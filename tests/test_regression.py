@@ -526,6 +526,16 @@ def test_grid_budget_coarsen_widens_the_spacing_to_fit(angle):
         GPSettings(grid_budget="shrink")
 
 
+@pytest.mark.parametrize("angle", [0.0, 30.0, 45.0])
+def test_grid_budget_rounds_up_past_one_metre(angle):
+    # a spacing above 1 m rounded up to three digits: x 1.001 rounded back to itself (1.22 -> 1.22) and the search
+    # never ended on a rotated 60 m x 40 m yard
+    with pytest.warns(UserWarning, match="grid_budget"):
+        gp = GaussianProcess(GPSettings(grid_cells=40, kernel_angle=angle, grid_budget="coarsen"), (0.0, 60.0, 0.0, 40.0))
+    nx, ny = gp.inducing_shape
+    assert 0.9 * 4096 <= nx * ny <= 4096
+
+
 @pytest.mark.parametrize("domain", [(0.0, 60.0, 0.0, 40.0), (0.0, 2000.0, 0.0, 1000.0), (-3.0, 17.0, 5.0, 9.0)])
 def test_grid_too_fine_names_the_length_scale_that_fits(domain):
     # a site larger than the paper's: the error names a length scale whose grid fits the budget, and it does
