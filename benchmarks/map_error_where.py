@@ -28,6 +28,10 @@ tab-separated line per run:
   fraction of the draws on which these positions' RMSE is below the seed's first controller's (paired, same draw);
 - ``sf2`` / ``ell``: the hyperparameters the run learned by 2 T.
 
+``python benchmarks/map_error_where.py --table OUT.tsv [OUT.tsv ...]`` reads such lines (saved output) and prints a
+Markdown table per label and seed: the feedback's own RMSE at 2 T over the best other controller's, and the same by
+the positions alone (``fixed_exp`` and ``fixed_rmse``), with that controller's paired wins against the feedback.
+
 ``--references N`` (with ``--fixed``, on a rectangle) prints first what the same fixed GP gives on N points placed
 without any robot: a regular grid (the square of the nearest integer side), the grid jittered by up to half its
 spacing, and points drawn uniformly at random (``fixed_exp``; the best and the typical spread of N measurements).
@@ -96,8 +100,40 @@ def references(a, base, field, noise_var, hp):
         print(f"reference\t{name}\t{len(P)} points\tfixed_exp {np.sqrt(V.mean()):.4f}", flush=True)
 
 
+def table(paths) -> int:
+    """``--table``: the feedback against the best other controller per label and seed, from saved output lines."""
+    rows = {}
+    for p in paths:
+        for line in Path(p).read_text().splitlines():
+            f = line.split("\t")
+            if len(f) < 17 or f[0] in ("label", "reference"):
+                continue
+            rows.setdefault((f[0], int(f[2])), {})[f[1]] = {"rmse": float(f[3]), "exp": float(f[13]),
+                                                             "fixed": float(f[14]), "win": float(f[16])}
+    print("| label | seed | own RMSE 2T: feedback / best other (who) | positions only, sqrt(mean V): feedback / best "
+          "other | positions only, mean RMSE: feedback / best other (who, its paired wins) |")
+    print("|---|---|---|---|---|")
+    for (label, seed), by in sorted(rows.items()):
+        fb, others = by.get("feedback"), {c: v for c, v in by.items() if c != "feedback"}
+        if fb is None or not others:
+            continue
+        own = min(others, key=lambda c: others[c]["rmse"])
+        fx = min(others, key=lambda c: others[c]["fixed"])
+        ex = min(v["exp"] for v in others.values())
+        print(f"| {label} | {seed} | {fb['rmse'] / others[own]['rmse']:.3f} ({own}) | {fb['exp'] / ex:.3f} | "
+              f"{fb['fixed'] / others[fx]['fixed']:.3f} ({fx}, {others[fx]['win']:.2f}) |")
+    return 0
+
+
 def main(argv=None) -> int:
     import tomllib
+
+    if argv is None:
+        argv = sys.argv[1:]
+    if argv and argv[0] == "--table":
+        if len(argv) < 2:
+            raise SystemExit("map_error_where.py: --table wants saved output files")
+        return table(argv[1:])
 
     from scipy.spatial import cKDTree
 
