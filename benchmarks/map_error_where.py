@@ -227,7 +227,8 @@ def main(argv=None) -> int:
             rm = np.array(rm)
             if first is None:
                 first = rm
-            print(f"{a.label}\t{ctrl}\t{seed}\t{np.sqrt(err2.mean()):.4f}\t{np.sqrt(V.mean()):.4f}\t{V.max() / sf2:.3f}\t"
+            print(f"{a.label}\t{ctrl}\t{seed}\t{np.sqrt(err2.mean()):.4f}\t{np.sqrt(V.mean()):.4f}\t"
+                  f"{V.max() / sf2:.3f}\t"
                   f"{np.mean((V / sf2) ** 4) ** 0.25:.3f}\t{err2[edge].sum() / err2.sum():.2f}\t"
                   f"{err2[struct].sum() / err2.sum():.2f} ({struct.mean():.2f})\t{d.mean():.3f}\t{d.max():.3f}\t"
                   f"{dens.std() / dens.mean():.3f}\t{np.mean(to_wall(M) < 1.0):.3f}\t{np.sqrt(Vf.mean()):.4f}\t"

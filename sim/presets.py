@@ -119,7 +119,12 @@ PRESETS: dict[str, dict] = {
             # 0.140 / 0.139 / 0.150 / 0.143), the hotspot and the anisotropic field 3-7 % better on every seed, bumps
             # level; the best map at 2T of all four controllers on 17 of 20 tuning cases (8 without it, the same code)
             # and on 4 of 4 held-out ones (1 without), the threshold first or level on 20 of 20 (16 without)
-            # (docs/results/map-quality.md, "Spreading the measurements")
+            # (docs/results/map-quality.md, "Spreading the measurements").  Where another controller's map at 2T is
+            # still better (bumps seeds 1 and 3, aniso seed 3, three hand-drawn sites, the harbour's bumps) the
+            # feedback's positions alone, one fixed GP and 16 common noise draws, are the best set on every case and on
+            # bumps within 0.6 % of a perfect grid's: the losses are the runs' noise draws (one run's RMSE scatters by
+            # 3-6 %), not a lever left in the positions; the hole measured at the length scale instead of the nearest
+            # measurement was worse (docs/results/map-quality.md, "Where the map at 2 T still loses")
             "spread_radius": 0.75,
         },
         # a fixed KDE bandwidth of 1 m (Silverman's rule gives ~2-3 m once the swarm has spread):
