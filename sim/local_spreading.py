@@ -53,14 +53,11 @@ class ComponentSpreading(MeasurementSpreading):
         self.network = network
         self._rows = np.zeros(0, dtype=np.intp)
 
-    @property
-    def measured(self) -> np.ndarray:
-        """(k, 2) every position measured so far in the swarm (who holds which: :mod:`sim.knowledge`)."""
-        return self.network.knowledge.X
-
     def remember(self, Xa: np.ndarray, alive: np.ndarray) -> None:
-        """Nothing to store: the measurements and who holds them are the knowledge groups'."""
+        """The working robots of the step; the points just measured in the swarm's record (``measured``; who holds
+        which is the knowledge groups')."""
         self._rows = np.flatnonzero(alive)
+        self.memory.append(np.array(Xa, dtype=float))
 
     def components(self, rows: np.ndarray) -> np.ndarray:
         """(len(rows),) the component at the last measurement of each robot ``rows``; a robot that was in none
