@@ -44,7 +44,7 @@ from scipy import ndimage, sparse
 
 from . import banded
 from .basis import bspline_weights
-from .gmrf import WIDTH, _sparse_to_blocks
+from .gmrf import WIDTH
 
 __all__ = ["CutBasis", "CutPrior", "cut_prior", "cut_prior_derivative"]
 
@@ -141,6 +141,7 @@ class CutBasis:
         self._links(cuts)
         self._cells()
         self._representatives()
+        self._pattern = self._rep_where = None           # caches of cut_prior
 
     # ------------------------------------------------------------------ indices
     def ext(self, i, j, piece) -> np.ndarray:
@@ -352,6 +353,26 @@ def _outer_blocks(v: np.ndarray, gx: int, b: int) -> np.ndarray:
     return rows[:, :, :, None] * v[:, None, None, :]
 
 
+def _to_blocks(basis: CutBasis, q: sparse.csr_matrix) -> np.ndarray:
+    """The symmetric sparse ``q`` (extended indices) as a lower block band (n_blocks, 4, b, b); the positions of its
+    pattern (the same at every length scale) are kept on the basis (:func:`regression.gmrf._sparse_to_blocks`, with
+    a cached index and one bincount)."""
+    q.sum_duplicates()
+    hit = basis._pattern
+    if hit is None or not (np.array_equal(hit[0], q.indptr) and np.array_equal(hit[1], q.indices)):
+        rows = np.repeat(np.arange(q.shape[0]), np.diff(q.indptr))
+        k1, k2 = rows // basis.block, q.indices // basis.block
+        lower = k1 >= k2
+        if np.any(k1[lower] - k2[lower] > WIDTH):                  # pragma: no cover - K^alpha reaches 3 blocks
+            raise AssertionError("the cut prior's precision reaches beyond the block band")
+        hit = basis._pattern = (q.indptr.copy(), q.indices.copy(), lower,
+                                ((k2[lower] * (WIDTH + 1) + (k1 - k2)[lower]) * basis.block + rows[lower] % basis.block)
+                                * basis.block + q.indices[lower] % basis.block)
+    n = basis.n_blocks * (WIDTH + 1) * basis.block * basis.block
+    return np.bincount(hit[3], weights=q.data[hit[2]], minlength=n).reshape(basis.n_blocks, WIDTH + 1, basis.block,
+                                                                            basis.block)
+
+
 def cut_prior(basis: CutBasis, lx: float, ly: float, nu: int) -> CutPrior:
     """Q = S^{-1} Q_0 S^{-1} on the cut basis's extended lattice (module docstring): Q_0 = a_0 K^alpha with the
     Laplacians of its links, log det Q_0 and Q_0^{-1}'s band from the block-banded Cholesky factor and selected
@@ -368,15 +389,17 @@ def cut_prior(basis: CutBasis, lx: float, ly: float, nu: int) -> CutPrior:
     dummy = ~basis.real
     if dummy.any():                                   # a dummy's row of K^alpha is its diagonal alone
         q = q + sparse.diags(np.where(dummy, 1.0 - q.diagonal(), 0.0))
-    q0 = _sparse_to_blocks(q, gx, b)
+    q0 = _to_blocks(basis, q.tocsr())
     factor = banded.cholesky(q0)
     logdet0 = banded.logdet(factor)
     cov0 = banded.selected_inverse(factor)
     flat = cov0.reshape(-1)
     ids, phi = basis.rep_ids, basis.rep_phi
     rows = np.flatnonzero(basis.real)
-    local = flat[basis.band_index(ids[:, :, None], ids[:, None, :])]                   # (n_real, 16, 16)
-    diag = flat[basis.band_index(rows, rows)]
+    if basis._rep_where is None:                       # the normalisation's band positions, once per basis
+        basis._rep_where = (basis.band_index(ids[:, :, None], ids[:, None, :]), basis.band_index(rows, rows))
+    local = flat[basis._rep_where[0]]                                                  # (n_real, 16, 16)
+    diag = flat[basis._rep_where[1]]
     scale = np.ones(n)
     scale[rows] = 1.0 / np.sqrt(diag)
     for _ in range(3):
