@@ -94,7 +94,9 @@ inversion (:mod:`regression.banded`): mu = P^{-1} b and Sigma's band (nodes at m
 reads) in ~10-15 ms at M = 1849 whatever the number of new points; no Woodbury updates and no prior truncation,
 and :meth:`update_fits` is always true.  The log marginal likelihood is exact from the banded factors.
 With ``GPSettings.barrier`` and a blocked-space predicate (:meth:`set_barrier`) the prior's lattice links through
-walls are cut (:func:`regression.gmrf.barrier_prior`): data do not inform the field across a wall.
+walls are cut (:func:`regression.gmrf.barrier_prior`): data do not inform the field across a wall; with
+``barrier_basis = "cut"`` (the default) the spline basis is cut at the walls too (:mod:`regression.cut_basis`: a
+B-spline whose support a wall splits gets a copy per piece), so that the field may jump there.
 
 Alternatives considered: the projected-process (DTC) statistics with the exact k_u(x) touch a
 w^2 x w^2 block of A per observation (w ~ 12 nodes per axis for a 3 l cut-off at h = l/2, i.e.
