@@ -448,7 +448,8 @@ class GaussianProcess:
         #: v_y of the first data with ``signal_scale = "data"`` (:mod:`regression.scale`), else None
         self.data_variance = None
         self._barrier = None        # (blocked, step) of :meth:`set_barrier`
-        self.barrier_on = True      # the barrier in use (``barrier = "auto"`` chooses at each refit, :meth:`use_barrier`)
+        # the barrier in use (``barrier = "auto"``: none until a refit finds the evidence for it, :meth:`use_barrier`)
+        self.barrier_on = settings.barrier != "auto"
         #: ``barrier = "auto"``: (data points, log posterior with the barrier, without) of each refit's choice
         self.barrier_choices: list = []
         self._build_lattice(frame)

@@ -287,12 +287,19 @@ def _at(value: float, bound: float) -> bool:
     return abs(math.log(value / bound)) < 1e-3
 
 
+#: ``gp.barrier = "auto"`` keeps the barrier only when its log posterior exceeds the plain GP's by this many nats
+#: (Kass & Raftery 1995: 2 ln B >= 6, "strong" evidence): the plain GP is the simpler model, and one room's data (the
+#: first refits) cannot tell whether the field jumps at a wall -- measured at the first data of a run, 0.0-0.1 nats
+BARRIER_EVIDENCE = 3.0
+
+
 def _choose_barrier(gp: GaussianProcess, prior, previous: list, out: dict):
     """``gp.barrier = "auto"``: the refit of :func:`refit_online` with the barrier and without it (a GMRF kernel: on
     the GP's own lattice, from the same start and with the same priors and trust region), and the GP left on the one of
     the larger log posterior (log marginal likelihood plus the priors' exponents: Bayesian model choice by evidence at
-    the MAP values, the one extra hyperparameter being the model itself).  Returns that fit; appends (points, log
-    posterior with, without) to ``gp.barrier_choices``; ``out`` receives that fit's ``refit`` outputs (the nugget)."""
+    the MAP values, the one extra hyperparameter being the model itself), the barrier only when it wins by
+    :data:`BARRIER_EVIDENCE` nats.  Returns that fit; appends (points, log posterior with, without) to
+    ``gp.barrier_choices``; ``out`` receives that fit's ``refit`` outputs (the nugget)."""
     s0 = gp.initial_settings
     fits = {}
     for on in (gp.barrier_on, not gp.barrier_on):            # the model in use first
@@ -300,7 +307,7 @@ def _choose_barrier(gp: GaussianProcess, prior, previous: list, out: dict):
         gp.set_hyperparameters(*previous)
         fit = {}
         fits[on] = (refit(gp, prior, s0.hyper_maxiter, 1, step_sd=s0.hyper_step_sd, out=fit), fit["log_posterior"], fit)
-    best = fits[True][1] >= fits[False][1]
+    best = fits[True][1] - fits[False][1] > BARRIER_EVIDENCE
     out.update(fits[best][2])
     gp.use_barrier(best)
     gp.barrier_choices.append((gp.n_observations, fits[True][1], fits[False][1]))

@@ -133,10 +133,10 @@ class GPSettings:
         links through walls and obstacles are cut, so that data do not inform the field across a wall
         (:mod:`regression.gmrf`, *Barriers*; the simulation passes the GP its obstacles,
         :meth:`regression.gp.GaussianProcess.set_barrier`).  False (the default): the walls are transparent.
-        ``"auto"``: the data decide -- every online refit fits the GP with and without the barrier and keeps the
-        one of the larger log posterior (marginal likelihood and the hyperparameters' priors; a field that jumps
-        at the walls favours the barrier by hundreds of nats, one continuous through them the plain GP);
-        without obstacles it is the plain GP.
+        ``"auto"``: the data decide -- the GP starts without the barrier, and every online refit fits it with and
+        without and keeps the barrier when its log posterior (marginal likelihood and the hyperparameters' priors)
+        is larger by more than 3 nats (a field that jumps at the walls favours it by hundreds, one continuous
+        through them the plain GP); without obstacles it is the plain GP.
     barrier_basis
         With ``barrier``: ``"cut"`` (the default) also cuts the spline basis at the walls -- a B-spline whose support
         a wall splits into unconnected pieces gets one copy per piece (:mod:`regression.cut_basis`), so that the

@@ -159,6 +159,7 @@ def test_barrier_auto_keeps_the_barrier_where_the_field_jumps_at_the_wall_and_dr
         warnings.simplefilter("ignore", UserWarning)
         refit_online(gp)
     (n, with_, without), = gp.barrier_choices
+    assert (with_ - without > 3.0) is chosen
     assert n == len(X) and gp.barrier_on is chosen and f.barrier_on is chosen
     assert abs(with_ - without) > 10.0                    # hundreds of nats with the jump; ~15 without it
     # the plain choice is the plain GP: the same numbers as a GP built without a barrier at the same values
