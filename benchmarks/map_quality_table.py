@@ -71,6 +71,14 @@ def _r(v):
     return f"{v:.3f}" if v < 10 else f"{v:.2f}"
 
 
+def _ratio(v: float) -> str:
+    """A ratio of times or RMSEs; 0 (the feedback reached it, the baselines never) and infinity (the reverse) in
+    words."""
+    if v == 0.0:
+        return "first (others never)"
+    return "never (others did)" if math.isinf(v) else f"{v:.2f}"
+
+
 def ratios(m, place, seed, controllers, feedback="feedback"):
     """(RMSE 2T, threshold time, 1.25x-map time) of the feedback over the best baseline's; None where missing."""
     f = m.get((place, seed, feedback))
@@ -114,7 +122,7 @@ def tables(paths) -> str:
             continue
         cols = []
         for i in range(3):
-            cols.append(" / ".join("—" if r is None else f"{r[i]:.2f}" for r in rs))
+            cols.append(" / ".join("—" if r is None else _ratio(r[i]) for r in rs))
             wins[i] += sum(1 for r in rs if r is not None and r[i] <= 1.0 + 1e-9)
         cases += sum(1 for r in rs if r is not None)
         lines.append(f"| {place} | " + " | ".join(cols) + " |")

@@ -54,6 +54,7 @@ def test_merged_folders_share_the_best_final_rmse(tmp_path):
     assert "| fine | feedback | 2.00 | 2.00 | 3.00 | 0.120 |" in text
     assert "| floor / bumps | feedback | never |" in text
     assert "First or level (ratio ≤ 1) on 2 / 0 / 2 of 2 cases" in text
+    assert "| floor / bumps | 0.80 | never (others did) | 1.00 |" in text     # a ratio to never in words, not inf
 
 
 def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys):
