@@ -88,7 +88,7 @@ class Context:
     #: the faces between free cells that walls thinner than a cell close, two bool arrays of x faces and
     #: y faces (from domain.Domain.closed_faces), None when there is none
     walls: tuple | None = None
-    #: the run's communication strategy (:mod:`sim.network`: the centre, or robots that talk to neighbours); None
+    #: the run's communication strategy (:mod:`sim.network`), the centre or robots that talk to neighbours; None
     #: outside :class:`sim.simulation.Simulation`
     network: object = None
 
