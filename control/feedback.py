@@ -48,9 +48,9 @@ __all__ = ["FeedbackSettings", "feedback_velocity", "tracking_velocity", "satura
            "add_within_speed"]
 
 #: ``feedback.spread_priority``: how the spreading velocity w is added to the law's v under the speed limit;
-#: "sum" sat(v + w), "law" v + lambda w with the largest lambda in [0, 1] that keeps |v + lambda w| <= v_max
-#: (:func:`add_within_speed`)
-SPREAD_PRIORITIES = ("sum", "law")
+#: "sum" sat(v + w), "law" v + lambda w with the largest lambda in [0, 1] that keeps |v + lambda w| <= v_max,
+#: "progress" the same after w's component against v is scaled by 1 - |v| / v_max (:func:`add_within_speed`)
+SPREAD_PRIORITIES = ("sum", "law", "progress")
 
 
 @dataclass(frozen=True)
@@ -76,8 +76,10 @@ class FeedbackSettings:
     spread_priority : how the spreading velocity w joins the law's v under the speed limit
             (:data:`SPREAD_PRIORITIES`): ``"sum"`` (default) saturates v + w, so that a robot the law already
             drives at v_max gives up speed along the law's direction to a sideways w; ``"law"`` adds w only within
-            the speed the law leaves (:func:`add_within_speed`): where the law saturates, the robot follows the
-            law alone.
+            the speed the law leaves (:func:`add_within_speed`): where the law saturates and w is across or
+            along it, the robot follows the law alone; ``"progress"`` also keeps w from slowing the law's progress
+            by more than (1 - |v| / v_max) |w| (``keep_progress``): the tuned preset's on sites larger than the
+            paper's (:mod:`sim.site_scale`).
     """
 
     alpha: float = 1.0
@@ -155,7 +157,7 @@ def saturate(v: np.ndarray, v_max: float) -> np.ndarray:
     return v
 
 
-def add_within_speed(v: np.ndarray, w: np.ndarray, v_max: float) -> np.ndarray:
+def add_within_speed(v: np.ndarray, w: np.ndarray, v_max: float, keep_progress: bool = False) -> np.ndarray:
     """v + lambda w row by row, lambda the largest number in [0, 1] with |v + lambda w| <= v_max: the law's velocity
     ``v`` (m, 2), already saturated, keeps priority and an added velocity ``w`` (m, 2) uses only the speed it leaves.
 
@@ -165,12 +167,22 @@ def add_within_speed(v: np.ndarray, w: np.ndarray, v_max: float) -> np.ndarray:
     (``saturate(v + w)`` would turn it by up to arcsin(|w| / v_max) and slow it along v).  A w against v is
     added as it is.  Rows with |v| > v_max (not from :func:`saturate`) are saturated first; with v_max = inf the
     sum v + w.  The saturation's disturbance d of the module docstring is then the law's own (eq. "density
-    feedback law using estimation"): the added velocity acts only where the robot has speed to spare."""
+    feedback law using estimation"): the added velocity acts only where the robot has speed to spare.
+
+    ``keep_progress``: first the component of w against v, w_b = min(w . v̂, 0), is scaled by 1 - |v| / v_max
+    (w <- w - (|v| / v_max) w_b v̂), so that w slows the robot along the law's direction by at most
+    (1 - |v| / v_max) |w|, for |w| <= v_max (the spreading's |w| <= r / Δt) at most the speed the law leaves: a
+    robot at rest takes w whole, one the law drives at the limit follows the law whatever w is."""
     v = np.asarray(v, dtype=float)
     w = np.asarray(w, dtype=float)
     if math.isinf(v_max):
         return v + w
     v = saturate(v, v_max)
+    if keep_progress:
+        speed = np.hypot(v[:, 0], v[:, 1])
+        unit = v / np.where(speed > 0, speed, 1.0)[:, None]
+        back = np.minimum(np.einsum("ij,ij->i", w, unit), 0.0) * np.minimum(speed / v_max, 1.0)
+        w = w - back[:, None] * unit
     vw = np.einsum("ij,ij->i", v, w)
     ww = np.einsum("ij,ij->i", w, w)
     slack = np.maximum(v_max ** 2 - np.einsum("ij,ij->i", v, v), 0.0)

@@ -40,9 +40,10 @@ class MeasurementSpreading:
     or the run's :class:`domain.Domain` (reflection and, with obstacles, the free space), ``refit(X)`` a
     KDE of positions X (None: the estimate of the measured positions is held over the prediction).
     :attr:`priority` (``feedback.spread_priority``, set by the controller) is how w joins the law's velocity under
-    the speed limit: ``"sum"`` sat(v + w), ``"law"`` :func:`control.feedback.add_within_speed`."""
+    the speed limit: ``"sum"`` sat(v + w), ``"law"`` :func:`control.feedback.add_within_speed`, ``"progress"`` the
+    same with ``keep_progress``."""
 
-    #: "sum" or "law" (control.feedback.SPREAD_PRIORITIES)
+    #: "sum", "law" or "progress" (control.feedback.SPREAD_PRIORITIES)
     priority = "sum"
 
     def __init__(self, radius: float, dt: float, h: float, domain, refit=None):
@@ -94,7 +95,7 @@ class MeasurementSpreading:
     def velocity(self, t: float, X: np.ndarray, alive: np.ndarray, v: np.ndarray, law, estimate,
                  v_max: float) -> np.ndarray:
         """The law's velocity ``v`` (n, 2) of all robots with the spreading velocity added, saturated at v_max
-        (:attr:`priority` "law": added within the speed the law leaves)."""
+        (:attr:`priority` "law" / "progress": added within the speed the law leaves)."""
         if self.new_step(t) or self.w is None or self.w.shape != X.shape:
             self._t = float(t)
             Xa, va = X[alive], v[alive]
@@ -104,7 +105,10 @@ class MeasurementSpreading:
                 P = self.predict(t, Xa, va, law, estimate)
                 w[alive] = (self.land(P, alive) - P) / self.dt
             self.w = w
-        out = add_within_speed(v, self.w, v_max) if self.priority == "law" else saturate(v + self.w, v_max)
+        if self.priority == "sum":
+            out = saturate(v + self.w, v_max)
+        else:
+            out = add_within_speed(v, self.w, v_max, keep_progress=self.priority == "progress")
         return np.where(alive[:, None], out, 0.0)
 
     def remember(self, Xa: np.ndarray, alive: np.ndarray) -> None:

@@ -292,3 +292,33 @@ def test_spreading_with_the_law_first_keeps_a_saturated_robot_on_the_law():
     with pytest.raises(ValueError, match="spread_priority"):
         FeedbackSettings(spread_priority="front")
     assert FeedbackSettings().spread_priority == "sum"
+
+
+def test_keep_progress_lets_the_spreading_slow_the_law_by_at_most_the_speed_it_leaves():
+    """add_within_speed(keep_progress=True) (feedback.spread_priority "progress") against the rule written out: w's
+    component against v scaled by 1 - |v| / v_max, then the largest lambda of a brute-force search; the robot's
+    speed along the law's direction drops by at most (1 - |v| / v_max) |w|."""
+    from swarmfield.control import add_within_speed, saturate
+
+    rng = np.random.default_rng(11)
+    v = saturate(rng.normal(0.0, 2.0, (300, 2)), 3.0)
+    w = rng.normal(0.0, 1.5, (300, 2))
+    out = add_within_speed(v, w, 3.0, keep_progress=True)
+    speed = np.hypot(*v.T)
+    unit = v / speed[:, None]
+    grid = np.linspace(0.0, 1.0, 20001)
+    for i in range(len(v)):
+        along = w[i] @ unit[i]
+        wi = w[i] - min(along, 0.0) * speed[i] / 3.0 * unit[i]
+        ok = np.hypot(*(v[i] + grid[:, None] * wi).T) <= 3.0 + 1e-12
+        assert np.allclose(out[i], v[i] + grid[ok].max() * wi, atol=3e-4)
+    progress = np.einsum("ij,ij->i", out, unit)
+    assert np.all(progress >= speed - (1.0 - speed / 3.0) * np.hypot(*w.T) - 1e-9)
+    assert np.all(np.hypot(*out.T) <= 3.0 + 1e-12)
+    # a robot the law drives at the limit, with w against it: "law" slows it, "progress" keeps the law
+    law, back = np.array([[3.0, 0.0]]), np.array([[-0.9, 0.3]])
+    assert add_within_speed(law, back, 3.0)[0, 0] < 2.5
+    assert np.array_equal(add_within_speed(law, back, 3.0, keep_progress=True), law)
+    # at rest the spreading acts whole
+    assert np.array_equal(add_within_speed(np.zeros((1, 2)), back, 3.0, keep_progress=True), back)
+    assert FeedbackSettings(spread_priority="progress").spread_priority == "progress"
