@@ -123,8 +123,9 @@ PRESETS: dict[str, dict] = {
             # still better (bumps seeds 1 and 3, aniso seed 3, three hand-drawn sites, the harbour's bumps) the
             # feedback's positions alone, one fixed GP and 16 common noise draws, are the best set on every case and on
             # bumps within 0.6 % of a perfect grid's: the losses are the runs' noise draws (one run's RMSE scatters by
-            # 3-6 %), not a lever left in the positions; the hole measured at the length scale instead of the nearest
-            # measurement was worse (docs/results/map-quality.md, "Where the map at 2 T still loses").
+            # 3-6 %), not a lever left in the positions; a hole measured at the length scale instead of by the nearest
+            # measurement was 5 % worse by the positions, at 0.5 m level (docs/results/map-quality.md, "Where the map at
+            # 2 T still loses").
             # spread_priority stays "sum" (sat(v + w)), also on larger sites: "progress" (w never slows the law's
             # progress beyond the speed it leaves) moved the 50 m square's front a metre farther, its maps at 2T
             # 1.13-1.45 -> 1.01-1.09x the ergodic baseline's, but made the yard's and the depot's maps at 2T worse on
