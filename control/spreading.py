@@ -32,6 +32,9 @@ the KDE (eq. "KDE"); with r below h the feedback sees it as an estimation error 
 (Theorem "ISS") and corrects it at the next sub-steps.  The stability results do not cover the term
 otherwise: it is a bounded disturbance |w| <= r / Δt of the velocity, like the saturation
 (:mod:`control.feedback`).  r = 0 is the law without it.
+
+A decentralized swarm applies the rule per connected component, each robot against the measurements it holds
+(``holds``) and its component's earlier choices (:mod:`sim.local_spreading`).
 """
 from __future__ import annotations
 

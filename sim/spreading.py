@@ -21,6 +21,10 @@ docs/results/closed-loop-step.md).
 
 The loop then moves the robots under v = sat(v_law + w) with the Brownian motion: they land near y,
 the law's own velocity re-evaluated along the way.
+
+This is the communication centre's spreading.  A decentralized swarm (``sim.comm_radius``) gets
+:class:`sim.local_spreading.ComponentSpreading` from its communication strategy instead: the same prediction and
+rule, applied per connected component to what its robots know.
 """
 from __future__ import annotations
 
