@@ -167,7 +167,8 @@ class GPSettings:
         resolvable (spline) field; the map's uncertainty at a point is V + tau^2
         (:meth:`regression.GaussianProcess.predict`, ``total=True``).
     learn_nugget
-        Learn tau^2 at each online refit (with ``learn_hyperparameters``) jointly with (s_f^2, l): MAP with an
+        Learn tau^2 at each online refit (with ``learn_hyperparameters``; without it the nugget stays at ``nugget``)
+        jointly with (s_f^2, l): MAP with an
         exponential prior of mean :data:`regression.hyper.NUGGET_PRIOR_MEAN` x the data's variance (mode 0: a
         field that does not need a nugget keeps ~0), bounded by the data's variance (:mod:`regression.hyper`,
         *Nugget*); ``nugget`` is its start value.

@@ -449,9 +449,6 @@ class RunConfig:
             raise ValueError(f"sim.gamma ({s.gamma:g}) must be below the GP prior variance gp.signal_variance "
                              f"({self.gp.signal_variance:g}): sup V starts there, so Algorithm 1 would stop before "
                              "the robots move")
-        if self.gp.learn_nugget and not self.gp.learn_hyperparameters:
-            raise ValueError("gp.learn_nugget = true is learned at the online hyperparameter refit: it needs "
-                             "gp.learn_hyperparameters = true (the tuned preset's), or give gp.nugget")
         if self.gp.kernel_angle == "auto" and not self.gp.learn_hyperparameters:
             raise ValueError("gp.kernel_angle = \"auto\" is chosen at the first hyperparameter refit: it needs "
                              "gp.learn_hyperparameters = true (the tuned preset's), or give the angle in degrees")
