@@ -170,7 +170,7 @@ PRESETS: dict[str, dict] = {
         # feedback / greedy, seeds 0-1) and 0.92-0.94 (a held-out ~k^-1.35 temperature field), and the map condition of
         # the stop counts tau^2 (the lab stops at 1.44 / 1.94 T instead of a premature 1.06 / 1.25 T; the temperature
         # field, whose RMSE stays at 0.35 of its sd, is never called mapped).  On the smooth fields (fine, hotspot,
-        # bumps) the learned nugget is ~0, times to threshold are equal or earlier (bumps' feedback 1.12 -> 1.19 T) and
+        # bumps) the learned nugget is ~0, times to threshold are equal or earlier except bumps' feedback (1.12 -> 1.19 T) and
         # maps at 2T and 3T within -2 % ... +4 %
         # (docs/results/map-quality.md, "A nugget for rough fields")
         "gp": {"learn_hyperparameters": True, "hyper_maxiter": 8, "signal_scale": "data", "signal_variance": 1.0,
