@@ -32,6 +32,10 @@ tab-separated line per run:
 Markdown table per label and seed: the feedback's own RMSE at 2 T over the best other controller's, and the same by
 the positions alone (``fixed_exp`` and ``fixed_rmse``), with that controller's paired wins against the feedback.
 
+``--first-period`` adds a line per run (on a rectangle): the fixed GP's sqrt(mean V) on the run's own measurements of
+the first period (t = 0 .. T) with the second period's replaced by a jittered grid of as many points, against the
+run's own two periods: whether its second period fills what its first left better than an even grid would.
+
 ``--references N`` (with ``--fixed``, on a rectangle) prints first what the same fixed GP gives on N points placed
 without any robot: a regular grid (the square of the nearest integer side), the grid jittered by up to half its
 spacing, and points drawn uniformly at random (``fixed_exp``; the best and the typical spread of N measurements).
@@ -152,6 +156,7 @@ def main(argv=None) -> int:
     ap.add_argument("--draws", type=int, default=16)
     ap.add_argument("--label", default="run")
     ap.add_argument("--references", type=int, default=0, metavar="N")
+    ap.add_argument("--first-period", action="store_true")
     a = ap.parse_args(argv)
     fixed = None
     if a.fixed:
@@ -225,6 +230,17 @@ def main(argv=None) -> int:
                 y = fM + np.sqrt(cfg.sim.noise_variance) * rng.standard_normal(len(M))
                 rm.append(np.sqrt(np.mean((y.mean() + W @ (y - y.mean()) - truth) ** 2)))
             rm = np.array(rm)
+            if a.first_period:
+                k = cfg.sim.steps_per_period
+                rest = len(M) - len(np.concatenate(res.positions[:k + 1]))
+                g = max(1, int(round(np.sqrt(rest))))
+                hx, hy = (x1 - x0) / g, (y1 - y0) / g
+                G = np.array(np.meshgrid(x0 + (np.arange(g) + 0.5) * hx, y0 + (np.arange(g) + 0.5) * hy,
+                                         indexing="ij")).reshape(2, -1).T
+                G = G + np.random.default_rng(0).uniform(-0.5, 0.5, G.shape) * [hx, hy]
+                _, Vg = dense_gp(np.concatenate([*res.positions[:k + 1], G]), C, hp[0], hp[1], cfg.sim.noise_variance)
+                print(f"first_period\t{ctrl}\t{seed}\town two periods {np.sqrt(Vf.mean()):.4f}\tfirst period + "
+                      f"jittered grid of {len(G)} {np.sqrt(Vg.mean()):.4f}", flush=True)
             if first is None:
                 first = rm
             print(f"{a.label}\t{ctrl}\t{seed}\t{np.sqrt(err2.mean()):.4f}\t{np.sqrt(V.mean()):.4f}\t"
