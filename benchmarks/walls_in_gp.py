@@ -14,7 +14,7 @@ the map files are written into ``--maps`` (default: a folder ``walls-maps`` besi
 per run: the time sup V first falls to the threshold (in T), RMSE and 95 % band coverage over the free planner cells
 at 2 T and 3 T, and the same within 1.5 m of a wall (cells whose centre is within 1.5 m of blocked space) and farther
 from it, the learned (s_f^2, l) at the end, the run's CPU time and, with ``auto``, each refit's choice (b: barrier, -:
-none); beside the CSV, one ``.npz`` per run with the maps
+none) and the log-posterior margins behind it (with the barrier less without); beside the CSV, one ``.npz`` per run with the maps
 (f̄, V) at 2 T and 3 T, the true values, the free and near-wall cells.
 """
 from __future__ import annotations
@@ -137,7 +137,9 @@ def run_one(doc: dict, field, controller: str, variant: str, seed: int, periods:
     row["s_f2"] = round(float(sim.gp.settings.signal_variance), 4)
     row["ell"] = round(float(sim.gp.settings.length_scale), 3)
     row["cpu_s"] = round(time.process_time() - t0, 1)
-    row["barrier_chosen"] = "".join("b" if w >= wo else "-" for _, w, wo in sim.gp.barrier_choices)
+    from swarmfield.regression.hyper import BARRIER_EVIDENCE
+    row["barrier_chosen"] = "".join("b" if w - wo > BARRIER_EVIDENCE else "-" for _, w, wo in sim.gp.barrier_choices)
+    row["barrier_margins"] = " ".join(f"{w - wo:.1f}" for _, w, wo in sim.gp.barrier_choices)
     return row
 
 
