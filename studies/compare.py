@@ -582,7 +582,9 @@ def run(argv=None) -> int:
         # the file as written (values the user gave), validated; presets are laid under it per task
         if args.config is not None:
             check_path(args.config, "config file")
-        base = load_config(args.config) if args.config else None
+        # under the first preset asked for: a file may lean on it (kernel_angle = "auto" needs the tuned preset's
+        # learned hyperparameters); each task's own preset is checked in make_tasks
+        base = load_config(args.config, preset=args.presets[0] if args.presets else None) if args.config else None
         base_doc = read_toml(args.config) if args.config else {}
         if args.cell_size is not None:       # the flag beats the file's cell size and cell counts
             base_doc = {**base_doc, "planner": {**{k: v for k, v in base_doc.get("planner", {}).items()

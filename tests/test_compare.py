@@ -111,6 +111,19 @@ def test_lost_robots_leave_holes_in_the_lawnmower_not_in_greedy(tmp_path, cfg, c
     assert last["lawnmower", "0.6"] > 0.15 > 0.1 > last["greedy", "0.6"]    # the lost robots' strips stay unseen
 
 
+def test_a_config_file_is_checked_under_the_preset_asked_for(tmp_path, capsys):
+    # kernel_angle = "auto" needs learned hyperparameters, which the tuned preset gives: the file alone is not valid,
+    # the file under --presets tuned is (the run then fails on the output folder, checked after the configurations)
+    cfg = tmp_path / "auto.toml"
+    cfg.write_text('[gp]\nkernel_angle = "auto"\n')
+    bad_out = str(tmp_path / ("x" * 300))
+    assert main(["--config", str(cfg), "--presets", "tuned", "--controllers", "feedback", "--out", bad_out]) == 2
+    err = capsys.readouterr().err
+    assert "output folder" in err and "kernel_angle" not in err
+    assert main(["--config", str(cfg), "--presets", "paper", "--controllers", "feedback", "--out", bad_out]) == 2
+    assert "kernel_angle" in capsys.readouterr().err
+
+
 def test_bad_inputs(tmp_path, cfg, capsys):
     assert main(["--controllers", "magic", "--out", str(tmp_path / "x")]) == 2
     assert "unknown controller" in capsys.readouterr().err
