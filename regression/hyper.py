@@ -66,8 +66,8 @@ REFIT_TRUNCATION = 1e-12
 #: bounds of a learned nugget tau^2 as multiples of the data's variance v_y (module docstring, *Nugget*): 0 (none)
 #: and v_y (all of the data's variance beyond the sensor's noise would be micro-scale: no field resolved)
 NUGGET_BOUNDS = (0.0, 1.0)
-#: mean of the exponential prior on a learned nugget, as a multiple of the data's variance v_y: at 0.1 the nugget
-#: absorbed some of a smooth field's kernel misfit in the closed loop (bumps, the tuned feedback: RMSE at 3T 0.060
+#: mean of the exponential prior on a learned nugget, as a multiple of the data's variance v_y.  At 0.1 the nugget
+#: absorbed some of a smooth field's kernel misfit in the closed loop (bumps, the tuned feedback, RMSE at 3T 0.060
 #: against 0.055 without a nugget, seeds 0-1); at 0.01 0.057, with the rough fields as well calibrated
 #: (docs/results/map-quality.md, "A nugget for rough fields")
 NUGGET_PRIOR_MEAN = 0.01
