@@ -78,8 +78,8 @@ class FeedbackSettings:
             drives at v_max gives up speed along the law's direction to a sideways w; ``"law"`` adds w only within
             the speed the law leaves (:func:`add_within_speed`): where the law saturates and w is across or
             along it, the robot follows the law alone; ``"progress"`` also keeps w from slowing the law's progress
-            by more than (1 - |v| / v_max) |w| (``keep_progress``): the tuned preset's on sites larger than the
-            paper's (:mod:`sim.site_scale`).
+            by more than (1 - |v| / v_max) |w| (``keep_progress``).  No preset uses the last two: measured on three
+            sites larger than the paper's they helped one and hurt two (docs/results/map-quality.md).
     """
 
     alpha: float = 1.0
