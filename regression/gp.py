@@ -321,25 +321,26 @@ def _lattice_sides(domain, angle: float) -> tuple[float, float]:
     return w * abs(c) + h * abs(s), w * abs(s) + h * abs(c)
 
 
+def _lattice_nodes(sides: tuple[float, float], h: float) -> int:
+    """Nodes of a cubic-B-spline lattice of spacing ``h`` over a box of ``sides``: (ceil(Lx / h) + 3)
+    (ceil(Ly / h) + 3), as :class:`regression.basis.SplineAxis` counts them."""
+    return (math.ceil(sides[0] / h - 1e-9) + 3) * (math.ceil(sides[1] / h - 1e-9) + 3)
+
+
 def _fitting_spacing(sides: tuple[float, float], budget: int, lo: float) -> float | None:
     """The smallest spacing h >= ``lo`` (to 3 significant digits, rounded up) whose lattice over a box of ``sides``
     has at most ``budget`` nodes, ``(ceil(Lx / h) + 3) (ceil(Ly / h) + 3)``; None if not even one cell per axis
     fits."""
-    lx, ly = sides
-
-    def nodes(h):
-        return (math.ceil(lx / h - 1e-9) + 3) * (math.ceil(ly / h - 1e-9) + 3)
-
-    hi = max(lx, ly)
-    if nodes(hi) > budget:      # budget < 16 is refused by the settings
+    hi = max(sides)
+    if _lattice_nodes(sides, hi) > budget:      # budget < 16 is refused by the settings
         return None
     for _ in range(200):        # bisection on the monotone node count
         mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if nodes(mid) > budget else (lo, mid)
+        lo, hi = (mid, hi) if _lattice_nodes(sides, mid) > budget else (lo, mid)
     q = 10.0 ** (math.floor(math.log10(hi)) - 2)      # the third significant digit's unit
     k = math.ceil(hi / q - 1e-9)
-    while nodes(float(f"{k * q:.3g}")) > budget:     # round up, one unit at a time (not by a factor: 1.22 x 1.001
-        k += 1                                          # rounds back to 1.22)
+    while _lattice_nodes(sides, float(f"{k * q:.3g}")) > budget:    # round up one unit at a time (not by a
+        k += 1                                                      # factor: 1.22 x 1.001 rounds back to 1.22)
     return float(f"{k * q:.3g}")
 
 
@@ -370,7 +371,7 @@ def _within_budget(domain, settings: GPSettings) -> GPSettings:
     h = settings.spacing_on(domain)
     sides = _lattice_sides(domain, settings.frame_angle)
     budget = settings.max_inducing_points
-    if (math.ceil(sides[0] / h - 1e-9) + 3) * (math.ceil(sides[1] / h - 1e-9) + 3) <= budget:
+    if _lattice_nodes(sides, h) <= budget:
         return settings
     fit = _fitting_spacing(sides, budget, h)
     if fit is None:
@@ -618,6 +619,11 @@ class GaussianProcess:
         if self._settings.prior_mean is not None:
             return self._settings.prior_mean
         return self._sum_y / self._n if self._n else 0.0
+
+    def _centred_square_sum(self) -> float:
+        """r^T r = sum (y_i - m)^2 over the data, m the :attr:`prior_mean` in use, from the running sums."""
+        m = self.prior_mean
+        return self._sum_y2 - 2.0 * m * self._sum_y + self._n * m * m
 
     # ------------------------------------------------------------------ data
     def _points(self, X, name: str) -> np.ndarray:
@@ -1362,8 +1368,7 @@ class GaussianProcess:
         Cholesky factor if known; ``noise``: the residual variance s_n^2 (+ tau^2) that ``a`` and ``b`` were divided
         by (default the settings')."""
         sn2 = self._settings.residual_variance if noise is None else float(noise)
-        m = self.prior_mean
-        rr = self._sum_y2 - 2.0 * m * self._sum_y + self._n * m * m
+        rr = self._centred_square_sum()
         prior = self._gmrf_prior(key)
         if factor is None:
             factor = banded.cholesky(a + prior.precision / s2, overwrite=True)
@@ -1411,8 +1416,7 @@ class GaussianProcess:
         quad_q, tr_q = banded.quadratic(q, mu) / s2, banded.trace_product(sel, q) / s2
         grad[0] = 0.5 * (quad_q + tr_q - self._n_coef)
         if noise is not None:
-            m = self.prior_mean
-            rr = self._sum_y2 - 2.0 * m * self._sum_y + self._n * m * m
+            rr = self._centred_square_sum()
             grad[3] = 0.5 * (rr / sn2 - float(b @ mu) - quad_q - self._n + self._n_coef - tr_q)
         for k, (dx, dy) in (((1, (1.0, 1.0)),) if tied else ((1, (1.0, 0.0)), (2, (0.0, 1.0)))):
             if isinstance(prior, CutPrior):
@@ -1431,8 +1435,7 @@ class GaussianProcess:
         if isinstance(ell, tuple) and ell[0] in GMRF_KERNELS:
             return self._gmrf_lml(s2, ell, a, b, noise=noise)
         sn2 = self._settings.residual_variance if noise is None else float(noise)
-        m = self.prior_mean
-        rr = self._sum_y2 - 2.0 * m * self._sum_y + self._n * m * m
+        rr = self._centred_square_sum()
         chol, basis = self._factorize(s2, ell, a)
         sb = self._kron_left(basis.fx.T, basis.fy.T, b[:, None])          # S^T b
         if basis.keep is not None:
@@ -1514,8 +1517,7 @@ class GaussianProcess:
         grad = np.empty(3 if noise is None else 4)
         grad[0] = 0.5 * (s2 * float(v @ v) - r + float(np.trace(cxx)))
         if noise is not None:
-            m = self.prior_mean
-            rr = self._sum_y2 - 2.0 * m * self._sum_y + self._n * m * m
+            rr = self._centred_square_sum()
             grad[3] = 0.5 * (rr / float(noise) - s2 * float(sb[:, 0] @ v) - s2 * float(v @ v) - self._n + r
                              - float(np.trace(cxx)))
         for k, (axis, ell_k, c_k, part, count) in enumerate(((self._ax, l_x, cx, cxx, nq), (self._ay, l_y, cy, cyy, np_))):
