@@ -650,6 +650,9 @@ class ErgodicController(Controller):
 
     def start(self, ctx):
         self.h = ctx.h
+        if ctx.free is not None:
+            # on a map: the Neumann Laplacian's eigenfunctions on the free, reachable cells without the closed faces
+            self.smc = SpectralCoverage(ctx.domain, self.config.sim.ergodic_modes, self.v_max, ctx.free, ctx.walls)
         self.smc.set_target(ctx.var, ctx.centers)
 
     def observe(self, ctx):

@@ -36,7 +36,7 @@ import math
 
 import numpy as np
 
-__all__ = ["CosineBasis", "SpectralCoverage"]
+__all__ = ["CosineBasis", "NeumannBasis", "SpectralCoverage"]
 
 
 class CosineBasis:
@@ -74,6 +74,14 @@ class CosineBasis:
             cx = cx * np.asarray(weights, float)[:, None]
         return (cx.T @ cy) / self.h
 
+    def density_coefficients(self, w, centers) -> np.ndarray:
+        """(K, K) array mu_k of the density w / (sum w dA) given by weights w >= 0 on the cell centres (all
+        zero: uniform): mu_k = sum_c (w_c / sum w) f_k(c) (midpoint rule)."""
+        tot = w.sum()
+        if not tot > 0:
+            w, tot = np.ones_like(w), float(len(w))
+        return self.sum_values(centers, w / tot)
+
     def gradient_sum(self, X, coef) -> np.ndarray:
         """(n, 2) array sum_k coef_k grad f_k(X_j)."""
         cx, sx, cy, sy = self._trig(np.asarray(X, float))
@@ -83,15 +91,126 @@ class CosineBasis:
         return np.column_stack([gx, gy])
 
 
+class NeumannBasis:
+    """The first ``count`` eigenfunctions f_k of the Neumann Laplacian on the free cells ``free`` (nx, ny) of the
+    planner grid on ``extent`` with the closed faces ``walls`` removed (:func:`domain.spectrum.neumann_modes`),
+    piecewise constant on the cells, and their Sobolev weights Lambda_k = (1 + lambda_k L1 L2 / pi^2)^(-s)
+    (module docstring, "On a map").  The interface of :class:`CosineBasis` with the modes on one axis."""
+
+    def __init__(self, free, extent, walls=None, count: int = 400, sobolev: float = 1.5):
+        from ..domain.spectrum import neumann_modes, open_face_masks
+        free = np.asarray(free, bool)
+        x0, x1, y0, y1 = (float(v) for v in extent)
+        self.x0, self.y0 = x0, y0
+        self.L1, self.L2 = x1 - x0, y1 - y0
+        nx, ny = free.shape
+        self.nx, self.ny = nx, ny
+        self.dx, self.dy = self.L1 / nx, self.L2 / ny
+        self.free = free
+        self.lam, self.F = neumann_modes(free, extent, walls, count)      # (M,), (m, M)
+        self.weights = (1.0 + self.lam * self.L1 * self.L2 / math.pi ** 2) ** (-float(sobolev))
+        # row of F for every cell: its own if free, else the nearest free cell's (robots in partly free cells)
+        fi, fj = np.nonzero(free)
+        row = np.full(nx * ny, -1, np.intp)
+        row[free.ravel()] = np.arange(len(fi))
+        bi, bj = np.nonzero(~free)
+        if len(bi):
+            near = np.empty(len(bi), np.intp)
+            for s in range(0, len(bi), 256):
+                d2 = ((bi[s:s + 256, None] - fi[None, :]) * self.dx) ** 2 + \
+                    ((bj[s:s + 256, None] - fj[None, :]) * self.dy) ** 2
+                near[s:s + 256] = np.argmin(d2, axis=1)
+            row[bi * ny + bj] = near
+        self._row = row
+        self._ci, self._cj = fi, fj                                     # cell indices of each free row
+        # neighbour rows across the open faces (-1: no flux -- the rectangle's side, a blocked cell or a wall)
+        ox, oy = open_face_masks(free, walls)
+        num = np.full((nx, ny), -1, np.intp)
+        num[free] = np.arange(len(fi))
+        nb = np.full((len(fi), 4), -1, np.intp)                         # left, right, down, up
+        right = np.zeros((nx, ny), bool)
+        right[:-1, :] = ox
+        left = np.zeros((nx, ny), bool)
+        left[1:, :] = ox
+        up = np.zeros((nx, ny), bool)
+        up[:, :-1] = oy
+        down = np.zeros((nx, ny), bool)
+        down[:, 1:] = oy
+        nb[:, 0] = np.where(left[fi, fj], num[np.maximum(fi - 1, 0), fj], -1)
+        nb[:, 1] = np.where(right[fi, fj], num[np.minimum(fi + 1, nx - 1), fj], -1)
+        nb[:, 2] = np.where(down[fi, fj], num[fi, np.maximum(fj - 1, 0)], -1)
+        nb[:, 3] = np.where(up[fi, fj], num[fi, np.minimum(fj + 1, ny - 1)], -1)
+        self._nb = nb
+
+    def rows(self, X) -> np.ndarray:
+        """The free cell (row of F) standing for each point: its own cell, or the nearest free one."""
+        X = np.asarray(X, float).reshape(-1, 2)
+        i = np.clip(((X[:, 0] - self.x0) / self.dx).astype(np.intp), 0, self.nx - 1)
+        j = np.clip(((X[:, 1] - self.y0) / self.dy).astype(np.intp), 0, self.ny - 1)
+        return self._row[i * self.ny + j]
+
+    def values(self, X) -> np.ndarray:
+        """(n, M) array f_k(X_j)."""
+        return self.F[self.rows(X)]
+
+    def sum_values(self, X, weights=None) -> np.ndarray:
+        """(M,) array sum_j w_j f_k(X_j) (w = 1 by default)."""
+        r = self.rows(X)
+        if weights is None:
+            return np.bincount(r, minlength=self.F.shape[0]) @ self.F
+        return np.bincount(r, weights=np.asarray(weights, float), minlength=self.F.shape[0]) @ self.F
+
+    def density_coefficients(self, w, centers) -> np.ndarray:
+        """(M,) array mu_k of the density given by weights w >= 0 on the planner grid's cell centres (``centers``
+        in the grid's order), restricted to the free cells and normalised there (all zero: uniform)."""
+        w = np.asarray(w, float).ravel()
+        if len(w) != self.nx * self.ny:
+            raise ValueError(f"NeumannBasis: {len(w)} density values for a {self.nx} x {self.ny} grid")
+        w = w[self.free.ravel()]
+        tot = w.sum()
+        if not tot > 0:
+            w, tot = np.ones_like(w), float(len(w))
+        return (w / tot) @ self.F
+
+    def gradient_sum(self, X, coef) -> np.ndarray:
+        """(n, 2) array grad phi(X_j) of phi = sum_k coef_k f_k: along each axis the difference quotients on the
+        cell's two faces (zero on a face without an open neighbour: no flux), interpolated linearly in the
+        position across the cell; then the component whose descent -grad phi points through a face without an
+        open neighbour is set to 0, so that u = -v B / |B| never drives a robot into a wall, a blocked cell or
+        the rectangle's side."""
+        X = np.asarray(X, float).reshape(-1, 2)
+        phi = self.F @ np.asarray(coef, float)
+        r = self.rows(X)
+        nb = self._nb[r]                                               # (n, 4)
+        has = nb >= 0
+        pn = np.where(has, phi[np.maximum(nb, 0)], phi[r][:, None])    # a missing neighbour: no difference
+        p0 = phi[r]
+        gl, gr = (p0 - pn[:, 0]) / self.dx, (pn[:, 1] - p0) / self.dx
+        gd, gu = (p0 - pn[:, 2]) / self.dy, (pn[:, 3] - p0) / self.dy
+        s = np.clip((X[:, 0] - self.x0) / self.dx - self._ci[r], 0.0, 1.0)
+        t = np.clip((X[:, 1] - self.y0) / self.dy - self._cj[r], 0.0, 1.0)
+        gx = (1.0 - s) * gl + s * gr
+        gy = (1.0 - t) * gd + t * gu
+        # the descent -g must not leave through a closed side of the cell
+        gx = np.where(((gx < 0) & ~has[:, 1]) | ((gx > 0) & ~has[:, 0]), 0.0, gx)
+        gy = np.where(((gy < 0) & ~has[:, 3]) | ((gy > 0) & ~has[:, 2]), 0.0, gy)
+        return np.column_stack([gx, gy])
+
+
 class SpectralCoverage:
     """State and feedback of spectral multiscale coverage (module docstring) for a swarm at speed
     ``v_max`` on ``domain`` with ``modes`` cosine modes per axis."""
 
-    def __init__(self, domain, modes: int, v_max: float):
-        self.basis = CosineBasis(domain, modes)
+    def __init__(self, domain, modes: int, v_max: float, free=None, walls=None):
+        if free is None:
+            self.basis = CosineBasis(domain, modes)
+        else:
+            K = int(modes)
+            if K < 1:
+                raise ValueError(f"ergodic modes must be >= 1, got {modes!r}")
+            self.basis = NeumannBasis(free, domain, walls, K * K)
         self.v_max = float(v_max)
-        K = int(modes)
-        self.S = np.zeros((K, K))         # accumulated sum_j int f_k(x_j) - N int mu_k
+        self.S = np.zeros(self.basis.weights.shape)   # accumulated sum_j int f_k(x_j) - N int mu_k
         self.elapsed = 0.0                # int N(t) dt
         self.mu_k = None
 
@@ -99,11 +218,8 @@ class SpectralCoverage:
         """mu_k from a target density on cell centres (any non-negative weights, normalised here;
         all zero: uniform)."""
         w = np.clip(np.asarray(density, float).ravel(), 0.0, None)
-        tot = w.sum()
-        if not tot > 0:
-            w, tot = np.ones_like(w), float(len(w))
         # mu = w / (tot dA) on cells of area dA: mu_k = sum mu(c) f_k(c) dA = sum (w / tot) f_k(c)
-        self.mu_k = self.basis.sum_values(centers, w / tot)
+        self.mu_k = self.basis.density_coefficients(w, centers)
 
     def coefficients(self) -> np.ndarray | None:
         """c_k - mu_k = S_k / int N dt (None before any motion)."""
