@@ -8,6 +8,7 @@ Modules, one concept each:
 ``walls``     mirror reflection at the walls of the rectangle
 ``kernel``    the obstacle reflection in compiled C (bit for bit the NumPy code)
 ``geodesic``  geodesic distances between planner cells (:class:`GeodesicGrid`)
+``spectrum``  eigenfunctions of the Neumann Laplacian on the free cells, walls removed (:func:`neumann_modes`)
 ``builtin``   the built-in maps (``harbour``, ``floor``, ``lake``)
 ``loaders``   domain files (.npz, .png, .tif, .geojson) and :func:`make_domain`
 ``limits``    how large a domain file may be (pixels, vertices, nesting) before it is refused
@@ -21,8 +22,9 @@ from .cells import cell_fractions
 from .common import MissingExtra
 from .domain import Domain
 from .geodesic import GeodesicGrid, geodesic_graph
+from .spectrum import neumann_laplacian, neumann_modes
 from .loaders import check_source, load_domain, make_domain
 from .settings import DomainSettings
 
 __all__ = ["Domain", "DomainSettings", "BUILTIN_DOMAINS", "load_domain", "make_domain", "check_source", "MissingExtra",
-           "cell_fractions", "geodesic_graph", "GeodesicGrid"]
+           "cell_fractions", "geodesic_graph", "GeodesicGrid", "neumann_laplacian", "neumann_modes"]

@@ -28,7 +28,8 @@ obstacle boundaries, whatever a controller commands.  With obstacles ``coverage`
 uniform density of the free space, ``greedy`` measures its radius and separation by geodesic
 distance (Dijkstra on the free cells, :class:`domain.GeodesicGrid`) and drives along the
 shortest path, ``lawnmower`` splits the free area into rectangles of equal free area and sweeps the
-free runs of each lane (a boustrophedon with geodesic detours between runs).
+free runs of each lane (a boustrophedon with geodesic detours between runs), ``ergodic`` replaces the
+rectangle's cosines by the Neumann Laplacian's eigenfunctions on the free cells without the closed faces.
 
 Writing your own: subclass :class:`Controller`, set ``name`` and ``needs_plan``, implement
 ``velocity`` (and ``start`` / ``start_period`` / ``observe`` as needed), and pass an instance as
@@ -639,7 +640,9 @@ class ErgodicController(Controller):
     """Spectral multiscale coverage (Mathew & Mezić 2011, :mod:`sim.ergodic`) towards the target
     mu ∝ V, refreshed after every measurement: u_j = -v_max B_j / |B_j| with B_j = sum_k Lambda_k S_k
     grad f_k(x_j), S_k the swarm's accumulated coefficient difference to the target; speed
-    ``planner.v_max``, ``sim.ergodic_modes`` cosine modes per axis, no planner."""
+    ``planner.v_max``, ``sim.ergodic_modes`` cosine modes per axis, no planner.  With obstacles the basis
+    is the first ``ergodic_modes``^2 eigenfunctions of the Neumann Laplacian on the free, reachable cells
+    with the closed faces removed, and the feedback never points into a wall (:class:`sim.ergodic.NeumannBasis`)."""
 
     name = "ergodic"
 

@@ -25,10 +25,40 @@ moment, so regions covered before stay counted as covered.  grad f_k has a vanis
 component on the walls, so the feedback never pushes a robot through a wall (the loop's reflecting
 walls handle the Brownian part).  Only the working robots are counted (N = robots alive).
 
+On a map
+--------
+The cosines are the eigenfunctions of the Laplacian with Neumann (zero-flux) conditions on the rectangle, and
+SMC on a non-convex domain takes the Neumann eigenfunctions of the domain itself (Mathew & Mezić 2011,
+section 2, define the metric for any such basis).  With obstacles (``ctx.free``) the basis is
+:class:`NeumannBasis`: the first M = K^2 eigenfunctions (as many as on the rectangle, at most the number of
+cells) of the zero-flux graph Laplacian of the free, reachable planner cells, with the faces that walls
+thinner than a cell close removed from the graph (:func:`domain.spectrum.neumann_modes`; dense LAPACK or
+ARPACK shift-invert, once per run: 0.5 s for 40 x 24 cells and 1.6 s for 40 x 40 with 400 modes).  The
+eigenfunctions are piecewise constant on the cells (f_k(x_j) is its cell's value; a robot in a blocked,
+partly free cell counts in the nearest free cell), mu_k is summed over the free cells only, and
+
+    Lambda_k = (1 + lambda_k L1 L2 / pi^2)^(-s),     lambda_k the k-th eigenvalue of the graph Laplacian [1/m^2].
+
+On a square (L1 = L2 = L) the rectangle's eigenvalues are lambda_k = pi^2 |k|^2 / L^2, so this is exactly the
+cosine basis's (1 + |k|^2)^(-s); on an L1 x L2 rectangle it weighs k1^2 L2 / L1 + k2^2 L1 / L2 instead of
+|k|^2, and the discrete eigenvalues lie below the continuous ones by the factor (sin(theta) / theta)^2,
+theta = k pi / (2 n) (at most 19 % for K = 20 on 40 cells).  The gradient grad phi of phi = sum_k Lambda_k S_k
+f_k at a robot is taken from the difference quotients of phi across its cell's faces, zero across a face with
+no free neighbour behind it (the rectangle's side, a blocked cell, a closed face), interpolated linearly in
+the robot's position within the cell; a component whose descent would leave the cell through such a face
+is set to zero, so the feedback never pushes a robot into a wall, a blocked cell or the side (only a
+diagonal step past a corner can touch one; the loop reflects it).  On the empty rectangle (``ctx.free`` is
+None) the cosine basis and its code path are unchanged, bit for bit.
+
+HEDAC (Ivić, Crnković & Mezić, "Ergodicity-based cooperative multiagent area coverage via a potential field",
+IEEE Trans. Cybernetics 47 (2017) 1983-1993), the other established extension (a Helmholtz potential on the
+free domain with Neumann walls, driven by the uncovered part of the target), was measured against this one on
+the same maps (docs/results/buildings.md, "An ergodic baseline that sees the walls").
+
 :class:`SpectralCoverage` holds the state (S_k, mu_k) and computes u_j; the controller
 ``ergodic`` (``sim.controllers.ErgodicController``) drives it: speed ``planner.v_max`` like the
 other motion baselines, no planner, ``sim.ergodic_modes`` = K modes per axis (default 20: wavelength
-2 m on the paper's 20 m domain).
+2 m on the paper's 20 m domain; on a map K^2 eigenfunctions).
 """
 from __future__ import annotations
 
