@@ -51,9 +51,9 @@ diagonal step past a corner can touch one; the loop reflects it).  On the empty 
 None) the cosine basis and its code path are unchanged, bit for bit.
 
 HEDAC (Ivić, Crnković & Mezić, "Ergodicity-based cooperative multiagent area coverage via a potential field",
-IEEE Trans. Cybernetics 47 (2017) 1983-1993), the other established extension (a Helmholtz potential on the
-free domain with Neumann walls, driven by the uncovered part of the target), was measured against this one on
-the same maps (docs/results/buildings.md, "An ergodic baseline that sees the walls").
+IEEE Trans. Cybernetics 47 (2017) 1983-1993) is the other established extension (a Helmholtz potential on the
+free domain with Neumann walls, driven by the uncovered part of the target); the measurements of this basis
+on maps are in docs/results/buildings.md, "An ergodic baseline that sees the walls".
 
 :class:`SpectralCoverage` holds the state (S_k, mu_k) and computes u_j; the controller
 ``ergodic`` (``sim.controllers.ErgodicController``) drives it: speed ``planner.v_max`` like the
