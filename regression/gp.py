@@ -455,16 +455,20 @@ class GaussianProcess:
         self.barrier_choices: list = []
         self._build_lattice(frame)
 
-    def _build_lattice(self, frame: Frame | None) -> None:
+    def _build_lattice(self, frame: Frame | None, axes: tuple[SplineAxis, SplineAxis] | None = None) -> None:
         """The inducing lattice in ``frame`` (default: the settings' kernel angle on the domain, :mod:`regression.frame`)
-        and empty power sums and caches on it."""
+        and empty power sums and caches on it; ``axes``: the lattice's two axes as given (the refit's padded coarse
+        grid, :func:`regression.hyper.coarsened`), else those of ``frame.box`` at the inducing spacing."""
         settings = self._settings
         if frame is None:
             frame = Frame.for_domain(self._domain, settings.frame_angle, self._spacing, settings.hyper_coarsening)
         self._frame = frame
         u0, u1, v0, v1 = frame.box
-        self._ax = SplineAxis(u0, u1, self._spacing)
-        self._ay = SplineAxis(v0, v1, self._spacing)
+        if axes is None:
+            self._ax = SplineAxis(u0, u1, self._spacing)
+            self._ay = SplineAxis(v0, v1, self._spacing)
+        else:
+            self._ax, self._ay = axes
         self._n_nodes = self._ax.n_nodes * self._ay.n_nodes
         if self._n_nodes > settings.max_inducing_points:
             rotated = "" if frame.identity else f" (the lattice covers the domain rotated by {frame.angle:g} degrees)"

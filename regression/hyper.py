@@ -48,6 +48,7 @@ import warnings
 import numpy as np
 from scipy.optimize import minimize
 
+from .basis import SplineAxis
 from .gp import _N_POW, _N_POW_Y, GaussianProcess, kernel_key
 from .kernels import GMRF_KERNELS
 from .scale import SIGNAL_BOUNDS, running_variance
@@ -84,32 +85,43 @@ def _offset_maps(c: int, n_pow: int) -> np.ndarray:
 
 
 def coarsening_factor(gp, wanted: int) -> int:
-    """The largest c <= ``wanted`` dividing both axes' cell counts (1 if none larger); always 1 for a GMRF kernel
-    (``"gmrf"``, ``"gmrf2"``): its prior is the lattice discretisation of an SPDE, whose precision depends on the
+    """The largest c <= ``wanted`` dividing both axes' cell counts (1 if none larger); ``wanted`` itself when gp's
+    ``hyper_coarsening_pad`` is set (the grid is padded to a multiple of it, :func:`coarsened`); always 1 for a GMRF
+    kernel (``"gmrf"``, ``"gmrf2"``): its prior is the lattice discretisation of an SPDE, whose precision depends on the
     lattice spacing, so that on a coarser lattice it is another model -- fitted there, a draw from the prior at
     l = 2 m on the 0.5 m lattice learned l = 1.5 m instead of 2.0 -- while the fine lattice's banded likelihood is
     cheap enough to be fitted on directly."""
     if gp.settings.kernel in GMRF_KERNELS:
         return 1
     nx, ny = gp._ax.n_cells, gp._ay.n_cells
+    if gp.settings.hyper_coarsening_pad:
+        return max(1, int(wanted))
     for c in range(max(1, int(wanted)), 0, -1):
         if nx % c == 0 and ny % c == 0:
             return c
     return 1
 
 
-def coarsened(gp, factor: int, length_scale: float | None = None, prior_truncation: float | None = None):
+def coarsened(gp, factor: int, length_scale: float | None = None, prior_truncation: float | None = None,
+              pad: bool | None = None):
     """A :class:`GaussianProcess` on the grid of cell width ``factor`` x gp's, holding exactly the
     sufficient statistics of gp's data (module docstring); its settings are gp's with that spacing
     and ``length_scale`` (default: gp's, raised to the coarse grid's lower bound 1.5 W), and ``prior_truncation``
-    if given."""
+    if given.
+
+    ``pad`` (default gp's ``hyper_coarsening_pad``): when ``factor`` does not divide a cell count, gp's grid is
+    taken as padded with empty cells at that axis's upper end to the next multiple (the data's sums are exact as
+    before; the coarse lattice reaches up to ``factor - 1`` fine cells beyond the site's box); otherwise that is an
+    error."""
     c = int(factor)
     ax, ay = gp._ax, gp._ay
-    if c < 1 or ax.n_cells % c or ay.n_cells % c:
+    s = gp.settings
+    pad = s.hyper_coarsening_pad if pad is None else bool(pad)
+    if c < 1 or (not pad and (ax.n_cells % c or ay.n_cells % c)):
         raise ValueError(f"coarsening factor {factor!r} must divide the cell counts {ax.n_cells} x {ay.n_cells}")
+    NX, NY = -(-ax.n_cells // c), -(-ay.n_cells // c)
     wx, wy = ax.h * c, ay.h * c
     spacing = max(wx, wy)
-    s = gp.settings
     ell = max(s.length_scale if length_scale is None else float(length_scale), 1.5 * spacing)
     ell_y = None if s.length_scale_y is None else max(s.length_scale_y, 1.5 * spacing)
     tr = s.prior_truncation if prior_truncation is None else float(prior_truncation)
@@ -117,20 +129,35 @@ def coarsened(gp, factor: int, length_scale: float | None = None, prior_truncati
                                                  learn_hyperparameters=False, prior_truncation=tr), gp.domain,
                               frame=gp.frame)
     coarse._raw = None
-    if (coarse._ax.n_cells, coarse._ay.n_cells) != (ax.n_cells // c, ay.n_cells // c):   # pragma: no cover
+    if (NX * c, NY * c) != (ax.n_cells, ay.n_cells):
+        # the padded grid: NX x NY coarse cells of exactly c fine cells each, from the fine lattice's lower corner
+        u0, v0 = ax.lo, ay.lo
+        coarse._build_lattice(gp.frame, axes=(SplineAxis(u0, u0 + NX * wx, wx), SplineAxis(v0, v0 + NY * wy, wy)))
+    if (coarse._ax.n_cells, coarse._ay.n_cells) != (NX, NY):   # pragma: no cover
         raise RuntimeError("coarse grid does not align with the fine one")
-    NX, NY = ax.n_cells // c, ay.n_cells // c
     T = _offset_maps(c, _N_POW)
-    m = gp._mom.reshape(NX, c, NY, c, _N_POW, _N_POW)
+    m, my = gp._mom, gp._momy
+    if (NX * c, NY * c) != (ax.n_cells, ay.n_cells):              # empty cells beyond the grid's upper ends
+        m = _padded(m, ax.n_cells, ay.n_cells, NX * c, NY * c)
+        my = _padded(my, ax.n_cells, ay.n_cells, NX * c, NY * c)
+    m = m.reshape(NX, c, NY, c, _N_POW, _N_POW)
     coarse._mom[...] = np.einsum("IoJpkl,oak,pbl->IJab", m, T, T, optimize=True).reshape(NX * NY, _N_POW, _N_POW)
     Ty = T[:, :_N_POW_Y, :_N_POW_Y]
-    my = gp._momy.reshape(NX, c, NY, c, _N_POW_Y, _N_POW_Y)
+    my = my.reshape(NX, c, NY, c, _N_POW_Y, _N_POW_Y)
     coarse._momy[...] = np.einsum("IoJpkl,oak,pbl->IJab", my, Ty, Ty, optimize=True).reshape(NX * NY, _N_POW_Y,
                                                                                              _N_POW_Y)
     coarse._n, coarse._sum_y, coarse._sum_y2 = gp._n, gp._sum_y, gp._sum_y2
     coarse._version += 1
     coarse._pending, coarse._pending_n = None, 0
     return coarse
+
+
+def _padded(sums: np.ndarray, nx: int, ny: int, px: int, py: int) -> np.ndarray:
+    """Per-cell power sums ``sums`` (nx ny, ...) of an nx x ny grid as those of the px x py grid (px >= nx, py >= ny)
+    that holds it in its lower corner, the other cells empty."""
+    out = np.zeros((px, py) + sums.shape[1:])
+    out[:nx, :ny] = sums.reshape((nx, ny) + sums.shape[1:])
+    return out.reshape((px * py,) + sums.shape[1:])
 
 
 def length_scale_bounds(gp, factor: int = 1) -> tuple[float, float]:

@@ -65,3 +65,41 @@ class RefitHyperparameters:
     def time_warm_refit_after_100_points(self):
         self.gp.add(*self._data(self.rng, 100))
         self.refit(self.gp)
+
+
+class RefitLargeSite:
+    """One warm online refit on a 40 m x 25 m site at the tuned preset's GP (Matérn 5/2, learned nugget, data scale),
+    its grid coarsened to the budget (spacing 0.521 m: 77 x 48 cells, 4,080 nodes), after 800 more points (a period
+    of 100 robots): on the full grid (``hyper_coarsening_pad = false``: 2 does not divide 77) and on the padded coarse
+    grid (``true``) (docs/results/closed-loop-step.md, "Tuned runs on larger sites"; ``python benchmarks/run_cost.py``
+    for a whole run)."""
+
+    timer = TIMER
+    params = [False, True]
+    param_names = ["hyper_coarsening_pad"]
+    number = 1
+    repeat = 3
+    warmup_time = 0.0
+    timeout = 600
+
+    @staticmethod
+    def _data(rng, n):
+        X = rng.uniform((0.0, 0.0), (40.0, 25.0), (n, 2))
+        return X, 400.0 + 30.0 * np.sin(X[:, 0] / 4) * np.cos(X[:, 1] / 3) + 0.1 * rng.normal(size=n)
+
+    def setup(self, pad):
+        limit_threads()
+        from swarmfield.regression import GaussianProcess, GPSettings
+        from swarmfield.regression.hyper import refit_online
+        self.refit = refit_online
+        self.rng = np.random.default_rng(0)
+        s = GPSettings(learn_hyperparameters=True, hyper_maxiter=8, signal_scale="data", signal_variance=1.0,
+                       kernel="matern52", hyper_prior_sd=0.5, hyper_step_sd=1.0, learn_nugget=True, noise_variance=0.01,
+                       inducing_spacing=0.521, hyper_coarsening_pad=pad)
+        self.gp = GaussianProcess(s, domain=(0.0, 40.0, 0.0, 25.0))
+        self.gp.add(*self._data(self.rng, 1600))
+        self.refit(self.gp)
+
+    def time_warm_refit_after_800_points(self, pad):
+        self.gp.add(*self._data(self.rng, 800))
+        self.refit(self.gp)
