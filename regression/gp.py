@@ -880,17 +880,41 @@ class GaussianProcess:
 
     def _prior_sandwich(self, basis: _PriorBasis, a: np.ndarray, out: np.ndarray, work) -> np.ndarray:
         """S_K^T A S_K (r x r) for A given by its band ``a`` (:meth:`_assemble`), into ``out`` (a work array of M^2 doubles;
-        ``work``: two more, none overlapping ``a``)."""
+        ``work``: two more, none overlapping ``a``).
+
+        With directions dropped (``basis.keep``) only the kept columns are formed: as in :meth:`_band_sandwich` the
+        y-sandwiches of A's blocks and the band of fx first, G[i, (p', q'), q] = sum_i' fx[i', p'] (fy^T A_ii' fy)[q,
+        q'] for the kept (p', q') alone, then the one dense contraction fx^T on i for every row (p, q) and the kept
+        rows gathered: its flops shrink by r / (cx cy) (at M = 4080, a learned l = 5 m keeps r = 1750 of 4080: 2.3x
+        fewer), and no (cx cy)^2 array is written.  The same sums as the full sandwich's in another order (equal to
+        round-off, ``tests/test_regression.py``); the result is S_K^T A S_K transposed, i.e. itself up to round-off
+        (only one triangle feeds the Cholesky factorisation)."""
         if basis.keep is None:
             return self._band_sandwich(basis, a, out=out, work=work)
-        full = self._band_sandwich(basis, a, out=work[1], work=(out, work[0]))     # S^T a S, (cx cy)^2
+        return self._kept_sandwich(basis, a, out=out, work=work)
+
+    @staticmethod
+    def _kept_sandwich(basis: _PriorBasis, a: np.ndarray, out: np.ndarray, work) -> np.ndarray:
+        """:meth:`_prior_sandwich` with directions dropped: (S_K^T A S_K)^T, r x r, on the start of ``out``."""
+        fx, fy = basis.fx, basis.fy
+        gx, _, gy, _ = a.shape
+        cx, cy = fx.shape[1], fy.shape[1]
         r = basis.size
-        rows = _view(work[0], (r, full.shape[1]))
-        res = _view(out, (r, r))
-        for src, n, dst in basis.runs:                         # the kept rows, then the kept columns
-            rows[dst:dst + n] = full[src:src + n]
+        at = np.ascontiguousarray(a.transpose(2, 0, 1, 3)).reshape(gy, gx * _BAND, _BAND)   # [j, (i, di), dj]
+        e = np.matmul(at, basis.fy_band)                     # [j, (i, di), q'] = sum_dj A fy
+        f = fy.T @ e.reshape(gy, gx * _BAND * cy)            # [q, (i, di, q')] = fy^T A_ii' fy
+        f = np.ascontiguousarray(f.reshape(cy, gx, _BAND, cy).transpose(1, 2, 3, 0))         # [i, di, q', q]
+        fxb = np.ascontiguousarray(basis.fx_band.transpose(0, 2, 1))                          # [i, p', di]
+        g = np.matmul(fxb, f.reshape(gx, _BAND, cy * cy), out=_view(work[0], (gx, cx, cy * cy)))   # [i, p', q', q]
+        g = g.reshape(gx, cx * cy, cy)
+        gk = _view(work[1], (gx, r, cy))                                                      # [i, kept (p', q'), q]
         for src, n, dst in basis.runs:
-            res[:, dst:dst + n] = rows[:, src:src + n]
+            gk[:, dst:dst + n] = g[:, src:src + n]
+        rows = _view(work[0], (cx, r, cy))                                                    # [p, kept, q]
+        np.matmul(fx.T, gk.reshape(gx, r * cy), out=rows.reshape(cx, r * cy))
+        res = _view(out, (r, r))                                                              # [kept, kept (p, q)]
+        for src, n, dst in basis.runs:                                                     # run of row p = src / cy
+            res[:, dst:dst + n] = rows[src // cy, :, :n]
         return res
 
     def _embed(self, basis: _PriorBasis, z: np.ndarray, out: np.ndarray) -> np.ndarray:
@@ -1498,19 +1522,17 @@ class GaussianProcess:
         if basis.keep is None:
             x3 = x.reshape(r, cx, cy)
             v2 = v.reshape(cx, cy)
+            xr = x3.reshape(r * cx, cy)
+            cyy = xr.T @ xr                                      # sum_p B^-1[(p, q), (p, q')]
+            xt = _view(_work_arrays(self._n_nodes)[1], (cx, r, cy))
+            np.copyto(xt, x3.transpose(1, 0, 2))
+            xt = xt.reshape(cx, r * cy)
+            cxx = xt @ xt.T                                      # sum_q B^-1[(p, q), (p', q)]
         else:
-            xe = np.zeros((r, cx * cy))
-            xe[:, basis.keep] = x
-            x3 = xe.reshape(r, cx, cy)
             ve = np.zeros(cx * cy)
             ve[basis.keep] = v
             v2 = ve.reshape(cx, cy)
-        xr = x3.reshape(r * cx, cy)
-        cyy = xr.T @ xr                                          # sum_p B^-1[(p, q), (p, q')]
-        xt = _view(_work_arrays(self._n_nodes)[1], (cx, r, cy))
-        np.copyto(xt, x3.transpose(1, 0, 2))
-        xt = xt.reshape(cx, r * cy)
-        cxx = xt @ xt.T                                          # sum_q B^-1[(p, q), (p', q)]
+            cxx, cyy = self._partial_traces(basis, x)
         if basis.keep is None:
             nq, np_ = np.full(cx, float(cy)), np.full(cy, float(cx))
         else:
@@ -1531,6 +1553,31 @@ class GaussianProcess:
             data = float(np.sum(v2 * (g @ v2))) if k == 0 else float(np.sum(v2 * (v2 @ g)))
             grad[k + 1] = 0.5 * (s2 * data - float(np.diag(g) @ count) + float(np.sum(g * part)))
         return lml, grad
+
+    def _partial_traces(self, basis: _PriorBasis, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The partial traces of B^-1 = X^T X over one axis each, cxx[p, p'] = sum_q B^-1[(p, q), (p', q)] and
+        cyy[q, q'] = sum_p B^-1[(p, q), (p, q')] (pairs of kept directions; X = L^-1, r x r, its columns in the kept
+        order), from X's columns without embedding X among the dropped directions: the kept (p, q) of one p are a run
+        of columns (``basis.runs``; q = 0 .. c_p - 1), so cyy sums X_p^T X_p over the runs
+        and cxx sums Z_q^T Z_q over q, Z_q the columns (p, q) of the p with c_p > q.  The same sums as over the
+        zero-embedded X, in another order (equal to round-off)."""
+        cx, cy = basis.fx.shape[1], basis.fy.shape[1]
+        cyy = np.zeros((cy, cy))
+        starts = np.zeros(cx, dtype=np.int64)
+        counts = np.zeros(cx, dtype=np.int64)
+        for src, n, dst in basis.runs:
+            blk = x[:, dst:dst + n]
+            cyy[:n, :n] += blk.T @ blk
+            starts[src // cy], counts[src // cy] = dst, n
+        cxx = np.zeros((cx, cx))
+        for q in range(cy):
+            ps = np.flatnonzero(counts > q)                   # the p with c_p > q (0 .. m - 1: a staircase)
+            z = x[:, starts[ps] + q]
+            if ps.size == ps[-1] + 1:
+                cxx[:ps.size, :ps.size] += z.T @ z
+            else:                                            # pragma: no cover - eigenvalues sorted: a staircase
+                cxx[np.ix_(ps, ps)] += z.T @ z
+        return cxx, cyy
 
     def fit_hyperparameters(self, signal_variance_bounds=None, length_scale_bounds=None,
                             maxiter: int = 50, prior=None) -> GPSettings:

@@ -386,6 +386,40 @@ def test_band_sandwich_equals_the_dense_kronecker_product():
     np.testing.assert_allclose(got, s.T @ dense @ s, rtol=0, atol=1e-12 * np.abs(s.T @ dense @ s).max())
 
 
+
+@pytest.mark.parametrize("kernel,length_scale", [("squared-exponential", 1.0), ("matern52", 3.0)])
+def test_kept_sandwich_and_partial_traces_equal_the_embedded_computation(kernel, length_scale):
+    """With prior directions dropped, S_K^T A S_K formed for the kept directions alone (transposed) equals the kept block
+    of the full band sandwich, and the partial traces of B^-1 = X^T X from X's runs of columns equal those of X
+    embedded among the dropped directions (the former computation), to round-off."""
+    from scipy.linalg import lapack
+    from swarmfield.regression.gp import _work_arrays
+    rng = np.random.default_rng(8)
+    gp = GaussianProcess(GPSettings(kernel=kernel, length_scale=length_scale, inducing_spacing=0.5, prior_mean=0.0),
+                         (0.0, 12.0, 0.0, 8.0))
+    X = rng.uniform((0, 0), (12, 8), (3000, 2))
+    gp.add(X, np.sin(X[:, 0] / 2) + 0.2 * rng.normal(size=3000))
+    basis = gp._prior_basis(gp.settings.kernel_key)
+    r, (cx, cy) = basis.size, (basis.fx.shape[1], basis.fy.shape[1])
+    assert basis.keep is not None and r < cx * cy                     # directions dropped
+    a = gp._assemble_a()
+    m = gp._n_nodes
+    work = [np.empty((m, m)) for _ in range(3)]
+    full = gp._band_sandwich(basis, a, out=work[0], work=(work[1], work[2]))[np.ix_(basis.keep, basis.keep)]
+    kept = gp._kept_sandwich(basis, a, out=work[1], work=(work[0], work[2]))
+    np.testing.assert_allclose(kept, full.T, rtol=0, atol=1e-13 * np.abs(full).max())
+    chol, _ = gp._factorize(0.5, gp.settings.kernel_key, a)
+    x = lapack.dtrtri(np.array(chol.T, order="F"), lower=0)[0].T         # L^-1
+    xe = np.zeros((r, cx * cy))
+    xe[:, basis.keep] = x
+    x3 = xe.reshape(r, cx, cy)
+    cyy = np.einsum("kpq,kps->qs", x3, x3)
+    cxx = np.einsum("kpq,ksq->ps", x3, x3)
+    got_x, got_y = gp._partial_traces(basis, x)
+    np.testing.assert_allclose(got_x, cxx, rtol=0, atol=1e-13 * np.abs(cxx).max())
+    np.testing.assert_allclose(got_y, cyy, rtol=0, atol=1e-13 * np.abs(cyy).max())
+    assert _work_arrays(m)[0].shape == (m, m)
+
 def test_banded_posterior_equals_the_full_covariance_after_a_factorisation():
     """Predictions read Sigma's band from T = S_K B^-1 (no M x M Sigma); the full Sigma, formed when a
     Woodbury update needs it, has the same band and gives the same mean."""
