@@ -52,8 +52,11 @@ None) the cosine basis and its code path are unchanged, bit for bit.
 
 HEDAC (Ivić, Crnković & Mezić, "Ergodicity-based cooperative multiagent area coverage via a potential field",
 IEEE Trans. Cybernetics 47 (2017) 1983-1993) is the other established extension (a Helmholtz potential on the
-free domain with Neumann walls, driven by the uncovered part of the target); the measurements of this basis
-on maps are in docs/results/buildings.md, "An ergodic baseline that sees the walls".
+free domain with Neumann walls, driven by the uncovered part of the target).  Measured on the same maps with
+the same cells, walls and wall-safe gradient (``benchmarks/hedac_maps.py``) it was no better: ahead on one
+office map, behind on the clinic and the offices floor, level on the floor, and no single Helmholtz length
+wins on both the office and the clinic; so the baseline stays SMC, the same method as on the rectangle
+(docs/results/buildings.md, "An ergodic baseline that sees the walls").
 
 :class:`SpectralCoverage` holds the state (S_k, mu_k) and computes u_j; the controller
 ``ergodic`` (``sim.controllers.ErgodicController``) drives it: speed ``planner.v_max`` like the
