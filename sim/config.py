@@ -58,7 +58,7 @@ from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict, g
 from ..regression import GPSettings
 from ..domain import DomainSettings
 from .presets import DEFAULT_PRESET, PRESETS, merge_under_preset
-from .site_scale import SITE_SCALE_RULES, area_ratio, scale_document
+from .site_scale import SITE_SCALE_RULES, area_ratio, resolved_site_area, scale_document
 from .stopping import STOP_RULES
 
 __all__ = ["SimSettings", "KDESettings", "RunConfig", "load_config", "read_toml", "config_from_dict", "to_toml",
@@ -222,9 +222,10 @@ class SimSettings:
                     default: through the whole connected component within the step)
     site_scale      ``"off"`` (default): every setting as given; ``"area"`` (the tuned preset's): the settings of
                     :data:`sim.site_scale.SCALED` that the configuration does not give (the KDE bandwidth x s, the
-                    planner's energy weight w_v / s^2) scaled with s = max(1, sqrt(area of ``domain`` / 400 m^2)),
+                    planner's energy weight w_v / s^2) scaled with s = max(1, sqrt(the site's area / 400 m^2)),
                     so that a site larger than the paper's 20 m x 20 m gets them in proportion
-                    (:mod:`sim.site_scale`); s = 1 up to 400 m^2
+                    (:mod:`sim.site_scale`); the site's area is the ``[domain]`` map's free area, else that of
+                    ``domain``; s = 1 up to 400 m^2
     """
 
     robots: int = 100
@@ -531,7 +532,8 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
     sim_map = dict(doc.get("sim", {}))
     sim_map.update({k: v for k, v in (overrides or {}).items() if v is not None})
     sim = dataclass_from_dict(SimSettings, sim_map, "sim")
-    doc, _ = scale_document(doc, given, area_ratio(sim.domain, sim.site_scale),
+    area = resolved_site_area(sim, (doc.get("domain") or {}).get("source", ""))    # a map's free area
+    doc, _ = scale_document(doc, given, area_ratio(sim.domain, sim.site_scale, area),
                             {"kde": KDESettings, "feedback": FeedbackSettings, "planner": PlannerSettings})
     gp_map = dict(doc.get("gp", {}))
     if (overrides or {}).get("noise_variance") is not None:      # e.g. --noise-sd over a run's config.toml

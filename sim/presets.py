@@ -190,7 +190,9 @@ PRESETS: dict[str, dict] = {
         # map_rmse_relative 0.3: the robust rule also asks for the GP's expected RMSE sqrt(mean V) <= 0.3 s_f, so that
         # it fires only when the map is good (sim.stopping, "The map condition"; docs/results/map-quality.md)
         # site_scale "area": the values above are those of the paper's 20 m x 20 m; on a larger site the settings of
-        # sim.site_scale.SCALED are scaled with s = sqrt(area / 400 m^2) (s = 1 up to 400 m^2: no change): the KDE's
+        # sim.site_scale.SCALED are scaled with s = sqrt(area / 400 m^2) (s = 1 up to 400 m^2: no change; the area a
+        # map's free area, not its rectangle's: a 482 m^2 pond in a 36 m x 26 m rectangle, s 1.53 -> 1.10, its map at
+        # 2T 0.91 / 0.92x, the threshold first instead of level; docs/results/map-quality.md): the KDE's
         # 1 m bandwidth x s (on a 60 m x 40 m yard every robot saw its own kernel as a crowd, p̂ / p_r ~ 1.7 at the
         # robots) and the planner's energy weight w_v / s^2 (its integral grows with the area, the information terms
         # do not).  On the yard, seeds 0 and 1: the threshold never within 4 T -> 3.25 / 3.00 T (greedy 3.25, the

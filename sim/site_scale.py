@@ -17,7 +17,11 @@ With ``sim.site_scale = "area"`` (the tuned preset's) the settings of :data:`SCA
 
     s = max(1, sqrt(|Omega| / A_ref)),    A_ref = 400 m^2 (the paper's 20 m x 20 m),
 
-|Omega| the area of ``sim.domain``'s rectangle: the bandwidth by s (the robots' spacing sqrt(|Omega| / n) grows
+|Omega| the site's area: the free area of the ``[domain]`` map when there is one (:func:`site_area`), else the area of
+``sim.domain``'s rectangle.  The free area, not the map's bounding rectangle: on a 482 m^2 pond drawn inside a
+36 m x 26 m rectangle the rectangle gave s = 1.53, the robots' spacing gives 1.10, and with 1.10 the feedback's map at
+2 T was 0.91 / 0.92x what it was with 1.53 (seeds 0 / 1; docs/results/map-quality.md, "The site's area on a map").
+The bandwidth by s (the robots' spacing sqrt(|Omega| / n) grows
 with s), the energy weight by 1 / s^2 (the penalty on the site's mean |v|^2 stays the rectangle's).  On any
 rectangle of at most 400 m^2 s is 1 and nothing changes (not a bit): a bandwidth wider than the robots' spacing
 only smooths more, and the preset was not measured on smaller sites.  Only values the user's configuration does not
@@ -33,8 +37,8 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["SITE_SCALE_RULES", "REFERENCE_AREA", "SCALED", "area_ratio", "site_factor", "scaled_value", "scale_document",
-           "site_summary"]
+__all__ = ["SITE_SCALE_RULES", "REFERENCE_AREA", "SCALED", "area_ratio", "site_area", "site_factor", "scaled_value",
+           "scale_document", "site_summary", "resolved_site_area"]
 
 #: ``sim.site_scale``: "off" (values as given) or "area" (scaled by s = max(1, sqrt(area / REFERENCE_AREA)))
 SITE_SCALE_RULES = ("off", "area")
@@ -51,21 +55,45 @@ SCALED: tuple[tuple[str, str, int], ...] = (
 )
 
 
-def area_ratio(domain, rule: str = "area") -> float:
-    """s^2 = max(1, area of ``domain`` = (x0, x1, y0, y1) / :data:`REFERENCE_AREA`) for ``rule`` "area", 1.0 for
-    "off"."""
+def _rectangle_area(domain) -> float:
+    x0, x1, y0, y1 = (float(v) for v in domain)
+    return (x1 - x0) * (y1 - y0)
+
+
+def site_area(domain, source="") -> float:
+    """The site's area |Omega| [m^2]: the free area of the map ``source`` (a ``[domain] source``: a built-in name, a
+    file or a :class:`domain.Domain`; loaded on ``domain`` = (x0, x1, y0, y1), once per process) or, without one,
+    the area of the rectangle ``domain``."""
+    if source is None or (isinstance(source, str) and not source):
+        return _rectangle_area(domain)
+    from ..domain import make_domain
+    region = make_domain(source, domain)
+    return _rectangle_area(domain) if region is None else float(region.free_area)
+
+
+def area_ratio(domain, rule: str = "area", area: float | None = None) -> float:
+    """s^2 = max(1, |Omega| / :data:`REFERENCE_AREA`) for ``rule`` "area", 1.0 for "off"; |Omega| is ``area`` if
+    given (e.g. :func:`site_area` of a map), else the area of ``domain`` = (x0, x1, y0, y1)."""
     if rule not in SITE_SCALE_RULES:
         raise ValueError(f"sim.site_scale must be one of {', '.join(repr(r) for r in SITE_SCALE_RULES)}, got {rule!r}")
     if rule == "off":
         return 1.0
-    x0, x1, y0, y1 = (float(v) for v in domain)
-    area = (x1 - x0) * (y1 - y0)
+    area = _rectangle_area(domain) if area is None else float(area)
     return area / REFERENCE_AREA if area > REFERENCE_AREA else 1.0
 
 
-def site_factor(domain, rule: str = "area") -> float:
-    """s = sqrt(:func:`area_ratio`): max(1, sqrt(area / :data:`REFERENCE_AREA`)) for "area", 1.0 for "off"."""
-    return math.sqrt(area_ratio(domain, rule))
+def site_factor(domain, rule: str = "area", area: float | None = None) -> float:
+    """s = sqrt(:func:`area_ratio`): max(1, sqrt(|Omega| / :data:`REFERENCE_AREA`)) for "area", 1.0 for "off"."""
+    return math.sqrt(area_ratio(domain, rule, area))
+
+
+def resolved_site_area(sim, source="") -> float | None:
+    """The area the rule scales by for a run's ``[sim]`` settings and ``[domain] source``: None when it cannot
+    matter (rule "off", or a rectangle of at most :data:`REFERENCE_AREA`, whose free area is no larger), else
+    :func:`site_area` (which loads the map)."""
+    if sim.site_scale == "off" or _rectangle_area(sim.domain) <= REFERENCE_AREA:
+        return None
+    return site_area(sim.domain, source)
 
 
 def scaled_value(value: float, ratio: float, power: int) -> float:
@@ -103,10 +131,11 @@ def scale_document(doc: dict, given: dict, ratio: float, defaults: dict) -> tupl
 
 
 def site_summary(config) -> dict:
-    """summary.json's ``site_scale`` block: the rule, the reference area, the site's area, the factor s and the
-    resolved values of the settings the rule scales (whether scaled or given)."""
+    """summary.json's ``site_scale`` block: the rule, the reference area, the site's area (the map's free area with a
+    ``[domain]`` map, :func:`site_area`), the factor s and the resolved values of the settings the rule scales
+    (whether scaled or given)."""
     s = config.sim
-    x0, x1, y0, y1 = s.domain
-    return {"rule": s.site_scale, "reference_area_m2": REFERENCE_AREA, "area_m2": (x1 - x0) * (y1 - y0),
-            "factor": site_factor(s.domain, s.site_scale),
+    area = site_area(s.domain, config.domain.source)
+    return {"rule": s.site_scale, "reference_area_m2": REFERENCE_AREA, "area_m2": area,
+            "factor": site_factor(s.domain, s.site_scale, area),
             "settings": {f"{sec}.{key}": getattr(getattr(config, sec), key) for sec, key, _ in SCALED}}

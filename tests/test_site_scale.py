@@ -127,3 +127,26 @@ def test_a_run_on_a_larger_site_records_the_scaling_and_repeats_from_its_config_
     assert simulate_main(["--config", str(out / "config.toml"), "--out", str(again), "--quiet", "--no-figures"]) == 0
     assert (again / "metrics.csv").read_text() == (out / "metrics.csv").read_text()
     assert json.loads((again / "summary.json").read_text())["site_scale"]["settings"] == summary["site_scale"]["settings"]
+
+
+def test_on_a_map_the_site_is_its_free_area_not_its_rectangle(tmp_path):
+    """A map's site is its free space: a 40 m x 20 m rectangle whose map frees 400 m^2 scales nothing, one that
+    frees 600 m^2 scales by sqrt(1.5), whatever the rectangle (800 m^2, s = sqrt(2) before)."""
+    def map_file(name, free_columns):
+        free = np.zeros((400, 200), bool)                 # 0.1 m pixels, x first
+        free[:free_columns] = True
+        path = tmp_path / f"{name}.npz"
+        np.savez(path, free=free, extent=np.array([0.0, 40.0, 0.0, 20.0]))
+        return str(path)
+
+    site = {"domain": [0.0, 40.0, 0.0, 20.0]}
+    half = config_from_dict({"sim": site, "domain": {"source": map_file("half", 200)}}, preset="tuned")
+    assert half.kde.bandwidth == 1.0 and half.planner.w_v == 0.01          # 400 m^2 free: nothing scaled
+    three = config_from_dict({"sim": site, "domain": {"source": map_file("three", 300)}}, preset="tuned")
+    assert three.kde.bandwidth == pytest.approx(math.sqrt(1.5), rel=1e-12)
+    assert three.planner.w_v == pytest.approx(0.01 / 1.5, rel=1e-12)
+    s = site_summary(three)
+    assert s["area_m2"] == pytest.approx(600.0) and s["factor"] == pytest.approx(math.sqrt(1.5))
+    assert config_from_dict(three.as_dict()) == three                       # repeats from its resolved config
+    rect = config_from_dict({"sim": site}, preset="tuned")                  # no map: the rectangle's 800 m^2
+    assert rect.kde.bandwidth == pytest.approx(math.sqrt(2.0)) and site_summary(rect)["area_m2"] == 800.0
