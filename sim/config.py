@@ -170,7 +170,8 @@ class SimSettings:
     greedy_radius   ``greedy``: a robot looks for the highest GP variance within this distance [m]
     greedy_separation  ``greedy``: a goal excludes the cells within this distance from other robots' goals [m]
     lawnmower_lane  ``lawnmower``: spacing of the sweep lanes inside a robot's rectangle [m]
-    ergodic_modes   ``ergodic``: cosine modes per axis of the spectral multiscale coverage (sim.ergodic)
+    ergodic_modes   ``ergodic``: cosine modes per axis of the spectral multiscale coverage (sim.ergodic);
+                    on a map its square is the number of Neumann eigenfunctions of the free cells
     robot_loss      fraction of the robots (chosen at random) that stop working at ``loss_time``:
                     they no longer move or measure, and the KDE no longer sees them
     loss_time       time [s] of the loss (default: the period T, i.e. 7 s in the paper scenario)
