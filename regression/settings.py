@@ -109,7 +109,10 @@ class GPSettings:
         largest factor that divides both, often 1, i.e. on the full grid (at M = 4080 nodes ~0.3-0.5 s a likelihood
         evaluation, ~40 % of a tuned run's CPU there); ``True`` pads the grid with empty cells at its upper ends to a
         multiple of ``hyper_coarsening`` and fits on that coarse grid (the same exact sufficient statistics, a
-        lattice up to ``hyper_coarsening - 1`` cells wider than the site; :func:`regression.hyper.coarsened`).
+        lattice up to ``hyper_coarsening - 1`` cells wider than the site; :func:`regression.hyper.coarsened`): that
+        run 1.6-1.7x cheaper, its learned values a few per cent off the full grid's and its maps with them (measured
+        on that site: as good at 3 T, the tuned feedback's at 2 T worse on two seeds of four), so not the tuned
+        preset's default (docs/results/closed-loop-step.md, "Tuned runs on larger sites").
     kernel
         ``"squared-exponential"`` (the paper's), ``"matern52"`` or ``"matern32"``: the one-dimensional factor of
         the separable kernel (:mod:`regression.kernels`; Matérn for fields rougher than the squared exponential's
