@@ -641,7 +641,7 @@ class ErgodicController(Controller):
     mu ∝ V, refreshed after every measurement: u_j = -v_max B_j / |B_j| with B_j = sum_k Lambda_k S_k
     grad f_k(x_j), S_k the swarm's accumulated coefficient difference to the target; speed
     ``planner.v_max``, ``sim.ergodic_modes`` cosine modes per axis, no planner.  With obstacles the basis
-    is the first ``ergodic_modes``^2 eigenfunctions of the Neumann Laplacian on the free, reachable cells
+    is the first (``ergodic_modes``)² eigenfunctions of the Neumann Laplacian on the free, reachable cells
     with the closed faces removed, and the feedback never points into a wall (:class:`sim.ergodic.NeumannBasis`)."""
 
     name = "ergodic"
