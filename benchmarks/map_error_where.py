@@ -2,7 +2,7 @@
 (docs/results/map-quality.md, "Smooth fields: where the map at 2 T loses").
 
     python benchmarks/map_error_where.py SCENARIO SEEDS [--controllers feedback ergodic ...] [--set SECTION.KEY=VALUE]
-        [--config FILE.toml] [--noise-sd SD] [--robots N] [--domains MAP] [--fixed S2,L] [--draws 16] [--label LABEL]
+        [--config FILE.toml] [--noise-sd SD] [--robots N] [--domains MAP] [--fixed S2,L[,TAU2]] [--draws 16] [--label LABEL]
 
 ``SCENARIO``: a name of ``benchmarks/measurement_spread.py`` (``fine``, ``aniso``, ``hotspot``, ``bumps``, ``floor``)
 or a field (a built-in name or a file) with ``--config`` (a TOML laid over the tuned preset, as ``compare-controllers
@@ -26,7 +26,9 @@ tab-separated line per run:
   controller): ``fixed_exp`` its sqrt(mean V) (positions only, no noise), ``fixed_rmse`` / ``fixed_sd`` the mean and
   the standard deviation of its RMSE over the draws (the latter: the scatter one run's noise gives), ``win`` the
   fraction of the draws on which these positions' RMSE is below the seed's first controller's (paired, same draw);
-- ``sf2`` / ``ell``: the hyperparameters the run learned by 2 T.
+- ``sf2`` / ``ell`` / ``tau2``: the hyperparameters the run learned by 2 T (``tau2`` the nugget, 0 without one; the
+  fixed GP of the positions alone then adds it to the noise variance, ``--fixed S2,L,TAU2`` gives it);
+  ``refits``: the learned ``s_f^2/l/tau^2`` after each refit of the run (at 0, T, 2 T).
 
 ``python benchmarks/map_error_where.py --table OUT.tsv [OUT.tsv ...]`` reads such lines (saved output) and prints a
 Markdown table per label and seed: the feedback's own RMSE at 2 T over the best other controller's, and the same by
@@ -72,11 +74,17 @@ def run_to_2T(doc):
     class Cells(Recorder):
         def start(self, sim):
             self.centers, self.free = sim.centers, sim.free
+            self.refits = []
+
+        def refitted(self, sim):
+            g = sim.gp.settings
+            self.refits.append((sim.t / sim.settings.period, g.signal_variance, g.length_scale, g.nugget))
 
     cfg = config_from_dict(doc, preset="tuned")
     cells = Cells()
     res = run_simulation(cfg, stop_rule=make_stop_rule(cfg.sim, stops=False), recorders=(cells,))
     free = np.ones(len(cells.centers), bool) if cells.free is None else np.asarray(cells.free, bool).ravel()
+    res.refits = cells.refits
     return cfg, res, np.asarray(cells.centers)[free], free
 
 
@@ -100,7 +108,7 @@ def references(a, base, field, noise_var, hp):
     sets = {"grid": G, "jittered grid": G + rng.uniform(-0.5, 0.5, G.shape) * [hx, hy],
             "random": rng.uniform([x0, y0], [x1, y1], (a.references, 2))}
     for name, P in sets.items():
-        _, V = dense_gp(P, C, hp[0], hp[1], cfg.sim.noise_variance)
+        _, V = dense_gp(P, C, hp[0], hp[1], cfg.sim.noise_variance + hp[2])
         print(f"reference\t{name}\t{len(P)} points\tfixed_exp {np.sqrt(V.mean()):.4f}", flush=True)
 
 
@@ -162,9 +170,10 @@ def main(argv=None) -> int:
     if a.fixed:
         try:
             fixed = tuple(float(v) for v in a.fixed.split(","))
-            assert len(fixed) == 2 and min(fixed) > 0
+            assert len(fixed) in (2, 3) and min(fixed[:2]) > 0 and fixed[-1] >= 0
+            fixed = fixed if len(fixed) == 3 else (*fixed, 0.0)
         except (ValueError, AssertionError):
-            ap.error(f"--fixed wants S2,L (two positive numbers), got {a.fixed!r}")
+            ap.error(f"--fixed wants S2,L[,TAU2] (two positive numbers, a nugget >= 0), got {a.fixed!r}")
     if a.draws < 1 or (a.noise_sd is not None and not a.noise_sd > 0):
         ap.error("--draws must be >= 1 and --noise-sd > 0")
     base: dict = {}
@@ -181,7 +190,7 @@ def main(argv=None) -> int:
             ap.error("--references needs --fixed S2,L")
         references(a, base, field, noise_var, fixed)
     print("label\tcontroller\tseed\trmse\texp\tsupV\tm4V\tedge\tstruct\tfill_mean\tfill_max\tcv\tedge_n\t"
-          "fixed_exp\tfixed_rmse\tfixed_sd\twin\tsf2\tell", flush=True)
+          "fixed_exp\tfixed_rmse\tfixed_sd\twin\tsf2\tell\ttau2\trefits", flush=True)
     for seed in (int(s) for s in a.seeds.split(",")):
         hp, first = fixed, None
         for ctrl in a.controllers:
@@ -220,9 +229,10 @@ def main(argv=None) -> int:
             area = np.bincount(block(C), minlength=nbx * nby)
             full = area >= 0.5 * area.max()
             dens = np.bincount(block(M), minlength=nbx * nby)[full] / area[full]
+            tau2 = float((getattr(res, "kernel", None) or {}).get("nugget") or 0.0)
             if hp is None:
-                hp = (sf2, ell)
-            W, Vf = dense_gp(M, C, hp[0], hp[1], cfg.sim.noise_variance)
+                hp = (sf2, ell, tau2)
+            W, Vf = dense_gp(M, C, hp[0], hp[1], cfg.sim.noise_variance + hp[2])
             fM = make_field(field, cfg.sim.domain)(M)
             rng = np.random.default_rng(1)
             rm = []
@@ -238,7 +248,8 @@ def main(argv=None) -> int:
                 G = np.array(np.meshgrid(x0 + (np.arange(g) + 0.5) * hx, y0 + (np.arange(g) + 0.5) * hy,
                                          indexing="ij")).reshape(2, -1).T
                 G = G + np.random.default_rng(0).uniform(-0.5, 0.5, G.shape) * [hx, hy]
-                _, Vg = dense_gp(np.concatenate([*res.positions[:k + 1], G]), C, hp[0], hp[1], cfg.sim.noise_variance)
+                _, Vg = dense_gp(np.concatenate([*res.positions[:k + 1], G]), C, hp[0], hp[1],
+                                 cfg.sim.noise_variance + hp[2])
                 print(f"first_period\t{ctrl}\t{seed}\town two periods {np.sqrt(Vf.mean()):.4f}\tfirst period + "
                       f"jittered grid of {len(G)} {np.sqrt(Vg.mean()):.4f}", flush=True)
             if first is None:
@@ -248,7 +259,8 @@ def main(argv=None) -> int:
                   f"{np.mean((V / sf2) ** 4) ** 0.25:.3f}\t{err2[edge].sum() / err2.sum():.2f}\t"
                   f"{err2[struct].sum() / err2.sum():.2f} ({struct.mean():.2f})\t{d.mean():.3f}\t{d.max():.3f}\t"
                   f"{dens.std() / dens.mean():.3f}\t{np.mean(to_wall(M) < 1.0):.3f}\t{np.sqrt(Vf.mean()):.4f}\t"
-                  f"{rm.mean():.4f}\t{rm.std():.4f}\t{np.mean(rm < first):.2f}\t{sf2:.4g}\t{ell:.2f}", flush=True)
+                  f"{rm.mean():.4f}\t{rm.std():.4f}\t{np.mean(rm < first):.2f}\t{sf2:.4g}\t{ell:.2f}\t{tau2:.4g}\t"
+                  + " ".join(f"{t:.0f}T:{s:.3g}/{ll:.3g}/{n:.3g}" for t, s, ll, n in res.refits), flush=True)
     return 0
 
 
