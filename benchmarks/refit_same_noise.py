@@ -3,7 +3,7 @@ own GP on common noise draws (docs/results/map-quality.md, "Rough fields nobody 
 
     python benchmarks/refit_same_noise.py FIELD SEEDS [--controllers feedback greedy] [--config FILE.toml]
         [--domains MAP] [--noise-sd SD] [--robots N] [--set SECTION.KEY=VALUE] [--gp KEY=VALUE] [--draws 8]
-        [--save DIR] [--label LABEL]
+        [--save DIR] [--label LABEL] [--periods 2]
 
 Runs each controller (the tuned preset laid under ``--config``, as ``compare-controllers --config``; the stop rule
 recorded and not stopping) to 2 T with ``SEED`` and keeps the positions of its measurements (``--save DIR``: kept in
@@ -16,7 +16,8 @@ and draw: the RMSE at 2 T over the free cells, the 95 % band's coverage there (f
 (s_f², ℓ, τ²) after each refit and the log marginal likelihood of all data at the end (the GP's own, with its
 learned values).  A difference between controllers' means
 over the draws is then due to the positions alone (through the map *and* through the hyperparameters their data
-lead to), not to the noise a run happened to draw.
+lead to), not to the noise a run happened to draw.  ``--periods P`` (default 2): the same at P T (the runs to P T,
+kept as ``DIR/CONTROLLER-SEED-P.npz`` when P is not 2; a refit at every period start up to P T).
 """
 from __future__ import annotations
 
@@ -36,16 +37,17 @@ from measurement_spread import set_option  # noqa: E402
 
 def positions(a, base, ctrl, seed, noise_var):
     """(steps, centres of the free cells, truth there, domain, config) of one run to 2 T, from ``--save`` if kept."""
-    path = Path(a.save) / f"{ctrl}-{seed}.npz" if a.save else None
+    P = a.periods
+    path = Path(a.save) / (f"{ctrl}-{seed}.npz" if P == 2 else f"{ctrl}-{seed}-{P}.npz") if a.save else None
     if path is not None and path.exists():
         d = np.load(path)
         k = int(d["k"])
-        return [d[f"p{i}"] for i in range(2 * k + 1)], d["C"], d["truth"], tuple(d["domain"]), k
+        return [d[f"p{i}"] for i in range(P * k + 1)], d["C"], d["truth"], tuple(d["domain"]), k
     doc = {s: dict(v) if isinstance(v, dict) else v for s, v in base.items()}
     if ctrl == "feedback":
         for item in a.set:
             set_option(doc, item, prog="refit_same_noise.py")
-    doc.setdefault("sim", {}).update(controller=ctrl, field=a.field, seed=seed, max_periods=2)
+    doc.setdefault("sim", {}).update(controller=ctrl, field=a.field, seed=seed, max_periods=P)
     if noise_var:
         doc["sim"]["noise_variance"] = noise_var
     if a.robots:
@@ -54,9 +56,9 @@ def positions(a, base, ctrl, seed, noise_var):
         doc.setdefault("domain", {})["source"] = a.domains
     cfg, res, C, free = run_to_2T(doc)
     k = cfg.sim.steps_per_period
-    steps = [np.asarray(p) for p in res.positions[:2 * k + 1]]
+    steps = [np.asarray(p) for p in res.positions[:P * k + 1]]
     truth = res.f_true.reshape(-1)[free]
-    print(f"# {ctrl} seed {seed}: RMSE at 2 T in its own run {res.rows[-1]['rmse']:.4f}", flush=True)
+    print(f"# {ctrl} seed {seed}: RMSE at {P} T in its own run {res.rows[-1]['rmse']:.4f}", flush=True)
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         np.savez(path, k=k, C=C, truth=truth, domain=np.array(cfg.sim.domain),
@@ -83,9 +85,10 @@ def main(argv=None) -> int:
     ap.add_argument("--draws", type=int, default=8)
     ap.add_argument("--save", default=None, metavar="DIR")
     ap.add_argument("--label", default="run")
+    ap.add_argument("--periods", type=int, default=2)
     a = ap.parse_args(argv)
-    if a.draws < 1 or (a.noise_sd is not None and not a.noise_sd > 0):
-        ap.error("--draws must be >= 1 and --noise-sd > 0")
+    if a.draws < 1 or a.periods < 1 or (a.noise_sd is not None and not a.noise_sd > 0):
+        ap.error("--draws and --periods must be >= 1 and --noise-sd > 0")
     base: dict = {}
     if a.config:
         try:
@@ -122,12 +125,12 @@ def main(argv=None) -> int:
             for ctrl, (steps, C, truth, domain, k) in sets.items():
                 gp = GaussianProcess(gs, domain=domain)
                 used, fits = 0, []
-                for lo, hi in ((0, 1), (1, k + 1), (k + 1, 2 * k + 1)):     # t = 0; the first period; the second
+                for lo, hi in [(0, 1)] + [(j * k + 1, (j + 1) * k + 1) for j in range(a.periods)]:   # t = 0; each period
                     P = np.concatenate(steps[lo:hi])
                     gp.add(P, f(P) + noise[used:used + len(P)])
                     used += len(P)
                     if gs.learn_hyperparameters and gp.n_observations >= 2:
-                        s = refit_online(gp)              # at the period starts 0, T, 2 T (as sim.simulation does)
+                        s = refit_online(gp)              # at the period starts 0, T, 2 T, ... (as sim.simulation does)
                         fits.append(f"{s.signal_variance:.3g}/{s.length_scale:.3g}/{s.nugget:.3g}")
                 mean, var = gp.predict(C)
                 band = 1.96 * np.sqrt(gp.map_variance(var))

@@ -46,3 +46,9 @@ def test_refit_same_noise_rejects_bad_arguments(args):
     with pytest.raises(SystemExit) as e:
         _module("refit_same_noise").main(["bumps", "0", *args])
     assert e.value.code == 2
+
+
+def test_refit_same_noise_periods_must_be_positive(capsys):
+    with pytest.raises(SystemExit) as e:
+        _module("refit_same_noise").main(["bumps", "0", "--periods", "0"])
+    assert e.value.code == 2 and "--periods must be >= 1" in capsys.readouterr().err
