@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 
 from swarmfield.regression import GaussianProcess, GPSettings, target_density
+from swarmfield.regression.hyper import coarsening_factor
 from swarmfield.regression.kernels import squared_exponential
 
 sklearn_gp = pytest.importorskip("sklearn.gaussian_process")
@@ -548,9 +549,18 @@ def test_grid_budget_coarsen_widens_the_spacing_to_fit(angle):
     assert gp.settings.shortest_length_scale >= 1.5 * h * (1 - 1e-12)
     assert gp.settings.length_scale == (1.0 if 1.5 * h <= 1.0 else pytest.approx(1.5 * h))
     if angle == 0.0:
-        assert h == pytest.approx(0.521)        # the same spacing the "error" advice names (2 h = 1.042 there)
-        with pytest.raises(ValueError, match="max_inducing_points"):  # and 1 % finer does not fit
-            GaussianProcess(GPSettings(grid_cells=40, inducing_spacing=0.99 * h), (0.0, 40.0, 0.0, 25.0))
+        # the finest that fits is 0.521 m (the spacing the "error" advice names, 2 h = 1.042 there): 77 x 48 cells,
+        # which the refit's factor 2 does not divide; 0.527 m (76 x 48) is the finest within 5 % that it divides
+        with pytest.raises(ValueError, match="max_inducing_points"):  # 0.521 fits, 1 % finer does not
+            GaussianProcess(GPSettings(grid_cells=40, inducing_spacing=0.99 * 0.521), (0.0, 40.0, 0.0, 25.0))
+        GaussianProcess(GPSettings(grid_cells=40, inducing_spacing=0.521), (0.0, 40.0, 0.0, 25.0))
+        assert h == pytest.approx(0.527) and (gp._ax.n_cells, gp._ay.n_cells) == (76, 48)
+        assert coarsening_factor(gp, 2) == 2
+        # the refit's own choices keep the finest fitting spacing: a padded refit, or a factor of 1
+        for kw in ({"hyper_coarsening_pad": True}, {"hyper_coarsening": 1}):
+            with pytest.warns(UserWarning, match="spacing 0.521 instead"):
+                other = GaussianProcess(GPSettings(grid_cells=40, grid_budget="coarsen", **kw), (0.0, 40.0, 0.0, 25.0))
+            assert other.settings.inducing_spacing == pytest.approx(0.521)
     with warnings.catch_warnings():                 # within the budget nothing changes, and nothing is said
         warnings.simplefilter("error")
         small = GaussianProcess(GPSettings(grid_cells=40, grid_budget="coarsen"), (0.0, 20.0, 0.0, 20.0))
