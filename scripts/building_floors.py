@@ -1,8 +1,8 @@
 """Building floors with walls thinner than a planner cell: the maps, and the controllers measured on them.
 
     python scripts/building_floors.py maps [--out docs/figures/buildings]
-    python scripts/building_floors.py run --floors offices clinic --controllers feedback greedy lawnmower \
-        --seeds 0 1 --preset tuned --periods 4 [--cell-size 0.5] --csv runs.csv
+    python scripts/building_floors.py run --floors offices clinic wings --controllers feedback greedy lawnmower \
+        --seeds 0 1 --preset tuned --periods 4 [--cell-size 0.5] [--field bumps] --csv runs.csv
     python scripts/building_floors.py plot --csv runs.csv --png buildings.png
 
 ``maps`` writes the floors as GeoJSON (free region = the floor less its walls, 0.3 m walls and 1.2 m doors
@@ -10,7 +10,8 @@ unless said otherwise) with a room list beside each (``<name>.rooms.json``: name
 ``run`` runs Algorithm 1 on each floor (``sim.stop_rule`` recorded, the run never stops at it, as
 compare-controllers does) and writes one CSV row per run: the time the threshold is first reached (in T),
 RMSE at 2 T and 4 T, the robots that measured in each room by 2 T and 3 T (a robot "visits" a room when
-one of its measurements lies in it), and the travel-time limit.  ``plot`` draws every floor with its rooms
+one of its measurements lies in it), the RMSE at 2 T in each room with the room's share of the map's squared
+error (``room_errors_2T``: room -> [RMSE, share]), and the travel-time limit.  ``plot`` draws every floor with its rooms
 and the closed planner faces, and the feedback's robots at 2 T.
 """
 from __future__ import annotations
@@ -72,7 +73,38 @@ def _clinic():
     return ext, walls, doors, rooms, (8.8, 11.2, 0.3, 3.0)
 
 
-FLOORS = {"offices": _offices, "clinic": _clinic}
+def _wings():
+    """24 m x 20 m, drawn after the other two floors had been analysed (held out): an L-shaped corridor 2.4 m wide,
+    one leg along the floor (y 6-8.4) and one up its east part (x 15.6-18), with rooms off both sides of both
+    legs: four south of the long leg (the easternmost reached only through the room east of the corner), three
+    north of it (the north-east one split in two, its back half opening onto the other leg), two east of the
+    short leg; most doors at a room's end.  Start: the short leg's north end, far from the floor's south-west
+    corner."""
+    ext = (0.0, 24.0, 0.0, 20.0)
+    y0, y1, x0, x1 = 6.0, 8.4, 15.6, 18.0                                     # the legs
+    walls = [(0.0, 24.0, y0 - W, y0), (0.0, x0 - W, y1, y1 + W),              # the long leg's walls
+             (x0 - W, x0, y1, 20.0), (x1, x1 + W, y0, 20.0)]                   # the short leg's walls
+    walls += [(x - W / 2, x + W / 2, 0.0, y0 - W) for x in (6.0, 12.0, 18.15)]      # south rooms
+    walls += [(x - W / 2, x + W / 2, y1 + W, 20.0) for x in (5.0, 10.0)]            # north rooms
+    walls += [(10.0 + W / 2, x0 - W, 14.0 - W / 2, 14.0 + W / 2)]                   # the north-east one split
+    walls += [(x1 + W, 24.0, 13.0 - W / 2, 13.0 + W / 2)]                           # east rooms
+    doors = [(a, a + DOOR, y0 - W - 0.01, y0 + 0.01) for a in (0.6, 10.2, 12.6)]      # south rooms to the leg
+    doors += [(22.2, 22.2 + DOOR, y0 - W - 0.01, y0 + 0.01)]                          # south-east room, via east 1
+    doors += [(a, a + DOOR, y1 - 0.01, y1 + W + 0.01) for a in (0.6, 8.4, 13.6)]      # north rooms to the leg
+    doors += [(x0 - W - 0.01, x0 + 0.01, 18.2, 18.2 + DOOR)]                          # north-east back half
+    doors += [(x1 - 0.01, x1 + W + 0.01, a, a + DOOR) for a in (11.4, 18.4)]          # east rooms
+    rooms = {"long leg": (0.0, x1, y0, y1), "short leg": (x0, x1, y1, 20.0),
+             "south 1": (0.0, 6.0 - W / 2, 0.0, y0 - W), "south 2": (6.0 + W / 2, 12.0 - W / 2, 0.0, y0 - W),
+             "south 3": (12.0 + W / 2, 18.15 - W / 2, 0.0, y0 - W),
+             "south 4 (via east 1)": (18.15 + W / 2, 24.0, 0.0, y0 - W),
+             "north 1": (0.0, 5.0 - W / 2, y1 + W, 20.0), "north 2": (5.0 + W / 2, 10.0 - W / 2, y1 + W, 20.0),
+             "north 3 front": (10.0 + W / 2, x0 - W, y1 + W, 14.0 - W / 2),
+             "north 3 back": (10.0 + W / 2, x0 - W, 14.0 + W / 2, 20.0),
+             "east 1": (x1 + W, 24.0, y0, 13.0 - W / 2), "east 2": (x1 + W, 24.0, 13.0 + W / 2, 20.0)}
+    return ext, walls, doors, rooms, (x0 + 0.3, x1 - 0.3, 17.0, 19.7)
+
+
+FLOORS = {"offices": _offices, "clinic": _clinic, "wings": _wings}
 
 
 def write_maps(out: Path) -> dict:
@@ -100,7 +132,24 @@ def _rooms(out: Path, name: str):
     return json.loads((out / f"{name}.rooms.json").read_text())
 
 
-def run_one(floor: str, controller: str, seed: int, preset: str, periods: int, cell_size, out: Path) -> dict:
+def room_errors(xc, yc, free, error, rooms: dict) -> dict:
+    """Per room (name -> box x0, x1, y0, y1): the RMSE of ``error`` (nx, ny) over the free cells whose centre lies in
+    the box, and the room's share of the squared error summed over every free cell (the shares of disjoint rooms that
+    tile the floor sum to 1).  Rooms without a free cell are left out."""
+    X, Y = np.meshgrid(np.asarray(xc, float), np.asarray(yc, float), indexing="ij")
+    free = np.asarray(free, bool)
+    sq = np.where(free, np.asarray(error, float) ** 2, 0.0)
+    total = sq.sum()
+    out = {}
+    for name, (a, b, c, d) in rooms.items():
+        cells = free & (X >= a) & (X <= b) & (Y >= c) & (Y <= d)
+        if cells.any():
+            out[name] = {"rmse": float(np.sqrt(sq[cells].mean())), "share": float(sq[cells].sum() / total) if total else 0.0}
+    return out
+
+
+def run_one(floor: str, controller: str, seed: int, preset: str, periods: int, cell_size, out: Path,
+            field: str | None = None) -> dict:
     from swarmfield.sim.config import config_from_dict
     from swarmfield.sim.loop import run_simulation
     from swarmfield.sim.stopping import make_stop_rule, travel_time_limit
@@ -108,7 +157,7 @@ def run_one(floor: str, controller: str, seed: int, preset: str, periods: int, c
     info = _rooms(out, floor)
     ext, start = info["extent"], info["start_box"]
     doc = {"sim": {"domain": list(ext), "start_box": list(start), "controller": controller, "seed": seed,
-                   "max_periods": periods, "metrics_every": 1},
+                   "max_periods": periods, "metrics_every": 1, **({"field": field} if field else {})},
            "domain": {"source": str(out / f"{floor}.geojson")}}
     cfg = config_from_dict(doc, preset=preset, cell_size=cell_size)
     with warnings.catch_warnings():
@@ -133,16 +182,21 @@ def run_one(floor: str, controller: str, seed: int, preset: str, periods: int, c
         return rows[-1]["rmse"] if rows else float("nan")
 
     v2, v3 = visitors(2.0), visitors(3.0)
+    at2 = [snap for snap in res.snapshots if abs(snap.t - 2.0 * T) < 1e-6]
+    grid = res.grid
+    errors2 = ({} if not at2 else
+               room_errors(grid.xc, grid.yc, res.free, at2[-1].mean - res.f_true, info["rooms"]))
     faces = getattr(res.region, "closed_faces", None)          # (absent before walls closed faces)
     walls = None if faces is None else faces(res.free)
     closed = 0 if walls is None else int(sum(w.sum() for w in walls))
-    return {"floor": floor, "controller": controller, "seed": seed, "preset": preset,
+    return {"floor": floor, "controller": controller, "seed": seed, "preset": preset, "field": cfg.sim.field,
             "cells": f"{cfg.planner.nx}x{cfg.planner.ny}", "closed_faces": closed,
             "threshold_T": hit[0] / T if hit else float("nan"), "rmse_2T": rmse_at(2.0), "rmse_4T": rmse_at(4.0),
             "rooms": len(info["rooms"]), "rooms_3_by_2T": sum(v >= 3 for v in v2.values()),
             "rooms_3_by_3T": sum(v >= 3 for v in v3.values()), "fewest_2T": min(v2.values()),
             "fewest_3T": min(v3.values()), "travel_limit_T": limit / T, "stop_reason": res.stop_reason,
             "wall_s": round(res.wall_time, 1), "visits_2T": json.dumps(v2),
+            "room_errors_2T": json.dumps({k: [round(v["rmse"], 4), round(v["share"], 3)] for k, v in errors2.items()}),
             "curve": json.dumps([[round(r["t"] / T, 4), r["max_variance"], r["threshold"], r["rmse"]] for r in res.rows])}
 
 
@@ -154,9 +208,10 @@ def run(args) -> int:
     for floor in args.floors:
         for controller in args.controllers:
             for seed in args.seeds:
-                row = run_one(floor, controller, seed, args.preset, args.periods, args.cell_size, out)
+                row = run_one(floor, controller, seed, args.preset, args.periods, args.cell_size, out, args.field)
                 rows.append(row)
-                print(json.dumps({k: v for k, v in row.items() if k not in ("visits_2T", "curve")}), flush=True)
+                print(json.dumps({k: v for k, v in row.items() if k not in ("visits_2T", "room_errors_2T", "curve")}),
+                      flush=True)
                 with open(args.csv, "w", newline="") as fh:
                     w = csv.DictWriter(fh, fieldnames=list(rows[0]))
                     w.writeheader()
@@ -246,6 +301,7 @@ def main(argv=None) -> int:
     r.add_argument("--preset", default="tuned")
     r.add_argument("--periods", type=int, default=4)
     r.add_argument("--cell-size", type=float, default=None)
+    r.add_argument("--field", default=None, help="the unknown field (sim.field; default: the preset's, sinc)")
     r.add_argument("--csv", default="buildings.csv")
     p = sub.add_parser("plot")
     p.add_argument("--maps", default=str(OUT))
