@@ -37,12 +37,18 @@ ARPACK shift-invert, once per run: 0.5 s for 40 x 24 cells and 1.6 s for 40 x 40
 eigenfunctions are piecewise constant on the cells (f_k(x_j) is its cell's value; a robot in a blocked,
 partly free cell counts in the nearest free cell), mu_k is summed over the free cells only, and
 
-    Lambda_k = (1 + lambda_k L1 L2 / pi^2)^(-s),     lambda_k the k-th eigenvalue of the graph Laplacian [1/m^2].
+    Lambda_k = (1 + lambda_k A / pi^2)^(-s),     lambda_k the k-th eigenvalue of the graph Laplacian [1/m^2],
+                                                A the area of the free cells [m^2].
 
-On a square (L1 = L2 = L) the rectangle's eigenvalues are lambda_k = pi^2 |k|^2 / L^2, so this is exactly the
-cosine basis's (1 + |k|^2)^(-s); on an L1 x L2 rectangle it weighs k1^2 L2 / L1 + k2^2 L1 / L2 instead of
-|k|^2, and the discrete eigenvalues lie below the continuous ones by the factor (sin(theta) / theta)^2,
-theta = k pi / (2 n) (at most 19 % for K = 20 on 40 cells).  The gradient grad phi of phi = sum_k Lambda_k S_k
+On a square (side L, A = L^2) the eigenvalues are lambda_k = pi^2 |k|^2 / L^2, so this is exactly the cosine
+basis's (1 + |k|^2)^(-s); on an L1 x L2 rectangle it weighs k1^2 L2 / L1 + k2^2 L1 / L2 instead of |k|^2, and
+the discrete eigenvalues lie below the continuous ones by the factor (sin(theta) / theta)^2, theta = k pi / (2 n)
+(at most 19 % for K = 20 on 40 cells).  On any domain, by Weyl's law the n-th eigenvalue is about 4 pi n / A, so
+lambda_n A / pi^2 is about 4 n / pi, the |k|^2 of the n-th cosine on a square: the n-th mode gets the weight it
+would have on a square of the same area, whatever rectangle bounds the map.  (With the bounding rectangle's
+L1 L2 instead of A, a pond filling half of it weighed its modes as on a domain twice as large: the lowest,
+domain-wide modes steered the whole swarm as one band, and its map at 2 T was up to 2.8x the cosine basis's;
+docs/results/buildings.md.)  The gradient grad phi of phi = sum_k Lambda_k S_k
 f_k at a robot is taken from the difference quotients of phi across its cell's faces, zero across a face with
 no free neighbour behind it (the rectangle's side, a blocked cell, a closed face), interpolated linearly in
 the robot's position within the cell; a component whose descent would leave the cell through such a face
@@ -127,8 +133,8 @@ class CosineBasis:
 class NeumannBasis:
     """The first ``count`` eigenfunctions f_k of the Neumann Laplacian on the free cells ``free`` (nx, ny) of the
     planner grid on ``extent`` with the closed faces ``walls`` removed (:func:`domain.spectrum.neumann_modes`),
-    piecewise constant on the cells, and their Sobolev weights Lambda_k = (1 + lambda_k L1 L2 / pi^2)^(-s)
-    (module docstring, "On a map").  The interface of :class:`CosineBasis` with the modes on one axis."""
+    piecewise constant on the cells, and their Sobolev weights Lambda_k = (1 + lambda_k A / pi^2)^(-s), A = the free
+    cells' area :attr:`area` (module docstring, "On a map").  The interface of :class:`CosineBasis` with the modes on one axis."""
 
     def __init__(self, free, extent, walls=None, count: int = 400, sobolev: float = 1.5):
         from ..domain.spectrum import neumann_modes, open_face_masks
@@ -141,7 +147,9 @@ class NeumannBasis:
         self.dx, self.dy = self.L1 / nx, self.L2 / ny
         self.free = free
         self.lam, self.F = neumann_modes(free, extent, walls, count)      # (M,), (m, M)
-        self.weights = (1.0 + self.lam * self.L1 * self.L2 / math.pi ** 2) ** (-float(sobolev))
+        # the free cells' area, not the bounding rectangle's (Weyl: the n-th mode's weight as on a square of that area)
+        self.area = float(free.sum()) * self.dx * self.dy
+        self.weights = (1.0 + self.lam * self.area / math.pi ** 2) ** (-float(sobolev))
         # row of F for every cell: its own if free, else the nearest free cell's (robots in partly free cells)
         fi, fj = np.nonzero(free)
         row = np.full(nx * ny, -1, np.intp)

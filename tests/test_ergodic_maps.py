@@ -199,3 +199,18 @@ def test_in_the_closed_loop_on_a_thin_wall_map_the_swarm_goes_through_the_door()
     # (measured at the recorded steps, seeds 0-2: 0.77-0.87; the cosine basis, pushing them against the wall,
     # 0.23-0.40)
     assert right.any(axis=0).mean() >= 0.6
+
+
+def test_sobolev_weights_scale_with_the_free_area_not_the_bounding_rectangle():
+    # a 10 m x 10 m square of free cells, alone and as the west half of the 20 m x 10 m rectangle (the east half
+    # blocked): the same domain, so the same eigenfunctions and the same weights -- the square's (1 + |k|^2)^(-3/2)
+    # up to the grid's (sin(theta) / theta)^2 -- however large the map around it
+    free = np.zeros((NX, NY), bool)
+    free[:20, :] = True
+    half = NeumannBasis(free, EXT, None, 12)
+    alone = NeumannBasis(np.ones((20, 20), bool), (0.0, 10.0, 0.0, 10.0), None, 12)
+    np.testing.assert_allclose(half.lam, alone.lam, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(half.weights, alone.weights, rtol=1e-9)
+    assert half.area == pytest.approx(100.0)
+    cb = CosineBasis((0.0, 10.0, 0.0, 10.0), 4)
+    np.testing.assert_allclose(np.sort(half.weights)[::-1][:10], np.sort(cb.weights.ravel())[::-1][:10], rtol=0.03)
