@@ -64,6 +64,18 @@ def dense_gp(P, C, s2, ell, noise_var):
     return np.linalg.solve(L.T, A).T, np.maximum(s2 - np.sum(A * A, axis=0), 0.0)
 
 
+def read_config_document(ap, path) -> dict:
+    """The TOML document of ``--config`` (an empty one without it); ``ap.error`` naming the file if it cannot be read
+    or parsed."""
+    import tomllib
+    if not path:
+        return {}
+    try:
+        return tomllib.loads(Path(path).read_text())
+    except (OSError, tomllib.TOMLDecodeError) as e:
+        ap.error(f"cannot read --config {path}: {e}")
+
+
 def run_to_2T(doc):
     """One run of the tuned preset laid under ``doc``, to 2 T: (config, result, free-cell centres, free mask)."""
     from swarmfield.sim.config import config_from_dict
@@ -138,8 +150,6 @@ def table(paths) -> int:
 
 
 def main(argv=None) -> int:
-    import tomllib
-
     if argv is None:
         argv = sys.argv[1:]
     if argv and argv[0] == "--table":
@@ -176,12 +186,7 @@ def main(argv=None) -> int:
             ap.error(f"--fixed wants S2,L[,TAU2] (two positive numbers, a nugget >= 0), got {a.fixed!r}")
     if a.draws < 1 or (a.noise_sd is not None and not a.noise_sd > 0):
         ap.error("--draws must be >= 1 and --noise-sd > 0")
-    base: dict = {}
-    if a.config:
-        try:
-            base = tomllib.loads(Path(a.config).read_text())
-        except (OSError, tomllib.TOMLDecodeError) as e:
-            ap.error(f"cannot read --config {a.config}: {e}")
+    base = read_config_document(ap, a.config)
     field, noise_var, dom = SCENARIOS.get(a.scenario, (a.scenario, None, None))
     noise_var = a.noise_sd ** 2 if a.noise_sd is not None else noise_var
     dom = a.domains or dom

@@ -25,13 +25,12 @@ import argparse
 import dataclasses
 import json
 import sys
-import tomllib
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))     # the sibling scripts, also when loaded by path
-from map_error_where import run_to_2T  # noqa: E402
+from map_error_where import read_config_document, run_to_2T  # noqa: E402
 from measurement_spread import set_option  # noqa: E402
 
 
@@ -89,12 +88,7 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     if a.draws < 1 or a.periods < 1 or (a.noise_sd is not None and not a.noise_sd > 0):
         ap.error("--draws and --periods must be >= 1 and --noise-sd > 0")
-    base: dict = {}
-    if a.config:
-        try:
-            base = tomllib.loads(Path(a.config).read_text())
-        except (OSError, tomllib.TOMLDecodeError) as e:
-            ap.error(f"cannot read --config {a.config}: {e}")
+    base = read_config_document(ap, a.config)
     gp_over = {}
     for item in a.gp:
         key, _, value = item.partition("=")

@@ -14,6 +14,15 @@ def _data(n=300, seed=1):
     return X, f + 0.2 * rng.normal(size=n)
 
 
+def _assert_same_statistics(coarse, direct) -> None:
+    """A coarsened GP's power sums and likelihood equal those of a GP built on the coarse grid from the data."""
+    np.testing.assert_allclose(coarse._mom, direct._mom, rtol=0, atol=1e-12 * np.abs(direct._mom).max())
+    np.testing.assert_allclose(coarse._momy, direct._momy, rtol=0, atol=1e-12 * np.abs(direct._momy).max())
+    for s2, ell in ((0.25, 1.5), (0.6, 3.0)):
+        assert coarse.log_marginal_likelihood(s2, ell) == pytest.approx(direct.log_marginal_likelihood(s2, ell),
+                                                                        rel=1e-12)
+
+
 def test_ml_fit_matches_sklearn():
     sk = pytest.importorskip("sklearn.gaussian_process")
     from sklearn.gaussian_process.kernels import RBF, ConstantKernel
@@ -89,11 +98,7 @@ def test_coarsened_statistics_are_exact():
     direct.add(X, y)
     coarse = coarsened(fine, 2)
     assert coarse.inducing_shape == direct.inducing_shape == (23, 23)
-    np.testing.assert_allclose(coarse._mom, direct._mom, rtol=0, atol=1e-12 * np.abs(direct._mom).max())
-    np.testing.assert_allclose(coarse._momy, direct._momy, rtol=0, atol=1e-12 * np.abs(direct._momy).max())
-    for s2, ell in ((0.25, 1.5), (0.6, 3.0)):
-        assert coarse.log_marginal_likelihood(s2, ell) == pytest.approx(direct.log_marginal_likelihood(s2, ell),
-                                                                        rel=1e-12)
+    _assert_same_statistics(coarse, direct)
     with pytest.raises(ValueError, match="divide"):
         coarsened(fine, 3)
 
@@ -228,11 +233,7 @@ def test_padded_coarse_statistics_are_exact():
     direct.add(X, y)
     assert coarse.inducing_shape == direct.inducing_shape == (23, 17)
     assert coarse._ay.h == pytest.approx(2 * gp._ay.h, rel=1e-14)
-    np.testing.assert_allclose(coarse._mom, direct._mom, rtol=0, atol=1e-12 * np.abs(direct._mom).max())
-    np.testing.assert_allclose(coarse._momy, direct._momy, rtol=0, atol=1e-12 * np.abs(direct._momy).max())
-    for s2, ell in ((0.25, 1.5), (0.6, 3.0)):
-        assert coarse.log_marginal_likelihood(s2, ell) == pytest.approx(direct.log_marginal_likelihood(s2, ell),
-                                                                        rel=1e-12)
+    _assert_same_statistics(coarse, direct)
     with pytest.raises(ValueError, match="divide"):
         coarsened(gp, 2, pad=False)
     with pytest.raises(ValueError, match="hyper_coarsening_pad"):
