@@ -105,7 +105,8 @@ class GPSettings:
         Ignored by the GMRF kernels, which are fitted on their own lattice (their prior depends on its spacing).
     hyper_coarsening_pad
         What the refit does when ``hyper_coarsening`` does not divide the inducing grid's cell counts (a
-        40 m x 25 m site coarsened to spacing 0.521 m has 77 x 48 cells): ``False`` (the default) fits on the
+        40 m x 25 m site at spacing 0.521 m has 77 x 48 cells; where the spacing is chosen for the user,
+        ``grid_budget = "coarsen"`` prefers counts the factor divides, 0.527 m there): ``False`` (the default) fits on the
         largest factor that divides both, often 1, i.e. on the full grid (at M = 4080 nodes ~0.3-0.5 s a likelihood
         evaluation, ~40 % of a tuned run's CPU there); ``True`` pads the grid with empty cells at its upper ends to a
         multiple of ``hyper_coarsening`` and fits on that coarse grid (the same exact sufficient statistics, a
