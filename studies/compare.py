@@ -33,6 +33,7 @@ RMSE, and the 95 % band coverage (``coverage`` in runs.csv) where sup V first re
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import hashlib
 import io
@@ -217,6 +218,18 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
 
 
 _FREE_CACHE: dict = {}
+
+
+@contextlib.contextmanager
+def _warnings_said_once():
+    """Collect the warnings of the checks before the runs (every task's configuration is checked, so a GP grid
+    coarsened to its budget warned once per controller) and print each distinct one once, as the runs' are."""
+    import warnings
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        yield
+    for message in dict.fromkeys(str(w.message) for w in seen):
+        print(f"{PROG}: warning: {message}", file=sys.stderr)
 
 
 def _reachable_cells(cfg):
@@ -578,34 +591,35 @@ def run(argv=None) -> int:
         args.presets = unique_values(args.presets, "--presets", note)
     if args.times is not None:
         args.times = unique_values(args.times, "--times", note, key=float)
-    try:
-        # the file as written (values the user gave), validated; presets are laid under it per task
-        if args.config is not None:
-            check_path(args.config, "config file")
-        # under the first preset asked for: a file may lean on it (kernel_angle = "auto" needs the tuned preset's
-        # learned hyperparameters); each task's own preset is checked in make_tasks
-        base = load_config(args.config, preset=args.presets[0] if args.presets else None) if args.config else None
-        base_doc = read_toml(args.config) if args.config else {}
-        if args.cell_size is not None:       # the flag beats the file's cell size and cell counts
-            base_doc = {**base_doc, "planner": {**{k: v for k, v in base_doc.get("planner", {}).items()
-                                                   if k not in ("nx", "ny")}, "cell_size": args.cell_size}}
-        gamma = base.sim.gamma if base else 0.1
-        robots = args.robots or [base.sim.robots if base else 100]
-        # every field file and every run's configuration is loaded and checked here, before any worker
-        tasks = make_tasks(base_doc, args.controllers, args.fields, args.seeds, args.robot_loss, robots,
-                           loss_time=args.loss_time, start_box=args.start_box, max_periods=args.max_periods,
-                           presets=args.presets, domains=args.domains, comm_radii=args.comm_radius,
-                           noise_sd=args.noise_sd)
-        if args.domains:               # bad domains fail here, in one line, before any run
-            from ..sim.config import config_from_dict
-            from ..sim.simulation import check_config
-            seen = set()
-            for t in tasks:
-                if t["domain"] not in seen:
-                    seen.add(t["domain"])
-                    check_config(config_from_dict(t["config"]))
-    except ValueError as exc:
-        raise InputError(str(exc)) from None
+    with _warnings_said_once():      # a check repeated per task (each controller's config) says its warning once
+        try:
+            # the file as written (values the user gave), validated; presets are laid under it per task
+            if args.config is not None:
+                check_path(args.config, "config file")
+            # under the first preset asked for: a file may lean on it (kernel_angle = "auto" needs the tuned preset's
+            # learned hyperparameters); each task's own preset is checked in make_tasks
+            base = load_config(args.config, preset=args.presets[0] if args.presets else None) if args.config else None
+            base_doc = read_toml(args.config) if args.config else {}
+            if args.cell_size is not None:       # the flag beats the file's cell size and cell counts
+                base_doc = {**base_doc, "planner": {**{k: v for k, v in base_doc.get("planner", {}).items()
+                                                       if k not in ("nx", "ny")}, "cell_size": args.cell_size}}
+            gamma = base.sim.gamma if base else 0.1
+            robots = args.robots or [base.sim.robots if base else 100]
+            # every field file and every run's configuration is loaded and checked here, before any worker
+            tasks = make_tasks(base_doc, args.controllers, args.fields, args.seeds, args.robot_loss, robots,
+                               loss_time=args.loss_time, start_box=args.start_box, max_periods=args.max_periods,
+                               presets=args.presets, domains=args.domains, comm_radii=args.comm_radius,
+                               noise_sd=args.noise_sd)
+            if args.domains:               # bad domains fail here, in one line, before any run
+                from ..sim.config import config_from_dict
+                from ..sim.simulation import check_config
+                seen = set()
+                for t in tasks:
+                    if t["domain"] not in seen:
+                        seen.add(t["domain"])
+                        check_config(config_from_dict(t["config"]))
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
     if gamma <= 0:
         gamma = 0.1
     times = args.times or sorted({t for t in (1.0, 2.0) if t < args.max_periods} | {float(args.max_periods)})

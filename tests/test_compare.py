@@ -277,3 +277,16 @@ def test_field_files_whose_stem_collides_keep_separate_labels(tmp_path):
     tasks = make_tasks(doc, ["lawnmower"], ["bumps", str(fa), str(fb), str(fc)], [0], [0.0], [20], max_periods=1)
     labels = [t["field"] for t in tasks]
     assert labels == ["bumps", str(fa), str(fb), "ridgeish"]
+
+
+def test_a_warning_of_the_checks_is_said_once_not_once_per_controller(tmp_path, capsys):
+    # every task's configuration is checked before the runs; a GP grid coarsened to its budget warned for each
+    # controller's; now each distinct warning is printed once
+    cfg = tmp_path / "budget.toml"
+    cfg.write_text(SMALL_TOML.replace("[gp]\n", '[gp]\nmax_inducing_points = 200\ngrid_budget = "coarsen"\n'))
+    bad_out = str(tmp_path / ("x" * 300))               # the run fails on the output folder, after the checks
+    assert main(["--config", str(cfg), "--controllers", "diffusion", "coverage", "greedy", "--out", bad_out]) == 2
+    err = capsys.readouterr().err
+    assert "output folder" in err
+    assert err.count("max_inducing_points = 200") == 1, err
+    assert "compare-controllers: warning: the GP's inducing grid" in err
