@@ -127,8 +127,10 @@ def resolve(args):
         check_config(config)
     except ValueError as exc:
         raise InputError(str(exc)) from None
-    assert isinstance(config, RunConfig)
     import warnings
+    # the check has said it; the run's GP, built on the same settings, would say it again
+    warnings.filterwarnings("ignore", message=r".*\(gp\.grid_budget = \"coarsen\"\)", category=UserWarning)
+    assert isinstance(config, RunConfig)
     if getattr(args, "loss_time", None) is not None and config.sim.robot_loss == 0:
         warnings.warn("--loss-time has no effect: no robot is lost (--robot-loss is 0)", stacklevel=2)
     if getattr(args, "diffusion_sigma", None) is not None and config.sim.controller != "diffusion":

@@ -83,6 +83,7 @@ def run_task(task: dict) -> list[dict]:
     with warnings.catch_warnings(record=True) as seen:    # the domain's warnings: said once by make_tasks
         warnings.simplefilter("default")
         warnings.filterwarnings("ignore", message=".*cannot be reached", category=UserWarning)
+        warnings.filterwarnings("ignore", message=GRID_BUDGET_NOTE, category=UserWarning)   # said by the checks
         res = run_simulation(cfg, stop_rule=make_stop_rule(cfg.sim, stops=False))
     for w in seen:                     # e.g. a learned hyperparameter at its bound: one line, naming the run
         print(f"{PROG}: warning: {describe_run(task)}: {w.message}", file=sys.stderr)
@@ -218,6 +219,11 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
 
 
 _FREE_CACHE: dict = {}
+
+
+#: the warning of a GP grid coarsened to its budget (regression.gp), a fact of the configuration: said once by the
+#: checks before the runs, not again by every run
+GRID_BUDGET_NOTE = r".*\(gp\.grid_budget = \"coarsen\"\)"
 
 
 @contextlib.contextmanager

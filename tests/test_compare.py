@@ -290,3 +290,8 @@ def test_a_warning_of_the_checks_is_said_once_not_once_per_controller(tmp_path, 
     assert "output folder" in err
     assert err.count("max_inducing_points = 200") == 1, err
     assert "compare-controllers: warning: the GP's inducing grid" in err
+    # nor again by each run (a fact of the configuration, not of a run)
+    assert main(["--config", str(cfg), "--controllers", "diffusion", "coverage", "--seeds", "0", "1",
+                 "--max-periods", "1", "--no-plots", "--workers", "1", "--out", str(tmp_path / "ok")]) == 0
+    err = capsys.readouterr().err
+    assert "4/4 runs done" in err and err.count("max_inducing_points = 200") == 1, err

@@ -256,3 +256,14 @@ def test_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, cfg, capsy
         assert "Traceback" not in err and stdout == ""
         assert sorted(p.name for p in tmp_path.rglob("*")) == before, label      # nothing written
     assert (tmp_path / "foreign" / "thesis.tex").read_text() == "precious"
+
+
+def test_a_grid_coarsened_to_its_budget_is_said_once(tmp_path, capsys):
+    # the check before the run and the run's own GP are built on the same settings: the warning came twice
+    path = tmp_path / "budget.toml"
+    path.write_text(SMALL_TOML.replace("max_periods = 2", "max_periods = 1").replace(
+        "[gp]\n", '[gp]\nmax_inducing_points = 200\ngrid_budget = "coarsen"\n'))
+    code, _, err = run(["--config", path, "--controller", "diffusion", "--out", tmp_path / "r", "--quiet",
+                        "--no-figures"], capsys)
+    assert code == 0, err
+    assert err.count("max_inducing_points = 200") == 1, err
