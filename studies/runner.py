@@ -97,11 +97,18 @@ def _store(runs_dir: Path, task: dict, rows: list) -> None:
             fh.write(text)
         os.replace(tmp, path)
     except OSError as exc:
-        try:
-            tmp.unlink()
-        except OSError:
-            pass
+        _discard(tmp)
         raise SweepAborted(f"cannot store a finished run in {path}: {exc.strerror or exc}") from None
+    except BaseException:            # a second Ctrl-C while storing: no temporary file left behind either
+        _discard(tmp)
+        raise
+
+
+def _discard(tmp: Path) -> None:
+    try:
+        tmp.unlink()
+    except OSError:
+        pass
 
 
 def load_results(runs_dir, tasks: list[dict]) -> dict:

@@ -169,6 +169,18 @@ def test_f1_second_ctrl_c_ends_the_sweep_promptly_and_it_resumes(tmp_path, cfg):
     assert_all_gone_and_unlocked(proc2, out)
 
 
+def test_f1_an_interrupt_while_a_run_is_stored_leaves_no_temporary_file(tmp_path, monkeypatch):
+    # the second Ctrl-C can land while the main process stores a finished run: only OSError cleaned up before
+    from swarmfield.studies import runner
+
+    def interrupted(src, dst):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(runner.os, "replace", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        runner._store(tmp_path, {"x": 1}, [{"y": 2}])
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_f2_sigterm_of_the_main_process_stops_its_workers(tmp_path, cfg):
     out = tmp_path / "o"
