@@ -129,7 +129,8 @@ def resolve(args):
         raise InputError(str(exc)) from None
     import warnings
     # the check has said it; the run's GP, built on the same settings, would say it again
-    warnings.filterwarnings("ignore", message=r".*\(gp\.grid_budget = \"coarsen\"\)", category=UserWarning)
+    from ..regression.gp import GRID_BUDGET_WARNING
+    warnings.filterwarnings("ignore", message=GRID_BUDGET_WARNING, category=UserWarning)
     assert isinstance(config, RunConfig)
     if getattr(args, "loss_time", None) is not None and config.sim.robot_loss == 0:
         warnings.warn("--loss-time has no effect: no robot is lost (--robot-loss is 0)", stacklevel=2)

@@ -364,6 +364,10 @@ def _fitting_spacing_hint(domain, settings: GPSettings) -> str:
     return f"an inducing spacing of at least {h:g} fits (gp.inducing_spacing, with gp.length_scale >= {1.5 * h:.3g})"
 
 
+#: a regular expression matching the one-line warning of :func:`_within_budget` (a grid coarsened to its node
+#: budget), for the commands that check a configuration before its run and say it once
+GRID_BUDGET_WARNING = r".*\(gp\.grid_budget = \"coarsen\"\)"
+
 #: how much wider than the finest fitting spacing :func:`_coarsenable_spacing` may go for cell counts the refit can
 #: coarsen (the third significant digit's steps)
 COARSENABLE_WIDENING = 1.05

@@ -78,12 +78,15 @@ def run_task(task: dict) -> list[dict]:
     from ..sim.stopping import make_stop_rule
 
     import warnings
+
+    from ..regression.gp import GRID_BUDGET_WARNING
     cfg = config_from_dict(task["config"])
     # the configuration's own stop rule, recorded at every measurement; the run itself never stops at it
     with warnings.catch_warnings(record=True) as seen:    # the domain's warnings: said once by make_tasks
         warnings.simplefilter("default")
         warnings.filterwarnings("ignore", message=".*cannot be reached", category=UserWarning)
-        warnings.filterwarnings("ignore", message=GRID_BUDGET_NOTE, category=UserWarning)   # said by the checks
+        # a GP grid coarsened to its budget is a fact of the configuration: said by the checks, not by every run
+        warnings.filterwarnings("ignore", message=GRID_BUDGET_WARNING, category=UserWarning)
         res = run_simulation(cfg, stop_rule=make_stop_rule(cfg.sim, stops=False))
     for w in seen:                     # e.g. a learned hyperparameter at its bound: one line, naming the run
         print(f"{PROG}: warning: {describe_run(task)}: {w.message}", file=sys.stderr)
@@ -219,11 +222,6 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
 
 
 _FREE_CACHE: dict = {}
-
-
-#: the warning of a GP grid coarsened to its budget (regression.gp), a fact of the configuration: said once by the
-#: checks before the runs, not again by every run
-GRID_BUDGET_NOTE = r".*\(gp\.grid_budget = \"coarsen\"\)"
 
 
 @contextlib.contextmanager
