@@ -1,18 +1,13 @@
 """scripts/building_floors.py: the held-out L-shaped floor's layout, and the per-room error split of a map."""
-import importlib.util
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from file_module import load
 
 
 def _module():
-    spec = importlib.util.spec_from_file_location("building_floors", ROOT / "scripts" / "building_floors.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load("scripts/building_floors.py")
 
 
 def test_room_errors_split_the_squared_error_over_free_cells():

@@ -1,21 +1,15 @@
 """The documentation's docstring hook (docs/_ext/plaintext_docstrings.py) turns this code base's
 plain-text docstrings into reST that docutils parses without a warning, and leaves valid reST alone."""
-import importlib.util
 import io
-from pathlib import Path
 
 import pytest
+from file_module import load
 
 docutils_core = pytest.importorskip("docutils.core")
 
-EXT = Path(__file__).resolve().parents[1] / "docs" / "_ext" / "plaintext_docstrings.py"
-
 
 def _fix_lines():
-    spec = importlib.util.spec_from_file_location("plaintext_docstrings", EXT)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod.fix_lines
+    return load("docs/_ext/plaintext_docstrings.py").fix_lines
 
 
 def _warnings(text: str) -> str:

@@ -1,21 +1,18 @@
 """The package's layout stays true: imports read from the source (AST) form no cycle, and point down
 the layers runtime <- science (ocp, control, regression, domain) <- sim <- studies <- cli
 (scripts/import_graph.py holds the rules and draws the architecture page's picture)."""
-import importlib.util
 import textwrap
 from pathlib import Path
 
 import pytest
+from file_module import load
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 @pytest.fixture(scope="module")
 def ig():
-    spec = importlib.util.spec_from_file_location("import_graph", ROOT / "scripts" / "import_graph.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load("scripts/import_graph.py")
 
 
 def test_the_package_has_no_cycle_and_no_upward_import(ig):

@@ -1,17 +1,13 @@
 """benchmarks/map_quality_table.py: comparison folders merged, the map-quality times against the best run of any input."""
 import csv
-import importlib.util
 import math
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from file_module import load
 
 
 def _module():
-    spec = importlib.util.spec_from_file_location("map_quality_table", ROOT / "benchmarks" / "map_quality_table.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load("benchmarks/map_quality_table.py")
 
 
 COLUMNS = ["preset", "controller", "field", "seed", "domain", "t", "t_T", "max_variance", "threshold", "rmse"]

@@ -1,23 +1,13 @@
 """benchmarks/map_error_where.py's fixed GP with a nugget and benchmarks/refit_same_noise.py's argument checks
 (docs/results/map-quality.md, "Rough fields nobody tuned on")."""
-import importlib.util
-import sys
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from file_module import load
 
 
 def _module(name):
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    try:
-        spec = importlib.util.spec_from_file_location(name, ROOT / "benchmarks" / f"{name}.py")
-        mod = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(mod)
-        return mod
-    finally:
-        sys.path.remove(str(ROOT / "benchmarks"))
+    return load(f"benchmarks/{name}.py")
 
 
 def _reference(capsys, fixed):

@@ -1,18 +1,13 @@
 """benchmarks/swarm_shell.py: the rear and front robots' speeds away from the start and the shell at a period end."""
-import importlib.util
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from file_module import load
 
 
 def _module():
-    spec = importlib.util.spec_from_file_location("swarm_shell", ROOT / "benchmarks" / "swarm_shell.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load("benchmarks/swarm_shell.py")
 
 
 def _saved(tmp_path, speeds):
