@@ -485,6 +485,10 @@ class GaussianProcess:
         self.barrier_on = settings.barrier != "auto"
         #: ``barrier = "auto"``: (data points, log posterior with the barrier, without) of each refit's choice
         self.barrier_choices: list = []
+        #: ``amplitude = "local"``: the learned log variance factor g (:class:`regression.amplitude.LogAmplitude`)
+        self._log_amp = None
+        self._amp = None            # exp(g / 2) at the lattice nodes (M,), None: the stationary model
+        self._amp_band = None       # a(node) a(node') on A's band (gx, 7, gy, 7)
         self._build_lattice(frame)
 
     def _build_lattice(self, frame: Frame | None, axes: tuple[SplineAxis, SplineAxis] | None = None) -> None:
@@ -534,6 +538,8 @@ class GaussianProcess:
         if self._barrier is not None and settings.barrier_basis == "cut":
             self._make_cut()
         self._build_scatter_indices()
+        if self._log_amp is not None:                 # a lattice of its own (a re-framed GP): the amplitude on it
+            self._set_amplitude(np.exp(0.5 * self._log_amp(self.node_points())))
 
     def set_barrier(self, blocked, step: float) -> None:
         """Cut the GMRF prior's lattice links through blocked space (``GPSettings.barrier``; :mod:`regression.gmrf`,
@@ -596,6 +602,48 @@ class GaussianProcess:
             return U
         c, s = rotation(frame.angle)
         return np.column_stack([frame.centre[0] + c * U[:, 0] - s * U[:, 1], frame.centre[1] + s * U[:, 0] + c * U[:, 1]])
+
+    def node_points(self) -> np.ndarray:
+        """World coordinates (M, 2) of the inducing lattice's nodes (the B-splines' centres), in the coefficients'
+        order (node (i, j) at i * gy + j); they reach one spacing beyond the lattice's box."""
+        u, v = np.meshgrid(self._ax.nodes, self._ay.nodes, indexing="ij")
+        return self._to_world(np.column_stack([u.reshape(-1), v.reshape(-1)]))
+
+    @property
+    def log_amplitude(self):
+        """The spatially varying log variance factor g in force (:class:`regression.amplitude.LogAmplitude`), or
+        None (the stationary model)."""
+        return self._log_amp
+
+    def set_log_amplitude(self, field) -> None:
+        """Give the field the signal variance s_f^2 exp(g(x)) (``GPSettings.amplitude = "local"``;
+        :mod:`regression.amplitude`): the spline coefficients are scaled by a(x_j) = exp(g(x_j) / 2) at their nodes,
+        i.e. A -> D A D and b -> D b; ``field`` a :class:`regression.amplitude.LogAmplitude` (g(x) = field(x)) or
+        None (the stationary model again).  The posterior is recomputed from the power sums at the next
+        :meth:`predict`; followers (:meth:`follower`) take the same field.  Separable kernels only."""
+        if field is not None and self._settings.kernel in GMRF_KERNELS:
+            raise ValueError(f"a local signal variance needs a separable kernel, not {self._settings.kernel!r}")
+        self._log_amp = field
+        self._set_amplitude(None if field is None else np.exp(0.5 * field(self.node_points())))
+        for f in self._followers:
+            f.set_log_amplitude(field)
+
+    def _set_amplitude(self, values) -> None:
+        """The node amplitudes a(x_j) (M,) or None; every posterior and assembly from here on uses them."""
+        if values is None:
+            self._amp = self._amp_band = None
+        else:
+            amp = np.asarray(values, dtype=float).reshape(self._n_nodes)
+            gx, gy = self._ax.n_nodes, self._ay.n_nodes
+            pad = np.zeros((gx + 6, gy + 6))
+            pad[3:-3, 3:-3] = amp.reshape(gx, gy)
+            other = np.lib.stride_tricks.sliding_window_view(pad, (_BAND, _BAND))   # [i, j, di, dj]
+            self._amp = amp
+            self._amp_band = np.ascontiguousarray((other * amp.reshape(gx, gy, 1, 1)).transpose(0, 2, 1, 3))
+        self._assembled = None
+        self._cov = None
+        self._mu = None
+        self._pending, self._pending_n = ([] if self._n == 0 else None), 0
 
     @property
     def barrier_cuts(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -844,6 +892,8 @@ class GaussianProcess:
         else:
             a = np.bincount(self._idx_a, weights=z.reshape(-1) / sn2,
                             minlength=gx * _BAND * gy * _BAND).reshape(gx, _BAND, gy, _BAND)
+            if self._amp_band is not None:                   # a local signal variance: D A D
+                a *= self._amp_band
         self._assembled = (key, a)
         return a
 
@@ -875,8 +925,8 @@ class GaussianProcess:
                                minlength=self._cut.size)
         resid = self._momy - mean * self._mom[:, :_N_POW_Y, :_N_POW_Y]
         bl = BASIS_COEF @ resid @ BASIS_COEF.T                   # [cell, p, q]
-        return np.bincount(self._idx_b, weights=bl.reshape(-1) / self._settings.residual_variance,
-                           minlength=self._n_nodes)
+        b = np.bincount(self._idx_b, weights=bl.reshape(-1) / self._settings.residual_variance, minlength=self._n_nodes)
+        return b if self._amp is None else b * self._amp        # a local signal variance: D b
 
     def _prior_basis(self, length_scale) -> _PriorBasis:
         """The (cached) :class:`_PriorBasis` of a length scale (or a ``GPSettings.kernel_key``: kernel and
@@ -1221,6 +1271,8 @@ class GaussianProcess:
         """
         k, m = pts.shape[0], self._n_nodes
         _, _, _, _, node, phi = self._basis(pts)
+        if self._amp is not None:                    # a local signal variance: the coefficients' design D phi
+            phi = phi * self._amp[node]
         u_t = sparse.csr_matrix((phi.reshape(-1) / math.sqrt(sn2), node.reshape(-1), np.arange(0, 16 * k + 1, 16)),
                                 shape=(k, m))
         w_t = np.asarray(u_t @ sigma)                               # U^T Sigma, (k, M)
@@ -1292,6 +1344,8 @@ class GaussianProcess:
             self._query_cache = (pts.copy(), chunks) if npts <= _QUERY_CACHE else None
         for sl, (nx_, ny_, wx, wy, node, phi), where in chunks:
             start = sl.start
+            if self._amp is not None:        # a local signal variance: D phi (the prior's normalisation below: phi)
+                phi = phi * self._amp[node]
             out_mean[sl] = mean + np.einsum("ij,ij->i", phi, mu[node])
             local = flat[where]
             post = np.einsum("ij,ijk,ik->i", phi, local, phi)
@@ -1396,6 +1450,8 @@ class GaussianProcess:
         if self._barrier is not None and new.kernel in GMRF_KERNELS:
             f.set_barrier(*self._barrier)
             f.use_barrier(self.barrier_on)
+        if self._log_amp is not None:
+            f.set_log_amplitude(self._log_amp)
         self._followers.append(f)
         return f
 

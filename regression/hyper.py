@@ -149,6 +149,8 @@ def coarsened(gp, factor: int, length_scale: float | None = None, prior_truncati
     coarse._n, coarse._sum_y, coarse._sum_y2 = gp._n, gp._sum_y, gp._sum_y2
     coarse._version += 1
     coarse._pending, coarse._pending_n = None, 0
+    if gp.log_amplitude is not None:                # a local signal variance: the same g on the coarse nodes
+        coarse.set_log_amplitude(gp.log_amplitude)
     return coarse
 
 
@@ -405,7 +407,11 @@ def refit_online(gp: GaussianProcess):
         warnings.warn(f"learned nugget {tau2:.4g} exceeds the signal variance {s2:.4g}: most of the data's variance "
                       "is micro-scale variation the GP does not resolve (the map's band is wide; a finer grid, "
                       "gp.length_scale, may resolve more)", UserWarning, stacklevel=2)
-    return gp.set_hyperparameters(s2, ell, ell_y, nugget=tau2)
+    new = gp.set_hyperparameters(s2, ell, ell_y, nugget=tau2)
+    if s0.amplitude == "local":                     # then g at these values (regression.amplitude), on the coarse grid
+        from .amplitude import fit_log_amplitude
+        fit_log_amplitude(gp, coarsened(gp, c, prior_truncation=min(new.prior_truncation, REFIT_TRUNCATION)))
+    return new
 
 
 def compare_kernels(gp: GaussianProcess, kernels=None, maxiter: int = 30, factor: int = 1) -> dict:

@@ -26,6 +26,8 @@ def signal_variance_limits(noise_variance: float) -> tuple[float, float]:
 SIGNAL_SCALES = ("absolute", "data")
 #: choices of :attr:`GPSettings.grid_budget`
 GRID_BUDGETS = ("error", "coarsen")
+#: choices of :attr:`GPSettings.amplitude`
+AMPLITUDES = ("stationary", "local")
 
 
 def _finite_positive(name: str, value) -> float:
@@ -183,6 +185,19 @@ class GPSettings:
         exponential prior of mean :data:`regression.hyper.NUGGET_PRIOR_MEAN` x the data's variance (mode 0: a
         field that does not need a nugget keeps ~0), bounded by the data's variance (:mod:`regression.hyper`,
         *Nugget*); ``nugget`` is its start value.
+    amplitude
+        ``"stationary"`` (the default; the paper's): one signal variance s_f^2 over the whole domain.  ``"local"``:
+        the signal variance s_f^2 exp(g(x)) varies over the domain, k(x, x') = s_f^2 a(x) a(x') k0(x, x') with
+        a = exp(g / 2), g a coarse cubic B-spline surface of mean 0 learned by MAP at each online refit (with
+        ``learn_hyperparameters``; :mod:`regression.amplitude`): V is large where the data vary much, so that the
+        planner, the stop rule and every controller steering by V see where the field's structure is.  Separable
+        kernels only (not the GMRF ones).
+    amplitude_cells
+        ``amplitude = "local"``: cells of g's cubic B-splines along the domain's longer side (cells of the same width
+        along the shorter one; (cells + 3)^2 coefficients on a square).
+    amplitude_prior_sd
+        ``amplitude = "local"``: standard deviation of the independent normal priors N(0, sd^2) on g's coefficients
+        (shrinkage towards the stationary model; one sd is a factor e in the variance).
     prior_truncation
         Directions of the spline prior whose variance is below this multiple of signal_variance
         are left out of the posterior (products of per-axis eigenvectors: a Karhunen-Loeve
@@ -219,6 +234,9 @@ class GPSettings:
     barrier_basis: str = "cut"
     nugget: float = 0.0
     learn_nugget: bool = False
+    amplitude: str = "stationary"
+    amplitude_cells: int = 6
+    amplitude_prior_sd: float = 1.0
 
     def __post_init__(self):
         object.__setattr__(self, "signal_variance", _finite_positive("signal_variance", self.signal_variance))
@@ -311,6 +329,16 @@ class GPSettings:
         object.__setattr__(self, "nugget", float(nug))
         if not isinstance(self.hyper_coarsening_pad, bool):
             raise ValueError(f"hyper_coarsening_pad must be true or false, got {self.hyper_coarsening_pad!r}")
+        if self.amplitude not in AMPLITUDES:
+            raise ValueError(f"amplitude must be one of {', '.join(repr(a) for a in AMPLITUDES)}, got {self.amplitude!r}")
+        if self.amplitude == "local" and self.kernel in GMRF_KERNELS:
+            raise ValueError(f"amplitude = \"local\" needs a separable kernel (squared-exponential, matern52, matern32), "
+                             f"got kernel {self.kernel!r}")
+        ac = self.amplitude_cells
+        if isinstance(ac, bool) or not isinstance(ac, numbers.Integral) or not 1 <= int(ac) <= 64:
+            raise ValueError(f"amplitude_cells must be an integer in [1, 64], got {ac!r}")
+        object.__setattr__(self, "amplitude_cells", int(ac))
+        object.__setattr__(self, "amplitude_prior_sd", _finite_positive("amplitude_prior_sd", self.amplitude_prior_sd))
         if not isinstance(self.learn_nugget, bool):
             raise ValueError(f"learn_nugget must be true or false, got {self.learn_nugget!r}")
         for name in ("hyper_step_sd", "hyper_prior_sd_signal"):

@@ -148,8 +148,25 @@ def room_errors(xc, yc, free, error, rooms: dict) -> dict:
     return out
 
 
+def _settings_document(pairs) -> dict:
+    """``["gp.amplitude=local", ...]`` -> ``{"gp": {"amplitude": "local"}}`` (values read as JSON where they parse,
+    else as strings)."""
+    doc: dict = {}
+    for pair in pairs or ():
+        key, sep, value = pair.partition("=")
+        section, dot, name = key.partition(".")
+        if not sep or not dot or not section or not name:
+            raise SystemExit(f"--set expects SECTION.KEY=VALUE, got {pair!r}")
+        try:
+            value = json.loads(value)
+        except ValueError:
+            pass
+        doc.setdefault(section, {})[name] = value
+    return doc
+
+
 def run_one(floor: str, controller: str, seed: int, preset: str, periods: int, cell_size, out: Path,
-            field: str | None = None) -> dict:
+            field: str | None = None, settings: dict | None = None) -> dict:
     from swarmfield.sim.config import config_from_dict
     from swarmfield.sim.loop import run_simulation
     from swarmfield.sim.stopping import make_stop_rule, travel_time_limit
@@ -159,6 +176,8 @@ def run_one(floor: str, controller: str, seed: int, preset: str, periods: int, c
     doc = {"sim": {"domain": list(ext), "start_box": list(start), "controller": controller, "seed": seed,
                    "max_periods": periods, "metrics_every": 1, **({"field": field} if field else {})},
            "domain": {"source": str(out / f"{floor}.geojson")}}
+    for section, table in (settings or {}).items():
+        doc[section] = {**doc.get(section, {}), **table}
     cfg = config_from_dict(doc, preset=preset, cell_size=cell_size)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
@@ -208,7 +227,8 @@ def run(args) -> int:
     for floor in args.floors:
         for controller in args.controllers:
             for seed in args.seeds:
-                row = run_one(floor, controller, seed, args.preset, args.periods, args.cell_size, out, args.field)
+                row = run_one(floor, controller, seed, args.preset, args.periods, args.cell_size, out, args.field,
+                              _settings_document(args.set))
                 rows.append(row)
                 print(json.dumps({k: v for k, v in row.items() if k not in ("visits_2T", "room_errors_2T", "curve")}),
                       flush=True)
@@ -303,6 +323,8 @@ def main(argv=None) -> int:
     r.add_argument("--cell-size", type=float, default=None)
     r.add_argument("--field", default=None, help="the unknown field (sim.field; default: the preset's, sinc)")
     r.add_argument("--csv", default="buildings.csv")
+    r.add_argument("--set", nargs="*", default=[], metavar="SECTION.KEY=VALUE",
+                   help="settings laid over the preset, e.g. gp.amplitude=local")
     p = sub.add_parser("plot")
     p.add_argument("--maps", default=str(OUT))
     p.add_argument("--cell-size", type=float, default=None, help="default: 40 cells along the longer side")

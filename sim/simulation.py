@@ -457,6 +457,10 @@ class Simulation:
                                   "length_scale": gs.length_scale, "length_scale_y": gs.length_scale_y,
                                   "kernel_angle": gs.kernel_angle,
                                   **({"nugget": gs.nugget} if gs.learn_nugget or gs.nugget else {})}
+            g = self.gp.log_amplitude
+            if g is not None:                # a local signal variance: the range of its factor exp(g) on the grid
+                vf = np.exp(g(self.centers))
+                self.result.kernel["variance_factor_range"] = [float(vf.min()), float(vf.max())]
             self.mean, self.var = self.predict()
             self.result.timings["regression"] += time.perf_counter() - t0
             self._notify("refitted")
