@@ -15,7 +15,12 @@ One run (``run_simulation``; the stop rule records and does not stop, as in ``co
 * ``posterior: check GP``: the same for the GPs that follow the run's GP at other hyperparameters (the robust stop
   rule's variance at the prior length scale, ``sim.stopping.RobustThreshold``);
 * ``planner``: ``ReferencePlanner.solve`` (IPOPT, the plans and re-plans);
-* ``rest``: the robots' dynamics, KDE, the controller, predictions from a posterior, the metrics.
+* ``KDE/law``: the KDE fits (``KernelDensity.fit``) and the feedback law (``tracking_velocity`` as the feedback
+  controller calls it), also where the spreading's prediction calls them;
+* ``spreading``: the rest of the feedback's spreading velocity (``MeasurementSpreading.velocity``: the memory, the
+  prediction's sub-steps, the landing points);
+* ``rest``: the robots' Euler--Maruyama steps, predictions from a posterior, the stop rule's and the metrics' own
+  work, the planner's inputs.
 
 Prints one tab-separated line per part (label, part, CPU seconds, share of the run's CPU, calls) and a last line with
 the CPU and wall time per period, T, their ratio (real time: below 1), the time to threshold and the RMSE at each
@@ -36,7 +41,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parent))     # the sibling script, also when loaded by path
 from measurement_spread import set_option  # noqa: E402  --set SECTION.KEY=VALUE
 
-PARTS = ("refit", "posterior: run's GP", "posterior: check GP", "planner", "rest")
+PARTS = ("refit", "posterior: run's GP", "posterior: check GP", "planner", "KDE/law", "spreading", "rest")
 
 
 class Clock:
@@ -111,7 +116,15 @@ def instrument(clock: Clock):
 
     GP._factorize = count("factorisations", factorize)
     GP._woodbury = count("updates", woodbury)
+    if hasattr(GP, "_low_rank_update"):                 # gp.low_rank_updates (the tuned preset's)
+        GP._low_rank_update = count("updates", GP._low_rank_update)
     ReferencePlanner.solve = clock.timed("planner", ReferencePlanner.solve)
+    from swarmfield.control.kde import KernelDensity
+    from swarmfield.sim import controllers
+    from swarmfield.sim.spreading import MeasurementSpreading
+    KernelDensity.fit = clock.timed("KDE/law", KernelDensity.fit)
+    controllers.tracking_velocity = clock.timed("KDE/law", controllers.tracking_velocity)
+    MeasurementSpreading.velocity = clock.timed("spreading", MeasurementSpreading.velocity)
 
 
 def main(argv=None) -> int:

@@ -208,6 +208,14 @@ class GPSettings:
         moves by <= 6e-7 (a field of unit size) and V by <= 3e-6 relative at l = 1, by <= 4e-5 and
         1.5e-4 at a learned l up to 10 on the same grid.
         0 keeps every direction (the exact spline model); 2e-7 was the default until 2026-11-26.
+    low_rank_updates
+        How the posterior follows new data between two factorisations (the Woodbury updates of
+        :mod:`regression.gp`): ``False`` (the default) updates the M x M covariance Sigma in place (O(k M^2) for k
+        new points, after one Kronecker product that forms Sigma); ``True`` keeps the updates as a correction
+        Sigma = Sigma_0 - G G^T of rank K, G's columns the updates' factors (O(k M (K + 16 + gx)) an update, Sigma
+        never formed while K <= M / 2).  The same posterior to round-off; at M = 4080 an update of 100 points costs
+        ~10 ms instead of ~65 ms.  The tuned preset's (its hyperparameters change every period, so that Sigma is
+        refactorised anyway); the paper preset keeps the dense updates (its results bit for bit).
     """
 
     signal_variance: float = 0.25
@@ -237,6 +245,7 @@ class GPSettings:
     amplitude: str = "stationary"
     amplitude_cells: int = 6
     amplitude_prior_sd: float = 1.0
+    low_rank_updates: bool = False
 
     def __post_init__(self):
         object.__setattr__(self, "signal_variance", _finite_positive("signal_variance", self.signal_variance))
@@ -341,6 +350,8 @@ class GPSettings:
         object.__setattr__(self, "amplitude_prior_sd", _finite_positive("amplitude_prior_sd", self.amplitude_prior_sd))
         if not isinstance(self.learn_nugget, bool):
             raise ValueError(f"learn_nugget must be true or false, got {self.learn_nugget!r}")
+        if not isinstance(self.low_rank_updates, bool):
+            raise ValueError(f"low_rank_updates must be true or false, got {self.low_rank_updates!r}")
         for name in ("hyper_step_sd", "hyper_prior_sd_signal"):
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, _finite_positive(name, getattr(self, name)))

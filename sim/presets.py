@@ -173,9 +173,12 @@ PRESETS: dict[str, dict] = {
         # bumps) the learned nugget is ~0, times to threshold are equal or earlier except bumps' feedback (1.12 -> 1.19 T) and
         # maps at 2T and 3T within -2 % ... +4 %
         # (docs/results/map-quality.md, "A nugget for rough fields")
+        # low_rank_updates: the posterior's updates between two factorisations kept as a low-rank correction instead of
+        # applied to the M x M covariance (the same posterior to round-off; on a 40 m x 25 m site, M = 4080, a tuned
+        # run's GP and stop-rule GP ~2 s cheaper a period: docs/results/closed-loop-step.md, "Real time on larger sites")
         "gp": {"learn_hyperparameters": True, "hyper_maxiter": 8, "signal_scale": "data", "signal_variance": 1.0,
                "kernel": "matern52", "hyper_prior_sd": 0.5, "hyper_step_sd": 1.0, "grid_cells": 40,
-               "grid_budget": "coarsen", "learn_nugget": True},
+               "grid_budget": "coarsen", "learn_nugget": True, "low_rank_updates": True},
         # a learned s_f^2 changes the scale of V: stop at sup V <= 0.4 s_f^2 and target
         # max(V - 0.2 s_f^2, 0), the paper's 0.1 and 0.05 relative to its s_f^2 = 0.25
         # eta_relative 0.05: keep planning until sup V < 0.05 s_f^2, the map keeps improving

@@ -440,6 +440,69 @@ def test_banded_posterior_equals_the_full_covariance_after_a_factorisation():
     np.testing.assert_allclose(gp.predict(pts), (m1, v1), rtol=1e-11, atol=0)
 
 
+@pytest.mark.parametrize("first", [100, 600])
+def test_low_rank_updates_equal_the_dense_updates_and_the_exact_posterior(first):
+    """``low_rank_updates``: the Woodbury updates kept as Sigma_0 - G G^T (no M x M Sigma) give the dense updates'
+    posterior to round-off, from the prior (first batch 100 <= M/4: an update) or from a factorisation (600), through
+    the fold into the dense Sigma once the correction's rank would pass M/2 (924 at M = 1849), and a follower at
+    another length scale (the robust stop rule's) inherits the setting with the same results."""
+    dense = GaussianProcess(PAPER)
+    low = GaussianProcess(dataclasses.replace(PAPER, low_rank_updates=True))
+    twins = [gp.follower(length_scale=1.5) for gp in (dense, low)]
+    assert twins[1].settings.low_rank_updates and not twins[0].settings.low_rank_updates
+    rng = np.random.default_rng(21)
+    pts = cell_centres()
+    Xs, ys = [], []
+    ranks = []
+    for step in range(12):
+        n = first if step == 0 else 100
+        X = np.clip(rng.uniform(0.0, 7.0, (n, 2)) + 1.1 * step, 0.0, 20.0)
+        y = field(X) + rng.normal(0.0, 0.2, n)
+        Xs.append(X)
+        ys.append(y)
+        for gp in (dense, low):
+            gp.add(X, y)
+        (m0, v0), (m1, v1) = dense.predict(pts), low.predict(pts)
+        np.testing.assert_allclose(m1, m0, rtol=1e-11, atol=0)
+        np.testing.assert_allclose(v1, v0, rtol=0, atol=1e-12 * v0.max())
+        (tm0, tv0), (tm1, tv1) = (t.predict(pts) for t in twins)
+        np.testing.assert_allclose(tv1, tv0, rtol=0, atol=1e-12 * tv0.max())
+        ranks.append(low._cov.rank)
+        if low._cov.rank:
+            assert low._cov.sigma is None                  # the low-rank form: no M x M Sigma
+    m = low._n_nodes
+    assert max(ranks) <= m // 2 and ranks[-1] == 0 and low._cov.sigma is not None     # folded, then dense updates
+    assert low.n_woodbury_updates == dense.n_woodbury_updates >= 10
+    ref_mean, ref_var = exact_posterior(PAPER, np.vstack(Xs), np.concatenate(ys), pts)
+    np.testing.assert_allclose(m1, ref_mean, rtol=1e-9, atol=0)
+    np.testing.assert_allclose(v1, ref_var, rtol=1e-9, atol=0)
+
+
+def test_low_rank_updates_are_refactorised_at_new_hyperparameters():
+    """A refit's new (s_f^2, l) drops the correction: the next posterior is a factorisation, then low-rank again."""
+    rng = np.random.default_rng(22)
+    low = GaussianProcess(dataclasses.replace(PAPER, low_rank_updates=True))
+    pts = cell_centres()
+    X, y = paper_data(3, n_robots=300)
+    low.add(X, y)
+    low.predict(pts)
+    for _ in range(2):
+        Xn = rng.uniform(0.0, 20.0, (50, 2))
+        low.add(Xn, field(Xn))
+        low.predict(pts)
+    assert low._cov.rank == 100 and low.n_factorizations == 1
+    low.set_hyperparameters(0.3, 1.2)
+    mean, var = low.predict(pts)
+    assert low.n_factorizations == 2 and low._cov.rank == 0
+    Xn = rng.uniform(0.0, 20.0, (50, 2))
+    low.add(Xn, field(Xn))
+    mean, var = low.predict(pts)
+    assert low._cov.rank == 50
+    ref = low._twin(dataclasses.replace(low.settings, low_rank_updates=False))     # the same sums, factorised
+    np.testing.assert_allclose(ref.predict(pts), (mean, var), rtol=1e-9, atol=0)
+    assert ref.n_factorizations == 1
+
+
 def test_hyperparameter_change_after_woodbury_updates_is_exact():
     rng = np.random.default_rng(15)
     gp = GaussianProcess(COARSE)
