@@ -103,3 +103,39 @@ class RefitLargeSite:
     def time_warm_refit_after_800_points(self, pad):
         self.gp.add(*self._data(self.rng, 800))
         self.refit(self.gp)
+
+
+class PosteriorUpdatesLargeSite:
+    """A period of posterior updates on a 40 m x 25 m site at the tuned preset's kernel and the robust stop rule's
+    length scale (Matérn 5/2, l = 1 m on the grid coarsened to the budget, spacing 0.527 m: 4,029 nodes, every prior
+    direction kept): after a factorisation, eight steps of 100 new points, each followed by the variance on the
+    1,000 cell centres of a 40 x 25 planner grid; dense Woodbury updates of the M x M covariance
+    (``low_rank_updates = false``) against the updates kept as a low-rank correction (``true``, the tuned preset's)
+    (docs/results/closed-loop-step.md, "Real time on larger sites")."""
+
+    timer = TIMER
+    params = [False, True]
+    param_names = ["low_rank_updates"]
+    number = 1
+    repeat = 3
+    warmup_time = 0.0
+    timeout = 600
+
+    def setup(self, low_rank):
+        limit_threads()
+        from swarmfield.ocp import Grid
+        from swarmfield.regression import GaussianProcess, GPSettings
+        rng = np.random.default_rng(0)
+        s = GPSettings(signal_variance=0.6, length_scale=1.0, noise_variance=0.01, kernel="matern52",
+                       inducing_spacing=0.527, low_rank_updates=low_rank)
+        self.gp = GaussianProcess(s, domain=(0.0, 40.0, 0.0, 25.0))
+        X = rng.uniform((0.0, 0.0), (40.0, 25.0), (1600, 2))
+        self.gp.add(X, np.sin(X[:, 0] / 4) + 0.1 * rng.normal(size=1600))
+        self.centers = Grid((0.0, 40.0, 0.0, 25.0), 40, 25).centers()
+        self.gp.predict(self.centers)                                  # the factorisation
+        self.steps = [rng.uniform((0.0, 0.0), (40.0, 25.0), (100, 2)) for _ in range(8)]
+
+    def time_a_period_of_updates(self, low_rank):
+        for X in self.steps:
+            self.gp.add(X, np.sin(X[:, 0] / 4))
+            self.gp.predict(self.centers)
