@@ -1338,6 +1338,8 @@ class GaussianProcess:
         (equal to round-off, ``tests/test_regression.py``)."""
         k, m = pts.shape[0], self._n_nodes
         _, _, _, _, node, phi = self._basis(pts)
+        if self._amp is not None:                    # a local signal variance: the coefficients' design D phi
+            phi = phi * self._amp[node]
         u_t = sparse.csr_matrix((phi.reshape(-1) / math.sqrt(sn2), node.reshape(-1), np.arange(0, 16 * k + 1, 16)),
                                 shape=(k, m))
         b = cov.basis

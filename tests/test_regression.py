@@ -478,6 +478,31 @@ def test_low_rank_updates_equal_the_dense_updates_and_the_exact_posterior(first)
     np.testing.assert_allclose(v1, ref_var, rtol=1e-9, atol=0)
 
 
+def test_low_rank_updates_with_a_local_signal_variance():
+    """``amplitude = "local"`` scales the coefficients' design by a(node): the low-rank updates scale it as the dense."""
+    from swarmfield.regression.amplitude import LogAmplitude
+    dom = (0.0, 10.0, 0.0, 8.0)
+    rng = np.random.default_rng(23)
+    s = GPSettings(signal_variance=0.5, length_scale=1.5, noise_variance=0.01, kernel="matern52", inducing_spacing=0.5)
+    amp = LogAmplitude(dom, 3)
+    amp = amp.with_theta(rng.normal(0.0, 0.8, amp.size))
+    gps = [GaussianProcess(dataclasses.replace(s, low_rank_updates=f), dom) for f in (False, True)]
+    pts = cell_centres(dom, 20, 16)
+    X = rng.uniform((0.0, 0.0), (10.0, 8.0), (150, 2))
+    for gp in gps:
+        gp.add(X, np.sin(X[:, 0]))
+        gp.set_log_amplitude(amp)
+        gp.predict(pts)
+    for _ in range(3):
+        X = rng.uniform((0.0, 0.0), (10.0, 8.0), (30, 2))
+        for gp in gps:
+            gp.add(X, np.sin(X[:, 0]))
+        (m0, v0), (m1, v1) = (gp.predict(pts) for gp in gps)
+        np.testing.assert_allclose(m1, m0, rtol=1e-11, atol=0)
+        np.testing.assert_allclose(v1, v0, rtol=0, atol=1e-12 * v0.max())
+    assert gps[1]._cov.rank == 90 and gps[1]._cov.sigma is None
+
+
 def test_low_rank_updates_are_refactorised_at_new_hyperparameters():
     """A refit's new (s_f^2, l) drops the correction: the next posterior is a factorisation, then low-rank again."""
     rng = np.random.default_rng(22)
