@@ -77,6 +77,39 @@ def kept_pieces(fine: np.ndarray, bx: np.ndarray, by: np.ndarray) -> np.ndarray:
     return out
 
 
+def piece_owners(fine: np.ndarray, kept: np.ndarray, bx: np.ndarray, by: np.ndarray) -> np.ndarray:
+    """(Nx, Ny) int: the planner cell (flat index ``i ny + j``) each free pixel belongs to, -1 for blocked pixels.
+
+    A kept pixel (:func:`kept_pieces`) belongs to its own cell.  A free pixel outside its cell's kept piece (the far
+    side of a wall that cuts the cell) belongs to the cell of the nearest kept pixel it is joined to through free
+    pixels (4-connected breadth-first search, so never across a wall): the neighbouring cell on its own side of the
+    wall, whose open faces are the ones it can actually use.  A free pixel joined to no kept pixel stays with the
+    cell it lies in."""
+    fine = np.asarray(fine, bool)
+    Nx, Ny = fine.shape
+    ny = len(by) - 1
+    ci = np.repeat(np.arange(len(bx) - 1), np.diff(bx))
+    cj = np.repeat(np.arange(ny), np.diff(by))
+    own = (ci[:, None] * ny + cj[None, :]).astype(np.int64)
+    out = np.where(kept, own, -1)
+    todo = fine & ~kept
+    while todo.any():
+        grown = out.copy()
+        for sl_to, sl_from in (((slice(1, None), slice(None)), (slice(None, -1), slice(None))),
+                               ((slice(None, -1), slice(None)), (slice(1, None), slice(None))),
+                               ((slice(None), slice(1, None)), (slice(None), slice(None, -1))),
+                               ((slice(None), slice(None, -1)), (slice(None), slice(1, None)))):
+            src = out[sl_from]
+            take = todo[sl_to] & (grown[sl_to] < 0) & (src >= 0)
+            grown[sl_to][take] = src[take]
+        new = todo & (grown >= 0)
+        if not new.any():
+            break
+        out, todo = grown, todo & ~new
+    out[todo] = own[todo]
+    return out
+
+
 def open_faces(kept: np.ndarray, bx: np.ndarray, by: np.ndarray):
     """``(open_x (nx-1, ny), open_y (nx, ny-1))`` bool: a face between two cells is open iff a kept pixel of one
     cell touches a kept pixel of the other across it (:func:`kept_pieces`), i.e. the free space crosses the

@@ -43,7 +43,11 @@ open iff a pixel of one cell's piece touches a pixel of the other's across it.  
 a planner cell therefore closes every face it crosses, wherever it lies inside the cells, and a door
 opens the faces it spans.  The closed faces go to the planner's transport (:mod:`ocp.mask`), the
 feedback's transport term (:mod:`control.poisson_flux`), the KDE (:mod:`control.kde`), the geodesic
-distances (:class:`domain.geodesic.GeodesicGrid`) and the connectivity of the reachable cells.
+distances (:class:`domain.geodesic.GeodesicGrid`) and the connectivity of the reachable cells.  The part of a
+cut cell that its kept piece does not hold (the far side of the wall) is free for the robots, and belongs, for
+the density estimate, the feedback law and the controllers, to the neighbouring cell on its own side
+(:meth:`Domain.on_kept_pieces`): counted in the cell it lies in, a robot there would be steered as if it stood
+in the room behind the wall.
 
 Reflection at obstacles
 -----------------------
@@ -65,7 +69,7 @@ from dataclasses import dataclass, field as dc_field
 import numpy as np
 
 from .cells import (_connected_to_box, _grid_shape, cell_fractions, connected_to_box, keep_doors, kept_pieces,
-                    open_faces)
+                    open_faces, piece_owners)
 from .common import _extent, _need
 from .edges import _EdgeIndex, _merged_faces, _walls
 
@@ -396,6 +400,47 @@ class Domain:
             fine, bx, by = self.topology_raster(nx, ny)
             self._topology[key] = (kept_pieces(fine, bx, by), bx, by)
         return self._topology[key]
+
+    def _strays(self, nx: int, ny: int):
+        """(Mx, My) int, cached per grid: for a free pixel outside its cell's kept piece the cell that owns it
+        (:func:`domain.cells.piece_owners`), -1 elsewhere; None when every free pixel is in its cell's kept piece."""
+        key = ("strays", int(nx), int(ny))
+        if key not in self._topology:
+            fine, _, _ = self.topology_raster(nx, ny)
+            kept, bx, by = self._kept(nx, ny)
+            stray = fine & ~kept
+            self._topology[key] = (np.where(stray, piece_owners(fine, kept, bx, by), -1).astype(np.int64)
+                                   if stray.any() else None)
+        return self._topology[key]
+
+    def on_kept_pieces(self, X, nx: int, ny: int) -> np.ndarray:
+        """Positions as the planner's ``nx`` x ``ny`` cells see them: a robot on the far side of a thin wall that
+        cuts its cell (in a part of the cell its kept piece does not hold, module docstring, "Walls") is moved to
+        the nearest point of the cell that owns that part (:func:`domain.cells.piece_owners`: the neighbour on its
+        own side of the wall), so that the density estimate counts it, and the feedback law and the controllers
+        steer it, in the room it is in; every other position is returned unchanged (the same array when none
+        moves).  For the estimate and the laws only: the robots measure and move where they are."""
+        X = np.asarray(X, float)
+        strays = self._strays(nx, ny)
+        if strays is None or X.size == 0:
+            return X
+        x0, x1, y0, y1 = self.extent
+        Mx, My = strays.shape
+        pi = np.clip(((X[:, 0] - x0) / (x1 - x0) * Mx).astype(np.int64), 0, Mx - 1)
+        pj = np.clip(((X[:, 1] - y0) / (y1 - y0) * My).astype(np.int64), 0, My - 1)
+        owner = strays[pi, pj]
+        dx, dy = (x1 - x0) / nx, (y1 - y0) / ny
+        ci = np.clip(((X[:, 0] - x0) / dx).astype(np.int64), 0, nx - 1)
+        cj = np.clip(((X[:, 1] - y0) / dy).astype(np.int64), 0, ny - 1)
+        move = (owner >= 0) & (owner != ci * ny + cj)
+        if not move.any():
+            return X
+        oi, oj = owner[move] // ny, owner[move] % ny
+        eps = 1e-6
+        out = X.copy()
+        out[move, 0] = np.clip(X[move, 0], x0 + (oi + eps) * dx, x0 + (oi + 1 - eps) * dx)
+        out[move, 1] = np.clip(X[move, 1], y0 + (oj + eps) * dy, y0 + (oj + 1 - eps) * dy)
+        return out
 
     def closed_faces(self, free: np.ndarray):
         """Walls at the geometry's own resolution on the planner grid of ``free`` (nx, ny): ``(closed_x (nx-1, ny),

@@ -357,3 +357,76 @@ def test_the_free_fraction_never_closes_a_door():
         reach = d.reachable_cells(cells, (0, 7, 0, 7))
         assert reach[21:].sum() == (frac[21:] >= f * (1 - 1e-12)).sum() > 0      # the whole room behind the wall
         assert (cells & ~(frac >= f * (1 - 1e-12))).sum() <= 4                  # the door's cells at most
+
+
+def school_wall_domain():
+    """[0, 36] x [0, 24] with a 4 cm wall at 12.00 < x < 12.04 (no door; 0.04 m pixels): on 40 x 27 cells of
+    0.9 m the wall cuts the column 11.7 < x < 12.6, whose kept piece is east of it."""
+    p = 0.04
+    xc, yc = (np.arange(900) + 0.5) * p, (np.arange(600) + 0.5) * p
+    X, _ = np.meshgrid(xc, yc, indexing="ij")
+    free = ~((X > 12.0) & (X < 12.04))
+    return Domain.from_raster(free, (0.0, 36.0, 0.0, 24.0), name="school wall", start_box=(0.0, 7.0, 0.0, 7.0))
+
+
+def test_a_robot_beyond_a_thin_wall_inside_its_cell_counts_in_the_cell_on_its_side():
+    from swarmfield.domain.cells import piece_owners
+    d = school_wall_domain()
+    free = d.free_cells((40, 27))
+    cx, _ = d.closed_faces(free)
+    assert cx[12].all() and not cx[13].any()         # closed at x = 11.7 (the cell face west of the wall), not 12.6
+    fine, bx, by = d.topology_raster(40, 27)
+    kept, _, _ = d._kept(40, 27)
+    own = piece_owners(fine, kept, bx, by)
+    sliver = fine & ~kept
+    assert sliver[293:300].all() and not sliver[:292].any() and not sliver[301:].any()   # 11.7 < x < 12.0
+    assert (own[sliver] // 27 == 12).all()             # owned by the column 10.8 < x < 11.7, on its side
+    ci = np.searchsorted(bx, np.arange(900), side="right") - 1           # each pixel's own cell
+    cj = np.searchsorted(by, np.arange(600), side="right") - 1
+    assert (own[kept] == (ci[:, None] * 27 + cj[None, :])[kept]).all()
+    X = np.array([[11.85, 5.0], [11.99, 20.3], [12.3, 5.0], [4.0, 4.0], [11.65, 3.0]])
+    P = d.on_kept_pieces(X, 40, 27)
+    assert P[0, 0] == pytest.approx(11.7, abs=1e-5) and P[0, 0] < 11.7 and P[1, 0] < 11.7   # into the west cell
+    np.testing.assert_array_equal(P[:, 1], X[:, 1])
+    np.testing.assert_array_equal(P[2:], X[2:])        # east of the wall, elsewhere, and in a whole cell: unchanged
+    assert d.on_kept_pieces(X[2:], 40, 27) is not None
+    Y = np.ascontiguousarray(X[2:])
+    assert d.on_kept_pieces(Y, 40, 27) is Y            # nothing to move: the same array
+
+
+def test_with_walls_the_kde_bins_every_robot_on_its_own_side_of_a_cell_face():
+    """Bins of 0.36 m (h = 1.44 m) on cells of 0.9 m used to put the wall's face at a bin face up to half a bin
+    away: robots in the last 0.18 m before the face were smoothed into the room behind it.  With walls the bins
+    are whole per cell, so nothing of them reaches the far side."""
+    from swarmfield.control.kde import KernelDensity
+    free = np.ones((40, 27), bool)
+    cx, cy = np.zeros((39, 27), bool), np.zeros((40, 26), bool)
+    cx[12, :] = True                                    # x = 11.7, no door
+    rng = np.random.default_rng(3)
+    X = np.column_stack([rng.uniform(11.55, 11.699, 300), rng.uniform(1.0, 23.0, 300)])
+    kde = KernelDensity((0.0, 36.0, 0.0, 24.0), bandwidth=1.44, free=free, obstacle_kernel="reflect",
+                        walls=(cx, cy))
+    mx, my = kde.resolve_bins(1.44, minimum=(2, 2))
+    assert mx % 40 == 0 and my % 27 == 0
+    p = kde.fit(X).on_grid(40, 27)
+    assert p[13:].sum() < 1e-9 * p.sum()               # no robot counted behind the wall
+    east, _ = kde.fit(X).evaluate(np.array([[11.75, 5.0], [12.5, 12.0]]))
+    assert east.max() < 1e-9
+
+
+def test_the_closed_loop_steers_a_robot_beyond_a_thin_wall_from_the_cell_on_its_side(tmp_path):
+    """The density estimate, the law and the controllers see a robot in the sliver between a cell face and a thin
+    wall inside the next cell in the cell on its own side (it measures where it is)."""
+    from swarmfield.sim.simulation import Simulation
+    d = school_wall_domain()
+    np.savez(tmp_path / "wall.npz", free=d.state == 1, extent=np.array([0.0, 36.0, 0.0, 24.0]))
+    cfg = config_from_dict({"sim": {"domain": [0.0, 36.0, 0.0, 24.0], "robots": 30, "max_periods": 1},
+                            "domain": {"source": str(tmp_path / "wall.npz")}})
+    sim = Simulation(cfg)
+    sim.start()
+    sim.X[:3] = [[11.9, 5.0], [11.8, 15.0], [12.3, 5.0]]
+    ctx = sim.context()
+    assert ctx.X[0, 0] < 11.7 and ctx.X[1, 0] < 11.7 and ctx.X[2, 0] == 12.3
+    np.testing.assert_array_equal(ctx.X[3:], sim.X[3:])
+    y = sim.measure()[0]
+    assert y[0, 0] == 11.9                               # measured where it is
