@@ -1257,12 +1257,15 @@ class GaussianProcess:
             self._cov = None
             self._pending, self._pending_n = None, 0
             a = self._assemble_a()
-            chol, basis = self._factorize(s2, ell, a)
-            # chol.T is the Fortran-ordered upper factor: dpotri works in place on it (no copy)
-            binv_f, info = lapack.dpotri(chol.T, lower=0, overwrite_c=1)
-            if info != 0:
-                raise np.linalg.LinAlgError(f"inverse of I + S A S failed (info={info})")
-            binv = binv_f.T                  # C order; dpotri filled its lower triangle only
+            basis = self._prior_basis(ell)
+            binv = self._inverse_through_data(s2, basis, a) if self._settings.low_rank_updates else None
+            if binv is None:
+                chol, basis = self._factorize(s2, ell, a)
+                # chol.T is the Fortran-ordered upper factor: dpotri works in place on it (no copy)
+                binv_f, info = lapack.dpotri(chol.T, lower=0, overwrite_c=1)
+                if info != 0:
+                    raise np.linalg.LinAlgError(f"inverse of I + S A S failed (info={info})")
+                binv = binv_f.T                  # C order; dpotri filled its lower triangle only
             _mirror_lower(binv)
             m = self._n_nodes
             work = _work_arrays(m)
@@ -1276,6 +1279,67 @@ class GaussianProcess:
         self._cov = cov
         self._pending, self._pending_n = [], 0
         return cov
+
+    def _inverse_through_data(self, s2: float, basis: _PriorBasis, a: np.ndarray) -> np.ndarray | None:
+        """B^{-1} = (I + s_f^2 S_K^T A S_K)^{-1} through the data's rank when it is low (``GPSettings.low_rank_updates``),
+        its lower triangle on this thread's work array 0; None when the factorisation of B is cheaper.
+
+        A is non-zero only on the d nodes near data, and its rank q is at most min(d, n): with A_DD = R R^T (pivoted
+        Cholesky factorisation of its d x d block, LAPACK dpstrf, to its default tolerance d eps max A_ii) and
+        W = S_K^T R (r x q, one Kronecker product of q columns), B = I + s_f^2 W W^T and by Woodbury
+
+            B^{-1} = I - s_f^2 Y Y^T,   Y = W L_C^{-T},   L_C L_C^T = I_q + s_f^2 W^T W,
+
+        O(d q^2 + r q^2 + r^2 q) instead of the factorisation and inverse's O(r^3).  Early in a run on a large site
+        the swarm's data span few dimensions (100 robots' first measurements: q = 100 against r = 4,029 on a
+        40 m x 25 m site; after one period q = 900), so the first posteriors cost a few per cent of the dense ones; used
+        when the estimate (q at its bound) is below half of r^3.  The same B^{-1} to round-off
+        (``tests/test_regression.py``)."""
+        gx, gy = self._ax.n_nodes, self._ay.n_nodes
+        m, r = self._n_nodes, basis.size
+        diag = a[:, 3, :, 3].reshape(-1)                     # A's diagonal, node i * gy + j
+        on = np.flatnonzero(diag > 0)
+        d = on.size
+        q = min(d, self._n)
+        if d == 0 or d * q * q + 2.0 * r * q * q + float(r) * r * q + m * q * (gx + gy) > 0.5 * float(r) ** 3:
+            return None
+        pos = np.full(m, -1)
+        pos[on] = np.arange(d)
+        i, j = np.divmod(on, gy)
+        add = np.zeros((d, d))
+        for di in range(_BAND):                                # A_DD from A's band
+            ii = i + di - 3
+            for dj in range(_BAND):
+                jj = j + dj - 3
+                ok = (ii >= 0) & (ii < gx) & (jj >= 0) & (jj < gy)
+                col = np.where(ok, pos[np.where(ok, ii * gy + jj, 0)], -1)
+                sel = np.flatnonzero(col >= 0)
+                add[sel, col[sel]] = a[i[sel], di, j[sel], dj]
+        c, piv, rank, info = lapack.dpstrf(add, lower=1, overwrite_a=1)
+        if info < 0:
+            return None                                      # pragma: no cover - LAPACK argument error
+        rfull = np.zeros((m, rank))                          # R on the lattice: A = R R^T
+        rfull[on[piv - 1]] = np.tril(c)[:, :rank]
+        w = self._kron_left(basis.fx.T, basis.fy.T, rfull)  # S^T R, (cx cy, q)
+        if basis.keep is not None:
+            w = w[basis.keep]
+        cq = s2 * (w.T @ w)
+        cq[np.diag_indices_from(cq)] += 1.0
+        lc, info = lapack.dpotrf(cq, lower=1, clean=1, overwrite_a=1)
+        if info != 0:
+            return None                                      # pragma: no cover - I + s_f^2 W^T W is >= I
+        y_t, info = lapack.dtrtrs(lc, np.ascontiguousarray(w.T), lower=1, overwrite_b=1)   # L_C^{-1} W^T, (q, r)
+        if info != 0:
+            return None                                      # pragma: no cover
+        binv = _view(_work_arrays(m)[0], (r, r))
+        binv.fill(0.0)
+        binv.reshape(-1)[:: r + 1] = 1.0
+        y_t = np.ascontiguousarray(y_t)
+        # binv.T is the Fortran view; its upper triangle is binv's lower one: I - s_f^2 Y Y^T there
+        out = blas.dsyrk(-s2, y_t.T, beta=1.0, c=binv.T, lower=0, overwrite_c=1)
+        if not np.shares_memory(out, binv):                  # pragma: no cover - f2py made a copy
+            binv[...] = out.T
+        return binv
 
     def _basis(self, pts: np.ndarray):
         """Active nodes and weights of points: per-axis (nx, ny, wx, wy), each (n, 4), and the
