@@ -1280,28 +1280,16 @@ class GaussianProcess:
         self._pending, self._pending_n = [], 0
         return cov
 
-    def _inverse_through_data(self, s2: float, basis: _PriorBasis, a: np.ndarray) -> np.ndarray | None:
-        """B^{-1} = (I + s_f^2 S_K^T A S_K)^{-1} through the data's rank when it is low (``GPSettings.low_rank_updates``),
-        its lower triangle on this thread's work array 0; None when the factorisation of B is cheaper.
-
-        A is non-zero only on the d nodes near data, and its rank q is at most min(d, n): with A_DD = R R^T (pivoted
-        Cholesky factorisation of its d x d block, LAPACK dpstrf, to its default tolerance d eps max A_ii) and
-        W = S_K^T R (r x q, one Kronecker product of q columns), B = I + s_f^2 W W^T and by Woodbury
-
-            B^{-1} = I - s_f^2 Y Y^T,   Y = W L_C^{-T},   L_C L_C^T = I_q + s_f^2 W^T W,
-
-        O(d q^2 + r q^2 + r^2 q) instead of the factorisation and inverse's O(r^3).  Early in a run on a large site
-        the swarm's data span few dimensions (100 robots' first measurements: q = 100 against r = 4,029 on a
-        40 m x 25 m site; after one period q = 900), so the first posteriors cost a few per cent of the dense ones; used
-        when the estimate (q at its bound) is below half of r^3.  The same B^{-1} to round-off
-        (``tests/test_regression.py``)."""
+    def _data_factor(self, a: np.ndarray, budget: float, cost):
+        """R (M x q) with A = R R^T, A given by its band ``a``: the pivoted Cholesky factor (LAPACK dpstrf, to its
+        default tolerance d eps max A_ii) of A's d x d block on the nodes near data, q its rank <= min(d, n); None
+        when ``cost(d, q)`` at q's bound min(d, n) is above ``budget`` (the caller's dense path is then cheaper)."""
         gx, gy = self._ax.n_nodes, self._ay.n_nodes
-        m, r = self._n_nodes, basis.size
+        m = self._n_nodes
         diag = a[:, 3, :, 3].reshape(-1)                     # A's diagonal, node i * gy + j
         on = np.flatnonzero(diag > 0)
         d = on.size
-        q = min(d, self._n)
-        if d == 0 or d * q * q + 2.0 * r * q * q + float(r) * r * q + m * q * (gx + gy) > 0.5 * float(r) ** 3:
+        if d == 0 or cost(d, min(d, self._n)) > budget:
             return None
         pos = np.full(m, -1)
         pos[on] = np.arange(d)
@@ -1318,8 +1306,13 @@ class GaussianProcess:
         c, piv, rank, info = lapack.dpstrf(add, lower=1, overwrite_a=1)
         if info < 0:
             return None                                      # pragma: no cover - LAPACK argument error
-        rfull = np.zeros((m, rank))                          # R on the lattice: A = R R^T
+        rfull = np.zeros((m, rank))                          # R on the lattice
         rfull[on[piv - 1]] = np.tril(c)[:, :rank]
+        return rfull
+
+    def _data_woodbury(self, s2: float, basis: _PriorBasis, rfull: np.ndarray):
+        """(W, L_C, Y^T) of B = I + s_f^2 W W^T, W = S_K^T R (r x q), L_C L_C^T = I_q + s_f^2 W^T W, Y^T = L_C^{-1} W^T
+        (q x r): B^{-1} = I - s_f^2 Y Y^T and log det B = log det (L_C L_C^T); None if a factorisation failed."""
         w = self._kron_left(basis.fx.T, basis.fy.T, rfull)  # S^T R, (cx cy, q)
         if basis.keep is not None:
             w = w[basis.keep]
@@ -1331,10 +1324,36 @@ class GaussianProcess:
         y_t, info = lapack.dtrtrs(lc, np.ascontiguousarray(w.T), lower=1, overwrite_b=1)   # L_C^{-1} W^T, (q, r)
         if info != 0:
             return None                                      # pragma: no cover
+        return w, lc, np.ascontiguousarray(y_t)
+
+    def _inverse_through_data(self, s2: float, basis: _PriorBasis, a: np.ndarray) -> np.ndarray | None:
+        """B^{-1} = (I + s_f^2 S_K^T A S_K)^{-1} through the data's rank when it is low (``GPSettings.low_rank_updates``),
+        its lower triangle on this thread's work array 0; None when the factorisation of B is cheaper.
+
+        A is non-zero only on the d nodes near data, and its rank q is at most min(d, n): with A = R R^T
+        (:meth:`_data_factor`) and W = S_K^T R (r x q, one Kronecker product of q columns), B = I + s_f^2 W W^T and by
+        Woodbury
+
+            B^{-1} = I - s_f^2 Y Y^T,   Y = W L_C^{-T},   L_C L_C^T = I_q + s_f^2 W^T W,
+
+        O(d q^2 + r q^2 + r^2 q) instead of the factorisation and inverse's O(r^3).  Early in a run on a large site
+        the swarm's data span few dimensions (100 robots' first measurements: q = 100 against r = 4,029 on a
+        40 m x 25 m site; after one period q = 900), so the first posteriors cost a few per cent of the dense ones; used
+        when the estimate (q at its bound) is below half of r^3.  The same B^{-1} to round-off
+        (``tests/test_regression.py``)."""
+        gx, gy = self._ax.n_nodes, self._ay.n_nodes
+        m, r = self._n_nodes, basis.size
+        rfull = self._data_factor(a, 0.5 * float(r) ** 3,
+                                  lambda d, q: d * q * q + 2.0 * r * q * q + float(r) * r * q + m * q * (gx + gy))
+        if rfull is None:
+            return None
+        got = self._data_woodbury(s2, basis, rfull)
+        if got is None:
+            return None                                      # pragma: no cover
+        y_t = got[2]
         binv = _view(_work_arrays(m)[0], (r, r))
         binv.fill(0.0)
         binv.reshape(-1)[:: r + 1] = 1.0
-        y_t = np.ascontiguousarray(y_t)
         # binv.T is the Fortran view; its upper triangle is binv's lower one: I - s_f^2 Y Y^T there
         out = blas.dsyrk(-s2, y_t.T, beta=1.0, c=binv.T, lower=0, overwrite_c=1)
         if not np.shares_memory(out, binv):                  # pragma: no cover - f2py made a copy
@@ -1750,39 +1769,103 @@ class GaussianProcess:
         (the four entries sum to 1/2 (r^T C^{-1} r - n): scaling every variance scales C)."""
         if isinstance(ell, tuple) and ell[0] in GMRF_KERNELS:
             return self._gmrf_lml_and_gradient(s2, ell, a, b, tied=tied, noise=noise)
+        got = self._lml_through_data(s2, ell, a, b, noise) if self._settings.low_rank_updates else None
+        if got is not None:
+            lml, basis, sb, v, cxx, cyy = got
+        else:
+            lml, basis, sb, v, cxx, cyy = self._lml_dense(s2, ell, a, b, noise)
+        return lml, self._lml_gradient(s2, ell, basis, sb, v, cxx, cyy, noise)
+
+    def _lml_dense(self, s2: float, ell, a: np.ndarray, b: np.ndarray, noise):
+        """(log p, basis, S_K^T b, v, cxx, cyy) of :meth:`_lml_and_gradient` from the Cholesky factor L of B and
+        X = L^{-1} (one triangular inversion): the partial traces of B^{-1} = X^T X."""
         lml, chol, basis, sb, v = self._lml_parts(s2, ell, a, b, noise=noise)
+        # X = L^{-1}: dtrtri on the Fortran-ordered upper factor L^T gives L^-T (in place); its transpose is X
+        xu, info = lapack.dtrtri(chol.T, lower=0, overwrite_c=1)
+        if info != 0:
+            raise np.linalg.LinAlgError(f"inverse of the Cholesky factor of I + S A S failed (info={info})")
+        cxx, cyy = self._gram_partial_traces(basis, xu.T)
+        return lml, basis, sb, v, cxx, cyy
+
+    def _gram_partial_traces(self, basis: _PriorBasis, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The partial traces (cxx, cyy) of X^T X for X of r columns in the kept order (any number of rows)."""
+        if basis.keep is not None:
+            return self._partial_traces(basis, x)
+        cx, cy = basis.fx.shape[1], basis.fy.shape[1]
+        rows = x.shape[0]
+        x3 = x.reshape(rows, cx, cy)
+        xr = x3.reshape(rows * cx, cy)
+        cyy = xr.T @ xr                                      # sum_p (X^T X)[(p, q), (p, q')]
+        xt = _view(_work_arrays(self._n_nodes)[1], (cx, rows, cy))
+        np.copyto(xt, x3.transpose(1, 0, 2))
+        xt = xt.reshape(cx, rows * cy)
+        cxx = xt @ xt.T                                      # sum_q (X^T X)[(p, q), (p', q)]
+        return cxx, cyy
+
+    def _lml_through_data(self, s2: float, ell, a: np.ndarray, b: np.ndarray, noise):
+        """:meth:`_lml_dense`'s (log p, basis, S_K^T b, v, cxx, cyy) through the data's rank when it is low
+        (``GPSettings.low_rank_updates``; :meth:`_inverse_through_data`), else None: with A = R R^T, W = S_K^T R and
+        L_C L_C^T = I_q + s_f^2 W^T W, log det B = log det (L_C L_C^T) (Sylvester), v = B^{-1} S_K^T b = S_K^T b -
+        s_f^2 Y Y^T S_K^T b and B^{-1}'s partial traces those of I minus s_f^2 those of Y Y^T (Y^T = L_C^{-1} W^T,
+        q x r): O(d q^2 + r q^2) against the factorisation and triangular inversion's O(r^3 / 1.5).  The first
+        refits of a run on a large site, on 100 and 900 points, cost a fraction of the dense ones; the same values
+        to round-off (``tests/test_regression.py``)."""
+        if isinstance(ell, tuple) and ell[0] in GMRF_KERNELS:
+            return None
+        basis = self._prior_basis(ell)
+        gx, gy = self._ax.n_nodes, self._ay.n_nodes
+        m, r = self._n_nodes, basis.size
+        cx, cy = basis.fx.shape[1], basis.fy.shape[1]
+        rfull = self._data_factor(a, 0.5 * float(r) ** 3 / 1.5,
+                                  lambda d, q: d * q * q + 2.0 * r * q * q + m * q * (gx + gy) + q * cx * cy * (cx + cy))
+        if rfull is None:
+            return None
+        got = self._data_woodbury(s2, basis, rfull)
+        if got is None:
+            return None                                      # pragma: no cover
+        _, lc, y_t = got
+        sn2 = self._settings.residual_variance if noise is None else float(noise)
+        sb = self._kron_left(basis.fx.T, basis.fy.T, b[:, None])          # S^T b
+        if basis.keep is not None:
+            sb = sb[basis.keep]
+        v = sb[:, 0] - s2 * (y_t.T @ (y_t @ sb[:, 0]))                   # B^{-1} S^T b
+        quad = s2 * float(sb[:, 0] @ v)
+        logdet = 2.0 * float(np.sum(np.log(np.diag(lc))))
+        rr = self._centred_square_sum()
+        lml = -0.5 * (rr / sn2 - quad + logdet + self._n * math.log(2.0 * math.pi * sn2))
+        pxx, pyy = self._gram_partial_traces(basis, y_t)                  # of Y Y^T
+        nq, np_ = self._kept_counts(basis)
+        cxx = np.diag(nq) - s2 * pxx                                      # of B^{-1} = I - s_f^2 Y Y^T
+        cyy = np.diag(np_) - s2 * pyy
+        return lml, basis, sb, v, cxx, cyy
+
+    @staticmethod
+    def _kept_counts(basis: _PriorBasis) -> tuple[np.ndarray, np.ndarray]:
+        """(nq, np): the number of kept directions (p, q) for each p and for each q."""
+        cx, cy = basis.fx.shape[1], basis.fy.shape[1]
+        if basis.keep is None:
+            return np.full(cx, float(cy)), np.full(cy, float(cx))
+        kept = np.zeros(cx * cy)
+        kept[basis.keep] = 1.0
+        kept = kept.reshape(cx, cy)
+        return kept.sum(axis=1), kept.sum(axis=0)
+
+    def _lml_gradient(self, s2: float, ell, basis: _PriorBasis, sb: np.ndarray, v: np.ndarray, cxx: np.ndarray,
+                      cyy: np.ndarray, noise) -> np.ndarray:
+        """The gradient of :meth:`_lml_and_gradient` from v = B^{-1} S_K^T b and B^{-1}'s partial traces."""
         if isinstance(ell, tuple):
             kernel, l_x, l_y = ell
         else:
             kernel, l_x, l_y = "squared-exponential", float(ell), float(ell)
         cx, cy = basis.fx.shape[1], basis.fy.shape[1]
         r = basis.size
-        # X = L^{-1}: dtrtri on the Fortran-ordered upper factor L^T gives L^-T (in place); its transpose is X
-        xu, info = lapack.dtrtri(chol.T, lower=0, overwrite_c=1)
-        if info != 0:
-            raise np.linalg.LinAlgError(f"inverse of the Cholesky factor of I + S A S failed (info={info})")
-        x = xu.T
         if basis.keep is None:
-            x3 = x.reshape(r, cx, cy)
             v2 = v.reshape(cx, cy)
-            xr = x3.reshape(r * cx, cy)
-            cyy = xr.T @ xr                                      # sum_p B^-1[(p, q), (p, q')]
-            xt = _view(_work_arrays(self._n_nodes)[1], (cx, r, cy))
-            np.copyto(xt, x3.transpose(1, 0, 2))
-            xt = xt.reshape(cx, r * cy)
-            cxx = xt @ xt.T                                      # sum_q B^-1[(p, q), (p', q)]
         else:
             ve = np.zeros(cx * cy)
             ve[basis.keep] = v
             v2 = ve.reshape(cx, cy)
-            cxx, cyy = self._partial_traces(basis, x)
-        if basis.keep is None:
-            nq, np_ = np.full(cx, float(cy)), np.full(cy, float(cx))
-        else:
-            kept = np.zeros(cx * cy)
-            kept[basis.keep] = 1.0
-            kept = kept.reshape(cx, cy)
-            nq, np_ = kept.sum(axis=1), kept.sum(axis=0)
+        nq, np_ = self._kept_counts(basis)
         grad = np.empty(3 if noise is None else 4)
         grad[0] = 0.5 * (s2 * float(v @ v) - r + float(np.trace(cxx)))
         if noise is not None:
@@ -1795,7 +1878,7 @@ class GaussianProcess:
             g = w.T @ axis.prior_factor_dlog(ell_k, kernel) @ w
             data = float(np.sum(v2 * (g @ v2))) if k == 0 else float(np.sum(v2 * (v2 @ g)))
             grad[k + 1] = 0.5 * (s2 * data - float(np.diag(g) @ count) + float(np.sum(g * part)))
-        return lml, grad
+        return grad
 
     def _partial_traces(self, basis: _PriorBasis, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The partial traces of B^-1 = X^T X over one axis each, cxx[p, p'] = sum_q B^-1[(p, q), (p', q)] and
