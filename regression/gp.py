@@ -186,7 +186,8 @@ class _Covariance:
     half: np.ndarray | None = None
     band: np.ndarray | None = None
     store: np.ndarray | None = None
-    #: ``GPSettings.low_rank_updates``: Sigma = s_f^2 T (fx (x) fy)^T - G G^T with G = ``low[:, :rank]`` (M x rank),
+    #: ``GPSettings.low_rank_updates``: Sigma = s_f^2 T (fx (x) fy)^T - G G^T with G = ``low[:, :rank]`` (M x rank;
+    #: ``low`` Fortran-ordered, its columns allocated once up to the fold's rank),
     #: the Woodbury updates since ``half`` was computed kept as their factors (:meth:`GaussianProcess._low_rank_update`)
     low: np.ndarray | None = None
     rank: int = 0
@@ -1184,7 +1185,7 @@ class GaussianProcess:
             band = np.matmul(u, b.fy_band.transpose(0, 2, 1)[None])            # [i, j, di, dj]
             band *= cov.hyper[0]
             if cov.rank:                                                       # low_rank_updates: - band of G G^T
-                band -= self._outer_band(cov.low[:, :cov.rank])
+                band -= self._outer_band(np.ascontiguousarray(cov.low[:, :cov.rank]))
         else:
             if self._band_gather is None:
                 i, j, di, dj = np.meshgrid(np.arange(gx), np.arange(gy), np.arange(_BAND), np.arange(_BAND),
@@ -1207,7 +1208,7 @@ class GaussianProcess:
             sigma = self._kron_apply(b.fx, b.fy, ht, out=np.empty((m, m)), work=_work_arrays(m)[1])
             sigma *= cov.hyper[0]
             if cov.rank:                      # low_rank_updates: the correction folded in, Sigma -= G G^T
-                g_t = np.ascontiguousarray(cov.low[:, :cov.rank].T)      # (K, M): g_t.T is G, Fortran-ordered
+                g_t = np.ascontiguousarray(cov.low[:, :cov.rank].T)      # (K, M) (no copy): g_t.T is G, Fortran
                 out = blas.dsyrk(-1.0, g_t.T, beta=1.0, c=sigma.T, lower=0, overwrite_c=1)
                 if not np.shares_memory(out, sigma):          # pragma: no cover - f2py made a copy
                     sigma[...] = out.T
@@ -1229,8 +1230,11 @@ class GaussianProcess:
             if cov is None and low_rank:
                 # base state: the prior, T = S_K (Sigma = s_f^2 S_K S_K^T; all data are pending)
                 basis = self._prior_basis(ell)
-                eye = self._embed(basis, np.eye(basis.size), _work_arrays(self._n_nodes)[0])
-                half = self._kron_left(basis.fx, basis.fy, eye)
+                half = np.kron(basis.fx, basis.fy)              # S, its dropped directions' columns zeroed
+                if basis.keep is not None:
+                    dropped = np.ones(half.shape[1], dtype=bool)
+                    dropped[basis.keep] = False
+                    half[:, dropped] = 0.0
                 cov = _Covariance(hyper, 0, basis, 0, half=half, store=half)
             elif cov is None:
                 # base state: the prior Sigma = s_f^2 S_K S_K^T (all data are pending)
@@ -1352,12 +1356,12 @@ class GaussianProcess:
             return None                                      # pragma: no cover
         y_t = got[2]
         binv = _view(_work_arrays(m)[0], (r, r))
-        binv.fill(0.0)
-        binv.reshape(-1)[:: r + 1] = 1.0
-        # binv.T is the Fortran view; its upper triangle is binv's lower one: I - s_f^2 Y Y^T there
-        out = blas.dsyrk(-s2, y_t.T, beta=1.0, c=binv.T, lower=0, overwrite_c=1)
+        # binv.T is the Fortran view; its upper triangle is binv's lower one: -s_f^2 Y Y^T there (beta = 0: the array's
+        # old contents are not read), then I added; the caller mirrors the lower triangle
+        out = blas.dsyrk(-s2, y_t.T, beta=0.0, c=binv.T, lower=0, overwrite_c=1)
         if not np.shares_memory(out, binv):                  # pragma: no cover - f2py made a copy
             binv[...] = out.T
+        binv.reshape(-1)[:: r + 1] += 1.0
         return binv
 
     def _basis(self, pts: np.ndarray):
@@ -1429,42 +1433,53 @@ class GaussianProcess:
         w = self._kron_left(b.fx, b.fy, np.asarray(u_t @ cov.half).T)       # (fx (x) fy) T^T U, (M, k)
         w *= cov.hyper[0]                                                    # Sigma_0 U
         if cov.rank:
-            g = cov.low[:, :cov.rank]
-            w -= g @ np.asarray(u_t @ g).T                                   # Sigma U = Sigma_0 U - G G^T U
+            g = cov.low[:, :cov.rank]                                        # Fortran-ordered: g.T is C-ordered
+            ug = np.einsum("ij,kij->ik", phi / math.sqrt(sn2), g.T[:, node])  # U^T G, 16 entries of G per point
+            w -= g @ ug.T                                                    # Sigma U = Sigma_0 U - G G^T U
         c = np.asarray(u_t @ w)                                              # U^T Sigma U, (k, k)
         c = 0.5 * (c + c.T)
         c[np.diag_indices_from(c)] += 1.0
         chol, info = lapack.dpotrf(c, lower=1, clean=1, overwrite_a=1)
         if info != 0:
             raise np.linalg.LinAlgError(f"Cholesky factorisation of I + U^T Sigma U failed (info={info})")
-        v_t, info = lapack.dtrtrs(chol, np.ascontiguousarray(w.T), lower=1, overwrite_b=1)   # L^{-1} W^T, (k, M)
-        if info != 0:
-            raise np.linalg.LinAlgError(f"triangular solve in the Woodbury update failed (info={info})")
+        # w.T is the Fortran-ordered (k, M) W^T: L^{-1} W^T in place, no copy
+        v_t = blas.dtrsm(1.0, chol, w.T, lower=1, overwrite_b=1)
         need = cov.rank + k
-        if cov.low is None or cov.low.shape[1] < need:                      # room for the new columns
-            cap = min(max(2 * need, 64), max(need, int(self.low_rank_fraction * m)))
-            grown = np.empty((m, cap))
+        if cov.low is None or cov.low.shape[1] < need:                      # columns up to the fold's rank, once
+            cap = max(need, int(self.low_rank_fraction * m))
+            grown = np.empty((m, cap), order="F")
             if cov.rank:
                 grown[:, :cov.rank] = cov.low[:, :cov.rank]
             cov.low = grown
-        cov.low[:, cov.rank:need] = v_t.T
+        new = cov.low[:, cov.rank:need]
+        new[...] = v_t.T                                                     # V = Sigma U L^{-T}, (M, k)
         cov.rank = need
         if cov.band is not None:
-            cov.band = cov.band - self._outer_band(cov.low[:, need - k:need])
+            cov.band = cov.band - self._outer_band(np.ascontiguousarray(new))
 
     def _outer_band(self, g: np.ndarray) -> np.ndarray:
-        """The band (gx, gy, 7, 7) of g g^T (g: M x K), as :meth:`_sigma_band` lays out Sigma's: entry [i, j, di, dj]
-        of nodes (i, j) and (i + di - 3, j + dj - 3), 0 beyond the grid."""
+        """The band (gx, gy, 7, 7) of g g^T (g: C-ordered M x K), as :meth:`_sigma_band` lays out Sigma's: entry
+        [i, j, di, dj] of nodes (i, j) and (i + di - 3, j + dj - 3), 0 beyond the grid.  The offsets di >= 3 as
+        products of g's rows with their neighbours', the others by symmetry (entry [i, j, di, dj] is entry
+        [i + di - 3, j + dj - 3, 6 - di, 6 - dj])."""
         gx, gy = self._ax.n_nodes, self._ay.n_nodes
         kk = g.shape[1]
         g3 = g.reshape(gx, gy, kk)
         pad = np.zeros((gx + 6, gy + 6, kk))
         pad[3:gx + 3, 3:gy + 3] = g3
-        band = np.empty((gx, gy, _BAND, _BAND))
+        band = np.zeros((gx, gy, _BAND, _BAND))
         lhs = g3[:, :, None, :]
-        for di in range(_BAND):
+        for di in range(3, _BAND):
             win = np.lib.stride_tricks.sliding_window_view(pad[di:di + gx], _BAND, axis=1)[:, :gy]   # [i, j, c, dj]
             band[:, :, di, :] = np.matmul(lhs, win)[:, :, 0, :]
+        for di in range(3):
+            sx = 3 - di
+            for dj in range(_BAND):
+                sy = dj - 3
+                if sy >= 0:
+                    band[sx:, :gy - sy, di, dj] = band[:gx - sx, sy:, 6 - di, 6 - dj]
+                else:
+                    band[sx:, -sy:, di, dj] = band[:gx - sx, :gy + sy, 6 - di, 6 - dj]
         return band
 
     # ------------------------------------------------------------------ prediction
