@@ -213,9 +213,13 @@ class GPSettings:
         :mod:`regression.gp`): ``False`` (the default) updates the M x M covariance Sigma in place (O(k M^2) for k
         new points, after one Kronecker product that forms Sigma); ``True`` keeps the updates as a correction
         Sigma = Sigma_0 - G G^T of rank K, G's columns the updates' factors (O(k M (K + 16 + gx)) an update, Sigma
-        never formed while K <= M / 2).  The same posterior to round-off; at M = 4080 an update of 100 points costs
-        ~10 ms instead of ~65 ms.  The tuned preset's (its hyperparameters change every period, so that Sigma is
-        refactorised anyway); the paper preset keeps the dense updates (its results bit for bit).
+        never formed while K <= M / 2); and while the data span few dimensions (early in a run on a large site) the
+        posterior's factorisation and the refit's likelihood go through the data's rank q instead of the
+        factorisation of order r (:meth:`regression.GaussianProcess._inverse_through_data`, ``_lml_through_data``).
+        The same posterior and likelihood to round-off; at M = 4029 a period of eight 100-point updates costs ~0.3 s
+        instead of ~1.2 s, and the first period's factorisations a few per cent of theirs.  The tuned preset's (its
+        hyperparameters change every period, so that Sigma is refactorised anyway); the paper preset keeps the dense
+        path (its results bit for bit).
     """
 
     signal_variance: float = 0.25
