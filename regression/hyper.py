@@ -357,8 +357,10 @@ def refit_online(gp: GaussianProcess):
     cell width) the fit is repeated on the GP's own grid, whose bound is half as long, so that the data
     decide a length scale below the coarse grid's resolution (a GMRF kernel: the GP's own grid at once,
     :func:`coarsening_factor`).  A learned value at a bound of the grid it
-    was fitted on gets a one-line ``UserWarning`` (once per GP and bound).  Updates gp's settings (the
-    posterior is recomputed at the next ``predict``) and returns them."""
+    was fitted on gets a one-line ``UserWarning`` (once per GP and bound).  With ``amplitude = "local"`` the
+    signal variance's spatial factor exp(g) is then fitted at the new values on the same coarse grid
+    (:func:`regression.amplitude.fit_log_amplitude`).  Updates gp's settings (the posterior is recomputed at the next
+    ``predict``) and returns them."""
     s0 = gp.initial_settings
     if gp._raw is not None:                    # kernel_angle "auto": the first refit chooses the angle
         choose_kernel_angle(gp)
