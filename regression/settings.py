@@ -197,7 +197,10 @@ class GPSettings:
         along the shorter one; (cells + 3)^2 coefficients on a square).
     amplitude_prior_sd
         ``amplitude = "local"``: standard deviation of the independent normal priors N(0, sd^2) on g's coefficients
-        (shrinkage towards the stationary model; one sd is a factor e in the variance).
+        (shrinkage towards the stationary model; a coefficient of 0.5 is a factor e^0.5 ~ 1.65 in the variance).  At
+        1.0 a stationary field (a GP sample, the fine field of docs/results/map-quality.md) paid for the spurious g
+        with a map 5-10 % worse at 3 T; at 0.5 it is level and the building floors keep most of the gain
+        (docs/results/buildings.md, "A signal variance that varies over the floor").
     prior_truncation
         Directions of the spline prior whose variance is below this multiple of signal_variance
         are left out of the posterior (products of per-axis eigenvectors: a Karhunen-Loeve
@@ -248,7 +251,7 @@ class GPSettings:
     learn_nugget: bool = False
     amplitude: str = "stationary"
     amplitude_cells: int = 6
-    amplitude_prior_sd: float = 1.0
+    amplitude_prior_sd: float = 0.5
     low_rank_updates: bool = False
 
     def __post_init__(self):

@@ -96,7 +96,7 @@ def _corner_field(X):
 def test_the_fit_marks_where_the_field_varies_and_keeps_a_stationary_field_stationary():
     rng = np.random.default_rng(2)
     s = _settings(signal_variance=1.0, length_scale=1.0, noise_variance=0.0025, prior_mean=None,
-                  inducing_spacing=0.5, prior_truncation=1e-12)
+                  inducing_spacing=0.5, prior_truncation=1e-12, amplitude_prior_sd=1.0)   # the looser prior
     X = np.stack(np.meshgrid(np.linspace(0.1, 9.9, 22), np.linspace(0.1, 7.9, 18), indexing="ij"), -1).reshape(-1, 2)
     holes = np.array([[2.0, 2.0], [7.5, 5.5]])                 # one near the corner, one far from it
     X = X[np.min(np.hypot(*(X[:, None, :] - holes[None]).transpose(2, 0, 1)), axis=1) > 1.2]
@@ -148,7 +148,7 @@ def test_online_refit_learns_the_amplitude_and_followers_share_it():
     refit_online(gp)
     g = gp.log_amplitude
     assert g is not None and twin.log_amplitude is g
-    assert g(np.array([[1.0, 1.0]]))[0] > g(np.array([[8.0, 6.0]]))[0] + 1.0
+    assert g(np.array([[1.0, 1.0]]))[0] > g(np.array([[8.0, 6.0]]))[0] + 0.5      # at the default prior sd 0.5
     # the stationary default learns none
     plain = GaussianProcess(GPSettings(**{**s.__dict__, "amplitude": "stationary"}), DOM)
     plain.add(X, _corner_field(X))
