@@ -170,3 +170,29 @@ def test_settings_of_the_amplitude():
     with pytest.raises(ValueError, match="separable kernel"):
         gp.set_log_amplitude(LogAmplitude(DOM, 2))
     assert math.isclose(LogAmplitude(DOM, 4)(np.array([[5.0, 4.0]]))[0], 0.0)
+
+
+@pytest.mark.parametrize("low_rank", [False, True])
+def test_updates_after_new_data_keep_the_amplitude(low_rank):
+    """A posterior brought up to date by Woodbury updates (dense or low-rank) equals the one factorised from the power
+    sums with the amplitude applied."""
+    rng = np.random.default_rng(4)
+    s = _settings(low_rank_updates=low_rank)
+    field = LogAmplitude(DOM, 3)
+    field = field.with_theta(rng.normal(0.0, 0.8, field.size))
+    gp = GaussianProcess(s, DOM)
+    X, y = _data(rng, 200)
+    gp.add(X[:50], y[:50])
+    gp.set_log_amplitude(field)
+    Q = rng.uniform([DOM[0], DOM[2]], [DOM[1], DOM[3]], (100, 2))
+    gp.predict(Q)
+    for k in range(50, 200, 30):                           # small batches: updates, not factorisations
+        gp.add(X[k:k + 30], y[k:k + 30])
+        mean, var = gp.predict(Q)
+    assert gp.n_woodbury_updates >= 3
+    ref = GaussianProcess(s, DOM)
+    ref.add(X, y)
+    ref.set_log_amplitude(field)
+    mean_r, var_r = ref.predict(Q)
+    assert np.allclose(mean, mean_r, rtol=1e-7, atol=1e-9)
+    assert np.allclose(var, var_r, rtol=1e-6, atol=1e-10)
