@@ -58,7 +58,8 @@ from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict, g
 from ..regression import GPSettings
 from ..domain import DomainSettings
 from .presets import DEFAULT_PRESET, PRESETS, merge_under_preset
-from .site_scale import SITE_SCALE_RULES, area_ratio, resolved_site_area, scale_document
+from .site_scale import (SITE_SCALE_RULES, SWARM_SCALE_RULES, SWARM_SCALED, area_ratio, resolved_site_area,
+                         scale_document, site_area, spacing_ratio)
 from .stopping import STOP_RULES
 
 __all__ = ["SimSettings", "KDESettings", "RunConfig", "load_config", "read_toml", "config_from_dict", "to_toml",
@@ -227,6 +228,12 @@ class SimSettings:
                     so that a site larger than the paper's 20 m x 20 m gets them in proportion
                     (:mod:`sim.site_scale`); the site's area is the ``[domain]`` map's free area, else that of
                     ``domain``; s = 1 up to 400 m^2
+    swarm_scale     ``"off"`` (default, also the tuned preset's): every setting as given; ``"spacing"``: the settings
+                    of :data:`sim.site_scale.SWARM_SCALED` that the configuration does not give (the KDE bandwidth and
+                    the spreading radius) scaled with c = max(1, q / s), q = sqrt(area / (robots x 4 m^2)) the robots'
+                    spacing relative to the paper's 2 m and s the site rule's factor: a swarm sparser than 100 robots
+                    on 400 m^2 gets them in proportion to its spacing; c = 1 at the paper's density or denser
+                    (:mod:`sim.site_scale`; measured and not adopted: docs, results "A small swarm")
     """
 
     robots: int = 100
@@ -269,6 +276,7 @@ class SimSettings:
     comm_fragments: bool = True
     comm_hops: int | None = None
     site_scale: str = "off"
+    swarm_scale: str = "off"
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -286,6 +294,9 @@ class SimSettings:
         if self.site_scale not in SITE_SCALE_RULES:
             raise ValueError(f"sim.site_scale must be one of {', '.join(repr(r) for r in SITE_SCALE_RULES)}, "
                              f"got {self.site_scale!r}")
+        if self.swarm_scale not in SWARM_SCALE_RULES:
+            raise ValueError(f"sim.swarm_scale must be one of {', '.join(repr(r) for r in SWARM_SCALE_RULES)}, "
+                             f"got {self.swarm_scale!r}")
         if self.stop_rule not in STOP_RULES:
             raise ValueError(f"sim.stop_rule must be one of {', '.join(sorted(STOP_RULES))}, got {self.stop_rule!r}")
         if self.stop_length_scale is not None:
@@ -533,9 +544,15 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
     sim_map = dict(doc.get("sim", {}))
     sim_map.update({k: v for k, v in (overrides or {}).items() if v is not None})
     sim = dataclass_from_dict(SimSettings, sim_map, "sim")
-    area = resolved_site_area(sim, (doc.get("domain") or {}).get("source", ""))    # a map's free area
-    doc, _ = scale_document(doc, given, area_ratio(sim.domain, sim.site_scale, area),
-                            {"kde": KDESettings, "feedback": FeedbackSettings, "planner": PlannerSettings})
+    source = (doc.get("domain") or {}).get("source", "")
+    area = resolved_site_area(sim, source)    # a map's free area
+    defaults = {"kde": KDESettings, "feedback": FeedbackSettings, "planner": PlannerSettings}
+    site_ratio = area_ratio(sim.domain, sim.site_scale, area)
+    doc, _ = scale_document(doc, given, site_ratio, defaults)
+    if sim.swarm_scale != "off":              # a swarm sparser than the paper's (sim.site_scale, "A swarm sparser")
+        free = site_area(sim.domain, source) if area is None else area
+        doc, _ = scale_document(doc, given, spacing_ratio(free, sim.robots, sim.swarm_scale, site_ratio), defaults,
+                                SWARM_SCALED)
     gp_map = dict(doc.get("gp", {}))
     if (overrides or {}).get("noise_variance") is not None:      # e.g. --noise-sd over a run's config.toml
         gp_map.pop("noise_variance", None)

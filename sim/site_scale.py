@@ -32,13 +32,29 @@ keeps every value as given.  summary.json records the factor and the resolved va
 Not scaled, measured on the yard (same page): the reference speed (``planner.reference_speed`` x s: the plans did
 not use the budget they had, the same maps within the runs' spread) and the stirring speed (x s: the robots
 drove 79 m instead of 63 m in 4 T, and the map was worse).
+
+**A swarm sparser than the paper's** (``sim.swarm_scale``; docs/results/map-quality.md, "A small swarm").  The same
+lengths are a matter of the robots' spacing sqrt(|Omega| / n) as much as of the site: 100 robots on 400 m^2 are 2 m
+apart, 30 robots on the same square 3.65 m, and a robot's own KDE kernel, 1 / (2 pi n h^2) at its centre, is 2.1 times
+the uniform density there (0.64 times at 100 robots).  With ``sim.swarm_scale = "spacing"`` the settings of
+:data:`SWARM_SCALED` are multiplied by
+
+    c = max(1, q / s),    q = sqrt(|Omega| / (n a_ref)),    a_ref = 4 m^2 (:data:`REFERENCE_ROBOT_AREA`),
+
+q the robots' spacing relative to the paper's 2 m and s the site's factor above (1 with ``site_scale = "off"``): the
+KDE bandwidth becomes h max(s, q), the larger of what the site and the spacing ask for.  c = 1 (not a bit changed) for
+100 robots or more on the paper's square, and for any swarm at least as dense as the paper's, i.e. whenever
+n >= |Omega| / 4 m^2 (100 robots on any site larger than 400 m^2: q = s).  ``"off"`` (the default, and the tuned
+preset's: measured and not adopted, see the page) keeps every value.  Values the configuration gives are used as
+given, as for the site rule; summary.json's ``swarm_scale`` block records the factor.
 """
 from __future__ import annotations
 
 import math
 
 __all__ = ["SITE_SCALE_RULES", "REFERENCE_AREA", "SCALED", "area_ratio", "site_area", "site_factor", "scaled_value",
-           "scale_document", "site_summary", "resolved_site_area"]
+           "scale_document", "site_summary", "resolved_site_area", "SWARM_SCALE_RULES", "REFERENCE_ROBOT_AREA",
+           "SWARM_SCALED", "spacing_ratio", "spacing_factor", "swarm_summary"]
 
 #: ``sim.site_scale``: "off" (values as given) or "area" (scaled by s = max(1, sqrt(area / REFERENCE_AREA)))
 SITE_SCALE_RULES = ("off", "area")
@@ -52,6 +68,21 @@ REFERENCE_AREA = 400.0
 SCALED: tuple[tuple[str, str, int], ...] = (
     ("kde", "bandwidth", 1),
     ("planner", "w_v", -2),
+)
+
+
+#: ``sim.swarm_scale``: "off" (values as given) or "spacing" (scaled by c = max(1, q / s), module docstring)
+SWARM_SCALE_RULES = ("off", "spacing")
+
+#: the area per robot [m^2] the tuned preset's values were measured at: 100 robots on the paper's 400 m^2
+REFERENCE_ROBOT_AREA = 4.0
+
+#: (section, key, power of c): the settings the swarm rule scales.  kde.bandwidth: the KDE resolves the robots'
+#: spacing, so that a robot's own kernel weighs against the density as it does at the paper's density;
+#: feedback.spread_radius: a landing point moves within the same fraction of the robots' spacing
+SWARM_SCALED: tuple[tuple[str, str, int], ...] = (
+    ("kde", "bandwidth", 1),
+    ("feedback", "spread_radius", 1),
 )
 
 
@@ -104,8 +135,26 @@ def scaled_value(value: float, ratio: float, power: int) -> float:
     return float(value) * m if power > 0 else float(value) / m
 
 
-def scale_document(doc: dict, given: dict, ratio: float, defaults: dict) -> tuple[dict, dict]:
-    """``doc`` (a configuration document laid over its preset) with the :data:`SCALED` settings that ``given`` (the
+def spacing_ratio(area: float, robots: int, rule: str = "spacing", site_ratio: float = 1.0) -> float:
+    """c^2 = max(1, q^2 / s^2) for ``rule`` "spacing", 1.0 for "off": q^2 = ``area`` / (``robots`` x
+    :data:`REFERENCE_ROBOT_AREA`), s^2 = ``site_ratio`` (:func:`area_ratio`, 1 without the site rule)."""
+    if rule not in SWARM_SCALE_RULES:
+        raise ValueError(f"sim.swarm_scale must be one of {', '.join(repr(r) for r in SWARM_SCALE_RULES)}, got {rule!r}")
+    if rule == "off":
+        return 1.0
+    q2 = float(area) / (int(robots) * REFERENCE_ROBOT_AREA)
+    ratio = q2 / float(site_ratio)
+    return ratio if ratio > 1.0 else 1.0
+
+
+def spacing_factor(area: float, robots: int, rule: str = "spacing", site_ratio: float = 1.0) -> float:
+    """c = sqrt(:func:`spacing_ratio`): max(1, q / s), the swarm rule's factor."""
+    return math.sqrt(spacing_ratio(area, robots, rule, site_ratio))
+
+
+def scale_document(doc: dict, given: dict, ratio: float, defaults: dict, settings=SCALED) -> tuple[dict, dict]:
+    """``doc`` (a configuration document laid over its preset) with the ``settings`` (default :data:`SCALED`;
+    :data:`SWARM_SCALED` for the swarm rule) that ``given`` (the
     user's own document) does not set multiplied by s^power, s^2 = ``ratio`` (:func:`area_ratio`);
     ``defaults[section]`` is the settings class whose default stands for a value the preset does not set either.
     Returns (the new document, {"section.key": [value before, value after]} of the values scaled).  A ratio of
@@ -114,7 +163,7 @@ def scale_document(doc: dict, given: dict, ratio: float, defaults: dict) -> tupl
     if ratio == 1.0:
         return doc, scaled
     out = {k: (dict(v) if isinstance(v, dict) else v) for k, v in doc.items()}
-    for section, key, power in SCALED:
+    for section, key, power in settings:
         mine = given.get(section)
         if isinstance(mine, dict) and key in mine:
             continue
@@ -139,3 +188,14 @@ def site_summary(config) -> dict:
     return {"rule": s.site_scale, "reference_area_m2": REFERENCE_AREA, "area_m2": area,
             "factor": site_factor(s.domain, s.site_scale, area),
             "settings": {f"{sec}.{key}": getattr(getattr(config, sec), key) for sec, key, _ in SCALED}}
+
+
+def swarm_summary(config) -> dict:
+    """summary.json's ``swarm_scale`` block: the rule, the robots, the site's area, the reference area per robot, the
+    factor c (:func:`spacing_factor`) and the resolved values of the settings the rule scales (scaled or given)."""
+    s = config.sim
+    area = site_area(s.domain, config.domain.source)
+    site = area_ratio(s.domain, s.site_scale, area)
+    return {"rule": s.swarm_scale, "robots": s.robots, "area_m2": area, "reference_robot_area_m2": REFERENCE_ROBOT_AREA,
+            "factor": spacing_factor(area, s.robots, s.swarm_scale, site),
+            "settings": {f"{sec}.{key}": getattr(getattr(config, sec), key) for sec, key, _ in SWARM_SCALED}}

@@ -1,0 +1,86 @@
+"""The KDE bandwidth and the spreading radius scaled to the robots' spacing (sim.swarm_scale, sim.site_scale)."""
+import math
+
+import numpy as np
+import pytest
+
+from swarmfield.sim import config_from_dict
+from swarmfield.sim.site_scale import (REFERENCE_ROBOT_AREA, SWARM_SCALED, spacing_factor, spacing_ratio,
+                                       swarm_summary)
+
+SPACING = {"sim": {"swarm_scale": "spacing"}}
+
+
+def _with(doc, **sim):
+    return {**doc, "sim": {**doc.get("sim", {}), **sim}}
+
+
+def test_factor_is_the_spacing_over_the_papers_and_one_at_its_density_or_denser():
+    assert REFERENCE_ROBOT_AREA == 4.0                                # 100 robots on 400 m^2
+    assert spacing_factor(400.0, 30) == pytest.approx(math.sqrt(400.0 / 120.0), rel=1e-15)    # 1.826
+    assert spacing_factor(400.0, 50) == pytest.approx(math.sqrt(2.0), rel=1e-15)
+    assert spacing_factor(400.0, 100) == 1.0                          # the paper's density: exactly one
+    assert spacing_ratio(400.0, 100) == 1.0
+    assert spacing_factor(400.0, 400) == 1.0                          # denser: unchanged
+    assert spacing_factor(100.0, 20) == pytest.approx(math.sqrt(100.0 / 80.0), rel=1e-15)    # a smaller site
+    # with the site rule: the factor on top of s = sqrt(area / 400), so that the lengths scale by max(s, q)
+    assert spacing_factor(2400.0, 100, site_ratio=6.0) == 1.0         # 100 robots on any larger site: q = s
+    assert spacing_factor(2400.0, 30, site_ratio=6.0) == pytest.approx(math.sqrt(100.0 / 30.0), rel=1e-15)
+    assert spacing_factor(1328.0, 150, site_ratio=1328.0 / 400.0) == 1.0   # denser than 1 per 4 m^2 in spacing: s wins
+    assert spacing_factor(400.0, 30, "off") == 1.0
+    with pytest.raises(ValueError, match="sim.swarm_scale must be one of 'off', 'spacing'"):
+        spacing_factor(400.0, 30, "density")
+
+
+def test_thirty_robots_get_the_bandwidth_and_radius_of_their_spacing_unless_given():
+    assert {(s, k) for s, k, _ in SWARM_SCALED} == {("kde", "bandwidth"), ("feedback", "spread_radius")}
+    c = math.sqrt(400.0 / 120.0)
+    cfg = config_from_dict(_with(SPACING, robots=30), preset="tuned")
+    assert cfg.kde.bandwidth == pytest.approx(c, rel=1e-15)
+    assert cfg.feedback.spread_radius == pytest.approx(0.75 * c, rel=1e-15)
+    mine = config_from_dict({**_with(SPACING, robots=30), "kde": {"bandwidth": 1.2}}, preset="tuned")
+    assert mine.kde.bandwidth == 1.2 and mine.feedback.spread_radius == pytest.approx(0.75 * c, rel=1e-15)
+    assert config_from_dict(cfg.as_dict()) == cfg                     # repeats from its resolved config, scaled once
+    s = swarm_summary(cfg)
+    assert s["rule"] == "spacing" and s["robots"] == 30 and s["area_m2"] == 400.0
+    assert s["factor"] == pytest.approx(c) and s["settings"]["kde.bandwidth"] == cfg.kde.bandwidth
+    # on a 60 m x 40 m yard the site rule gives s = sqrt(6); 30 robots are sparser still: h = 1 m x q
+    yard = config_from_dict({"sim": {"swarm_scale": "spacing", "robots": 30, "domain": [0.0, 60.0, 0.0, 40.0]}},
+                            preset="tuned")
+    assert yard.kde.bandwidth == pytest.approx(math.sqrt(2400.0 / 120.0), rel=1e-12)
+
+
+@pytest.mark.parametrize("doc", [{}, {"sim": {"domain": [0.0, 60.0, 0.0, 40.0]}}, {"sim": {"robots": 150}}])
+def test_at_the_papers_density_or_denser_every_resolved_value_is_the_same_to_the_bit(doc):
+    on = config_from_dict(_with(doc, swarm_scale="spacing"), preset="tuned")
+    off = config_from_dict(doc, preset="tuned")
+    a, b = on.as_dict(), off.as_dict()
+    assert a["sim"].pop("swarm_scale") == "spacing" and b["sim"].pop("swarm_scale") == "off"
+    assert a == b
+
+
+def test_the_rule_is_off_in_both_presets_and_rejects_unknown_values():
+    assert config_from_dict({"sim": {"robots": 30}}, preset="tuned").sim.swarm_scale == "off"
+    assert config_from_dict({"sim": {"robots": 30}}).sim.swarm_scale == "off"
+    assert config_from_dict({"sim": {"robots": 30}}, preset="tuned").kde.bandwidth == 1.0
+    with pytest.raises(ValueError, match="sim.swarm_scale"):
+        config_from_dict({"sim": {"swarm_scale": "yes"}}, preset="tuned")
+
+
+def test_a_robots_own_kernel_weighs_against_the_uniform_density_as_at_the_papers_density():
+    """What the rule keeps: the KDE's value at a lone robot, times 1 / n, over the uniform density 1 / |Omega| (the
+    crowd a robot sees in itself), computed by the KDE itself for 100 robots and for 30 on the paper's square."""
+    from swarmfield.control.kde import KernelDensity
+
+    def own(cfg):
+        x0, x1, y0, y1 = cfg.sim.domain
+        c = np.array([[0.5 * (x0 + x1) + 0.1, 0.5 * (y0 + y1) - 0.2]])
+        est = KernelDensity(cfg.sim.domain, cfg.kde.bandwidth, cfg.kde.bins).fit(c)
+        return float(est.evaluate(c)[0][0]) * (x1 - x0) * (y1 - y0) / cfg.sim.robots
+
+    paper = own(config_from_dict({}, preset="tuned"))
+    thirty = own(config_from_dict(_with(SPACING, robots=30), preset="tuned"))
+    unscaled = own(config_from_dict({"sim": {"robots": 30}}, preset="tuned"))
+    assert paper == pytest.approx(400.0 / (2 * math.pi * 100), rel=0.02)       # 0.64: the Gaussian's peak
+    assert thirty == pytest.approx(paper, rel=0.02)
+    assert unscaled == pytest.approx(paper * 100 / 30, rel=0.02)               # 2.1: three times the crowd
