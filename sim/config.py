@@ -228,12 +228,15 @@ class SimSettings:
                     so that a site larger than the paper's 20 m x 20 m gets them in proportion
                     (:mod:`sim.site_scale`); the site's area is the ``[domain]`` map's free area, else that of
                     ``domain``; s = 1 up to 400 m^2
-    swarm_scale     ``"off"`` (default, also the tuned preset's): every setting as given; ``"spacing"``: the settings
-                    of :data:`sim.site_scale.SWARM_SCALED` that the configuration does not give (the KDE bandwidth and
+    swarm_scale     ``"off"`` (default): every setting as given; ``"spacing"``: the settings of
+                    :data:`sim.site_scale.SWARM_SCALED` that the configuration does not give (the KDE bandwidth and
                     the spreading radius) scaled with c = max(1, q / s), q = sqrt(area / (robots x 4 m^2)) the robots'
-                    spacing relative to the paper's 2 m and s the site rule's factor: a swarm sparser than 100 robots
-                    on 400 m^2 gets them in proportion to its spacing; c = 1 at the paper's density or denser
-                    (:mod:`sim.site_scale`; measured and not adopted: docs, results "A small swarm")
+                    spacing relative to the paper's 2 m and s the site rule's factor; ``"spacing-capped"``: the run's
+                    KDE bandwidth and spreading radius scaled during the run, at every hyperparameter refit, by max(1, min(c, l / l_0)), l the learned length scale and l_0 the prior
+                    one, so that a swarm sparser than 100 robots on 400 m^2 gets them in proportion to its spacing
+                    but never wider than the field's length scale asks for; c = 1 at the paper's density or denser
+                    (:mod:`sim.site_scale`); no preset uses either (measured with 30 and 50 robots: docs, results
+                    "A small swarm")
     """
 
     robots: int = 100
@@ -549,7 +552,7 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
     defaults = {"kde": KDESettings, "feedback": FeedbackSettings, "planner": PlannerSettings}
     site_ratio = area_ratio(sim.domain, sim.site_scale, area)
     doc, _ = scale_document(doc, given, site_ratio, defaults)
-    if sim.swarm_scale != "off":              # a swarm sparser than the paper's (sim.site_scale, "A swarm sparser")
+    if sim.swarm_scale == "spacing":          # a swarm sparser than the paper's (sim.site_scale, "A swarm sparser")
         free = site_area(sim.domain, source) if area is None else area
         doc, _ = scale_document(doc, given, spacing_ratio(free, sim.robots, sim.swarm_scale, site_ratio), defaults,
                                 SWARM_SCALED)

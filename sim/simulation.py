@@ -122,6 +122,10 @@ class LatestEstimate:
         self.hold = int(hold)
         self._X, self._est, self._age = None, None, 0
 
+    def forget(self) -> None:
+        """Refit at the next call whatever the positions (e.g. after the KDE's bandwidth changed)."""
+        self._X, self._est, self._age = None, None, 0
+
     def __call__(self, X, fresh: bool = False):
         if X is not self._X:
             self._age += 1
@@ -241,10 +245,45 @@ class Simulation:
         self.result.path_length, self.result.energy, self.result.alive = self.path_length, self.energy, self.alive
         self.h = s.dt / s.substeps           # Euler--Maruyama sub-step
         self.t, self.step_index, self.period_index = 0.0, 0, 0
+        self.swarm_scale = self._swarm_scale()     # sim.swarm_scale = "spacing-capped": None otherwise
         self.X = self.mean = self.var = self.p_hat = self.est = None
         self.plan, self.sup_v, self.speed = None, math.nan, 0.0
         self.interrupted = False
         self.finished = False
+
+    def _swarm_scale(self):
+        """The run-time rule of ``sim.swarm_scale = "spacing-capped"`` (:class:`sim.site_scale.SpacingCappedByLength`,
+        its cap from the free area and the robots), None for any other rule or when the cap is 1."""
+        from .site_scale import SpacingCappedByLength, area_ratio, spacing_factor
+        s = self.settings
+        if s.swarm_scale != "spacing-capped":
+            return None
+        x0, x1, y0, y1 = s.domain
+        area = (x1 - x0) * (y1 - y0) if self.region is None else float(self.region.free_area)
+        cap = spacing_factor(area, s.robots, s.swarm_scale, area_ratio(s.domain, s.site_scale, area))
+        if cap == 1.0:
+            return None
+        r = self.config.feedback.spread_radius
+        return SpacingCappedByLength(cap, self.config.kde.bandwidth, r if r > 0 else None)
+
+    def scale_to_swarm(self) -> None:
+        """After a refit: the KDE bandwidth and the spreading radius at the factor of ``sim.swarm_scale =
+        "spacing-capped"`` for the learned length scale (:mod:`sim.site_scale`); nothing when it has not changed."""
+        rule = self.swarm_scale
+        if rule is None:
+            return
+        gs = self.gp.settings
+        ell = gs.length_scale if gs.length_scale_y is None else math.sqrt(gs.length_scale * gs.length_scale_y)
+        f = rule.update(ell, self.gp.initial_settings.length_scale)
+        if f is None:
+            return
+        if rule.bandwidth is not None:
+            self.estimate.kde.bandwidth = rule.bandwidth * f
+            self.estimate.forget()
+            self.estimate_density(fresh=True)          # p̂ at the new bandwidth from now on
+        spreading = getattr(self.controller, "spreading", None)
+        if rule.radius is not None and spreading is not None:
+            spreading.radius = rule.radius * f
 
     def attach_barrier(self, gp):
         """``gp`` with its GMRF prior's lattice links through the obstacles cut when ``gp.barrier`` is set
@@ -461,6 +500,9 @@ class Simulation:
                                   "length_scale": gs.length_scale, "length_scale_y": gs.length_scale_y,
                                   "kernel_angle": gs.kernel_angle,
                                   **({"nugget": gs.nugget} if gs.learn_nugget or gs.nugget else {})}
+            self.scale_to_swarm()
+            if self.swarm_scale is not None:
+                self.result.kernel["swarm_factor"] = self.swarm_scale.factor
             g = self.gp.log_amplitude
             if g is not None:                # a local signal variance: the range of its factor exp(g) on the grid
                 vf = np.exp(g(self.centers))

@@ -44,9 +44,29 @@ the uniform density there (0.64 times at 100 robots).  With ``sim.swarm_scale = 
 q the robots' spacing relative to the paper's 2 m and s the site's factor above (1 with ``site_scale = "off"``): the
 KDE bandwidth becomes h max(s, q), the larger of what the site and the spacing ask for.  c = 1 (not a bit changed) for
 100 robots or more on the paper's square, and for any swarm at least as dense as the paper's, i.e. whenever
-n >= |Omega| / 4 m^2 (100 robots on any site larger than 400 m^2: q = s).  ``"off"`` (the default, and the tuned
-preset's: measured and not adopted, see the page) keeps every value.  Values the configuration gives are used as
+n >= |Omega| / 4 m^2 (100 robots on any site larger than 400 m^2: q = s).  ``"off"`` (the default) keeps every
+value; ``"spacing"`` (measured and not adopted: it cost the fine field's map, see the page) scales them when the
+configuration is resolved.  Values the configuration gives are used as
 given, as for the site rule; summary.json's ``swarm_scale`` block records the factor.
+
+``"spacing-capped"`` scales the same settings during the run instead, at every hyperparameter
+refit, by
+
+    f = max(1, min(c, l / l_0)),
+
+l the GP's learned length scale (the geometric mean of an anisotropic kernel's two) and l_0 its prior one
+(``gp.length_scale``, the tuned preset's 1 m, equal to its KDE bandwidth): the kernel is widened towards the robots'
+spacing, but never beyond the field's own length scale in the tuned ratio h / l_0.  A smooth field (the kPa field's
+l = 3.5-3.9 m) gets the spacing's c, a field with structure at l_0 or finer (the fine field's 0.9-1.05 m) keeps the
+preset's 1 m kernel, which resolves the gaps its map needs.  With 30 robots, seeds 0-3: the pressure field's map at
+2 T 1.34 / 1.21 / 1.01 / 1.12 -> 1.13 / 1.16 / 0.96 / 1.03 of greedy's and its threshold never on three seeds ->
+within 3 T on four; bumps 0.96 / 1.07 / 0.85 / 0.91 (0.98 / 1.03 / 0.89 / 1.00, within the runs' scatter), fine
+unchanged to 2 T; with 50 robots the kPa field's map at 2 T 1.09 / 1.00 -> 1.01 / 0.96, but bumps' time to a map
+within 1.25x of the best later on three of four seeds (by 0.12-0.38 T), so the tuned preset does not use it
+(docs/results/map-quality.md, "A small swarm").
+The run's resolved values are scaled (a run cannot tell a value given from a preset's: keep yours with
+``swarm_scale = "off"``); summary.json's ``kernel`` block records the last factor (``swarm_factor``).  With c = 1
+(the paper's density or denser) f = 1 at every refit and nothing is touched.
 """
 from __future__ import annotations
 
@@ -54,7 +74,7 @@ import math
 
 __all__ = ["SITE_SCALE_RULES", "REFERENCE_AREA", "SCALED", "area_ratio", "site_area", "site_factor", "scaled_value",
            "scale_document", "site_summary", "resolved_site_area", "SWARM_SCALE_RULES", "REFERENCE_ROBOT_AREA",
-           "SWARM_SCALED", "spacing_ratio", "spacing_factor", "swarm_summary"]
+           "SWARM_SCALED", "spacing_ratio", "spacing_factor", "swarm_summary", "capped_factor", "SpacingCappedByLength"]
 
 #: ``sim.site_scale``: "off" (values as given) or "area" (scaled by s = max(1, sqrt(area / REFERENCE_AREA)))
 SITE_SCALE_RULES = ("off", "area")
@@ -71,8 +91,9 @@ SCALED: tuple[tuple[str, str, int], ...] = (
 )
 
 
-#: ``sim.swarm_scale``: "off" (values as given) or "spacing" (scaled by c = max(1, q / s), module docstring)
-SWARM_SCALE_RULES = ("off", "spacing")
+#: ``sim.swarm_scale``: "off" (values as given), "spacing" (scaled by c = max(1, q / s) when the configuration is
+#: resolved) or "spacing-capped" (scaled during the run by max(1, min(c, l / l_0)), :class:`SpacingCappedByLength`)
+SWARM_SCALE_RULES = ("off", "spacing", "spacing-capped")
 
 #: the area per robot [m^2] the tuned preset's values were measured at: 100 robots on the paper's 400 m^2
 REFERENCE_ROBOT_AREA = 4.0
@@ -142,6 +163,8 @@ def spacing_ratio(area: float, robots: int, rule: str = "spacing", site_ratio: f
         raise ValueError(f"sim.swarm_scale must be one of {', '.join(repr(r) for r in SWARM_SCALE_RULES)}, got {rule!r}")
     if rule == "off":
         return 1.0
+    if rule == "spacing-capped":                 # the cap of the run-time factor: the static rule's value
+        rule = "spacing"
     q2 = float(area) / (int(robots) * REFERENCE_ROBOT_AREA)
     ratio = q2 / float(site_ratio)
     return ratio if ratio > 1.0 else 1.0
@@ -199,3 +222,29 @@ def swarm_summary(config) -> dict:
     return {"rule": s.swarm_scale, "robots": s.robots, "area_m2": area, "reference_robot_area_m2": REFERENCE_ROBOT_AREA,
             "factor": spacing_factor(area, s.robots, s.swarm_scale, site),
             "settings": {f"{sec}.{key}": getattr(getattr(config, sec), key) for sec, key, _ in SWARM_SCALED}}
+
+
+def capped_factor(cap: float, length_scale: float, prior_length_scale: float) -> float:
+    """f = max(1, min(``cap``, ``length_scale`` / ``prior_length_scale``)): exactly 1.0 when ``cap`` <= 1."""
+    if not cap > 1.0:
+        return 1.0
+    f = min(float(cap), float(length_scale) / float(prior_length_scale))
+    return f if f > 1.0 else 1.0
+
+
+class SpacingCappedByLength:
+    """The run-time side of ``sim.swarm_scale = "spacing-capped"`` (module docstring): ``bandwidth`` and ``radius``
+    the run's KDE bandwidth and spreading radius at f = 1 (None: left alone, a Silverman bandwidth or no
+    spreading), ``cap`` the spacing factor c (:func:`spacing_factor`).  :meth:`update`
+    returns the new factor f after a refit, or None when it has not changed (nothing to do)."""
+
+    def __init__(self, cap: float, bandwidth: float | None, radius: float | None):
+        self.cap, self.bandwidth, self.radius = float(cap), bandwidth, radius
+        self.factor = 1.0
+
+    def update(self, length_scale: float, prior_length_scale: float) -> float | None:
+        f = capped_factor(self.cap, length_scale, prior_length_scale)
+        if f == self.factor:
+            return None
+        self.factor = f
+        return f

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from swarmfield.sim import config_from_dict
-from swarmfield.sim.site_scale import (REFERENCE_ROBOT_AREA, SWARM_SCALED, spacing_factor, spacing_ratio,
-                                       swarm_summary)
+from swarmfield.sim.site_scale import (REFERENCE_ROBOT_AREA, SWARM_SCALED, SpacingCappedByLength, capped_factor,
+                                       spacing_factor, spacing_ratio, swarm_summary)
 
 SPACING = {"sim": {"swarm_scale": "spacing"}}
 
@@ -28,7 +28,8 @@ def test_factor_is_the_spacing_over_the_papers_and_one_at_its_density_or_denser(
     assert spacing_factor(2400.0, 30, site_ratio=6.0) == pytest.approx(math.sqrt(100.0 / 30.0), rel=1e-15)
     assert spacing_factor(1328.0, 150, site_ratio=1328.0 / 400.0) == 1.0   # denser than 1 per 4 m^2 in spacing: s wins
     assert spacing_factor(400.0, 30, "off") == 1.0
-    with pytest.raises(ValueError, match="sim.swarm_scale must be one of 'off', 'spacing'"):
+    assert spacing_factor(400.0, 30, "spacing-capped") == spacing_factor(400.0, 30)   # the run-time rule's cap
+    with pytest.raises(ValueError, match="sim.swarm_scale must be one of 'off', 'spacing', 'spacing-capped'"):
         spacing_factor(400.0, 30, "density")
 
 
@@ -84,3 +85,48 @@ def test_a_robots_own_kernel_weighs_against_the_uniform_density_as_at_the_papers
     assert paper == pytest.approx(400.0 / (2 * math.pi * 100), rel=0.02)       # 0.64: the Gaussian's peak
     assert thirty == pytest.approx(paper, rel=0.02)
     assert unscaled == pytest.approx(paper * 100 / 30, rel=0.02)               # 2.1: three times the crowd
+
+
+def test_the_capped_factor_follows_the_length_scale_between_one_and_the_spacing():
+    c = math.sqrt(400.0 / 120.0)                                      # 30 robots on the paper's square
+    assert capped_factor(c, 3.8, 1.0) == c                            # a smooth field (kPa's l): the spacing's
+    assert capped_factor(c, 1.5, 1.0) == 1.5                          # in between: the length scale's ratio
+    assert capped_factor(c, 3.0, 2.0) == 1.5                          # relative to the prior l_0
+    assert capped_factor(c, 0.9, 1.0) == 1.0                          # finer than l_0: the preset's kernel
+    assert capped_factor(1.0, 3.8, 1.0) == 1.0 and capped_factor(0.5, 3.8, 1.0) == 1.0    # the paper's density
+    rule = SpacingCappedByLength(c, 1.0, 0.75)
+    assert rule.update(0.9, 1.0) is None and rule.factor == 1.0       # unchanged: nothing to do
+    assert rule.update(3.8, 1.0) == c and rule.update(4.0, 1.0) is None
+    assert rule.update(1.2, 1.0) == 1.2
+
+
+def _tiny(robots, rule, field="bumps"):
+    return config_from_dict({"sim": {"robots": robots, "swarm_scale": rule, "period": 1.75, "max_periods": 2,
+                                     "substeps": 2, "field": field, "seed": 3},
+                             "kde": {"bins": [64, 64]},
+                             "planner": {"nx": 12, "ny": 12, "n_intervals": 3, "n_modes_x": 3, "n_modes_y": 3}},
+                            preset="tuned")
+
+
+def test_a_sparse_swarm_runs_with_the_kernel_and_radius_of_the_learned_length_scale():
+    from swarmfield.sim.simulation import Simulation
+
+    sim = Simulation(_tiny(20, "spacing-capped"))
+    c = math.sqrt(400.0 / 80.0)
+    assert sim.swarm_scale is not None and sim.swarm_scale.cap == pytest.approx(c, rel=1e-15)
+    sim.run()
+    gs = sim.gp.settings
+    f = capped_factor(c, gs.length_scale, sim.gp.initial_settings.length_scale)
+    assert sim.result.kernel["swarm_factor"] == f and sim.swarm_scale.factor == f
+    assert sim.estimate.kde.bandwidth == 1.0 * f
+    assert sim.controller.spreading.radius == 0.75 * f
+    assert sim.config.kde.bandwidth == 1.0                            # the resolved configuration stays as given
+
+
+@pytest.mark.parametrize("robots", [100, 120])
+def test_at_the_papers_density_the_run_time_rule_does_nothing(robots):
+    from swarmfield.sim.simulation import Simulation
+
+    assert Simulation(_tiny(robots, "spacing-capped")).swarm_scale is None
+    assert Simulation(_tiny(20, "off")).swarm_scale is None
+    assert Simulation(_tiny(20, "spacing")).swarm_scale is None      # scaled when resolved, not during the run
