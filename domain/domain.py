@@ -45,7 +45,7 @@ opens the faces it spans.  The closed faces go to the planner's transport (:mod:
 feedback's transport term (:mod:`control.poisson_flux`), the KDE (:mod:`control.kde`), the geodesic
 distances (:class:`domain.geodesic.GeodesicGrid`) and the connectivity of the reachable cells.  The part of a
 cut cell that its kept piece does not hold (the far side of the wall) is free for the robots, and belongs, for
-the density estimate, the feedback law and the controllers, to the neighbouring cell on its own side
+the density estimate and the laws built on it (the feedback's), to the neighbouring cell on its own side
 (:meth:`Domain.on_kept_pieces`): counted in the cell it lies in, a robot there would be steered as if it stood
 in the room behind the wall.
 
@@ -416,10 +416,11 @@ class Domain:
     def on_kept_pieces(self, X, nx: int, ny: int) -> np.ndarray:
         """Positions as the planner's ``nx`` x ``ny`` cells see them: a robot on the far side of a thin wall that
         cuts its cell (in a part of the cell its kept piece does not hold, module docstring, "Walls") is moved to
-        the nearest point of the cell that owns that part (:func:`domain.cells.piece_owners`: the neighbour on its
-        own side of the wall), so that the density estimate counts it, and the feedback law and the controllers
-        steer it, in the room it is in; every other position is returned unchanged (the same array when none
-        moves).  For the estimate and the laws only: the robots measure and move where they are."""
+        the cell that owns that part (:func:`domain.cells.piece_owners`: the neighbour on its own side of the wall),
+        a quarter cell inside it along each axis it lies beyond (not onto the closed face, where the laws' normal
+        components vanish and would leave it standing in the sliver), so that the density estimate counts it, and
+        the feedback law steers it, in the room it is in; every other position is returned unchanged (the same
+        array when none moves).  For the estimate and the laws only: the robots measure and move where they are."""
         X = np.asarray(X, float)
         strays = self._strays(nx, ny)
         if strays is None or X.size == 0:
@@ -436,10 +437,11 @@ class Domain:
         if not move.any():
             return X
         oi, oj = owner[move] // ny, owner[move] % ny
-        eps = 1e-6
         out = X.copy()
-        out[move, 0] = np.clip(X[move, 0], x0 + (oi + eps) * dx, x0 + (oi + 1 - eps) * dx)
-        out[move, 1] = np.clip(X[move, 1], y0 + (oj + eps) * dy, y0 + (oj + 1 - eps) * dy)
+        for d, (lo, h, k) in enumerate(((x0, dx, oi), (y0, dy, oj))):
+            a = lo + k * h                              # the owner cell's range along this axis: [a, a + h]
+            u = X[move, d]
+            out[move, d] = np.where(u < a, a + 0.25 * h, np.where(u > a + h, a + 0.75 * h, u))
         return out
 
     def closed_faces(self, free: np.ndarray):

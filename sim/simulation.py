@@ -230,10 +230,15 @@ class Simulation:
         self.result.free = self.free
         self.result.region = self.region
         self.motion_domain = s.domain if self.region is None else self.region
-        # the positions the estimate and the laws see: a robot beyond a thin wall inside its planner cell counts
-        # in the cell on its own side (domain.Domain.on_kept_pieces); it measures and moves where it is
+        # the positions the density estimate and the laws built on it see (the feedback's, the coverage
+        # controller's): a robot beyond a thin wall inside its planner cell counts in the cell on its own side
+        # (domain.Domain.on_kept_pieces); it measures and moves where it is.  The baselines without a density
+        # (greedy, lawnmower, ergodic) steer by the positions as they are
         self.law_positions = ((lambda X: X) if self.region is None else
                               (lambda X, _r=self.region, _n=grid.shape: _r.on_kept_pieces(X, *_n)))
+        c = self.controller
+        self._steer_positions = (self.law_positions if c.needs_plan or getattr(c, "reads_density", False)
+                                 else (lambda X: X))
         self.recorders = [MetricsRecorder(), *recorders]
         self.network = make_network(config)       # the centre of Algorithm 1, or robots that talk to neighbours
         self.network.bind(self)
@@ -660,7 +665,7 @@ class Simulation:
         vmax = ctrl.v_max
         fast = robot_kernel.use_compiled(X.shape[0]) and X.dtype == np.float64 and X.flags.c_contiguous
         for i in range(s.substeps):
-            v = np.asarray(ctrl.velocity(t + i * h, self.law_positions(X), alive), dtype=float)
+            v = np.asarray(ctrl.velocity(t + i * h, self._steer_positions(X), alive), dtype=float)
             if fast and v.shape == X.shape and alive.all():
                 # the same sub-step in one compiled pass (control.robot_kernel.em_step: the same bits)
                 out = self._compiled_substep(X, v, h, ctrl.sigma, vmax)
@@ -704,7 +709,7 @@ class Simulation:
     def context(self):
         """What the controller is given (:class:`sim.controllers.Context`)."""
         from .controllers import Context
-        return Context(t=self.t, period=self.period_index, X=self.law_positions(self.X), alive=self.alive, mean=self.mean,
+        return Context(t=self.t, period=self.period_index, X=self._steer_positions(self.X), alive=self.alive, mean=self.mean,
                        var=self.var, centers=self.centers, domain=self.settings.domain, h=self.h,
                        plan=self.network.robot_plan(self) if self.controller.needs_plan else None,
                        estimate=self.network.estimator(self),
