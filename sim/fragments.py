@@ -74,7 +74,8 @@ class _Fragment:
 def empty_map_like(sim, kernel_angle) -> GaussianProcess:
     """A GP without data at the main map's (``sim.gp``) learned values, l_y of an anisotropic kernel included, its
     kernel turned by ``kernel_angle`` and, with ``gp.barrier``, its lattice links through the walls cut: a fragment's
-    new map, or the main map rebuilt from what the designated robot's component holds."""
+    new map, or the main map rebuilt from what the designated robot's component holds (with the main map's learned
+    variance factor, ``gp.amplitude = "local"``)."""
     gs = sim.gp.settings
     gp = GaussianProcess(dataclasses.replace(sim.config.gp, kernel_angle=kernel_angle), domain=sim.settings.domain)
     if gp.settings.barrier:
@@ -82,6 +83,9 @@ def empty_map_like(sim, kernel_angle) -> GaussianProcess:
         gp.use_barrier(sim.gp.barrier_on)            # barrier = "auto": the main map's choice
     gp.set_hyperparameters(gs.signal_variance, gs.length_scale, getattr(gs, "length_scale_y", None),
                            nugget=getattr(gs, "nugget", None))
+    g = getattr(sim.gp, "log_amplitude", None)
+    if g is not None:                                # gp.amplitude = "local": the main map's learned factor (world x)
+        gp.set_log_amplitude(g)
     return gp
 
 
