@@ -15,7 +15,7 @@ variance of Heinonen et al. 2016), with g a few coarse cubic B-splines,
 
 (:class:`LogAmplitude`: ``amplitude_cells`` cells along the domain's longer side, each basis function centred on
 its mean over the domain's box, so that g has mean 0 there and s_f^2 keeps its meaning of the field's typical
-variance) and an independent N(0, ``amplitude_prior_sd``^2) prior on each theta_k: shrinkage towards the
+variance) and an independent N(0, sd^2) prior (sd = ``amplitude_prior_sd``) on each theta_k: shrinkage towards the
 stationary model, which data without a trend in their local variance keep (g ~ 0).
 
 In the spline model of :mod:`regression.gp` the amplitude multiplies the coefficients: c = D c', D = diag(a(x_j))
