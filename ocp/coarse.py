@@ -113,4 +113,5 @@ def coarse_information(information, shape: tuple[int, int]):
     variance averaged over each coarse cell (:func:`coarsen_density`), the robots, Δt, σ_n^2 and ℓ unchanged (the
     NLP's parameters scale with the coarse cells: :meth:`~ocp.objectives.InformationInputs.parameters`)."""
     import dataclasses
-    return dataclasses.replace(information, variance=coarsen_density(information.variance, shape))
+    # a spread through the free space is the fine grid's: the coarse start takes the separable one
+    return dataclasses.replace(information, variance=coarsen_density(information.variance, shape), spread=None)

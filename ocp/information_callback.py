@@ -49,6 +49,16 @@ class InformationTerms:
         self.q = float(power)
         self.C = _cumulative_trapezoid(self.n_snap, float(tau))
         self.n_info = self.nx * self.ny + self.nx * self.nx + self.ny * self.ny + 1
+        #: a spread through the free space (:class:`ocp.objectives.InformationInputs` ``spread``, sparse
+        #: (nx ny, nx ny)) used instead of the parameter block's Kx (.) Ky^T; set by the planner for each solve
+        self.spread = None
+
+    def _spread(self, A, K, Kx, Ky):
+        """K A_l (flat index) for every snapshot l of A (n_snap, nx, ny), or Kx A_l Ky^T without K."""
+        if K is None:
+            return np.matmul(np.matmul(Kx, A), Ky.T)
+        n = A.shape[0]
+        return np.asarray(K @ A.reshape(n, -1).T).T.reshape(A.shape)
 
     def unpack(self, info):
         """(V0 (nx, ny), Kx, Ky, c) of the parameter block (column-major, :meth:`InformationInputs.parameters`)."""
@@ -64,7 +74,7 @@ class InformationTerms:
     def _state(self, P, info):
         V0, Kx, Ky, c = self.unpack(info)
         cum = np.tensordot(self.C, P, axes=([0], [0]))                      # (n_snap, nx, ny): sum_k C[k, l] P_k
-        G = np.matmul(np.matmul(Kx, cum), Ky.T)
+        G = self._spread(cum, self.spread, Kx, Ky)
         V = V0 / (1.0 + c * V0 * G)
         return V0, Kx, Ky, c, cum, G, V
 
@@ -106,11 +116,16 @@ class InformationTerms:
         H = -c * V2 * dV                                                 # d / dG
         dP = dinfo = None
         if wrt[0]:
-            dcum = np.matmul(np.matmul(Kx.T, H), Ky)
+            K = self.spread
+            dcum = (np.matmul(np.matmul(Kx.T, H), Ky) if K is None else
+                    np.asarray(K.T @ H.reshape(H.shape[0], -1).T).T.reshape(H.shape))
             dP = np.tensordot(self.C, dcum, axes=([1], [0]))               # dP_k = sum_l C[k, l] dcum_l
         if wrt[1]:
-            dKx = np.matmul(np.matmul(H, Ky), cum.transpose(0, 2, 1)).sum(axis=0)     # sum_l (H_l Ky) cum_l^T
-            dKy = np.matmul(H.transpose(0, 2, 1), np.matmul(Kx, cum)).sum(axis=0)     # sum_l H_l^T (Kx cum_l)
+            if self.spread is None:
+                dKx = np.matmul(np.matmul(H, Ky), cum.transpose(0, 2, 1)).sum(axis=0)     # sum_l (H_l Ky) cum_l^T
+                dKy = np.matmul(H.transpose(0, 2, 1), np.matmul(Kx, cum)).sum(axis=0)     # sum_l H_l^T (Kx cum_l)
+            else:                                                          # Kx, Ky do not enter
+                dKx, dKy = np.zeros_like(Kx), np.zeros_like(Ky)
             dc = float(-(dV * V2 * G).sum())
             dV0 = (dV * V2).sum(axis=0) / (V0 * V0)      # V0 > 0: InformationInputs.parameters floors it
             dV0 = dV0 - float((seed * phi).sum()) / ref * dref_dV0       # Φ = M_q(V) / M_q(V0)

@@ -53,6 +53,9 @@ class InformationInputs:
     noise_variance        σ_n^2 of the GP
     length_scale          ℓ of the GP (squared-exponential kernel), along x
     length_scale_y        ℓ_y of an axis-aligned anisotropic kernel, along y (None: ℓ)
+    spread                the spread through the free space (``planner.information_spread = "walls"``): a
+                          (nx ny, nx ny) sparse matrix on the flat cell index i ny + j that replaces the separable
+                          Kx (.) Ky^T (``domain.geodesic.spread_kernel``); None: the separable Euclidean spread
     """
 
     variance: np.ndarray
@@ -61,6 +64,7 @@ class InformationInputs:
     noise_variance: float
     length_scale: float
     length_scale_y: float | None = None
+    spread: object = None
 
     def __post_init__(self):
         v = np.asarray(self.variance, dtype=float)
@@ -90,6 +94,9 @@ class InformationInputs:
         """The NLP parameter block [vec V0, vec Kx, vec Ky, c] (column-major, as CasADi's vec)."""
         if self.variance.shape != grid.shape:
             raise ValueError(f"information.variance has shape {self.variance.shape}, the planner grid is {grid.shape}")
+        if self.spread is not None and tuple(self.spread.shape) != (grid.nx * grid.ny,) * 2:
+            raise ValueError(f"information.spread has shape {tuple(self.spread.shape)}, the planner grid needs "
+                             f"{(grid.nx * grid.ny,) * 2}")
         kx = spread_matrix(grid.nx, grid.dx, self.length_scale)
         ky = spread_matrix(grid.ny, grid.dy, self.cross_length_scale)
         # the cell area turns densities into robot fractions; c into the matrices' scalar
@@ -101,6 +108,7 @@ class InformationInputs:
         return {"robots": self.robots, "measurement_interval": self.measurement_interval,
                 "noise_variance": self.noise_variance, "length_scale": self.length_scale,
                 **({} if self.length_scale_y is None else {"length_scale_y": float(self.length_scale_y)}),
+                **({} if self.spread is None else {"spread": "walls"}),
                 "sup_variance": float(self.variance.max()), "mean_variance": float(self.variance.mean())}
 
 

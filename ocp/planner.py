@@ -290,6 +290,12 @@ class ReferencePlanner:
                 raise ValueError("planner.objective = 'information' needs solve(..., information=InformationInputs(...))")
             info = information.parameters(g)
             info[-1] *= s.information_efficiency
+            terms = getattr(self.problem, "information_terms", None)
+            if information.spread is not None and terms is None:
+                raise ValueError("a spread through the free space (planner.information_spread = 'walls') needs the "
+                                 "compiled or NumPy transport (planner.transport 'auto', 'compiled' or 'numpy')")
+            if terms is not None:
+                terms.spread = information.spread          # this solve's (None: the separable spread)
             if self.free is not None:        # blocked cells: (almost) no variance to remove, no weight
                 n = g.nx * g.ny
                 v0 = info[:n].reshape(g.shape, order="F")

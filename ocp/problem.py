@@ -228,7 +228,8 @@ class TransportProblem:
                 # the same terms in NumPy with a hand-written reverse sweep (ocp.information_callback): a third
                 # of an IPOPT iteration in CasADi's matrix loops otherwise
                 from .information_callback import InformationTerms, information_callback
-                self._information_fn = information_callback(InformationTerms(nx, ny, N + 1, tau, s.information_power))
+                self.information_terms = InformationTerms(nx, ny, N + 1, tau, s.information_power)
+                self._information_fn = information_callback(self.information_terms)
                 phi = self._information_fn(ca.reshape(Pk, nx, ny * (N + 1)), self.info)
             trap = np.ones(N + 1)
             trap[[0, -1]] = 0.5

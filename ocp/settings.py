@@ -225,6 +225,11 @@ class PlannerSettings:
     #: where the rest is parked, so a plan may pile it in corners and against walls (measuring through a thin wall
     #: in the mean field); the KL terms charge such piles and pull the rest towards the target
     information_kl: float = 0.0
+    #: the information objective's measurement spread on a map: "euclidean" (the separable Kx (.) Ky^T, through walls
+    #: as the GP's stationary kernel sees it) or "walls" (through the free space: the Euclidean spread between cells
+    #: that see each other, the path's length around a wall or obstacle otherwise; ``domain.geodesic.spread_kernel``,
+    #: supplied by the closed loop), so that a pile against a wall does not count as measuring the room behind it
+    information_spread: str = "euclidean"
 
     #: how the problem becomes an NLP (:mod:`ocp.formulations`, docs/design/formulations.md):
     #: "single-shooting" (default: the coefficients only, the density eliminated by the transport kernel),
@@ -284,6 +289,8 @@ class PlannerSettings:
                 not (math.isfinite(self.information_kl) and self.information_kl >= 0):
             raise ValueError(f"planner.information_kl must be a finite number >= 0, got {self.information_kl!r}")
         object.__setattr__(self, "information_kl", float(self.information_kl))
+        if self.information_spread not in ("euclidean", "walls"):
+            raise ValueError(f"planner.information_spread must be 'euclidean' or 'walls', got {self.information_spread!r}")
         if self.information_scale not in ("gp", "stop-rule"):
             raise ValueError(f"planner.information_scale must be 'gp' or 'stop-rule', got {self.information_scale!r}")
         if self.objective == "information" and self.method != "ipopt":

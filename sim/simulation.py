@@ -598,7 +598,20 @@ class Simulation:
             # a rotated kernel is not separable on the planner's axes: the isotropic spread of the same area
             ell, ell_y = math.sqrt(ell * ell_y), None
         return {"information": InformationInputs(var, int(self.alive.sum()), self.settings.dt,
-                                                 gs.noise_variance, ell, ell_y)}
+                                                 gs.noise_variance, ell, ell_y, self._information_spread(ell, ell_y))}
+
+    def _information_spread(self, ell, ell_y):
+        """The information objective's spread through the free space (``planner.information_spread = "walls"`` on a
+        map: :func:`domain.geodesic.spread_kernel`, cached per length scales), else None (the separable one)."""
+        if getattr(self.config.planner, "information_spread", "euclidean") != "walls" or self.region is None:
+            return None
+        key = (float(ell), None if ell_y is None else float(ell_y))
+        cache = self.__dict__.setdefault("_spread_cache", {})
+        if key not in cache:
+            from ..domain.geodesic import spread_kernel
+            cache.clear()                                  # one at a time: the length scales move at every refit
+            cache[key] = spread_kernel(self.free, self.settings.domain, self.walls, ell, ell_y)
+        return cache[key]
 
     def _failure_hint(self, info: dict) -> str:
         """What a user can set after a plan stopped at its iteration or time limit (empty otherwise)."""
