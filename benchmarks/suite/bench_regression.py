@@ -139,3 +139,36 @@ class PosteriorUpdatesLargeSite:
         for X in self.steps:
             self.gp.add(X, np.sin(X[:, 0] / 4))
             self.gp.predict(self.centers)
+
+
+class FirstRefitLargeSite:
+    """The first online refit of a run on a 40 m x 25 m site at the tuned preset's GP on its pinned 0.521 m grid (77 x 48
+    cells: the likelihood on the full 4,080-node grid), after the swarm's first measurements (100 points in a 7 m
+    box): the likelihood and its gradient from the factorisation of B (``low_rank_updates = false``) against through
+    the data's rank (``true``, the tuned preset's) (docs/results/closed-loop-step.md, "Real time on larger sites")."""
+
+    timer = TIMER
+    params = [False, True]
+    param_names = ["low_rank_updates"]
+    number = 1
+    repeat = 3
+    warmup_time = 0.0
+    timeout = 600
+
+    def setup(self, low_rank):
+        limit_threads()
+        from swarmfield.regression import GaussianProcess, GPSettings
+        from swarmfield.regression.hyper import refit_online
+        self.refit = refit_online
+        rng = np.random.default_rng(0)
+        s = GPSettings(learn_hyperparameters=True, hyper_maxiter=8, signal_scale="data", signal_variance=1.0,
+                       kernel="matern52", hyper_prior_sd=0.5, hyper_step_sd=1.0, learn_nugget=True, noise_variance=0.01,
+                       inducing_spacing=0.521, low_rank_updates=low_rank)
+        self.gp = GaussianProcess(s, domain=(0.0, 40.0, 0.0, 25.0))
+        X = rng.uniform((0.0, 0.0), (7.0, 7.0), (100, 2))
+        self.gp.add(X, 400.0 + 30.0 * np.sin(X[:, 0] / 4) * np.cos(X[:, 1] / 3) + 0.1 * rng.normal(size=100))
+        self.start = (self.gp.settings.signal_variance, self.gp.settings.length_scale)
+
+    def time_first_refit(self, low_rank):
+        self.gp.set_hyperparameters(*self.start, nugget=0.0)
+        self.refit(self.gp)
