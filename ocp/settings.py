@@ -228,7 +228,8 @@ class PlannerSettings:
     #: the information objective's measurement spread on a map: "euclidean" (the separable Kx (.) Ky^T, through walls
     #: as the GP's stationary kernel sees it) or "walls" (through the free space: the Euclidean spread between cells
     #: that see each other, the path's length around a wall or obstacle otherwise; ``domain.geodesic.spread_kernel``,
-    #: supplied by the closed loop), so that a pile against a wall does not count as measuring the room behind it
+    #: supplied by the closed loop on maps with walls thinner than a cell), so that a pile against a wall does not
+    #: count as measuring the room behind it
     information_spread: str = "euclidean"
 
     #: how the problem becomes an NLP (:mod:`ocp.formulations`, docs/design/formulations.md):

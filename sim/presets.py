@@ -52,6 +52,13 @@ PRESETS: dict[str, dict] = {
             # room lies two doors deep: never -> 2.0 / 2.1 T there (greedy 2.1); floor and clinic RMSE at 2 T
             # +0-20 %, at 3-4 T -5-+8 % (1, 3, 10 tried; docs/results/buildings.md, "A room two doors deep")
             "information_kl": 1.0,
+            # on a map with walls thinner than a cell, the information terms' spread through the free space, not
+            # through the walls (PlannerSettings.information_spread; maps without such walls keep the separable
+            # spread bit for bit): RMSE at 2 T / 3 T on seven floors with thin walls better or level (a hostel
+            # 0.84-0.85x / 0.85-0.91x, the clinic and the offices 0.94-0.97x at 2 T), worse by 4-18 % on an L-shaped
+            # yard and a pond without walls, where it is therefore not used (docs/results/buildings.md, "The
+            # information objective's spread through the free space")
+            "information_spread": "walls",
             # plan the reference faster than the robots of 3 m/s (planner.v_max, the baselines' speed, and
             # feedback.v_max stay 3): the planned density runs ahead of the swarm's front, where the law
             # saturates and the front robots sweep at full speed (docs/design/receding-horizon.md).  24 m/s

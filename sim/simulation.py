@@ -602,8 +602,10 @@ class Simulation:
 
     def _information_spread(self, ell, ell_y):
         """The information objective's spread through the free space (``planner.information_spread = "walls"`` on a
-        map: :func:`domain.geodesic.spread_kernel`, cached per length scales), else None (the separable one)."""
-        if getattr(self.config.planner, "information_spread", "euclidean") != "walls" or self.region is None:
+        map with walls thinner than a planner cell: :func:`domain.geodesic.spread_kernel`, cached per length
+        scales), else None: the separable spread, also on maps whose obstacles are whole cells only (a shore, an
+        L-shaped site), where the GP's stationary kernel sees across them as the separable spread does."""
+        if getattr(self.config.planner, "information_spread", "euclidean") != "walls" or self.walls is None:
             return None
         key = (float(ell), None if ell_y is None else float(ell_y))
         cache = self.__dict__.setdefault("_spread_cache", {})

@@ -359,13 +359,15 @@ def test_the_free_fraction_never_closes_a_door():
         assert (cells & ~(frac >= f * (1 - 1e-12))).sum() <= 4                  # the door's cells at most
 
 
-def school_wall_domain():
-    """[0, 36] x [0, 24] with a 4 cm wall at 12.00 < x < 12.04 (no door; 0.04 m pixels): on 40 x 27 cells of
-    0.9 m the wall cuts the column 11.7 < x < 12.6, whose kept piece is east of it."""
+def school_wall_domain(door=None):
+    """[0, 36] x [0, 24] with a 4 cm wall at 12.00 < x < 12.04 (0.04 m pixels; a door at y0 < y < y1 if given): on
+    40 x 27 cells of 0.9 m the wall cuts the column 11.7 < x < 12.6, whose kept piece is east of it."""
     p = 0.04
     xc, yc = (np.arange(900) + 0.5) * p, (np.arange(600) + 0.5) * p
-    X, _ = np.meshgrid(xc, yc, indexing="ij")
+    X, Y = np.meshgrid(xc, yc, indexing="ij")
     free = ~((X > 12.0) & (X < 12.04))
+    if door is not None:
+        free |= (Y > door[0]) & (Y < door[1])
     return Domain.from_raster(free, (0.0, 36.0, 0.0, 24.0), name="school wall", start_box=(0.0, 7.0, 0.0, 7.0))
 
 
@@ -436,3 +438,26 @@ def test_the_closed_loop_steers_a_robot_beyond_a_thin_wall_from_the_cell_on_its_
     sim.start()
     sim.X[0] = [11.9, 5.0]
     assert sim.context().X[0, 0] == 11.9
+
+
+def test_the_tuned_plans_spread_measurements_through_the_free_space_on_maps_with_thin_walls_only(tmp_path):
+    """planner.information_spread = "walls" (the tuned preset's): a sparse spread through the free space where a
+    wall thinner than a cell closes faces; the separable spread (None) on a map whose obstacles are whole cells."""
+    from swarmfield.sim.simulation import Simulation
+    d = school_wall_domain(door=(19.8, 21.6))
+    np.savez(tmp_path / "wall.npz", free=d.state == 1, extent=np.array([0.0, 36.0, 0.0, 24.0]))
+    block = np.ones((360, 240), bool)
+    block[180:270, 120:] = False                      # an obstacle of whole 0.9 m cells: no closed face
+    np.savez(tmp_path / "block.npz", free=block, extent=np.array([0.0, 36.0, 0.0, 24.0]))
+    out = {}
+    for name in ("wall", "block"):
+        cfg = config_from_dict({"sim": {"domain": [0.0, 36.0, 0.0, 24.0], "robots": 30, "max_periods": 1},
+                                "domain": {"source": str(tmp_path / f"{name}.npz")}}, preset="tuned")
+        assert cfg.planner.information_spread == "walls"
+        sim = Simulation(cfg)
+        sim.start()
+        out[name] = sim.information_inputs()["information"].spread
+    assert out["block"] is None
+    K = out["wall"].toarray().reshape(40, 27, 40, 27)
+    assert not K[:13, :5, 13:, :5].any() and K[12, 5, 11, 5] > 0       # nothing through the wall, far from the door
+    assert K[12, 23, 13, 23] > 0                                        # through the door
