@@ -54,10 +54,11 @@ PRESETS: dict[str, dict] = {
             "information_kl": 1.0,
             # on a map with walls thinner than a cell, the information terms' spread through the free space, not
             # through the walls (PlannerSettings.information_spread; maps without such walls keep the separable
-            # spread bit for bit): RMSE at 2 T / 3 T on seven floors with thin walls better or level (a hostel
-            # 0.84-0.85x / 0.85-0.91x, the clinic and the offices 0.94-0.97x at 2 T), worse by 4-18 % on an L-shaped
-            # yard and a pond without walls, where it is therefore not used (docs/results/buildings.md, "The
-            # information objective's spread through the free space")
+            # spread bit for bit): RMSE at 2 T on six maps with thin walls, seeds 0-1, a hostel 0.84x, the clinic
+            # and the offices 0.94-0.97x, three others level on average (one office seed 12 % worse, the other 17 %
+            # better); around whole-cell obstacles it lost (an L-shaped yard +4-18 %, a pond up to +11 %), so
+            # there it is not used (docs/results/buildings.md, "The information objective's spread through the
+            # free space")
             "information_spread": "walls",
             # plan the reference faster than the robots of 3 m/s (planner.v_max, the baselines' speed, and
             # feedback.v_max stay 3): the planned density runs ahead of the swarm's front, where the law
