@@ -137,7 +137,7 @@ import warnings
 
 import numpy as np
 from scipy import sparse
-from scipy.linalg import blas, cho_solve, lapack
+from scipy.linalg import blas, lapack
 from scipy.optimize import minimize
 
 from ..runtime.validation import real_array
@@ -1378,6 +1378,17 @@ class GaussianProcess:
         phi = (wx[:, :, None] * wy[:, None, :]).reshape(len(ix), 16)
         return nx_, ny_, wx, wy, node, phi
 
+    def _scaled_design(self, pts: np.ndarray, sn2: float):
+        """``(U^T, node, phi)``: U^T (k, M) sparse, each point's 16 basis weights phi at its nodes over sigma_n (phi
+        times the local amplitude a(node) with ``amplitude = "local"``), the rows the Woodbury updates add."""
+        k, m = pts.shape[0], self._n_nodes
+        _, _, _, _, node, phi = self._basis(pts)
+        if self._amp is not None:                    # a local signal variance: the coefficients' design D phi
+            phi = phi * self._amp[node]
+        u_t = sparse.csr_matrix((phi.reshape(-1) / math.sqrt(sn2), node.reshape(-1), np.arange(0, 16 * k + 1, 16)),
+                                shape=(k, m))
+        return u_t, node, phi
+
     def _woodbury(self, sigma: np.ndarray, pts: np.ndarray, sn2: float) -> None:
         """In place: Sigma <- (Sigma^{-1} + U U^T)^{-1} = Sigma - Sigma U (I + U^T Sigma U)^{-1} U^T Sigma,
         U = [phi(x_1) .. phi(x_k)] / s_n (16 non-zeros per column).
@@ -1387,12 +1398,7 @@ class GaussianProcess:
         O(k M^2) for the symmetric rank-k update Sigma -= V V^T (BLAS dsyrk on one triangle,
         then mirrored, so Sigma stays exactly symmetric). Sigma is modified only at the end.
         """
-        k, m = pts.shape[0], self._n_nodes
-        _, _, _, _, node, phi = self._basis(pts)
-        if self._amp is not None:                    # a local signal variance: the coefficients' design D phi
-            phi = phi * self._amp[node]
-        u_t = sparse.csr_matrix((phi.reshape(-1) / math.sqrt(sn2), node.reshape(-1), np.arange(0, 16 * k + 1, 16)),
-                                shape=(k, m))
+        u_t = self._scaled_design(pts, sn2)[0]
         w_t = np.asarray(u_t @ sigma)                               # U^T Sigma, (k, M)
         c = np.asarray(u_t @ np.ascontiguousarray(w_t.T))           # U^T Sigma U, (k, k)
         c = 0.5 * (c + c.T)
@@ -1424,11 +1430,7 @@ class GaussianProcess:
         factorisation.  The same operations on the same numbers as :meth:`_woodbury` up to the order of the sums
         (equal to round-off, ``tests/test_regression.py``)."""
         k, m = pts.shape[0], self._n_nodes
-        _, _, _, _, node, phi = self._basis(pts)
-        if self._amp is not None:                    # a local signal variance: the coefficients' design D phi
-            phi = phi * self._amp[node]
-        u_t = sparse.csr_matrix((phi.reshape(-1) / math.sqrt(sn2), node.reshape(-1), np.arange(0, 16 * k + 1, 16)),
-                                shape=(k, m))
+        u_t, node, phi = self._scaled_design(pts, sn2)
         b = cov.basis
         w = self._kron_left(b.fx, b.fy, np.asarray(u_t @ cov.half).T)       # (fx (x) fy) T^T U, (M, k)
         w *= cov.hyper[0]                                                    # Sigma_0 U
