@@ -69,8 +69,9 @@ Walls thinner than a cell.  ``walls`` (closed faces between free cells of the gr
 along each axis a multiple of the cells', at least the resolution rule's), so every cell face is a bin face
 and a robot is binned on its own side of a wall (with bins that straddled a cell face, the wall sat up to
 half a bin from the face, and the robots in that half bin were smoothed into the room behind it: on a
-school floor of 0.9 m cells and 0.36 m bins they piled against a wall the estimate had them behind).  With walls the estimate is always
-the free-space heat kernel above, whatever ``obstacle_kernel`` says: the renormalised kernel would count
+school floor of 0.9 m cells and 0.36 m bins they piled against a wall the estimate had them behind).  With walls
+the estimate is always the free-space heat kernel above, whatever ``obstacle_kernel`` says: the renormalised
+kernel would count
 robots behind the wall on this side of it, which is what a wall must prevent, while the heat kernel
 carries mass only around the wall, through its doors (the smoothing's geodesic analogue).  A closed face
 reflects like the outer walls in every step: a robot's binning weight on a centre behind it goes to the

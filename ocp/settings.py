@@ -291,7 +291,8 @@ class PlannerSettings:
             raise ValueError(f"planner.information_kl must be a finite number >= 0, got {self.information_kl!r}")
         object.__setattr__(self, "information_kl", float(self.information_kl))
         if self.information_spread not in ("euclidean", "walls"):
-            raise ValueError(f"planner.information_spread must be 'euclidean' or 'walls', got {self.information_spread!r}")
+            raise ValueError("planner.information_spread must be 'euclidean' or 'walls', "
+                             f"got {self.information_spread!r}")
         if self.information_scale not in ("gp", "stop-rule"):
             raise ValueError(f"planner.information_scale must be 'gp' or 'stop-rule', got {self.information_scale!r}")
         if self.objective == "information" and self.method != "ipopt":

@@ -724,8 +724,8 @@ class Simulation:
     def context(self):
         """What the controller is given (:class:`sim.controllers.Context`)."""
         from .controllers import Context
-        return Context(t=self.t, period=self.period_index, X=self._steer_positions(self.X), alive=self.alive, mean=self.mean,
-                       var=self.var, centers=self.centers, domain=self.settings.domain, h=self.h,
+        return Context(t=self.t, period=self.period_index, X=self._steer_positions(self.X), alive=self.alive,
+                       mean=self.mean, var=self.var, centers=self.centers, domain=self.settings.domain, h=self.h,
                        plan=self.network.robot_plan(self) if self.controller.needs_plan else None,
                        estimate=self.network.estimator(self),
                        rng=self.rng, free=self.free, region=self.region, walls=self.walls, network=self.network)
