@@ -71,9 +71,8 @@ and a robot is binned on its own side of a wall (with bins that straddled a cell
 half a bin from the face, and the robots in that half bin were smoothed into the room behind it: on a
 school floor of 0.9 m cells and 0.36 m bins they piled against a wall the estimate had them behind).  With walls
 the estimate is always the free-space heat kernel above, whatever ``obstacle_kernel`` says: the renormalised
-kernel would count
-robots behind the wall on this side of it, which is what a wall must prevent, while the heat kernel
-carries mass only around the wall, through its doors (the smoothing's geodesic analogue).  A closed face
+kernel would count robots behind the wall on this side of it, which is what a wall must prevent, while the
+heat kernel carries mass only around the wall, through its doors (the smoothing's geodesic analogue).  A closed face
 reflects like the outer walls in every step: a robot's binning weight on a centre behind it goes to the
 centre its mirror image would reach, the derivatives at the bins beside it take the bin's own value for the
 neighbour across it, and the Hermite interpolation replaces every node behind it by the mirror ghost of a
