@@ -144,7 +144,9 @@ def spread_kernel(free: np.ndarray, extent, walls=None, length_scale: float = 1.
     straight line (the cells see each other: the stencil's paths are at most 2.7 % longer), and
     exp(-(d/l_e)^2) of the path's length d, l_e = sqrt(l l_y), when it bends around a wall or an obstacle; 0
     between cells no such path joins within reach, and 1 on the diagonal of blocked cells.  On a rectangle
-    without walls it is the separable spread to within exp(-reach^2) (the truncation)."""
+    without walls it is the separable spread to within exp(-reach^2) (the truncation).  Cost: one Dijkstra per free
+    cell, bounded by the reach; at the planner's default 40 cells along the longer side a few tenths of a second
+    and 3e5 entries (l = 1.5 m on 20 m), on 100 x 100 cells 4 s and 1.2e7 entries."""
     from scipy import sparse
     from scipy.sparse.csgraph import dijkstra
     free = np.asarray(free, bool)
@@ -155,19 +157,23 @@ def spread_kernel(free: np.ndarray, extent, walls=None, length_scale: float = 1.
     ly = lx if length_scale_y is None else float(length_scale_y)
     le = math.sqrt(lx * ly)
     graph = geodesic_graph(free, dx, dy, walls)
+    n = nx * ny
     src = np.flatnonzero(free.ravel())
-    D = dijkstra(graph, directed=False, indices=src, limit=reach * max(lx, ly) * sight)      # (m, n), inf beyond
-    rows, cols = np.nonzero(np.isfinite(D))
-    d = D[rows, cols]
-    a, b = src[rows], cols
-    ex = (a // ny - b // ny) * dx
-    ey = (a % ny - b % ny) * dy
-    straight = np.hypot(ex, ey)
-    k = np.where(d <= sight * straight + 1e-9 * min(dx, dy), np.exp(-(ex / lx) ** 2 - (ey / ly) ** 2),
-                 np.exp(-(d / le) ** 2))
-    keep = k > 1e-12
+    parts = []
+    step = max(1, 4_000_000 // n)                 # sources per Dijkstra call: its dense (step, n) rows stay small
+    for lo in range(0, src.size, step):
+        s_ = src[lo:lo + step]
+        D = dijkstra(graph, directed=False, indices=s_, limit=reach * max(lx, ly) * sight)    # inf beyond reach
+        rows, b = np.nonzero(np.isfinite(D))
+        d, a = D[rows, b], s_[rows]
+        ex = (a // ny - b // ny) * dx
+        ey = (a % ny - b % ny) * dy
+        k = np.where(d <= sight * np.hypot(ex, ey) + 1e-9 * min(dx, dy), np.exp(-(ex / lx) ** 2 - (ey / ly) ** 2),
+                     np.exp(-(d / le) ** 2))
+        keep = k > 1e-12
+        parts.append((a[keep], b[keep], k[keep]))
     blocked = np.flatnonzero(~free.ravel())
-    r = np.concatenate([a[keep], blocked])
-    c = np.concatenate([b[keep], blocked])
-    v = np.concatenate([k[keep], np.ones(blocked.size)])
-    return sparse.csr_matrix((v, (r, c)), shape=(nx * ny, nx * ny))
+    r = np.concatenate([p[0] for p in parts] + [blocked])
+    c = np.concatenate([p[1] for p in parts] + [blocked])
+    v = np.concatenate([p[2] for p in parts] + [np.ones(blocked.size)])
+    return sparse.csr_matrix((v, (r, c)), shape=(n, n))
