@@ -117,8 +117,7 @@ class InformationTerms:
         dP = dinfo = None
         if wrt[0]:
             K = self.spread
-            dcum = (np.matmul(np.matmul(Kx.T, H), Ky) if K is None else
-                    np.asarray(K.T @ H.reshape(H.shape[0], -1).T).T.reshape(H.shape))
+            dcum = self._spread(H, None if K is None else K.T, Kx.T, Ky.T)     # the adjoint: Kx^T H_l Ky, or K^T H_l
             dP = np.tensordot(self.C, dcum, axes=([1], [0]))               # dP_k = sum_l C[k, l] dcum_l
         if wrt[1]:
             if self.spread is None:
