@@ -133,7 +133,7 @@ class Domain:
         self._clear_flat = self._clear.ravel()
         self._index = _EdgeIndex(self.edges, self.extent)
         self._kernel = None                      # domain.kernel's arrays, made on first use
-        self._topology: dict = {}                # (nx, ny) -> kept pieces of the cells and their pixel bounds
+        self._topology: dict = {}                # (nx, ny) -> the topology raster, its cells' kept pieces, ...
         if not (st != 0).any():
             raise ValueError(f"domain {self.name}: no free cell (the whole extent is an obstacle)")
 
@@ -391,23 +391,27 @@ class Domain:
                                         0.5 * math.hypot(px, py) * (1 + 1e-9))
         return fine.reshape(Mx, My), np.arange(nx + 1) * k, np.arange(ny + 1) * k
 
-    def _kept(self, nx: int, ny: int):
-        """``(kept, bx, by)`` of :func:`domain.cells.kept_pieces` on :meth:`topology_raster`, cached per grid."""
+    def _pieces(self, nx: int, ny: int):
+        """``(fine, kept, bx, by)``: :meth:`topology_raster` and its cells' :func:`domain.cells.kept_pieces`, cached
+        per grid."""
         key = (int(nx), int(ny))
         if key not in self._topology:
             if len(self._topology) > 8:
                 self._topology.clear()
             fine, bx, by = self.topology_raster(nx, ny)
-            self._topology[key] = (kept_pieces(fine, bx, by), bx, by)
+            self._topology[key] = (fine, kept_pieces(fine, bx, by), bx, by)
         return self._topology[key]
+
+    def _kept(self, nx: int, ny: int):
+        """``(kept, bx, by)`` of :meth:`_pieces`."""
+        return self._pieces(nx, ny)[1:]
 
     def _strays(self, nx: int, ny: int):
         """(Mx, My) int, cached per grid: for a free pixel outside its cell's kept piece the cell that owns it
         (:func:`domain.cells.piece_owners`), -1 elsewhere; None when every free pixel is in its cell's kept piece."""
         key = ("strays", int(nx), int(ny))
         if key not in self._topology:
-            fine, _, _ = self.topology_raster(nx, ny)
-            kept, bx, by = self._kept(nx, ny)
+            fine, kept, bx, by = self._pieces(nx, ny)
             stray = fine & ~kept
             self._topology[key] = (np.where(stray, piece_owners(fine, kept, bx, by), -1).astype(np.int64)
                                    if stray.any() else None)
