@@ -254,6 +254,7 @@ class Simulation:
         self.X = self.mean = self.var = self.p_hat = self.est = None
         self.plan, self.sup_v, self.speed = None, math.nan, 0.0
         self.interrupted = False
+        self._spread = (None, None)       # (length scales, the plan's spread through the free space at them)
         self.finished = False
 
     def _swarm_scale(self):
@@ -608,12 +609,10 @@ class Simulation:
         if getattr(self.config.planner, "information_spread", "euclidean") != "walls" or self.walls is None:
             return None
         key = (float(ell), None if ell_y is None else float(ell_y))
-        cache = self.__dict__.setdefault("_spread_cache", {})
-        if key not in cache:
+        if self._spread[0] != key:                         # the last one only: the length scales move at every refit
             from ..domain.geodesic import spread_kernel
-            cache.clear()                                  # one at a time: the length scales move at every refit
-            cache[key] = spread_kernel(self.free, self.settings.domain, self.walls, ell, ell_y)
-        return cache[key]
+            self._spread = (key, spread_kernel(self.free, self.settings.domain, self.walls, ell, ell_y))
+        return self._spread[1]
 
     def _failure_hint(self, info: dict) -> str:
         """What a user can set after a plan stopped at its iteration or time limit (empty otherwise)."""
