@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..runtime.cliargs import OneLineParser, UsageError as InputError, cli_main, check_path
+from ..runtime.lines import write_line
 
 PROG = "simulate-swarm"
 
@@ -320,7 +321,7 @@ def _simulate_and_write(args, argv, config, field, planner, folder, stage, kept,
     failed = result.stop_reason == "planner_failed"
     try:
         def writing(name):
-            print(f"{PROG}: writing {name} ...", file=sys.stderr, flush=True)
+            write_line(sys.stderr, f"{PROG}: writing {name} ...")
         size = sum(np.asarray(a).nbytes for a in [*result.positions, *result.variances])
         if drawer is not None and size > _DRAWER_MAX_BYTES:
             drawer = None                        # cheaper to draw here than to send it

@@ -49,10 +49,11 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
     :meth:`sim.simulation.Simulation.run`.
     """
     if progress is True:
+        from ..runtime.lines import write_line
         from .progress import progress_lines, start_line
         shown = config if config is not None else RunConfig.default()
         progress = progress_lines(shown, prog="run_simulation")
-        print(f"run_simulation: {start_line(shown, field)}", file=sys.stderr, flush=True)
+        write_line(sys.stderr, f"run_simulation: {start_line(shown, field)}")
     elif progress is False:
         progress = None
     elif progress is not None and not callable(progress):

@@ -11,6 +11,7 @@ import sys
 from typing import Callable
 
 from ..ocp.status import explain_status, short_status
+from ..runtime.lines import write_line
 
 #: ``SimulationResult.stop_reason`` -> words
 STOP_REASONS = {"threshold": "sup V at or below the threshold", "max_time": "time limit (--max-periods)",
@@ -26,7 +27,7 @@ def progress_lines(config, prog: str = "swarmfield", stream=None, done_suffix: s
     seen: set[str] = set()
 
     def say(text):
-        print(f"{prog}: {text}", file=sys.stderr if stream is None else stream, flush=True)
+        write_line(sys.stderr if stream is None else stream, f"{prog}: {text}")
 
     def show(info):
         if info["event"] == "plan":

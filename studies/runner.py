@@ -40,6 +40,8 @@ import time
 from pathlib import Path
 from typing import Callable
 
+from ..runtime.lines import write_line
+
 __all__ = ["task_key", "run_tasks", "publish_outputs", "load_results", "SweepError", "SweepAborted", "SchedulerError",
            "connect_scheduler", "quiet_dask_logs", "unique_values"]
 
@@ -76,7 +78,7 @@ def unique_values(values, flag: str, stream="stderr", key=None) -> list:
         seen.add(k)
         out.append(v)
     if dropped and stream is not None:
-        print(f"note: {flag}: dropped repeated value(s) {' '.join(str(v) for v in dropped)}", file=stream, flush=True)
+        write_line(stream, f"note: {flag}: dropped repeated value(s) {' '.join(str(v) for v in dropped)}")
     return out
 
 
@@ -139,14 +141,13 @@ class _Progress:
         self.started, self.describe = 0, describe or describe_task
         self.t0 = time.perf_counter()
         if stream is not None:
-            print(f"{label}: {total} runs, {skipped} already done, {self.todo} to run", file=stream, flush=True)
+            write_line(stream, f"{label}: {total} runs, {skipped} already done, {self.todo} to run")
 
     def start(self, task):
         """A line as a run starts (the first finished run may be minutes away)."""
         self.started += 1
         if self.stream is not None:
-            print(f"{self.label}: starting run {self.started}/{self.todo}: {self.describe(task)}",
-                  file=self.stream, flush=True)
+            write_line(self.stream, f"{self.label}: starting run {self.started}/{self.todo}: {self.describe(task)}")
 
     def tick(self, ok=True):
         self.done += ok
@@ -157,8 +158,8 @@ class _Progress:
         el = time.perf_counter() - self.t0
         eta = el / finished * (self.todo - finished) if finished else float("nan")
         fail = f", {self.failed} failed" if self.failed else ""
-        print(f"{self.label}: {self.done}/{self.total} runs done{fail}, elapsed {el:.0f} s, ETA {eta:.0f} s",
-              file=self.stream, flush=True)
+        write_line(self.stream, f"{self.label}: {self.done}/{self.total} runs done{fail}, elapsed {el:.0f} s, "
+                                f"ETA {eta:.0f} s")
 
 
 def run_tasks(tasks: list[dict], fn: Callable[[dict], list], runs_dir, *, workers: int | None = None,
@@ -196,8 +197,7 @@ def run_tasks(tasks: list[dict], fn: Callable[[dict], list], runs_dir, *, worker
             msg = exc if isinstance(exc, str) else f"{type(exc).__name__}: {exc}"
             failures.append((task, msg))
             if stream is not None:
-                print(f"{label}: run failed ({msg}) for {json.dumps(task, default=str)[:200]}",
-                      file=stream, flush=True)
+                write_line(stream, f"{label}: run failed ({msg}) for {json.dumps(task, default=str)[:200]}")
         prog.tick(exc is None)
 
     # while workers or a cluster run the tasks this process only waits: SIGTERM then stops the sweep

@@ -33,6 +33,7 @@ import sys
 import time
 
 from ..ocp.settings import FORMULATIONS, TRANSPORTS, PlannerSettings, dataclass_from_dict, to_dict
+from ..runtime.lines import write_line
 
 __all__ = ["SpecError", "AXES", "parse_spec", "expand", "preset_tasks", "run_planner_task", "COLUMNS",
            "derivatives_cpu_s"]
@@ -151,8 +152,8 @@ def parse_spec(spec: dict, note="stderr") -> dict:
             else:
                 dropped.append(v)
         if dropped and note is not None:
-            print(f"note: --{axis.replace('_', '-')}: dropped repeated value(s) {' '.join(str(v) for v in dropped)}",
-                  file=note, flush=True)
+            write_line(note, f"note: --{axis.replace('_', '-')}: dropped repeated value(s) "
+                             f"{' '.join(str(v) for v in dropped)}")
         out[axis] = vals
     if "linear_solver" in out:
         from ..ocp.linear_solvers import linear_solver_status

@@ -181,6 +181,36 @@ def test_f1_an_interrupt_while_a_run_is_stored_leaves_no_temporary_file(tmp_path
     assert list(tmp_path.iterdir()) == []
 
 
+def test_f2_a_signal_between_writes_leaves_no_progress_line_open():
+    # CI once saw "... preset papercompare-controllers: terminated (SIGTERM); ...": print() writes the
+    # text and its newline in two calls, and the SIGTERM landed between them
+    from swarmfield.runtime.signals import Terminated
+    from swarmfield.studies.runner import _Progress
+
+    class Stream:
+        def __init__(self):
+            self.written, self.armed = [], None
+
+        def write(self, text):                      # once armed, the signal lands before the second write
+            if self.armed is not None and len(self.written) == self.armed + 1:
+                self.armed = None
+                raise Terminated()
+            self.written.append(text)
+
+        def flush(self):
+            pass
+
+    stream = Stream()
+    progress = _Progress(8, 2, "compare-controllers", stream)
+    stream.armed = len(stream.written)
+    with pytest.raises(Terminated):
+        progress.start({"controller": "lawnmower", "seed": 2})
+        progress.start({"controller": "greedy", "seed": 2})
+    assert all(w.endswith("\n") and w.count("\n") == 1 for w in stream.written), stream.written
+    progress.tick()
+    assert stream.written[-1].endswith(" s\n") and "3/8 runs done" in stream.written[-1]
+
+
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_f2_sigterm_of_the_main_process_stops_its_workers(tmp_path, cfg):
     out = tmp_path / "o"
