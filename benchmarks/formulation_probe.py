@@ -6,7 +6,7 @@ IPOPT's timing statistics and the peak RSS (docs/results/formulations.md).
 HESSIAN: auto (default), exact or limited-memory (``formulation_hessian``).  MUMPS_MEM_PERCENT defaults to
 the formulation's own choice (100 for multiple shooting / direct transcription).
 """
-import sys, time, resource, numpy as np
+import sys, time, resource
 from swarmfield.ocp.settings import PlannerSettings, IpoptSettings
 from swarmfield.ocp.planner import ReferencePlanner
 from swarmfield.ocp.grid import Grid

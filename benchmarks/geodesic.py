@@ -12,7 +12,6 @@ median and maximum relative error over the free cells beyond the wall, and the t
 from __future__ import annotations
 
 import argparse
-import math
 import time
 
 import numpy as np

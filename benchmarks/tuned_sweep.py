@@ -12,7 +12,6 @@ import sys, json, time
 from multiprocessing import Pool
 
 def one(job):
-    import numpy as np
     from swarmfield.sim.config import config_from_dict
     from swarmfield.sim.loop import run_simulation
     field, seed, ctrl, ov = job[:4]
@@ -31,7 +30,7 @@ def one(job):
         return {"job": job, "error": repr(e)}
     T = cfg.sim.period
     lev = lambda row: own.gamma_relative * row["signal_variance"] if own.stop_rule == "relative" else own.gamma
-    hit = next((row["t"] / 7.0 for row in r.rows if row["max_variance"] <= lev(row)), None)
+    hit = next((row["t"] / T for row in r.rows if row["max_variance"] <= lev(row)), None)
     rm = {k: next((row["rmse"] for row in r.rows if abs(row["t"] - k * 7.0) < 1e-6), r.rows[-1]["rmse"]) for k in (1, 2, 3)}
     return {"field": field, "seed": seed, "ctrl": ctrl, "loss": loss, "robots": robots, "ov": ov, "ptt": hit,
             "rmse1T": rm[1], "rmse2T": rm[2], "rmse3T": rm[3], "stop": r.stop_reason, "wall": round(time.time() - t, 1),

@@ -24,8 +24,6 @@ NumPy and SciPy only; no simulator needed.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from scipy import sparse
 
