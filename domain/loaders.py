@@ -286,6 +286,25 @@ def _geotiff_geographic(tag) -> str | None:
 _GEOGRAPHIC_NAMES = ("CRS84", "EPSG::4326", "EPSG:4326", "EPSG::4258", "EPSG:4258", "EPSG::4269", "EPSG:4269")
 
 
+#: a GeoJSON without a ``crs`` member whose polygons lie within longitude and latitude bounds and span less than
+#: this many units is read as RFC 7946 WGS 84 degrees (a park of 100 m spans about 0.001 degree); a map in metres
+#: that small holds no swarm
+LONLAT_SPAN = 1.0
+
+
+def _lonlat_sized(bounds) -> bool:
+    """Whether polygon ``bounds`` (x0, y0, x1, y1) look like longitude and latitude in degrees: within
+    [-180, 180] x [-90, 90] and less than :data:`LONLAT_SPAN` across both ways."""
+    x0, y0, x1, y1 = (float(b) for b in bounds)
+    return (-180.0 <= x0 and x1 <= 180.0 and -90.0 <= y0 and y1 <= 90.0
+            and max(x1 - x0, y1 - y0) < LONLAT_SPAN)
+
+
+def _bounds_text(bounds) -> str:
+    x0, y0, x1, y1 = bounds
+    return f"[{x0:.6g}, {x1:.6g}, {y0:.6g}, {y1:.6g}]"
+
+
 def _geojson_objects(doc, path):
     """The geometries of a GeoJSON document, walked without recursion; nesting deeper than MAX_NESTING and
     anything that is not a polygon raise ``ValueError``.  Returns ``(objects, vertices)``."""
@@ -360,6 +379,9 @@ def _load_geojson(path: Path, sim_extent):
     notes = (f"domain file {path}: {len(bad)} polygon(s) not valid ({shapely.is_valid_reason(bad[0])}); repaired "
              "with shapely.make_valid: check the free region in the figures",) if bad else ()
     geom = shapely.union_all([shapely.make_valid(p) if not p.is_valid else p for p in parts])
+    if not name and _lonlat_sized(geom.bounds):
+        raise ValueError(_geographic(path, "no crs member, so WGS 84 by RFC 7946, and its polygons lie within "
+                                           f"{_bounds_text(geom.bounds)}, less than {LONLAT_SPAN:g} across"))
     ext = sim_extent
     if isinstance(doc, dict) and doc.get("bbox") is not None and ext is None:
         b = doc["bbox"]

@@ -124,6 +124,21 @@ def test_a_geojson_in_degrees_is_refused(tmp_path, capsys):
     _refused_everywhere(p, tmp_path, capsys, ["deg.geojson", "degrees", "reproject"])
 
 
+def test_an_rfc7946_geojson_in_degrees_without_crs_is_refused(tmp_path, capsys):
+    # geojson.io and most web tools write no crs member: RFC 7946 coordinates are WGS 84 longitude, latitude
+    park = [[13.3644, 52.5098], [13.3650, 52.5098], [13.3650, 52.5101], [13.3644, 52.5101], [13.3644, 52.5098]]
+    p = tmp_path / "park.geojson"
+    p.write_text(json.dumps({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {}, "geometry": {"type": "Polygon", "coordinates": [park]}}]}))
+    _refused_everywhere(p, tmp_path, capsys, ["park.geojson", "RFC 7946", "degrees", "reproject"])
+    # the same with the extent a user would copy from the old message: refused as well, not a map of 4 cm
+    with pytest.raises(ValueError, match="RFC 7946"):
+        load_domain(p, sim_extent=(13.3644, 13.365, 52.5098, 52.5101))
+    # a map in metres near the origin is read as before
+    p.write_text(json.dumps({"type": "Polygon", "coordinates": [SQUARE]}))
+    assert load_domain(p).extent == (0.0, 20.0, 0.0, 20.0)
+
+
 def _bomb_npz(path, n):
     """An .npz whose 'free' is an n x n bool mask of zeros, written in slices (a few hundred KB on disk)."""
     with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
