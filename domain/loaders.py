@@ -248,10 +248,13 @@ def _load_tif(path: Path, sim_extent):
     if nodata is not None and np.issubdtype(np.asarray(a).dtype, np.integer) and float(nodata).is_integer():
         nodata = int(nodata)
     free = _image_to_free(a, nodata=nodata, what=f"domain file {path}")
+    georeferenced = ext is not None
     ext = ext or _sidecar_extent(path) or sim_extent
     if ext is None:
         raise ValueError(f"domain file {path}: no extent in the GeoTIFF and no {path.with_suffix('.json').name}")
-    return Domain.from_raster(free, ext, name=path.stem)
+    dom = Domain.from_raster(free, ext, name=path.stem)
+    dom._pixel_stated = georeferenced          # its georeferencing states the pixel size: no stretch warning
+    return dom
 
 
 def _geographic(path, crs: str) -> str:
@@ -434,7 +437,9 @@ def load_domain(path, sim_extent=None) -> Domain:
         raise ValueError(f"domain file {path}: nested too deeply to read") from None
     if sim_extent is not None:
         check_extent(dom, sim_extent)
-    if dom.geometry is None:                   # a raster: its pixels should be about square
+    if dom.geometry is None and not getattr(dom, "_pixel_stated", False):
+        # a raster whose extent came from a sidecar or sim.domain: its pixels should be about square (a GeoTIFF's
+        # georeferencing states the pixel size, non-square pixels and all)
         px, py = dom.pixel
         if max(px, py) > PIXEL_ASPECT_WARNING * min(px, py):
             dom.notes = tuple(dom.notes) + (

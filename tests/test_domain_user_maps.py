@@ -182,3 +182,23 @@ def test_stretched_pixels_are_warned_about(tmp_path):
     np.savez(tmp_path / "transposed.npz", free=wide.T, extent=np.array(WIDE))
     notes = load_domain(tmp_path / "transposed.npz", WIDE).notes
     assert len(notes) == 1 and "stretched 9.00x" in notes[0] and "x first" in notes[0]
+
+
+def test_a_geotiff_whose_georeferencing_states_non_square_pixels_gets_no_stretch_warning(tmp_path):
+    """Non-square pixels are the GeoTIFF's own (ModelPixelScale 0.08 m x 0.05 m, north-up, with a nodata border
+    whose value is white): no stretch note, the nodata border blocked.  The same image laid over a 20 m x 40 m extent
+    by a sidecar is still warned about."""
+    tifffile = pytest.importorskip("tifffile")
+    img = np.full((440, 400), 215, np.uint8)                 # rows (y) x columns (x): 22 m x 32 m
+    img[:20, :] = img[-20:, :] = img[:, :12] = img[:, -12:] = 255
+    x0, y1 = 389100.0, 5819122.0
+    tifffile.imwrite(tmp_path / "yard.tif", img, extratags=[
+        (33550, "d", 3, (0.08, 0.05, 0.0), True), (33922, "d", 6, (0, 0, 0, x0, y1, 0.0), True),
+        (42113, "s", 0, "255", True)])
+    dom = load_domain(tmp_path / "yard.tif")
+    assert dom.extent == (x0, x0 + 32.0, y1 - 22.0, y1) and dom.notes == ()
+    assert not dom.contains([[x0 + 0.4, y1 - 11.0]])[0] and dom.contains([[x0 + 16.0, y1 - 11.0]])[0]
+    tifffile.imwrite(tmp_path / "plain.tif", img)
+    (tmp_path / "plain.json").write_text(json.dumps({"extent": [0, 20, 0, 40]}))
+    notes = load_domain(tmp_path / "plain.tif").notes
+    assert len(notes) == 1 and "stretched" in notes[0]
