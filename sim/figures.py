@@ -44,13 +44,40 @@ _figure = new_figure
 _save = save_figure
 
 
+def _origin(lo: float, hi: float) -> float:
+    """Where an axis of a map far from the origin (projected coordinates: UTM eastings of 389,100 m over a 32 m
+    yard) is labelled from: its lower wall when the coordinates are at least 1000 m and more than 100 times the
+    map's size, else 0.  Labels in full would be six or seven digits that run into the next panel's."""
+    lo, hi = float(lo), float(hi)
+    return lo if abs(lo) >= 1000.0 and max(abs(lo), abs(hi)) > 100.0 * (hi - lo) else 0.0
+
+
+def _axis_name(axis: str, origin: float) -> str:
+    """``"x [m]"``, or ``"x − 389100 [m]"`` on a map labelled from ``origin`` (:func:`_origin`)."""
+    return f"{axis} [m]" if origin == 0.0 else f"{axis} − {origin:.10g} [m]"
+
+
+def _tick_text(values, origin: float) -> list:
+    return [f"{v - origin:.6g}" for v in values]
+
+
 def _ticks(ax, domain, x=True, y=True, n=3):
-    """``n`` ticks per axis from wall to wall (tick labels are most of a figure's drawing time)."""
+    """``n`` ticks per axis from wall to wall (tick labels are most of a figure's drawing time), labelled from the
+    map's corner when it lies far from the origin (:func:`_origin`)."""
     x0, x1, y0, y1 = domain
     if x:
-        ax.set_xticks(np.linspace(x0, x1, n))
+        t = np.linspace(x0, x1, n)
+        ax.set_xticks(t, _tick_text(t, _origin(x0, x1)))
     if y:
-        ax.set_yticks(np.linspace(y0, y1, n))
+        t = np.linspace(y0, y1, n)
+        ax.set_yticks(t, _tick_text(t, _origin(y0, y1)))
+
+
+def _axis_labels(ax, domain):
+    """``x [m]``, ``y [m]`` (from the map's corner far from the origin: :func:`_origin`)."""
+    x0, x1, y0, y1 = domain
+    ax.set_xlabel(_axis_name("x", _origin(x0, x1)))
+    ax.set_ylabel(_axis_name("y", _origin(y0, y1)))
 
 
 def _image(ax, grid_values, domain, **kw):
@@ -222,15 +249,16 @@ class _PanelRow:
         panel labelled in the domain's own coordinates."""
         from matplotlib.ticker import FixedFormatter, FixedLocator
         x0, x1, y0, y1 = self.domain
-        self.ax.set_yticks(np.linspace(y0, y1, n))
+        ty = np.linspace(y0, y1, n)
+        self.ax.set_yticks(ty, _tick_text(ty, _origin(y0, y1)))
         if not x:
             self.ax.set_xticks([])
             self.ax.xaxis.set_visible(False)
             return
         t = np.linspace(x0, x1, n)
         self.ax.xaxis.set_major_locator(FixedLocator(np.concatenate([t + dx for dx in self.offsets])))
-        self.ax.xaxis.set_major_formatter(FixedFormatter([f"{v:g}" for v in t] * len(self.offsets)))
-        self.ax.set_xlabel("x [m]")
+        self.ax.xaxis.set_major_formatter(FixedFormatter(_tick_text(t, _origin(x0, x1)) * len(self.offsets)))
+        self.ax.set_xlabel(_axis_name("x", _origin(x0, x1)))
 
 
 def make_panels(result, periods=PANEL_PERIODS):
@@ -285,7 +313,7 @@ def make_panels(result, periods=PANEL_PERIODS):
     labels = ["robots over p̂", "GP mean f̄", "GP std √V", "feedback velocity v"]
     for r, lab in enumerate(labels):
         rows[r].ticks(x=r == 3)
-        axes[r].set_ylabel(f"{lab}\ny [m]")
+        axes[r].set_ylabel(f"{lab}\n{_axis_name('y', _origin(y0, y1))}")
     _colorbar(fig, im0, cax[0], "p̂ [1/m²]")
     _colorbar(fig, im1, cax[1], "f̄ [field units]", np.array(means))
     tau2 = (getattr(result, "kernel", None) or {}).get("nugget") or 0.0
@@ -378,7 +406,7 @@ def make_field_error(result):
     axes[2].set_title(f"|f - f̄|  (RMSE {result.rows[-1]['rmse']:.3g})", y=1.0)
     for a in axes:
         _ticks(a, dom)
-        a.set_xlabel("x [m]"), a.set_ylabel("y [m]")
+        _axis_labels(a, dom)
         _obstacles(a, result)
     return fig
 
@@ -420,7 +448,7 @@ def make_communication(result):
         ax.set_xlim(dom[0], dom[1]), ax.set_ylim(dom[2], dom[3])
         ax.set_title(f"t = {snap.t:.2f} s: {count} component{'s' if count != 1 else ''}", y=1.0)
         _ticks(ax, dom)
-        ax.set_xlabel("x [m]"), ax.set_ylabel("y [m]")
+        _axis_labels(ax, dom)
         _obstacles(ax, result)
     comm = result.communication or {}
     fig.suptitle(f"communication graph, r = {r:g} m ({comm.get('bytes_per_robot_per_step', 0) / 1e3:.0f} kB per robot "
@@ -477,7 +505,8 @@ def write_animation(result, path, fps: int = 4, dpi: int = 80) -> str:
     obstacles = _obstacles(ax, result)
     sc = ax.scatter(result.positions[0][:, 0], result.positions[0][:, 1], s=5, c="cyan", lw=0, zorder=3)
     fig.colorbar(im, cax=cax, label="GP std √V [field units]")
-    ax.set_xlabel("x [m]"), ax.set_ylabel("y [m]")
+    _ticks(ax, dom)
+    _axis_labels(ax, dom)
     title = ax.set_title(" ", y=1.0)
     # blitting: everything but the image, the robots and the title is drawn once
     animated = [a for a in (im, obstacles, sc, title) if a is not None]

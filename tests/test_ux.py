@@ -281,6 +281,35 @@ def test_panel_rows_keep_equal_scales_and_their_frames_inside_the_axes(domain):
     assert height <= size and max(x1 - x0, y1 - y0) * height == pytest.approx(size * (y1 - y0))
 
 
+def test_a_map_in_utm_coordinates_is_labelled_from_its_corner():
+    """A 32 m x 22 m yard at UTM (389100, 5819100): tick labels 0 ... 32 under each panel and an axis named
+    "x − 389100 [m]", not six-digit eastings that run into the next panel's (nor matplotlib's +5.8191e6 offset);
+    the paper's domain and a map near the origin keep their own coordinates."""
+    from swarmfield.runtime.plotting import new_figure
+    from swarmfield.sim.figures import _PanelRow, _axis_labels, _ticks, panel_height
+    dom = (389100.0, 389132.0, 5819100.0, 5819122.0)
+    fig = new_figure(10, 3)
+    ax = fig.add_axes([0.05, 0.1, 0.9, 0.5])
+    row = _PanelRow(ax, dom, 3, 0.3, 2.0)
+    row.ticks(x=True)
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["0", "16", "32"] * 3
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["0", "11", "22"]
+    assert ax.get_xlabel() == "x − 389100 [m]"
+    ax2 = fig.add_axes([0.05, 0.7, 0.3, 0.25])
+    _ticks(ax2, dom)
+    _axis_labels(ax2, dom)
+    assert [t.get_text() for t in ax2.get_yticklabels()] == ["0", "11", "22"]
+    assert (ax2.get_xlabel(), ax2.get_ylabel()) == ("x − 389100 [m]", "y − 5819100 [m]")
+    for near in ((0.0, 20.0, 0.0, 20.0), (5.0, 25.0, -2.0, 3.0), (1000.0, 1300.0, 0.0, 200.0)):
+        ax3 = fig.add_axes([0.5, 0.7, 0.3, 0.25])
+        _ticks(ax3, near)
+        _axis_labels(ax3, near)
+        assert (ax3.get_xlabel(), ax3.get_ylabel()) == ("x [m]", "y [m]")
+        assert ax3.get_xticklabels()[-1].get_text() == f"{near[1]:g}"
+        fig.delaxes(ax3)
+    assert panel_height(dom, 2.0) > 0
+
+
 def test_convergence_figure_has_no_duplicated_curve(result):
     from swarmfield.sim.figures import make_convergence
     fig = make_convergence(result)
