@@ -171,7 +171,7 @@ class Decentralized:
         the lawnmower, greedy, ergodic and diffusion need none)."""
         if not self.uses_density(sim):
             return
-        X = sim.X
+        X = sim.law_positions(sim.X)      # as the centre's estimate sees them: a robot beyond a thin wall in its cell
         self.pi = PIConsensus(self.basis.features(X), gamma=0.01, gain_p=1.0, gain_i=0.45)
         if self.relayed:                 # D_0 was relayed with its positions: anchored at once
             count, labels = self.labels
@@ -246,7 +246,7 @@ class Decentralized:
 
     def planning_density(self, sim):
         """The designated robot's own estimate of p̂ on the planner grid (the centre's when it hears everyone)."""
-        est = self.current(sim.working())
+        est = self.current(sim.law_positions(sim.working()))      # the positions the laws see (sliver proxy)
         if not isinstance(est, (RobotDensities, FloodedDensities)):
             return sim.p_hat
         g = sim.grid
@@ -487,7 +487,10 @@ class Decentralized:
         """Mean over the working robots of ||p̂_i - p̂||_L2 / ||p̂||_L2 on the planner grid, p̂_i the estimates the
         controller used last (at the last sub-step; at the start the first ones) and p̂ the centralized KDE of
         the same positions."""
-        X, est = self._used if self._used is not None else (sim.working(), self.current(sim.working()))
+        if self._used is None:
+            Xw = sim.law_positions(sim.working())
+            self._used = (Xw, self.current(Xw))
+        X, est = self._used
         if not isinstance(est, (RobotDensities, FloodedDensities)):
             return 0.0
         g = sim.grid

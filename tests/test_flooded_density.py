@@ -102,6 +102,7 @@ def _fake_sim(X, **changes):
     cfg = RunConfig.from_preset("paper", comm_radius=1.5, comm_modes=4, comm_rounds=1, robots=len(X),
                                 comm_density="flooded", **changes)
     sim = SimpleNamespace(X=X, alive=np.ones(len(X), bool), t=0.0, free=None, settings=SimpleNamespace(substeps=1),
+                          law_positions=lambda P: P,
                           estimate=SimpleNamespace(kde=KernelDensity(DOMAIN, bandwidth=1.5)),
                           controller=SimpleNamespace(needs_plan=True))
     return cfg, sim
@@ -172,3 +173,31 @@ def test_the_plan_starts_from_the_designated_robots_own_estimate_when_robots_are
     own = sim.grid.normalize(est.on_grid(20, 20, [3])[0])
     np.testing.assert_allclose(P, own, atol=1e-12)
     assert not np.allclose(P, sim.grid.normalize(est.on_grid(20, 20, [2])[0]))
+
+
+def test_flooded_run_on_a_thin_wall_map_is_the_centralized_run():
+    """A 5 cm wall (a door in it) cuts a planner column of 0.625 m 0.25 m from its west face, and the swarm starts
+    in that sliver's rows: the centre counts a robot there in the cell on its own side (Domain.on_kept_pieces), and
+    so must every robot's flooded table and the designated robot's plan (they took the robots where they stood,
+    and the runs parted after the first re-plan).  Within the hop bound the run is the centre's bit for bit."""
+    from swarmfield.domain import Domain
+    from swarmfield.sim import config_from_dict, run_simulation
+    xc = (np.arange(200) + 0.5) * 0.05
+    X, Y = np.meshgrid(xc, xc, indexing="ij")
+    dom = Domain.from_raster(~((X > 4.0) & (X < 4.05) & ~((Y > 6.0) & (Y < 7.5))), (0.0, 10.0, 0.0, 10.0))
+    small = {
+        "sim": {"robots": 16, "domain": [0.0, 10.0, 0.0, 10.0], "start_box": [2.5, 3.95, 0.0, 4.0],
+                "period": 1.75, "max_periods": 2, "substeps": 4, "seed": 3},
+        "gp": {"length_scale": 1.5}, "kde": {"bins": [32, 32]},
+        "planner": {"nx": 16, "ny": 16, "n_intervals": 3, "n_modes_x": 3, "n_modes_y": 3},
+    }
+    base = config_from_dict(small)
+    central = run_simulation(base, domain=dom)
+    start = central.positions[0]
+    assert (dom.on_kept_pieces(start, 16, 16) != start).any()         # robots in the sliver from the start
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                # no split
+        flooded = run_simulation(base.replace(comm_radius=6.0, comm_rounds=16, comm_density="flooded"), domain=dom)
+    keep = [k for k in central.rows[0]]
+    assert [{k: r[k] for k in keep} for r in flooded.rows] == central.rows
+    assert all(r["density_error"] < 1e-12 for r in flooded.rows)
