@@ -630,8 +630,13 @@ class Simulation:
         res, k, t = self.result, self.period_index, self.t
         t_plan, c_plan = time.perf_counter(), time.process_time()
         try:
-            plan = self.planner.solve(self.network.planning_density(self), p_f, t0=t, warm_start=self.plan,
-                                      **self.information_inputs())
+            info = self.information_inputs()
+            if self.config.gp.signal_scale != "absolute":
+                # the same plan in any units (sim.canonical): inputs free of the field's scale, bit for bit
+                from .canonical import canonical_density, canonical_information
+                p_f = canonical_density(p_f, self.grid.cell_area)
+                info = {k: canonical_information(v) for k, v in info.items()}
+            plan = self.planner.solve(self.network.planning_density(self), p_f, t0=t, warm_start=self.plan, **info)
         except self.planner_error as exc:
             info = dict(getattr(exc, "stats", {}) or {})
             res.replans.append({"period": k, "t0": t, "max_variance": float(self.var.max()), "rmse": res.rows[-1]["rmse"],

@@ -40,10 +40,10 @@ def test_gp_with_data_scale_is_equivariant_under_a_change_of_units():
     assert np.allclose(v2, 1e6 * v1, rtol=1e-5)
 
 
-def _run(a, b, controller="greedy"):
-    cfg = config_from_dict({"sim": {"noise_variance": 0.04 * a * a, "controller": controller, "max_periods": 2,
+def _run(a, b, controller="greedy", periods=2, cells=20):
+    cfg = config_from_dict({"sim": {"noise_variance": 0.04 * a * a, "controller": controller, "max_periods": periods,
                                     "robots": 30, "domain": [0, 10, 0, 10], "start_box": [0, 4, 0, 4]},
-                            "planner": {"nx": 20, "ny": 20}}, preset="tuned")
+                            "planner": {"nx": cells, "ny": cells}}, preset="tuned")
     base = make_field("sinc", cfg.sim.domain)
     return run_simulation(cfg, field=Affine(base, a, b))
 
@@ -65,3 +65,16 @@ def test_tuned_run_is_the_same_in_other_units():
     t1 = np.array([r["threshold"] for r in r1.rows], float)
     t2 = np.array([r["threshold"] for r in r2.rows], float)
     assert np.allclose(t2, 1e6 * t1, rtol=1e-6)
+
+
+def test_tuned_feedback_plans_the_same_in_other_units():
+    """The planner's inputs are free of the field's units bit for bit (sim.canonical): IPOPT's acceptable iterate
+    moved with the last bits of V and of the learned length scale, and the feedback's robots were 7 m apart after one
+    period on the field x 1000 + 400."""
+    r1, r2 = _run(1.0, 0.0, "feedback", 1, 12), _run(1000.0, 400.0, "feedback", 1, 12)
+    assert len(r1.snapshots) == len(r2.snapshots) > 1
+    for s1, s2 in zip(r1.snapshots, r2.snapshots):
+        assert np.allclose(s1.X, s2.X, atol=1e-9)
+    rm1 = np.array([r["rmse"] for r in r1.rows])
+    rm2 = np.array([r["rmse"] for r in r2.rows])
+    assert np.allclose(rm2, 1000 * rm1, rtol=1e-6)
