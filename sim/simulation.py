@@ -79,7 +79,17 @@ _BARRIER_NEEDS_DOMAIN = ("gp.barrier = true needs a domain with obstacles (domai
 def check_config(config: RunConfig) -> None:
     """Fail early (``ValueError``) on settings that the components would reject only mid-run:
     a GP inducing grid above ``max_inducing_points``, a fixed KDE bandwidth needing too many bins,
-    an unknown stop rule, a bad domain (:func:`resolve_domain`), ``gp.barrier`` without one."""
+    an unknown stop rule, a bad domain (:func:`resolve_domain`), ``gp.barrier`` without one.  The checks' warnings
+    (the tuned preset's coarser inducing grid on a large site) are given only when every check passes: a refused
+    input is one line."""
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        _check_config(config)
+    for w in said:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
+def _check_config(config: RunConfig) -> None:
     s = config.sim
     GaussianProcess(config.gp, domain=s.domain)
     make_stop_rule(s)

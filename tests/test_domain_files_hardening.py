@@ -139,6 +139,21 @@ def test_an_rfc7946_geojson_in_degrees_without_crs_is_refused(tmp_path, capsys):
     assert load_domain(p).extent == (0.0, 20.0, 0.0, 20.0)
 
 
+def test_a_start_box_on_an_obstacle_of_a_large_site_is_one_line_with_the_tuned_preset(tmp_path, capsys):
+    """A 40 m x 30 m park whose start box lies in its pond: the tuned preset's note that it coarsens the GP's grid on
+    a site that large came first, so the refusal was two lines; now the one line of the error alone."""
+    park = [[0, 0], [40, 0], [40, 30], [0, 30], [0, 0]]
+    pond = [[2, 2], [9, 2], [9, 9], [2, 9], [2, 2]]
+    (tmp_path / "park.geojson").write_text(json.dumps({"type": "Polygon", "coordinates": [park, pond]}))
+    (tmp_path / "park.toml").write_text("[sim]\ndomain = [0.0, 40.0, 0.0, 30.0]\n")
+    out = tmp_path / "out"
+    code = simulate_swarm(["--preset", "tuned", "--config", str(tmp_path / "park.toml"), "--domain",
+                           str(tmp_path / "park.geojson"), "--out", str(out), "--no-figures"])
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert code == 2 and len(lines) == 1 and "start box" in lines[0], lines
+    assert not out.exists()
+
+
 def _bomb_npz(path, n):
     """An .npz whose 'free' is an n x n bool mask of zeros, written in slices (a few hundred KB on disk)."""
     with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
