@@ -211,7 +211,21 @@ def headline(result) -> list[str]:
             f"{STOP_REASONS.get(result.stop_reason, result.stop_reason)}",
             f"{PROG}: mean V {first['mean_variance']:.4f} -> {last['mean_variance']:.4f}; RMSE of the estimate "
             f"{first['rmse']:.4f} at t = 0 -> {last['rmse']:.4f} at t = {last['t']:.2f} s; "
-            f"simulation wall time {result.wall_time:.1f} s"] + _rmse_note(result.config, first["rmse"], last["rmse"])
+            f"simulation wall time {result.wall_time:.1f} s"] + _map_note(result, thr) + \
+        _rmse_note(result.config, first["rmse"], last["rmse"])
+
+
+def _map_note(result, thr) -> list[str]:
+    """Why the run kept measuring when the map condition cannot be met (threshold 0): the learned nugget, the
+    variation finer than the GP's inducing grid, is too large a share of the field for an expected RMSE of q x its
+    standard deviation (sim.stopping, "The map condition")."""
+    q = float(getattr(result.config.sim, "map_rmse_relative", 0.0) or 0.0)
+    tau2 = float((getattr(result, "kernel", None) or {}).get("nugget") or 0.0)
+    if q <= 0 or thr is None or thr > 0 or tau2 <= 0 or result.stop_reason == "threshold":
+        return []
+    return [f"{PROG}: the map condition cannot be met: the GP explains a variance of {tau2:.4g} (sd {tau2 ** 0.5:.4g}) "
+            f"as variation finer than its inducing grid (the learned nugget), too large a share of the field for an "
+            f"expected RMSE of {q:g} x its sd, so the run kept measuring; a finer gp.inducing_spacing resolves more"]
 
 
 #: The RMSE "barely moves" when it changes by less than this fraction of its start.

@@ -56,7 +56,9 @@ The map condition (``sim.map_rmse_relative`` = q > 0, the tuned preset's 0.3).  
 unvisited, not that the map is good: at sup V = 0.4 s_f^2 the expected RMSE of a calibrated GP may still be
 0.6 s_f.  The mean of V over the cells is the GP's own expected squared error of the map, so the rule also asks
 for sqrt(mean V) <= q s_f (s_f at the signal floor for a signal under the noise): the run stops when the GP
-itself expects an RMSE of at most q times the field's standard deviation.  It is folded into the reported
+itself expects an RMSE of at most q times the field's standard deviation.  Here s_f^2 is the lesser of the learned
+signal variance and the posterior's own spread over the cells, var(f_bar) + mean V (:func:`map_signal_variance`):
+a field with a trend, a front or a long length scale has a learned s_f^2 far above its variance over the domain.  It is folded into the reported
 threshold as the level sup V must reach, sup V * q^2 s_f^2 / mean V, when that is lower.
 
 With a nugget tau^2 (``gp.nugget`` / ``gp.learn_nugget``: micro-scale variation the spline does not resolve) the
@@ -169,7 +171,8 @@ class RobustThreshold(RelativeThreshold):
         q = float(getattr(self.settings, "map_rmse_relative", 0.0))
         return (f"{self.settings.gamma_relative:g} x the GP's current signal variance s_f^2, lowered where the "
                 f"variance at min(l, {lc}) is larger" +
-                (f" or the expected RMSE sqrt(mean V) is above {q:g} s_f" if q > 0 else ""))
+                (f" or the expected RMSE sqrt(mean V) is above {q:g} x the field's sd (the lesser of s_f and the "
+                 "map's own spread)" if q > 0 else ""))
 
     def check_scale(self, gp) -> float:
         """l_c = min(l, stop_length_scale), raised to the shortest length scale gp's inducing grid
@@ -241,10 +244,10 @@ class RobustThreshold(RelativeThreshold):
             return thr
         # the map condition: sqrt(mean V) <= q s_f (s_f at the floor for a signal under the noise), folded into the
         # level sup V must reach (V scaled by c meets it for c <= target / mean V)
-        v = gp.predict(self.points)[1]
+        m, v = gp.predict(self.points)
         mean_v, sup_v = float(v.mean()), float(v.max())
         tau2 = gp.settings.nugget           # the map's error includes the unresolved micro-scale variation
-        s2 = max(gp.settings.signal_variance, self.signal_floor * gp.settings.noise_variance)
+        s2 = max(map_signal_variance(gp.settings.signal_variance, m, v), self.signal_floor * gp.settings.noise_variance)
         target = q * q * (s2 + tau2) - tau2
         if mean_v <= target or mean_v <= 0.0:
             return thr
@@ -277,6 +280,21 @@ class RobustThreshold(RelativeThreshold):
         if sup_c <= 0.0 or sup_c <= sup_v:
             return base
         return base * sup_v / sup_c
+
+
+def map_signal_variance(signal_variance: float, mean, variance) -> float:
+    """The resolvable field's variance over the domain that the map condition measures the expected RMSE against:
+    the lesser of the learned s_f^2 and the posterior's own spread over the cells, var(f_bar) + mean V (the
+    expected spatial variance of the resolvable field given the data, up to the variance of its spatial mean).
+
+    s_f^2 is the variance of a stationary process; a field with a trend or a front, or a length scale not short
+    against the domain, has a learned s_f^2 well above its spread over the domain (a salinity front of sd 1.4 PSU
+    learned s_f^2 = 240 PSU^2), and a swell of 10 m 1.3 x it, which let a run stop with the RMSE at 0.33 of the
+    field's standard deviation. Early in a run f_bar is flat where nobody measured and mean V is near s_f^2, so
+    the two agree; they part as the map fills in."""
+    m = np.asarray(mean, dtype=float)
+    spread = float(m.var()) + float(np.mean(variance)) if m.size else signal_variance
+    return min(float(signal_variance), spread)
 
 
 #: name -> StopRule subclass (``sim.stop_rule``)

@@ -184,10 +184,11 @@ def test_refit_without_learn_nugget_keeps_it():
 
 
 def test_map_condition_of_the_stop_counts_the_nugget():
-    """The robust rule's map condition sqrt(mean V + tau^2) <= q sqrt(s_f^2 + tau^2): with a nugget the level sup V
+    """The robust rule's map condition sqrt(mean V + tau^2) <= q sqrt(s^2 + tau^2) (s^2 the lesser of s_f^2 and the
+    map's spread, sim.stopping.map_signal_variance): with a nugget the level sup V
     must reach is lower, and 0 (never) once tau^2 > q^2 / (1 - q^2) s_f^2; sup V's own condition is unchanged."""
     from swarmfield.sim.config import SimSettings
-    from swarmfield.sim.stopping import RobustThreshold
+    from swarmfield.sim.stopping import RobustThreshold, map_signal_variance
     rng = np.random.default_rng(7)
     X = rng.uniform(0, L, size=(20, 2))
     y = np.sin(X[:, 0]) + 0.3 * rng.standard_normal(20)
@@ -197,8 +198,9 @@ def test_map_condition_of_the_stop_counts_the_nugget():
                                         grid_cells=12), DOMAIN)
         gp.add(X, y)
         rule = RobustThreshold(SimSettings(stop_rule="robust", gamma_relative=0.4, map_rmse_relative=0.3)).bind(GRID)
-        v = gp.predict(GRID)[1]
-        target = 0.09 * (1.0 + tau2) - tau2
+        m, v = gp.predict(GRID)
+        s2 = map_signal_variance(1.0, m, v)             # s_f^2, or the map's own spread when that is less
+        target = 0.09 * (s2 + tau2) - tau2
         assert rule.threshold(gp) == pytest.approx(min(0.4, v.max() * max(target, 0.0) / v.mean()), rel=1e-9)
         levels.append(rule.threshold(gp))
     assert levels[0] > levels[1] > levels[2] == 0.0

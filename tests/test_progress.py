@@ -112,3 +112,15 @@ def test_solver_study_table_explains_its_statuses():
     assert legend[1].startswith("Statuses: Solve_Succeeded (solved: converged to the strict tolerance, tol); "
                                 "Solved_To_Acceptable_Level (acceptable: converged to the tolerance the settings ask for")
     assert status_legend(["Odd"]) == []
+
+
+def test_headline_says_why_a_run_kept_measuring_when_the_map_condition_cannot_be_met():
+    from types import SimpleNamespace
+    from swarmfield.cli.simulate_swarm import _map_note
+    from swarmfield.sim.config import RunConfig
+    tuned = RunConfig.from_preset("tuned")
+    res = SimpleNamespace(config=tuned, kernel={"nugget": 3229.0}, stop_reason="max_time")
+    note = _map_note(res, 0.0)
+    assert len(note) == 1 and "cannot be met" in note[0] and "3229" in note[0] and "kept measuring" in note[0]
+    assert _map_note(res, 12.0) == []                                       # a threshold it can reach
+    assert _map_note(SimpleNamespace(config=RunConfig.default(), kernel=None, stop_reason="max_time"), 0.0) == []

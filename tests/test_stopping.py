@@ -10,7 +10,7 @@ from swarmfield.sim.config import RunConfig, SimSettings, to_toml, config_from_d
 from swarmfield.regression.target import target_density
 from swarmfield.sim.fields import FIELDS, make_field
 from swarmfield.sim.stopping import (AbsoluteThreshold, RelativeThreshold, RobustThreshold, farthest_distance,
-                                     make_stop_rule, travel_time_limit)
+                                     make_stop_rule, map_signal_variance, travel_time_limit)
 
 
 def _grid(n=40, L=20.0):
@@ -284,3 +284,25 @@ def test_a_long_learned_length_scale_does_not_end_the_run_before_the_robust_rule
     sim.gp.set_hyperparameters(s2, 1.0)
     sim.mean, sim.var = sim.predict()
     assert sim.stop_rule_variance() is None
+
+
+def test_map_condition_judges_against_the_fields_spread_not_an_inflated_signal_variance():
+    """A learned s_f^2 above the field's variance over the domain (a trend, a front, a long swell) must not loosen
+    the map condition: dense noisy data of a field of sd 1, s_f^2 = 4; the GP expects an RMSE of sqrt(mean V) =
+    0.46 and has 0.42, so sqrt(mean V) <= 0.3 s_f (= 0.6) held and the rule fired. Judged against the posterior's own
+    spread (sim.stopping.map_signal_variance) it does not."""
+    rng = np.random.default_rng(0)
+    f = lambda P: 2 * np.sin(P[:, 0]) * np.cos(P[:, 1])        # sd 1.0 over [0, 10]^2
+    g = np.arange(0.25, 10, 0.5)
+    X = np.array(np.meshgrid(g, g)).reshape(2, -1).T
+    gp = GaussianProcess(GPSettings(signal_variance=4.0, length_scale=1.0, noise_variance=1.0), domain=(0, 10, 0, 10))
+    gp.add(X, f(X) + rng.standard_normal(len(X)))
+    c = (np.arange(20) + 0.5) * 0.5
+    pts = np.array(np.meshgrid(c, c, indexing="ij")).reshape(2, -1).T
+    rule = make_stop_rule(SimSettings(stop_rule="robust", map_rmse_relative=0.3)).bind(pts)
+    m, v = gp.predict(pts)
+    assert np.sqrt(np.mean((m - f(pts)) ** 2)) > 0.3 * f(pts).std()       # the map is not good yet
+    assert v.max() > rule.threshold(gp)                                      # and the rule does not fire
+    # the reference: the lesser of s_f^2 and var(f_bar) + mean V, here the latter (about the field's variance)
+    assert 0.8 < map_signal_variance(4.0, m, v) < 1.5
+    assert map_signal_variance(0.5, m, v) == 0.5
