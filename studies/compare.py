@@ -12,7 +12,9 @@ Dask cluster with ``--scheduler``; resumable: a restarted sweep skips the runs s
                   [min-max] over seeds of the time to sup V <= gamma (in periods T; also the median
                   with never = ∞, and the count of runs before the travel-time limit, which ends
                   each scenario as a reference row), the RMSE of f̄ at
-                  fixed times, the mean path length and energy per robot at the end
+                  fixed times, the mean path length and energy per robot at the end; then the
+                  sweep's first controller against each other seed by seed (:mod:`studies.paired`:
+                  geometric-mean ratios with a 95 % confidence interval, seeds won)
 ``plots/*.png``   RMSE and sup V against t/T, a band (min-max over seeds) and the median per controller
 
 ``--domains harbour floor FILE ...`` adds the domain (obstacles, :mod:`domain`) as an axis: a
@@ -417,6 +419,41 @@ def summary_table(runs, gamma: float, times) -> str:
     return "\n".join(lines) + "\n"
 
 
+def paired_section(runs, gamma: float, times) -> str:
+    """summary.md's seed-by-seed comparison (:mod:`studies.paired`): the sweep's first (preset, controller)
+    against each other on the same scenario and seeds -- the RMSE at each time of the table, the time to the
+    threshold and the time to a 1.25× map (:data:`MAP_FACTORS`); empty when no scenario has two."""
+    from .paired import paired_table, reference_of
+    keys = _keys(runs)[:-2]
+    best = best_final_rmse(runs)
+    k = MAP_FACTORS[-1]
+
+    def rmse_at(t):
+        return lambda task, rows: (_value_at(rows, t) or {}).get("rmse")
+
+    def threshold(task, rows):
+        return next((r["t_T"] for r in rows if r["max_variance"] <= r.get("threshold", gamma)), None)
+
+    def good_map(task, rows):
+        b = best.get(tuple(task.get(key) for key in keys))
+        return None if b is None else time_to_rmse(rows, k * b)
+
+    quantities = [(f"RMSE at {t:g}T", rmse_at(t)) for t in times]
+    quantities += [("sup V ≤ γ at", threshold), (f"RMSE ≤ {k:g}× best at", good_map)]
+    table = paired_table(runs, keys, controller_label, quantities)
+    if not table:
+        return ""
+    preset, ctrl = reference_of(runs, controller_label)
+    return (f"\n## Paired by seed: {ctrl} ({preset}) against the others\n\nEach cell is the geometric mean over the "
+            f"seeds both ran of {ctrl}'s value over the other's (below 1: {ctrl}'s RMSE is smaller, its time "
+            f"earlier), its 95 % confidence interval (Student's t on the log ratios; none from one seed or equal "
+            f"ratios), and on how many seeds {ctrl}'s is the better.  Runs of one seed share the field's noise and "
+            f"the start, so the ratio leaves out what the seeds share; an interval across 1 is a difference the "
+            f"seeds do not resolve.  A time never reached counts as later than any reached one and is left out of "
+            f"the mean.  The reference is the sweep's first preset and controller (`--presets`, "
+            f"`--controllers`).\n\n{table}")
+
+
 def plot_name(field: str, robots: int, robot_loss: float, domain: str | None = None) -> str:
     """File name of the plot of one scenario (field, robot count, loss[, domain]); labels that are paths
     become safe names (:func:`runtime.filenames.safe_name`: one component, unique per label)."""
@@ -699,6 +736,7 @@ def _sweep_and_publish(args, argv, tasks, gamma, times, folder, client=None) -> 
         return exit_code(exc)
     runs = list(zip(tasks, results))
     table = summary_table(runs, gamma, times)
+    paired = paired_section(runs, gamma, times)
     cmd = " ".join([PROG] + [str(a) for a in (sys.argv[1:] if argv is None else argv)])
     plots = []
 
@@ -714,7 +752,8 @@ def _sweep_and_publish(args, argv, tasks, gamma, times, folder, client=None) -> 
                      f"sup V first reached γ (at the end if never); "
                      f"† marks an RMSE taken before its time because a run had stopped (its last estimate stands).  "
                      f"Median [min–max] over seeds {args.seeds}; runs of "
-                     f"{args.max_periods} T = {args.max_periods * tasks[0]['config']['sim']['period']:g} s.\n\n{table}")
+                     f"{args.max_periods} T = {args.max_periods * tasks[0]['config']['sim']['period']:g} s.\n\n{table}"
+                     f"{paired}")
         if not args.no_plots:
             plots.extend(write_plots(runs, stage / "plots", gamma))
         return ["runs.csv", "summary.md"] + [f"plots/{p}" for p in plots]
@@ -723,7 +762,7 @@ def _sweep_and_publish(args, argv, tasks, gamma, times, folder, client=None) -> 
         return code
     try:
         if not args.quiet:
-            print(table, end="", file=sys.stderr)
+            print(table + paired, end="", file=sys.stderr)
             print(f"{PROG}: wrote runs.csv, summary.md{', ' + str(len(plots)) + ' plots' if plots else ''} to {out}",
                   file=sys.stderr)
     except KeyboardInterrupt as exc:

@@ -82,8 +82,12 @@ def test_compare_controllers_local_outputs_and_resume(tmp_path, cfg, capsys):
     lost = [r for r in rows if r["robot_loss"] == "0.5" and float(r["t"]) > 1.75]
     assert lost and all(r["alive"] == "10" for r in lost)
     table = (out / "summary.md").read_text()
+    main_table, paired = table.split("\n## Paired by seed: feedback (paper) against the others\n")
     # 3 controllers x 2 losses + one travel-time reference row per scenario
-    assert table.count("\n| sinc |") == 8 and table.count("\n| plumes |") == 8 and "RMSE at 2T" in table
+    assert main_table.count("\n| sinc |") == 8 and main_table.count("\n| plumes |") == 8 and "RMSE at 2T" in table
+    # then the feedback against the two others, per scenario, on the two seeds
+    assert paired.count("\n| sinc | 20 | 50 % | feedback (paper) | ") == 2 and paired.count("\n| plumes |") == 4
+    assert "| feedback (paper) | greedy (paper) | 2 | " in paired and " · better on " in paired
     assert table.count("*physical travel-time limit*") == 4 and "median, never = ∞ [T]" in table
     assert sorted(p.name for p in (out / "plots").iterdir()) == ["plumes_n20_loss0.png", "plumes_n20_loss50.png",
                                                                  "sinc_n20_loss0.png", "sinc_n20_loss50.png"]
