@@ -359,19 +359,45 @@ def _hop_targets(geo, X, goal_cells, goals):
 
 
 def _segments_free(geo, A, B, max_samples: int = 64) -> np.ndarray:
-    """(n,) bool: the segments A_i -> B_i cross free cells only (sampled at a third of a cell)."""
+    """(n,) bool: the segments A_i -> B_i cross free cells only (sampled at a third of a cell) and, on a map with
+    walls thinner than a cell (``geo.walls``), no closed face: between consecutive samples (then at most a cell
+    apart along each axis, up to 1024 samples) neither face a step from one cell to the next may cross is
+    closed.  A segment through a thin wall is not free: the robot follows the shortest path through its door
+    instead of pressing against the wall."""
     d = B - A
     L = np.hypot(d[:, 0], d[:, 1])
-    k = int(min(max_samples, max(2, math.ceil(3 * float(L.max(initial=0.0)) / min(geo.dx, geo.dy)) + 1)))
+    walls = getattr(geo, "walls", None)
+    need = max(2, math.ceil(3 * float(L.max(initial=0.0)) / min(geo.dx, geo.dy)) + 1)
+    k = int(min(max_samples if walls is None else max(max_samples, 1024), need))
     x0, _, y0, _ = geo.extent
     nx, ny = geo.free.shape
     ok = np.ones(len(A), bool)
     fr = geo.free.ravel()
+    prev = None
     for s in np.linspace(0.0, 1.0, k):
         i = np.clip(((A[:, 0] + s * d[:, 0] - x0) / geo.dx).astype(np.intp), 0, nx - 1)
         j = np.clip(((A[:, 1] + s * d[:, 1] - y0) / geo.dy).astype(np.intp), 0, ny - 1)
         ok &= fr[i * ny + j]
+        if walls is not None and prev is not None:
+            ok &= ~_crosses_closed_face(walls, *prev, i, j)
+        prev = (i, j)
     return ok
+
+
+def _crosses_closed_face(walls, i0, j0, i1, j1) -> np.ndarray:
+    """(n,) bool: a step from cell (i0, j0) to the cell (i1, j1) next to it (or diagonal to it) may cross a closed
+    face of ``walls`` = (closed_x (nx-1, ny), closed_y (nx, ny-1)): for a diagonal step, on either of the two ways
+    round the corner."""
+    cx, cy = walls
+    out = np.zeros(len(i0), bool)
+    mx, my = i0 != i1, j0 != j1
+    if cx.size and mx.any():
+        lo = np.minimum(i0, i1)[mx]
+        out[mx] |= cx[lo, j0[mx]] | cx[lo, j1[mx]]
+    if cy.size and my.any():
+        lo = np.minimum(j0, j1)[my]
+        out[my] |= cy[i0[my], lo] | cy[i1[my], lo]
+    return out
 
 
 class LawnmowerController(Controller):

@@ -177,3 +177,25 @@ def test_metrics_every_skips_posteriors_but_not_data():
     assert np.array_equal(a.positions[-1], b.positions[-1])
     with pytest.raises(ValueError, match="metrics_every"):
         cfg(metrics_every=0)
+
+
+def test_greedy_does_not_head_straight_through_a_thin_wall():
+    """A 5 cm wall at 4.6 < x < 4.65 (a 1 m door at 8.5 < y < 9.5) closes the face x = 5 between free 1 m cells: a
+    goal straight across it is reached through the door (the segment to it is not free), one through the door
+    straight.  Before, the free-cell test let greedy robots drive at the wall and stand against it."""
+    from swarmfield.domain import Domain, GeodesicGrid
+    from swarmfield.sim.controllers import _hop_targets, _segments_free
+    xc = (np.arange(200) + 0.5) * 0.05
+    X, Y = np.meshgrid(xc, xc, indexing="ij")
+    dom = Domain.from_raster(~((X > 4.6) & (X < 4.65) & ~((Y > 8.5) & (Y < 9.5))), (0.0, 10.0, 0.0, 10.0))
+    free = dom.free_cells((10, 10))
+    walls = dom.closed_faces(free)
+    assert free.all() and walls[0][4, :8].all() and not walls[0][4, 8:].any()
+    geo = GeodesicGrid(free, dom.extent, walls)
+    A = np.array([[2.0, 2.0], [2.0, 9.0], [2.2, 2.0], [5.5, 2.5]])
+    B = np.array([[8.0, 2.0], [8.0, 9.0], [7.0, 7.5], [8.5, 1.5]])
+    np.testing.assert_array_equal(_segments_free(geo, A, B), [False, True, False, True])
+    assert _segments_free(GeodesicGrid(free, dom.extent), A, B).all()        # the same cells without the wall
+    T = _hop_targets(geo, A, geo.cell_of(B), B)
+    assert not np.allclose(T[0], B[0]) and T[0, 1] > 2.0        # a step on the shortest path, towards the door
+    np.testing.assert_array_equal(T[1], B[1])
