@@ -171,7 +171,7 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
             if math.isinf(r):
                 doc["sim"].pop("comm_radius")
             sub = make_tasks(doc, controllers, fields, seeds, losses, robots, loss_time=loss_time,
-                             start_box=start_box, max_periods=max_periods, presets=presets)
+                             start_box=start_box, max_periods=max_periods, presets=presets, noise_sd=noise_sd)
             for t in sub:
                 t["comm_radius"] = comm_label(r)
             tasks += sub

@@ -1,6 +1,7 @@
 """compare-controllers and the generic sweep runner: tidy CSV, table, plots, resuming, Dask."""
 import csv
 import json
+import math
 
 import numpy as np
 import pytest
@@ -281,6 +282,27 @@ def test_field_files_whose_stem_collides_keep_separate_labels(tmp_path):
     tasks = make_tasks(doc, ["lawnmower"], ["bumps", str(fa), str(fb), str(fc)], [0], [0.0], [20], max_periods=1)
     labels = [t["field"] for t in tasks]
     assert labels == ["bumps", str(fa), str(fb), "ridgeish"]
+
+
+@pytest.mark.parametrize("with_map", [False, True])
+def test_noise_sd_reaches_every_task_of_a_radius_sweep(tmp_path, with_map):
+    """--comm-radius with --noise-sd: the decentralized and the centre's runs all measure with the stated noise
+    (the radius axis dropped it, and those runs measured with the configuration's 0.04)."""
+    from swarmfield.sim.config import read_toml
+    from swarmfield.studies.compare import make_tasks
+    cfg = tmp_path / "small.toml"
+    cfg.write_text(SMALL_TOML)
+    domains = None
+    if with_map:
+        free = np.ones((100, 100), bool)
+        free[60:70, 60:70] = False
+        np.savez(tmp_path / "block.npz", free=free, extent=np.array([0.0, 10.0, 0.0, 10.0]))
+        domains = [str(tmp_path / "block.npz")]
+    tasks = make_tasks(read_toml(cfg), ["feedback"], ["bumps"], [0], [0.0], [20], max_periods=1,
+                       comm_radii=[math.inf, 4.0], noise_sd=15.0, domains=domains)
+    assert len(tasks) == 2 and {t["comm_radius"] for t in tasks} == {"inf", "4"}
+    assert [t["config"]["sim"]["noise_variance"] for t in tasks] == [225.0, 225.0]
+    assert [t["config"]["gp"]["noise_variance"] for t in tasks] == [225.0, 225.0]
 
 
 def test_a_warning_of_the_checks_is_said_once_not_once_per_controller(tmp_path, capsys):
