@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..runtime.plotting import new_figure, save_figure
+from ..runtime.plotting import map_axis_name, map_axis_origin, map_tick_labels, new_figure, save_figure
 from .basis import velocity_on_grid
 from .plan import ReferencePlan
 
@@ -54,10 +54,11 @@ def make_plan_figure(plan: ReferencePlan, n_snapshots: int = 4, arrows: int = 12
         for ax in axes:
             ax.imshow(np.transpose(rgba, (1, 0, 2)), origin="lower", extent=g.domain, interpolation="nearest",
                       zorder=2)
+    ox, oy = map_axis_origin(x0, x1), map_axis_origin(y0, y1)       # a map in UTM: labelled from its corner
     for k, ax in enumerate(axes):
-        ax.set_xticks(ticks_x), ax.set_xlabel("x [m]")
+        ax.set_xticks(ticks_x, map_tick_labels(ticks_x, ox)), ax.set_xlabel(map_axis_name("x", ox))
         if k == 0:
-            ax.set_yticks(ticks_y), ax.set_ylabel("y [m]")
+            ax.set_yticks(ticks_y, map_tick_labels(ticks_y, oy)), ax.set_ylabel(map_axis_name("y", oy))
         else:
             ax.set_yticks([])
     fig.colorbar(im, cax=cax, label="density [1/m²]")

@@ -10,7 +10,8 @@ from pathlib import Path
 
 from .atomic import atomic_path
 
-__all__ = ["new_figure", "save_figure", "plain_log_axis", "lean_import", "DrawingProcess", "DPI", "PNG_COMPRESSION"]
+__all__ = ["new_figure", "save_figure", "plain_log_axis", "map_axis_origin", "map_axis_name", "map_tick_labels",
+           "lean_import", "DrawingProcess", "DPI", "PNG_COMPRESSION"]
 
 #: Resolution of the written PNG figures.
 DPI = 90
@@ -206,3 +207,21 @@ def plain_log_axis(axis) -> None:
     axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
     axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
     axis.set_minor_locator(NullLocator())
+
+
+def map_axis_origin(lo: float, hi: float) -> float:
+    """Where an axis of a map far from the origin (projected coordinates: UTM eastings of 389,100 m over a 32 m
+    yard) is labelled from: its lower wall when the coordinates are at least 1000 m and more than 100 times the
+    map's size, else 0.  Labels in full would be six or seven digits that run into the next panel's."""
+    lo, hi = float(lo), float(hi)
+    return lo if abs(lo) >= 1000.0 and max(abs(lo), abs(hi)) > 100.0 * (hi - lo) else 0.0
+
+
+def map_axis_name(axis: str, origin: float) -> str:
+    """``"x [m]"``, or ``"x − 389100 [m]"`` on a map labelled from ``origin`` (:func:`map_axis_origin`)."""
+    return f"{axis} [m]" if origin == 0.0 else f"{axis} − {origin:.10g} [m]"
+
+
+def map_tick_labels(values, origin: float) -> list:
+    """Tick labels of ``values`` counted from ``origin`` (:func:`map_axis_origin`)."""
+    return [f"{v - origin:.6g}" for v in values]

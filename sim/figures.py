@@ -32,7 +32,8 @@ from pathlib import Path
 import numpy as np
 
 from ..runtime.atomic import atomic_path
-from ..runtime.plotting import new_figure, plain_log_axis, save_figure
+from ..runtime.plotting import (map_axis_name, map_axis_origin, map_tick_labels, new_figure, plain_log_axis,
+                                save_figure)
 
 __all__ = ["write_figures", "draw_figure", "make_panels", "make_convergence", "make_field_error", "make_communication",
            "plot_panels",
@@ -44,26 +45,12 @@ _figure = new_figure
 _save = save_figure
 
 
-def _origin(lo: float, hi: float) -> float:
-    """Where an axis of a map far from the origin (projected coordinates: UTM eastings of 389,100 m over a 32 m
-    yard) is labelled from: its lower wall when the coordinates are at least 1000 m and more than 100 times the
-    map's size, else 0.  Labels in full would be six or seven digits that run into the next panel's."""
-    lo, hi = float(lo), float(hi)
-    return lo if abs(lo) >= 1000.0 and max(abs(lo), abs(hi)) > 100.0 * (hi - lo) else 0.0
-
-
-def _axis_name(axis: str, origin: float) -> str:
-    """``"x [m]"``, or ``"x − 389100 [m]"`` on a map labelled from ``origin`` (:func:`_origin`)."""
-    return f"{axis} [m]" if origin == 0.0 else f"{axis} − {origin:.10g} [m]"
-
-
-def _tick_text(values, origin: float) -> list:
-    return [f"{v - origin:.6g}" for v in values]
+_origin, _axis_name, _tick_text = map_axis_origin, map_axis_name, map_tick_labels
 
 
 def _ticks(ax, domain, x=True, y=True, n=3):
     """``n`` ticks per axis from wall to wall (tick labels are most of a figure's drawing time), labelled from the
-    map's corner when it lies far from the origin (:func:`_origin`)."""
+    map's corner when it lies far from the origin (:func:`runtime.plotting.map_axis_origin`)."""
     x0, x1, y0, y1 = domain
     if x:
         t = np.linspace(x0, x1, n)
@@ -74,7 +61,7 @@ def _ticks(ax, domain, x=True, y=True, n=3):
 
 
 def _axis_labels(ax, domain):
-    """``x [m]``, ``y [m]`` (from the map's corner far from the origin: :func:`_origin`)."""
+    """``x [m]``, ``y [m]`` (from the map's corner far from the origin: :func:`runtime.plotting.map_axis_origin`)."""
     x0, x1, y0, y1 = domain
     ax.set_xlabel(_axis_name("x", _origin(x0, x1)))
     ax.set_ylabel(_axis_name("y", _origin(y0, y1)))

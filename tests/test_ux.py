@@ -446,6 +446,23 @@ def test_plan_figure_content():
     assert fig.axes[-1].get_ylabel() == "density [1/m²]"
 
 
+def test_plan_figure_of_a_map_in_utm_is_labelled_from_its_corner():
+    from swarmfield.ocp import PlannerSettings, ReferencePlanner
+    from swarmfield.ocp.figures import make_plan_figure
+    from swarmfield.ocp.grid import Grid
+    s = PlannerSettings(domain=(389100.0, 389132.0, 5819100.0, 5819122.0), nx=8, ny=6, n_intervals=2, n_modes_x=2,
+                        n_modes_y=2)
+    grid = Grid(s.domain, s.nx, s.ny)
+    p0 = grid.normalize(np.ones((8, 6)))
+    target = grid.normalize(np.add.outer(np.arange(8.0), np.ones(6)))
+    fig = make_plan_figure(ReferencePlanner(s).solve(p0, target, t0=0.0), n_snapshots=2)
+    image_axes = [a for a in fig.axes if a.images]
+    assert all(a.get_xlabel() == "x − 389100 [m]" for a in image_axes)
+    assert image_axes[0].get_ylabel() == "y − 5819100 [m]"
+    assert [t.get_text() for t in image_axes[0].get_xticklabels()] == ["0", "16", "32"]
+    assert [t.get_text() for t in image_axes[0].get_yticklabels()] == ["0", "11", "22"]
+
+
 # ----------------------------------------------------------------------------------- study plots
 def _rows(sizes, exponent=1.5):
     return [{"study": "s", "case": f"n{n}", "method": "ipopt", "kernel": "compiled", "nx": n, "ny": n,
