@@ -192,10 +192,14 @@ def _load_tif(path: Path, sim_extent):
             check_pixels(path, ds.width, ds.height)
             if ds.crs is not None and ds.crs.is_geographic:
                 raise ValueError(_geographic(path, str(ds.crs)))
+            t = ds.transform
+            if not t.is_identity and (t.b != 0.0 or t.d != 0.0 or not (t.a > 0.0 and t.e < 0.0)):
+                raise ValueError(f"domain file {path}: its transform {[t.a, t.b, t.d, t.e]} is rotated, sheared or "
+                                 "not north-up; warp the map to a north-up grid first")
             a = ds.read()
             nodata = ds.nodata
             b = ds.bounds
-            ext = None if ds.transform.is_identity else (b.left, b.right, b.bottom, b.top)
+            ext = None if t.is_identity else (b.left, b.right, b.bottom, b.top)
     else:
         tifffile = _need("tifffile", "tifffile", "a GeoTIFF (.tif) domain")
         import logging

@@ -202,3 +202,23 @@ def test_a_geotiff_whose_georeferencing_states_non_square_pixels_gets_no_stretch
     (tmp_path / "plain.json").write_text(json.dumps({"extent": [0, 20, 0, 40]}))
     notes = load_domain(tmp_path / "plain.tif").notes
     assert len(notes) == 1 and "stretched" in notes[0]
+
+
+def test_rasterio_alone_refuses_a_rotated_or_south_up_geotiff(tmp_path, monkeypatch):
+    """Without tifffile the GeoTIFF is read by rasterio: a rotated or south-up transform is refused as with
+    tifffile (it was read as if north-up, its bounding box as the extent); a north-up one is read."""
+    rasterio = pytest.importorskip("rasterio")
+    from affine import Affine
+    monkeypatch.setitem(__import__("sys").modules, "tifffile", None)
+    img = np.full((40, 60), 215, np.uint8)
+    img[:10, :10] = 0
+    for name, tr in (("rot", Affine(0.433, 0.25, 0, 0.25, -0.433, 20)),
+                     ("south", Affine(0.5, 0, 0, 0, 0.5, 0)), ("north", Affine(0.5, 0, 0, 0, -0.5, 20))):
+        with rasterio.open(tmp_path / f"{name}.tif", "w", driver="GTiff", width=60, height=40, count=1, dtype="uint8",
+                           crs="EPSG:32633", transform=tr) as ds:
+            ds.write(img, 1)
+    for name in ("rot", "south"):
+        with pytest.raises(ValueError, match="north-up"):
+            load_domain(tmp_path / f"{name}.tif")
+    dom = load_domain(tmp_path / "north.tif")
+    assert dom.extent == (0.0, 30.0, 0.0, 20.0) and not dom.contains([[1.0, 19.0]])[0] and dom.contains([[1.0, 1.0]])[0]
