@@ -479,6 +479,10 @@ class GaussianProcess:
         self._settings = settings
         self._tol = 1e-9 * max(x1 - x0, y1 - y0)
         self._n = 0
+        #: the data's offset: the sums below (and the per-cell power sums) are of y - _y0. 0 unless
+        #: ``signal_scale = "data"``, where it is the first batch's median, so that a field of 2.4e9 +- 1 (a
+        #: frequency in Hz, gravity in uGal) keeps its digits: sums of y^2 ~ 1e19 had lost them all
+        self._y0 = 0.0
         self._sum_y = 0.0
         self._sum_y2 = 0.0
         self._version = 0
@@ -712,11 +716,11 @@ class GaussianProcess:
         """The constant mean m in use: the setting, or the running data mean (0 without data)."""
         if self._settings.prior_mean is not None:
             return self._settings.prior_mean
-        return self._sum_y / self._n if self._n else 0.0
+        return self._y0 + self._sum_y / self._n if self._n else 0.0
 
     def _centred_square_sum(self) -> float:
         """r^T r = sum (y_i - m)^2 over the data, m the :attr:`prior_mean` in use, from the running sums."""
-        m = self.prior_mean
+        m = self.prior_mean - self._y0                 # the sums are of y - y0
         return self._sum_y2 - 2.0 * m * self._sum_y + self._n * m * m
 
     # ------------------------------------------------------------------ data
@@ -751,6 +755,8 @@ class GaussianProcess:
             return
         if self._n == 0 and self._settings.signal_scale == "data":
             self._standardize(y)
+            self._y0 = float(np.median(y))
+        raw_y, y = y, (y - self._y0 if self._y0 else y)
         U = self._frame.to_frame(X)             # the lattice's frame (X itself without a rotation)
         for k in range(0, n, _ADD_CHUNK):       # bounded work arrays (~1 KB per point) for huge batches
             self._accumulate(U[k:k + _ADD_CHUNK], y[k:k + _ADD_CHUNK])
@@ -759,9 +765,9 @@ class GaussianProcess:
         self._sum_y2 += float(y @ y)
         self._version += 1
         if self._raw is not None:               # kernel_angle "auto": kept until the angle is chosen
-            self._raw.append((X, np.array(y, dtype=float)))
+            self._raw.append((X, np.array(raw_y, dtype=float)))
         for f in self._followers:             # same data at other hyperparameters (:meth:`follower`)
-            f.add(X, y)
+            f.add(X, raw_y)
         if self._pending is not None:
             if self._pending_n + n <= self.max_update_rank:
                 self._pending.append(U)          # a fresh array (from _points, or rotated)
@@ -788,6 +794,7 @@ class GaussianProcess:
         self._settings = dataclasses.replace(self._settings, kernel_angle=angle, inducing_spacing=self._spacing)
         self._build_lattice(None)
         for X, y in raw:
+            y = y - self._y0 if self._y0 else y
             U = self._frame.to_frame(X)
             for k in range(0, y.shape[0], _ADD_CHUNK):
                 self._accumulate(U[k:k + _ADD_CHUNK], y[k:k + _ADD_CHUNK])
@@ -929,11 +936,11 @@ class GaussianProcess:
     def _assemble_b(self, mean: float) -> np.ndarray:
         """b = sum phi (y - m) / s_n^2 from the power sums (O(cells), no M x M work)."""
         if self._cut_active:
-            resid = self._vmomy - mean * self._vmom[:, :_N_POW_Y, :_N_POW_Y]
+            resid = self._vmomy - (mean - self._y0) * self._vmom[:, :_N_POW_Y, :_N_POW_Y]
             bl = BASIS_COEF @ resid @ BASIS_COEF.T               # [group, p, q]
             return np.bincount(self._cut.group_ids.reshape(-1), weights=bl.reshape(-1) / self._settings.residual_variance,
                                minlength=self._cut.size)
-        resid = self._momy - mean * self._mom[:, :_N_POW_Y, :_N_POW_Y]
+        resid = self._momy - (mean - self._y0) * self._mom[:, :_N_POW_Y, :_N_POW_Y]     # sums of y - y0
         bl = BASIS_COEF @ resid @ BASIS_COEF.T                   # [cell, p, q]
         b = np.bincount(self._idx_b, weights=bl.reshape(-1) / self._settings.residual_variance, minlength=self._n_nodes)
         return b if self._amp is None else b * self._amp        # a local signal variance: D b
@@ -1654,7 +1661,7 @@ class GaussianProcess:
         t._raw = None
         t._mom[...] = self._mom
         t._momy[...] = self._momy
-        t._n, t._sum_y, t._sum_y2 = self._n, self._sum_y, self._sum_y2
+        t._n, t._sum_y, t._sum_y2, t._y0 = self._n, self._sum_y, self._sum_y2, self._y0
         if self._cut is not None and settings.kernel in GMRF_KERNELS:     # the cut basis and its per-piece sums
             t._barrier, t._cuts, t._cut, t.barrier_on = self._barrier, self._cuts, self._cut, self.barrier_on
             t._vmom, t._vmomy = self._vmom.copy(), self._vmomy.copy()

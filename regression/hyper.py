@@ -146,7 +146,7 @@ def coarsened(gp, factor: int, length_scale: float | None = None, prior_truncati
     my = my.reshape(NX, c, NY, c, _N_POW_Y, _N_POW_Y)
     coarse._momy[...] = np.einsum("IoJpkl,oak,pbl->IJab", my, Ty, Ty, optimize=True).reshape(NX * NY, _N_POW_Y,
                                                                                              _N_POW_Y)
-    coarse._n, coarse._sum_y, coarse._sum_y2 = gp._n, gp._sum_y, gp._sum_y2
+    coarse._n, coarse._sum_y, coarse._sum_y2, coarse._y0 = gp._n, gp._sum_y, gp._sum_y2, gp._y0
     coarse._version += 1
     coarse._pending, coarse._pending_n = None, 0
     if gp.log_amplitude is not None:                # a local signal variance: the same g on the coarse nodes

@@ -51,7 +51,7 @@ def running_variance(gp) -> float:
     n = gp.n_observations
     if n < 2:
         return sn2
-    mean = gp._sum_y / n
+    mean = gp._sum_y / n                  # of y - y0 (the GP's offset): the variance is the same, without cancellation
     var = max(gp._sum_y2 / n - mean * mean, 0.0)
     if not math.isfinite(var):         # pragma: no cover - sums overflow only beyond MAX_MAGNITUDE data
         return sn2

@@ -40,6 +40,29 @@ def test_gp_with_data_scale_is_equivariant_under_a_change_of_units():
     assert np.allclose(v2, 1e6 * v1, rtol=1e-5)
 
 
+def test_gp_keeps_its_digits_on_a_field_with_a_large_offset():
+    """A field of 2.4e9 +- 1 (a frequency in Hz, absolute gravity in uGal): the GP's power sums are of y minus the
+    first batch's median, so mean - b, V and the learned hyperparameters are those of the field without the offset
+    (sums of y^2 ~ 6e18 had lost every digit of the signal: V 1800 x too large, s_f^2 480 x)."""
+    from swarmfield.regression.hyper import refit_online
+    rng = np.random.default_rng(3)
+    X = rng.uniform(0, 7, size=(400, 2))
+    y = np.sin(X[:, 0]) * np.cos(X[:, 1]) + 0.2 * rng.standard_normal(400)
+    Q = rng.uniform(0, 10, size=(50, 2))
+    out = []
+    for b in (0.0, 2.4e9):
+        gp = GaussianProcess(GPSettings(signal_variance=1.0, noise_variance=0.04, signal_scale="data",
+                                        kernel="matern52", learn_hyperparameters=True), (0, 10, 0, 10))
+        gp.add(X[:200], y[:200] + b)
+        refit_online(gp)
+        gp.add(X[200:], y[200:] + b)
+        m, v = gp.predict(Q)
+        out.append((m - b, v, gp.settings.signal_variance, gp.settings.length_scale))
+    (m1, v1, s1, l1), (m2, v2, s2, l2) = out
+    assert np.allclose(m2, m1, rtol=0, atol=1e-5) and np.allclose(v2, v1, rtol=1e-5)
+    assert s2 == pytest.approx(s1, rel=1e-5) and l2 == pytest.approx(l1, rel=1e-5)
+
+
 def _run(a, b, controller="greedy", periods=2, cells=20):
     cfg = config_from_dict({"sim": {"noise_variance": 0.04 * a * a, "controller": controller, "max_periods": periods,
                                     "robots": 30, "domain": [0, 10, 0, 10], "start_box": [0, 4, 0, 4]},
