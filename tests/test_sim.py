@@ -563,3 +563,28 @@ def test_a_field_constant_on_the_domain_is_warned_about():
     with _w.catch_warnings():
         _w.simplefilter("error", UserWarning)
         Simulation(config_from_dict({"sim": {"controller": "diffusion", "max_periods": 1, "robots": 20}}))
+
+
+def test_a_field_with_a_large_offset_is_not_called_constant():
+    """Judged against the noise, in field units: a gravity survey of 9.8e8 +- 100 uGal (noise 3 uGal) varies, a field
+    flat to 1e-6 of its noise does not (the old test, range <= 1e-6 |f|, warned about the first)."""
+    import warnings as _w
+    from swarmfield.sim.config import config_from_dict
+    from swarmfield.sim.fields import Field
+    from swarmfield.sim.simulation import Simulation
+
+    class Survey(Field):
+        name = "grid"
+
+        def __init__(self, amplitude):
+            self.amplitude = amplitude
+
+        def _evaluate(self, pts):
+            return 979_912_345.0 + self.amplitude * np.sin(pts[:, 0] / 3.0)
+
+    cfg = config_from_dict({"sim": {"controller": "diffusion", "max_periods": 1, "robots": 20, "noise_variance": 9.0}})
+    with _w.catch_warnings():
+        _w.simplefilter("error", UserWarning)
+        Simulation(cfg, field=Survey(100.0))
+    with pytest.warns(UserWarning, match="constant on sim.domain .* the measurements will see the noise alone"):
+        Simulation(cfg, field=Survey(1e-6))
