@@ -173,9 +173,9 @@ class Domain:
             if whole.is_empty or whole.area <= 0:
                 raise ValueError(f"{name}: no free cell (the polygons have no area)")
             gx0, gy0, gx1, gy1 = whole.bounds
-            raise ValueError(f"{name}: no free cell (the polygons, within [{gx0:g}, {gx1:g}, {gy0:g}, {gy1:g}], do not "
-                             f"overlap the extent {list(ext)}; if that is their site, set [sim] domain = "
-                             f"[{gx0:g}, {gx1:g}, {gy0:g}, {gy1:g}])")
+            site = ", ".join(f"{v:.12g}" for v in (gx0, gx1, gy0, gy1))    # UTM northings in full, to copy
+            raise ValueError(f"{name}: no free cell (the polygons, within [{site}], do not overlap the extent "
+                             f"{list(ext)}; if that is their site, set [sim] domain = [{site}])")
         L = max(x1 - x0, y1 - y0)
         Nx = max(1, int(round(resolution * (x1 - x0) / L)))
         Ny = max(1, int(round(resolution * (y1 - y0) / L)))

@@ -222,3 +222,18 @@ def test_rasterio_alone_refuses_a_rotated_or_south_up_geotiff(tmp_path, monkeypa
             load_domain(tmp_path / f"{name}.tif")
     dom = load_domain(tmp_path / "north.tif")
     assert dom.extent == (0.0, 30.0, 0.0, 20.0) and not dom.contains([[1.0, 19.0]])[0] and dom.contains([[1.0, 1.0]])[0]
+
+
+def test_the_site_a_utm_geojson_is_told_to_set_is_its_own(tmp_path):
+    """A GeoJSON in UTM metres run on the default domain: the suggested [sim] domain holds the northings in full
+    (5.81903e+06 was 5819030, not the file's 5819034.7), and with it the map loads."""
+    import re
+    x0, y0 = 389000.25, 5819004.7
+    ring = [[x0, y0], [x0 + 40, y0], [x0 + 40, y0 + 30], [x0, y0 + 30], [x0, y0]]
+    p = tmp_path / "site.geojson"
+    p.write_text(json.dumps({"type": "Polygon", "coordinates": [ring]}))
+    with pytest.raises(ValueError, match="set \\[sim\\] domain") as err:
+        load_domain(p, sim_extent=(0.0, 20.0, 0.0, 20.0))
+    site = [float(v) for v in re.search(r"set \[sim\] domain = \[([^\]]*)\]", str(err.value)).group(1).split(",")]
+    assert site == [x0, x0 + 40, y0, y0 + 30]
+    assert load_domain(p, sim_extent=site).extent == tuple(site)
