@@ -347,6 +347,12 @@ def _choose_barrier(gp: GaussianProcess, prior, previous: list, out: dict):
     return fits[best][0]
 
 
+#: a learned signal variance under this multiple of the noise variance (a signal under half the noise's sd) is "no
+#: structure above the noise": a length scale at its bound then gets that reason, not "finer structure" (under 1 x,
+#: both reasons)
+NO_SIGNAL = 0.25
+
+
 def refit_online(gp: GaussianProcess):
     """One online MAP refit of gp (``settings.learn_hyperparameters``), warm-started from the current
     values, ``hyper_maxiter`` iterations, with the log-normal prior of :func:`_prior` and, with
@@ -402,6 +408,14 @@ def refit_online(gp: GaussianProcess):
                    "nugget upper": "the data vary from point to point as much as over the domain: the GP resolves "
                                    "no spatial structure (a finer grid, gp.length_scale, may resolve it)"
                    }[f"{name} {side}"]
+            sn2 = gp.settings.noise_variance
+            if name == "length scale" and s2 < NO_SIGNAL * sn2:
+                # no structure above the noise: the likelihood is flat in l, and its bound says nothing of the field
+                why = (f"the data show no structure above the noise (signal variance {s2:.3g}, "
+                       f"{s2 / sn2:.2g} x the noise variance), so the length scale is not identified")
+            elif name == "length scale" and s2 < sn2:
+                why += (f"; or, with a signal variance of {s2 / sn2:.2g} x the noise variance, the data show little "
+                        "structure above the noise and the length scale is barely identified")
             warnings.warn(f"learned {name} {value:.4g}{unit} sits at its {side} bound {bound:.4g}{unit}: {why}",
                           UserWarning, stacklevel=2)
     if gp.settings.learn_nugget and tau2 > s2 and ("nugget", "sill") not in warned:

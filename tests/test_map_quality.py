@@ -199,3 +199,20 @@ def test_summary_json_records_the_threshold_applied_and_what_it_is_relative_to()
     assert s["threshold"] == pytest.approx(res.rows[-1]["threshold"])
     assert "signal variance" in s["threshold_rule"]
     assert 0.0 <= s["final"]["coverage"] <= 1.0
+
+
+def test_a_length_scale_at_its_bound_on_noise_alone_is_not_called_finer_structure():
+    """Data without structure (a room at 21.0 degC, sensor sd 0.1): the learned signal variance falls under the
+    noise's and the length scale to a bound, whose warning then says the length scale is not identified instead of
+    suggesting structure finer than the grid."""
+    rng = np.random.default_rng(0)
+    gp = GaussianProcess(GPSettings(signal_variance=1.0, noise_variance=0.01, signal_scale="data", kernel="matern52",
+                                    learn_hyperparameters=True, grid_cells=20, hyper_prior_sd=0.5), (0, 10, 0, 10))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for _ in range(4):
+            X = rng.uniform(0, 10, size=(200, 2))
+            gp.add(X, 21.0 + 0.1 * rng.standard_normal(200))
+            refit_online(gp)
+    said = [str(w.message) for w in caught if "learned length scale" in str(w.message)]
+    assert said and all("not identified" in m for m in said) and not any("finer structure" in m for m in said)
