@@ -28,7 +28,8 @@ PROG = "plan-reference"
 
 def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0])
-    p.add_argument("--config", type=Path, help="TOML file with [planner] and [planner.ipopt] tables (flags override it)")
+    p.add_argument("--config", type=Path, help="TOML file with [planner] and [planner.ipopt] tables (flags override it), or a "
+                        "simulate-swarm configuration: its [planner], the domain and start box of its [sim]")
     p.add_argument("--out", type=Path, default=Path("plan.npz"), help="plan file to write (.npz)")
     p.add_argument("--plot", type=Path, help="also write a PNG of p_r snapshots with v_r arrows and the target")
     p.add_argument("--initial", type=Path, help="initial density p0 as an (nx, ny) .npy array (normalised here)")
@@ -102,9 +103,12 @@ def resolve_settings(args) -> PlannerSettings:
             raise InputError(f"cannot read config {args.config}: {exc.strerror}") from None
         except tomllib.TOMLDecodeError as exc:
             raise InputError(f"config {args.config} is not valid TOML: {exc}") from None
+        if "sim" in doc:
+            doc = _from_run_config(args, doc)
         unknown = sorted(set(doc) - {"planner"})
         if unknown:
-            raise InputError(f"config {args.config}: unknown table(s) {unknown}; expected [planner]")
+            raise InputError(f"config {args.config}: unknown table(s) {unknown}; expected [planner] (or a "
+                             "simulate-swarm configuration with [sim])")
         cfg = doc.get("planner", {})
         if not isinstance(cfg, dict) or not isinstance(cfg.get("ipopt", {}), dict):
             raise InputError(f"config {args.config}: [planner] and [planner.ipopt] must be tables")
@@ -144,6 +148,32 @@ def resolve_settings(args) -> PlannerSettings:
         return settings
     except ValueError as exc:
         raise InputError(str(exc)) from None
+
+
+def _from_run_config(args, doc: dict) -> dict:
+    """A simulate-swarm configuration (it has ``[sim]``) read by plan-reference: its ``[planner]`` table, the
+    planner's domain from ``[sim] domain`` unless ``[planner]`` states one, and ``[sim] start_box`` as the
+    start box unless ``--start-box`` is given (a map in UTM coordinates needs both); the closed loop's other
+    tables ([gp], [kde], [feedback], ...) do not concern a single plan and are passed over."""
+    from ..sim.config import SECTIONS
+    unknown = sorted(set(doc) - set(SECTIONS) - {"preset"})
+    if unknown:
+        raise InputError(f"config {args.config}: unknown table(s) {unknown}; known: {sorted(SECTIONS)}")
+    sim, planner = doc.get("sim"), doc.get("planner", {})
+    if not isinstance(sim, dict) or not isinstance(planner, dict):
+        raise InputError(f"config {args.config}: [sim] and [planner] must be tables")
+    planner = dict(planner)
+    if "domain" in sim and "domain" not in planner:
+        planner["domain"] = sim["domain"]
+    if getattr(args, "start_box", None) is None and sim.get("start_box") is not None:
+        box = sim["start_box"]
+        if not isinstance(box, (list, tuple)) or len(box) != 4:
+            raise InputError(f"config {args.config}: [sim] start_box must be [x0, x1, y0, y1], got {box!r}")
+        try:
+            args.start_box = [float(v) for v in box]
+        except (TypeError, ValueError):
+            raise InputError(f"config {args.config}: [sim] start_box must be four numbers, got {box!r}") from None
+    return {"planner": planner}
 
 
 def load_density(path: Path, shape, name: str) -> np.ndarray:

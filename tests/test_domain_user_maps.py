@@ -237,3 +237,25 @@ def test_the_site_a_utm_geojson_is_told_to_set_is_its_own(tmp_path):
     site = [float(v) for v in re.search(r"set \[sim\] domain = \[([^\]]*)\]", str(err.value)).group(1).split(",")]
     assert site == [x0, x0 + 40, y0, y0 + 30]
     assert load_domain(p, sim_extent=site).extent == tuple(site)
+
+
+def test_plan_reference_reads_the_simulate_swarm_configuration_of_a_site(tmp_path, capsys):
+    """The configuration a user wrote for simulate-swarm on a site in UTM coordinates ([sim] domain and start_box,
+    [gp] ...) serves plan-reference too: the planner's domain and the start box from [sim] (it was refused: unknown
+    table [sim]); a table no command knows is still refused in one line."""
+    from swarmfield.cli.plan_reference import main as plan_main
+    cfg = tmp_path / "site.toml"
+    cfg.write_text("[sim]\ndomain = [389100.0, 389132.0, 5819100.0, 5819122.0]\n"
+                   "start_box = [389101.5, 389105.5, 5819101.5, 5819105.5]\n[gp]\nlength_scale = 2.0\n"
+                   "[planner]\nnx = 8\nny = 6\nn_intervals = 2\nn_modes_x = 2\nn_modes_y = 2\n")
+    out = tmp_path / "plan.npz"
+    assert plan_main(["--config", str(cfg), "--out", str(out)]) == 0
+    z = np.load(out)
+    assert tuple(z["domain"]) == (389100.0, 389132.0, 5819100.0, 5819122.0)
+    assert json.loads(str(z["meta"]))["initial_density"].startswith("100 robots uniform on [389101.5, 389105.5")
+    capsys.readouterr()
+    bad = tmp_path / "bad.toml"
+    bad.write_text(cfg.read_text() + "[extra]\nx = 1\n")
+    assert plan_main(["--config", str(bad), "--out", str(tmp_path / "p2.npz")]) == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert len(err) == 1 and "extra" in err[0]
