@@ -373,7 +373,9 @@ class Decentralized:
         sim = self.sim
         full, rows = self.positions(X)
         alive = sim.alive
-        graph = disk_graph(full, self.radius, alive)
+        # the graph of the robots where they stand (X may hold the laws' proxies of robots beyond a thin wall)
+        own = sim.own_positions(X)
+        graph = disk_graph(full if own is X else self.positions(own)[0], self.radius, alive)
         count, _ = graph.components()
         self.note_components(count, sim.t)
         if self.flooded:

@@ -249,8 +249,8 @@ class Simulation:
         # controller's): a robot beyond a thin wall inside its planner cell counts in the cell on its own side
         # (domain.Domain.on_kept_pieces); it measures and moves where it is.  The baselines without a density
         # (greedy, lawnmower, ergodic) steer by the positions as they are
-        self.law_positions = ((lambda X: X) if self.region is None else
-                              (lambda X, _r=self.region, _n=grid.shape: _r.on_kept_pieces(X, *_n)))
+        self._proxied = None         # (positions the laws see, the robots' own) of the last call that moved one
+        self.law_positions = (lambda X: X) if self.region is None else self._on_kept_pieces
         c = self.controller
         self._steer_positions = (self.law_positions if c.needs_plan or getattr(c, "reads_density", False)
                                  else (lambda X: X))
@@ -271,6 +271,21 @@ class Simulation:
         self.interrupted = False
         self._spread = (None, None)       # (length scales, the plan's spread through the free space at them)
         self.finished = False
+
+    def _on_kept_pieces(self, X):
+        """:attr:`law_positions` on a map: :meth:`domain.Domain.on_kept_pieces` on the planner's cells, remembering
+        the robots' own positions behind the last proxy array (:meth:`own_positions`)."""
+        P = self.region.on_kept_pieces(X, *self.grid.shape)
+        if P is not X:
+            self._proxied = (P, X)
+        return P
+
+    def own_positions(self, P):
+        """Where the robots are, given the positions ``P`` the laws were handed: the array :attr:`law_positions`
+        made ``P`` from when ``P`` is its last proxy array, else ``P`` itself (what talks to neighbours, the
+        communication graph of :mod:`sim.network`, is the robot where it stands)."""
+        q = self._proxied
+        return q[1] if q is not None and P is q[0] else P
 
     def _swarm_scale(self):
         """The run-time rule of ``sim.swarm_scale = "spacing-capped"`` (:class:`sim.site_scale.SpacingCappedByLength`,

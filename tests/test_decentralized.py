@@ -110,7 +110,8 @@ def _fake_sim(X, substeps=1):
                                 comm_density="consensus")
     sim = SimpleNamespace(X=X, alive=np.ones(len(X), bool), t=0.0, free=None,
                           settings=SimpleNamespace(substeps=substeps), estimate=None,
-                          controller=SimpleNamespace(needs_plan=True), law_positions=lambda P: P)
+                          controller=SimpleNamespace(needs_plan=True), law_positions=lambda P: P,
+                          own_positions=lambda P: P)
     return cfg, sim
 
 
@@ -296,7 +297,7 @@ def test_relayed_estimate_is_exact_at_the_measurement_and_follows_neighbours():
     kde = KernelDensity(DOMAIN, bandwidth=1.5)
     sim = SimpleNamespace(X=X, alive=np.ones(80, bool), t=0.0, free=None, settings=SimpleNamespace(substeps=8),
                           estimate=SimpleNamespace(kde=kde), controller=SimpleNamespace(needs_plan=True),
-                          grid=Grid(DOMAIN, 40, 40), law_positions=lambda P: P)
+                          grid=Grid(DOMAIN, 40, 40), law_positions=lambda P: P, own_positions=lambda P: P)
     net = Decentralized(cfg)
     net.bind(sim)
     with warnings.catch_warnings():

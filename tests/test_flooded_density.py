@@ -102,7 +102,7 @@ def _fake_sim(X, **changes):
     cfg = RunConfig.from_preset("paper", comm_radius=1.5, comm_modes=4, comm_rounds=1, robots=len(X),
                                 comm_density="flooded", **changes)
     sim = SimpleNamespace(X=X, alive=np.ones(len(X), bool), t=0.0, free=None, settings=SimpleNamespace(substeps=1),
-                          law_positions=lambda P: P,
+                          law_positions=lambda P: P, own_positions=lambda P: P,
                           estimate=SimpleNamespace(kde=KernelDensity(DOMAIN, bandwidth=1.5)),
                           controller=SimpleNamespace(needs_plan=True))
     return cfg, sim
@@ -201,3 +201,27 @@ def test_flooded_run_on_a_thin_wall_map_is_the_centralized_run():
     keep = [k for k in central.rows[0]]
     assert [{k: r[k] for k in keep} for r in flooded.rows] == central.rows
     assert all(r["density_error"] < 1e-12 for r in flooded.rows)
+
+
+def test_the_communication_graph_joins_robots_where_they_stand_not_their_proxies():
+    """A robot in the sliver west of a 5 cm wall (3.75 < x < 4.0, its cell's kept piece east of the wall) counts for
+    the laws a quarter cell into the cell west of it (x = 3.59); the radio graph takes it where it stands: 0.4 m from
+    a robot east of the wall, a link at r = 0.5 m (the proxy, 0.7 m away, had none: the swarm split)."""
+    from swarmfield.domain import Domain
+    from swarmfield.sim.config import config_from_dict
+    from swarmfield.sim.simulation import Simulation
+    xc = (np.arange(200) + 0.5) * 0.05
+    X, Y = np.meshgrid(xc, xc, indexing="ij")
+    dom = Domain.from_raster(~((X > 4.0) & (X < 4.05) & ~((Y > 6.0) & (Y < 7.5))), (0.0, 10.0, 0.0, 10.0))
+    cfg = config_from_dict({"sim": {"robots": 2, "domain": [0.0, 10.0, 0.0, 10.0], "start_box": [0.0, 3.0, 0.0, 3.0],
+                                    "comm_radius": 0.5, "substeps": 2},
+                            "planner": {"nx": 16, "ny": 16, "n_intervals": 2, "n_modes_x": 2, "n_modes_y": 2}})
+    sim = Simulation(cfg, domain=dom)
+    sim.X = np.array([[3.9, 2.0], [4.3, 2.0]])
+    P = sim.law_positions(sim.X)
+    assert P[0, 0] == pytest.approx(3.59375) and P[1, 0] == 4.3 and sim.own_positions(P) is sim.X
+    assert sim.own_positions(sim.X) is sim.X
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                 # no split
+        sim.network.update(P)
+    assert sim.network.max_components == 1
