@@ -235,8 +235,8 @@ class SimSettings:
                     KDE bandwidth and spreading radius scaled during the run, at every hyperparameter refit, by max(1, min(c, l / l_0)), l the learned length scale and l_0 the prior
                     one, so that a swarm sparser than 100 robots on 400 m^2 gets them in proportion to its spacing
                     but never wider than the field's length scale asks for; c = 1 at the paper's density or denser
-                    (:mod:`sim.site_scale`); no preset uses either (measured with 30 and 50 robots: docs, results
-                    "A small swarm")
+                    (:mod:`sim.site_scale`); the tuned preset uses "spacing-capped" (measured with 30 and 50
+                    robots over eight seeds: docs, results "A small swarm: eight seeds, paired")
     """
 
     robots: int = 100

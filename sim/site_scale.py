@@ -62,8 +62,10 @@ preset's 1 m kernel, which resolves the gaps its map needs.  With 30 robots, see
 2 T 1.34 / 1.21 / 1.01 / 1.12 -> 1.13 / 1.16 / 0.96 / 1.03 of greedy's and its threshold never on three seeds ->
 within 3 T on four; bumps 0.96 / 1.07 / 0.85 / 0.91 (0.98 / 1.03 / 0.89 / 1.00, within the runs' scatter), fine
 unchanged to 2 T; with 50 robots the kPa field's map at 2 T 1.09 / 1.00 -> 1.01 / 0.96, but bumps' time to a map
-within 1.25x of the best later on three of four seeds (by 0.12-0.38 T), so the tuned preset does not use it
-(docs/results/map-quality.md, "A small swarm").
+within 1.25x of the best later on three of four seeds (by 0.12-0.38 T).  Over eight seeds, paired by seed, that
+cost is not resolved (1.03x [0.87-1.21]) while the pressure field's gain is (its map at 2 T 0.92x [0.89-0.95] with 30
+robots), so the tuned preset uses "spacing-capped" (docs/results/map-quality.md, "A small swarm: eight seeds,
+paired").
 The run's resolved values are scaled (a run cannot tell a value given from a preset's: keep yours with
 ``swarm_scale = "off"``); summary.json's ``kernel`` block records the last factor (``swarm_factor``).  With c = 1
 (the paper's density or denser) f = 1 at every refit and nothing is touched.

@@ -54,16 +54,17 @@ def test_thirty_robots_get_the_bandwidth_and_radius_of_their_spacing_unless_give
 @pytest.mark.parametrize("doc", [{}, {"sim": {"domain": [0.0, 60.0, 0.0, 40.0]}}, {"sim": {"robots": 150}}])
 def test_at_the_papers_density_or_denser_every_resolved_value_is_the_same_to_the_bit(doc):
     on = config_from_dict(_with(doc, swarm_scale="spacing"), preset="tuned")
-    off = config_from_dict(doc, preset="tuned")
+    off = config_from_dict(_with(doc, swarm_scale="off"), preset="tuned")
     a, b = on.as_dict(), off.as_dict()
     assert a["sim"].pop("swarm_scale") == "spacing" and b["sim"].pop("swarm_scale") == "off"
     assert a == b
 
 
-def test_the_rule_is_off_in_both_presets_and_rejects_unknown_values():
-    assert config_from_dict({"sim": {"robots": 30}}, preset="tuned").sim.swarm_scale == "off"
+def test_the_tuned_preset_scales_at_run_time_and_the_paper_preset_never():
+    tuned = config_from_dict({"sim": {"robots": 30}}, preset="tuned")
+    assert tuned.sim.swarm_scale == "spacing-capped" and tuned.kde.bandwidth == 1.0     # scaled during the run
     assert config_from_dict({"sim": {"robots": 30}}).sim.swarm_scale == "off"
-    assert config_from_dict({"sim": {"robots": 30}}, preset="tuned").kde.bandwidth == 1.0
+    assert config_from_dict({"sim": {"robots": 30, "swarm_scale": "off"}}, preset="tuned").sim.swarm_scale == "off"
     with pytest.raises(ValueError, match="sim.swarm_scale"):
         config_from_dict({"sim": {"swarm_scale": "yes"}}, preset="tuned")
 
