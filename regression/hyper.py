@@ -52,6 +52,7 @@ from .basis import SplineAxis
 from .gp import _N_POW, _N_POW_Y, GaussianProcess, kernel_key
 from .kernels import GMRF_KERNELS
 from .scale import SIGNAL_BOUNDS, running_variance
+from .settings import MAX_SIGNAL_TO_NOISE, signal_variance_limits
 
 __all__ = ["coarsening_factor", "coarsened", "refit", "refit_online", "length_scale_bounds", "signal_variance_bounds",
            "compare_kernels", "choose_kernel_angle", "nugget_bounds", "NUGGET_BOUNDS", "NUGGET_PRIOR_MEAN"]
@@ -409,7 +410,13 @@ def refit_online(gp: GaussianProcess):
                                    "no spatial structure (a finer grid, gp.length_scale, may resolve it)"
                    }[f"{name} {side}"]
             sn2 = gp.settings.noise_variance
-            if name == "length scale" and s2 < NO_SIGNAL * sn2:
+            if name == "signal variance" and side == "upper" and _at(bound, signal_variance_limits(sn2)[1]):
+                # the GP's numerical limit, not the data's scale: a sensor given as almost exact
+                why = (f"the GP's numerical limit of {MAX_SIGNAL_TO_NOISE:.0e} x the noise variance {sn2:.3g} "
+                       f"(noise sd {math.sqrt(sn2):.3g}), below the data's variance {running_variance(gp):.4g}: the "
+                       "noise given is far smaller than any the map needs; a noise sd of at least 1e-4 of the "
+                       "field's sd keeps the fit free")
+            elif name == "length scale" and s2 < NO_SIGNAL * sn2:
                 # no structure above the noise: the likelihood is flat in l, and its bound says nothing of the field
                 why = (f"the data show no structure above the noise (signal variance {s2:.3g}, "
                        f"{s2 / sn2:.2g} x the noise variance), so the length scale is not identified")

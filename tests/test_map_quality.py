@@ -216,3 +216,18 @@ def test_a_length_scale_at_its_bound_on_noise_alone_is_not_called_finer_structur
             refit_online(gp)
     said = [str(w.message) for w in caught if "learned length scale" in str(w.message)]
     assert said and all("not identified" in m for m in said) and not any("finer structure" in m for m in said)
+
+
+def test_a_signal_variance_at_the_numerical_limit_is_not_blamed_on_the_data():
+    """A sensor given as almost exact (noise sd 1e-6 on a field of sd ~0.5): s_f^2 is capped at the GP's numerical
+    limit of 1e10 x the noise variance, below the data's variance; the warning says so instead of "the data's own
+    variance is far below the fitted signal"."""
+    rng = np.random.default_rng(1)
+    gp = GaussianProcess(GPSettings(signal_variance=1.0, noise_variance=1e-12, signal_scale="data", kernel="matern52",
+                                    learn_hyperparameters=True, grid_cells=12), (0, 6, 0, 6))
+    X = rng.uniform(0, 6, size=(150, 2))
+    gp.add(X, 293.15 + 0.5 * np.sin(X[:, 0] / 2) * np.cos(X[:, 1] / 3))
+    with pytest.warns(UserWarning, match="signal variance .* upper bound") as caught:
+        refit_online(gp)
+    said = [str(w.message) for w in caught if "signal variance" in str(w.message)]
+    assert all("numerical limit" in m and "far below the fitted" not in m for m in said)
