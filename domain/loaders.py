@@ -49,7 +49,7 @@ def _sidecar_extent(path: Path):
     try:
         doc = json.loads(side.read_text())
         if not isinstance(doc, dict) or "extent" not in doc:
-            raise ValueError(f'it has no "extent"; a sidecar is {{"extent": [x0, x1, y0, y1]}}')
+            raise ValueError('it has no "extent"; a sidecar is {"extent": [x0, x1, y0, y1]}')
         return _extent(doc["extent"], f"{side.name}: extent")
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ValueError(f"domain file {path}: cannot read the extent from {side.name} ({exc})") from None

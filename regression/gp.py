@@ -817,7 +817,6 @@ class GaussianProcess:
 
     def _accumulate(self, X: np.ndarray, y: np.ndarray) -> None:
         """Add the points' power-sum features to the per-cell sums (the O(n) part of :meth:`add`)."""
-        n = y.shape[0]
         n_cells = self._mom.shape[0]
         from .power_sums_kernel import power_sums
         sums = power_sums(X, y, self._ax, self._ay, n_cells)      # the same bits in one C loop

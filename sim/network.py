@@ -289,7 +289,6 @@ class Decentralized:
         ctx = sim.context()
         if getattr(ctrl, "name", "") != "greedy":
             return ctrl.observe(ctx)
-        import dataclasses
         nx, ny = sim.grid.nx, sim.grid.ny
         main = self.knowledge.main & sim.alive
         if not self.heard_var or self.heard_var[-1] is not sim.var:
