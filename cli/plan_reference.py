@@ -270,6 +270,8 @@ def check_output(path: Path, suffix: str, what: str):
     if path.suffix != suffix:
         raise InputError(f"{what} {path} must end in {suffix}")
     parent = path.parent if str(path.parent) else Path(".")
+    if parent.exists() and not parent.is_dir():
+        raise InputError(f"{parent}, the folder of {what} {path}, is a file, not a folder")
     if not parent.is_dir():
         raise InputError(f"folder {parent} of {what} {path} does not exist")
     if path.is_dir():

@@ -5,6 +5,7 @@ Every setting the paper leaves open has a default here; README.md ("Settings") g
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 import numbers
 import types
@@ -523,6 +524,12 @@ def _positive_int(obj, *names):
             raise ValueError(f"{name} must be an integer >= 1, got {v!r}")
 
 
+def did_you_mean(label: str, key, known) -> str:
+    """``label`` with ``(did you mean X?)`` when one of ``known`` is a close spelling of ``key``."""
+    guess = difflib.get_close_matches(str(key), sorted(known), n=1, cutoff=0.75)
+    return f"{label} (did you mean {guess[0]}?)" if guess else label
+
+
 def dataclass_from_dict(cls, mapping, where: str = ""):
     """Build dataclass ``cls`` from a mapping (e.g. a TOML table), recursing into nested dataclasses.
 
@@ -536,7 +543,7 @@ def dataclass_from_dict(cls, mapping, where: str = ""):
     fields = {f.name: f for f in dataclasses.fields(cls)}
     unknown = sorted(set(mapping) - set(fields))
     if unknown:
-        raise ValueError(f"unknown setting(s) {', '.join(f'{where}.{k}' if where else k for k in unknown)}; "
+        raise ValueError(f"unknown setting(s) {', '.join(did_you_mean(f'{where}.{k}' if where else k, k, fields) for k in unknown)}; "
                          f"known: {', '.join(sorted(fields))}")
     kwargs = {}
     for key, value in mapping.items():

@@ -240,7 +240,8 @@ def build_library(source: str, name: str, folder: Path, attempts, smoke: str | N
             msg = f"{cc} failed: {exc}"
             continue
         if res.returncode != 0:
-            msg = f"{cc} failed: {(res.stderr or res.stdout).strip().splitlines()[-1:]}"
+            lines = (res.stderr or res.stdout).strip().splitlines()
+            msg = f"{cc} failed: {lines[-1]}" if lines else f"{cc} failed (exit code {res.returncode}, no output)"
             continue
         os.chmod(out, 0o700)
         if smoke is not None and not _smoke_ok(smoke, out):

@@ -54,7 +54,7 @@ from pathlib import Path
 from ..runtime.validation import MAX_MAGNITUDE
 from ..control import FeedbackSettings
 from ..control.kde import OBSTACLE_KERNELS
-from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict, grid_cells
+from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict, did_you_mean, grid_cells
 from ..regression import GPSettings
 from ..domain import DomainSettings
 from .presets import DEFAULT_PRESET, PRESETS, merge_under_preset
@@ -529,7 +529,7 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
         raise ValueError(f"unknown preset {name!r}; known: {', '.join(PRESETS)}")
     unknown = sorted(set(doc) - set(SECTIONS))
     if unknown:
-        raise ValueError(f"unknown table(s) {', '.join('[' + u + ']' for u in unknown)}; "
+        raise ValueError(f"unknown table(s) {', '.join(did_you_mean(f'[{u}]', f'[{u}]', [f'[{s}]' for s in SECTIONS]) for u in unknown)}; "
                          f"known: {', '.join('[' + s + ']' for s in SECTIONS)} and the key preset")
     for section in SECTIONS:
         if section in doc and not isinstance(doc[section], dict):

@@ -1,0 +1,37 @@
+"""A stranger's common mistakes get one line that points at the fix (cheap checks, no solver runs)."""
+import pytest
+
+from swarmfield.cli.plan_reference import check_output
+from swarmfield.ocp.settings import PlannerSettings, dataclass_from_dict
+from swarmfield.runtime.cbuild import build_library
+from swarmfield.runtime.cliargs import UsageError
+from swarmfield.sim.config import config_from_dict
+
+
+def test_a_misspelt_setting_names_the_setting_meant():
+    with pytest.raises(ValueError, match=r"planner\.nxx \(did you mean nx\?\)"):
+        dataclass_from_dict(PlannerSettings, {"nxx": 40}, "planner")
+
+
+def test_a_misspelt_table_names_the_table_meant():
+    with pytest.raises(ValueError, match=r"\[simm\] \(did you mean \[sim\]\?\)"):
+        config_from_dict({"simm": {"robots": 10}})
+
+
+def test_an_unrelated_key_gets_no_guess():
+    with pytest.raises(ValueError) as info:
+        dataclass_from_dict(PlannerSettings, {"colour": "red"}, "planner")
+    assert "did you mean" not in str(info.value)
+
+
+def test_an_output_beside_a_file_says_the_folder_is_a_file(tmp_path):
+    (tmp_path / "afile").write_text("")
+    with pytest.raises(UsageError, match="is a file, not a folder"):
+        check_output(tmp_path / "afile" / "plan.npz", ".npz", "output")
+
+
+def test_a_failing_compiler_without_output_is_named_in_plain_words(tmp_path):
+    with pytest.raises(RuntimeError) as info:
+        build_library("int f(void) { return 0; }\n", "probe", tmp_path, [("generic", ["-shared"])], None,
+                      cc="/bin/false")
+    assert str(info.value) == "/bin/false failed (exit code 1, no output)"
