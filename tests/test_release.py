@@ -162,3 +162,12 @@ def test_what_the_docs_build_writes_is_ignored_by_git():
         assert subprocess.run(["git", "check-ignore", "-q", path], cwd=ROOT).returncode == 0, f"{path} is not ignored"
     tracked = subprocess.run(["git", "ls-files", "docs"], cwd=ROOT, capture_output=True, text=True).stdout.split()
     assert not [t for t in tracked if t.startswith(("docs/_generated/", "docs/commands/_help/", "docs/_build/"))]
+
+
+def test_the_index_page_says_what_it_is_for_and_where_it_runs():
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    classifiers = project["classifiers"]
+    assert "Programming Language :: Python :: 3 :: Only" in classifiers
+    assert any(c.startswith("Operating System :: POSIX") for c in classifiers)   # fcntl: no native Windows
+    assert not any(c.startswith("License ::") for c in classifiers), "the SPDX licence expression says it (PEP 639)"
+    assert project["authors"] and project["keywords"]
