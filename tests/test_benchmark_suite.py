@@ -5,7 +5,10 @@ import re
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
+pytestmark = pytest.mark.checkout        # benchmarks/ and docs/ are not in the source distribution
 
 
 def test_benchmarks_page_lists_what_the_suite_has():

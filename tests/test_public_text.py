@@ -63,6 +63,7 @@ def _docstrings(path: Path):
             yield i, line
 
 
+@pytest.mark.checkout                  # reads docs/ and examples/ (not in the source distribution)
 def test_pages_and_examples_have_no_tracker_talk():
     hits = [h for p in _pages() for h in _hits(p.read_text(), str(p.relative_to(ROOT)))]
     assert not hits, "tracker numbers in public text (name the feature instead):\n" + "\n".join(hits)
@@ -91,6 +92,7 @@ def test_the_check_finds_tracker_talk_and_spares_colours_and_entities():
     assert found == ["issue 20", "issue-10", "Issues 17", "#21"], found
 
 
+@pytest.mark.checkout                  # reads docs/ (not in the source distribution)
 def test_every_built_in_controller_is_documented_where_the_others_are():
     """--help of simulate-swarm, the controllers guide and the command page name every built-in controller."""
     from swarmfield.sim.controllers import CONTROLLERS

@@ -3,6 +3,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from swarmfield.ocp import ReferencePlan
 
@@ -31,6 +32,7 @@ def test_readme_is_a_short_guide_with_the_setup_commands_on_the_first_screen():
             in first_screen)
 
 
+@pytest.mark.checkout                  # reads docs/ (not in the source distribution)
 def test_readme_links_point_to_files_in_the_repository():
     root = README.parent
     targets = re.findall(r"\]\(([^)#\s]+)\)", README.read_text())

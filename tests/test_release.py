@@ -4,6 +4,8 @@ import re
 import tomllib
 from pathlib import Path
 
+import pytest
+
 import swarmfield
 from swarmfield._version import __version__ as SOURCE_VERSION
 
@@ -11,6 +13,7 @@ ROOT = Path(__file__).resolve().parents[1]
 ARXIV = "2106.00895"
 
 
+@pytest.mark.checkout                  # reads docs/ (not in the source distribution)
 def test_one_version_written_once_and_read_everywhere():
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())
     assert "version" not in project["project"] and "version" in project["project"]["dynamic"]
@@ -48,6 +51,7 @@ def test_changelog_keeps_a_changelog_form():
             assert not ln.startswith(" "), f"a changelog entry continues over two lines: {prev[:60]!r}"
 
 
+@pytest.mark.checkout                  # reads docs/ (not in the source distribution)
 def test_changelog_links_point_to_pages_that_exist():
     text = (ROOT / "CHANGELOG.md").read_text()
     local = [t for t in re.findall(r"\]\(([^)#\s]+)\)", text) if "://" not in t]
@@ -121,6 +125,7 @@ def _bibtex_entries(text: str) -> list[tuple[str, str, dict]]:
     return entries
 
 
+@pytest.mark.checkout                  # reads docs/ (not in the source distribution)
 def test_the_citing_page_bibtex_parses_and_cites_the_arxiv_paper():
     blocks = re.findall(r"```bibtex\n(.*?)```", (ROOT / "docs" / "citing.md").read_text(), flags=re.S)
     entries = [e for b in blocks for e in _bibtex_entries(b)]
@@ -140,11 +145,13 @@ def test_the_bibtex_reader_refuses_what_bibtex_refuses():
             _bibtex_entries(bad)
 
 
+@pytest.mark.checkout                  # reads docs/ (not in the source distribution)
 def test_readme_and_docs_home_link_the_paper():
     for page in (ROOT / "README.md", ROOT / "docs" / "index.md"):
         assert f"https://arxiv.org/abs/{ARXIV}" in page.read_text(), page.name
 
 
+@pytest.mark.checkout                  # reads docs/ (not in the source distribution)
 def test_what_the_docs_build_writes_is_ignored_by_git():
     """The documentation build writes generated files (the import graph, --help texts, the gallery,
     the API pages) only where git ignores them, so building the docs leaves ``git status`` unchanged
