@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..runtime.validation import did_you_mean
 from .builtin import BUILTIN_DOMAINS
 from .common import MissingExtra, _extent, _need
 from .domain import Domain
@@ -412,7 +413,7 @@ def check_source(path) -> None:
     try:
         if not path.exists():
             raise ValueError(f"domain {str(path)!r} is neither a built-in domain ({', '.join(BUILTIN_DOMAINS)}) "
-                             "nor an existing file")
+                             + did_you_mean("nor an existing file", str(path), BUILTIN_DOMAINS))
         if not path.is_file():
             raise ValueError(f"domain file {path} is a folder")
         with open(path, "rb"):

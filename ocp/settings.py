@@ -5,13 +5,13 @@ Every setting the paper leaves open has a default here; README.md ("Settings") g
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import math
 import numbers
 import types
 import typing
 from dataclasses import dataclass, field
 
+from ..runtime.validation import did_you_mean
 from .basis import ALL_BASES as BASES
 
 
@@ -522,12 +522,6 @@ def _positive_int(obj, *names):
         v = getattr(obj, name)
         if isinstance(v, bool) or not isinstance(v, int) or v < 1:
             raise ValueError(f"{name} must be an integer >= 1, got {v!r}")
-
-
-def did_you_mean(label: str, key, known) -> str:
-    """``label`` with ``(did you mean X?)`` when one of ``known`` is a close spelling of ``key``."""
-    guess = difflib.get_close_matches(str(key), sorted(known), n=1, cutoff=0.75)
-    return f"{label} (did you mean {guess[0]}?)" if guess else label
 
 
 def dataclass_from_dict(cls, mapping, where: str = ""):

@@ -66,7 +66,26 @@ class OneLineParser(argparse.ArgumentParser):
                           help="print the program's name and the swarmfield version, then exit")
 
     def error(self, message):
-        raise UsageError(message)
+        raise UsageError(self._with_guess(message))
+
+    def _with_guess(self, message: str) -> str:
+        """A misspelt flag or choice gets ``did you mean ...?`` when one is a close spelling of it."""
+        import difflib
+        import re
+
+        def close(word, known):
+            found = difflib.get_close_matches(word, sorted(known), n=1, cutoff=0.75)
+            return found[0] if found else None
+        if message.startswith("unrecognized arguments: "):
+            flags = [a for a in self._option_string_actions if a.startswith("--")]
+            words = [w.split("=")[0] for w in message[len("unrecognized arguments: "):].split() if w.startswith("--")]
+            guesses = [f"{g} for {w}" if len(words) > 1 else g for w in words if (g := close(w, flags))]
+            return message + (f"; did you mean {', '.join(guesses)}?" if guesses else "")
+        chosen = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)$", message)
+        if chosen:
+            guess = close(chosen.group(1), [c.strip().strip("'") for c in chosen.group(2).split(",")])
+            return message + (f"; did you mean {guess}?" if guess else "")
+        return message
 
 
 def cli_main(prog: str, run, argv=None, *, value_errors: bool = False) -> int:

@@ -8,12 +8,13 @@ Used by ``ocp`` (grids, plans), ``regression`` (the GP) and ``control``; the CLI
 """
 from __future__ import annotations
 
+import difflib
 import math
 import numbers
 
 import numpy as np
 
-__all__ = ["MAX_MAGNITUDE", "real_array", "real_scalar", "points_array"]
+__all__ = ["MAX_MAGNITUDE", "real_array", "real_scalar", "points_array", "did_you_mean"]
 
 #: Upper bound of physical settings (variances, gains, bandwidths): far beyond any meaningful
 #: value, low enough that their squares and products stay finite in float64 (a noise variance of
@@ -61,3 +62,9 @@ def points_array(points, name: str = "points") -> np.ndarray:
     if a.ndim != 2 or a.shape[1] != 2:
         raise ValueError(f"{name} must have shape (n, 2), got {a.shape}")
     return a
+
+
+def did_you_mean(label: str, key, known) -> str:
+    """``label`` with ``(did you mean X?)`` when one of ``known`` is a close spelling of ``key``."""
+    guess = difflib.get_close_matches(str(key), sorted(known), n=1, cutoff=0.75)
+    return f"{label} (did you mean {guess[0]}?)" if guess else label

@@ -51,10 +51,10 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..runtime.validation import MAX_MAGNITUDE
+from ..runtime.validation import MAX_MAGNITUDE, did_you_mean
 from ..control import FeedbackSettings
 from ..control.kde import OBSTACLE_KERNELS
-from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict, did_you_mean, grid_cells
+from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict, grid_cells
 from ..regression import GPSettings
 from ..domain import DomainSettings
 from .presets import DEFAULT_PRESET, PRESETS, merge_under_preset

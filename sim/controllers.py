@@ -44,6 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..control import feedback_velocity, saturate, tracking_velocity
+from ..runtime.validation import did_you_mean
 from ..control.stirring import stirring_pattern
 from .ergodic import SpectralCoverage
 from .spreading import MeasurementSpreading
@@ -712,4 +713,4 @@ def make_controller(name: str, config) -> Controller:
     try:
         return CONTROLLERS[name](config)
     except KeyError:
-        raise ValueError(f"unknown controller {name!r}; known: {', '.join(CONTROLLERS)}") from None
+        raise ValueError(f"{did_you_mean(f'unknown controller {name!r}', name, CONTROLLERS)}; known: {', '.join(CONTROLLERS)}") from None

@@ -57,6 +57,7 @@ from pathlib import Path
 import numpy as np
 
 from ..runtime.cliargs import check_path
+from ..runtime.validation import did_you_mean
 
 __all__ = ["Field", "SincField", "PlumesField", "RidgeField", "WavesField", "BumpsField", "FrontField", "GPSampleField", "GridField", "ScatteredField",
            "FIELDS", "make_field", "load_field", "save_npz_field"]
@@ -552,7 +553,7 @@ def make_field(spec, domain=None) -> Field:
                 or Path(spec).exists():
             field = load_field(spec, default_extent=domain)
         else:
-            raise ValueError(f"unknown field {spec!r}; choose one of {', '.join(FIELDS)} or a path to a "
+            raise ValueError(f"{did_you_mean(f'unknown field {spec!r}', spec, FIELDS)}; choose one of {', '.join(FIELDS)} or a path to a "
                              ".npz/.npy/.csv field file")
     if domain is not None:
         field.check_domain(domain)

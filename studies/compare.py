@@ -49,6 +49,7 @@ import numpy as np
 from ..runtime.atomic import write_atomic
 from ..runtime.cliargs import OneLineParser, UsageError as InputError, cli_main, check_path
 from ..runtime.publish import OutputFolder
+from ..runtime.validation import did_you_mean
 
 PROG = "compare-controllers"
 ROW_COLUMNS = ("preset", "controller", "field", "seed", "robot_loss", "robots", "step", "t", "t_T", "max_variance",
@@ -594,7 +595,7 @@ def run(argv=None) -> int:
 
     for name in args.controllers:
         if name not in CONTROLLERS:
-            raise InputError(f"unknown controller {name!r}; known: {', '.join(CONTROLLERS)}")
+            raise InputError(f"{did_you_mean(f'unknown controller {name!r}', name, CONTROLLERS)}; known: {', '.join(CONTROLLERS)}")
     if args.robots is not None and any(n < 2 for n in args.robots):
         raise InputError(f"--robots must be >= 2, got {min(args.robots)}")
     if args.max_periods < 1:

@@ -35,3 +35,25 @@ def test_a_failing_compiler_without_output_is_named_in_plain_words(tmp_path):
         build_library("int f(void) { return 0; }\n", "probe", tmp_path, [("generic", ["-shared"])], None,
                       cc="/bin/false")
     assert str(info.value) == "/bin/false failed (exit code 1, no output)"
+
+
+def test_a_misspelt_flag_or_choice_names_the_one_meant():
+    from swarmfield.runtime.cliargs import OneLineParser
+    parser = OneLineParser(prog="probe")
+    parser.add_argument("--seed", type=int)
+    parser.add_argument("--preset", choices=["paper", "tuned"])
+    with pytest.raises(UsageError, match=r"unrecognized arguments: --seeds 1; did you mean --seed\?$"):
+        parser.parse_args(["--seeds", "1"])
+    with pytest.raises(UsageError, match=r"invalid choice: 'tunned'.*; did you mean tuned\?$"):
+        parser.parse_args(["--preset", "tunned"])
+    with pytest.raises(UsageError, match=r"unrecognized arguments: --bogus$"):
+        parser.parse_args(["--bogus"])
+
+
+def test_a_misspelt_field_or_domain_names_the_one_meant():
+    from swarmfield.domain import check_source
+    from swarmfield.sim.fields import make_field
+    with pytest.raises(ValueError, match=r"unknown field 'plumez' \(did you mean plumes\?\)"):
+        make_field("plumez")
+    with pytest.raises(ValueError, match=r"\(did you mean harbour\?\)"):
+        check_source("harbor")
