@@ -37,15 +37,18 @@ def _preset_names():
 
 def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0])
-    p.add_argument("--config", type=Path, metavar="FILE", help="TOML file with [sim], [gp], [kde], [feedback], [planner] tables")
+    p.add_argument("--config", type=Path, metavar="FILE",
+                   help="TOML file with [sim], [gp], [kde], [feedback], [planner], [domain] tables "
+                        "(docs/guide/configuration.md; a run's own DIR/config.toml repeats it)")
     p.add_argument("--preset", choices=_preset_names(),
                    help="paper: the paper's configuration (default); tuned: the measured best configuration "
                         "beyond the paper (documentation: 'Beyond the paper'). Laid under --config and the flags")
     p.add_argument("--out", type=Path, default=Path("run"), metavar="DIR", help="output folder")
     p.add_argument("--seed", type=int, help="random seed (default 0)")
     p.add_argument("--robots", type=int, help="number of robots (default 100)")
-    p.add_argument("--field", help="sinc | plumes | ridge | waves | bumps | front | gp-sample | path to a .npz/.npy/.csv "
-                                   "field file (default sinc)")
+    p.add_argument("--field", help="sinc | plumes | ridge | waves | bumps | front | gp-sample | a field file: .npz with "
+                                   "values (nx, ny) on the nodes of extent (x0, x1, y0, y1), .npy with a <name>.json "
+                                   "extent, or .csv x,y,value (docs/getting-started.md) (default sinc)")
     p.add_argument("--domain", metavar="FILE|NAME",
                    help="obstacles: a built-in domain (harbour, floor, lake) or a map file: .npz mask, .png image, "
                         ".tif GeoTIFF or .geojson polygons (docs/guide/domains.md); default: the empty rectangle")
