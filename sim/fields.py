@@ -59,7 +59,7 @@ import numpy as np
 from ..runtime.cliargs import check_path
 from ..runtime.validation import did_you_mean
 
-__all__ = ["Field", "SincField", "PlumesField", "RidgeField", "WavesField", "BumpsField", "FrontField", "GPSampleField", "GridField", "ScatteredField",
+__all__ = ["Field", "SincField", "PlumesField", "RidgeField", "WavesField", "BumpsField", "FrontField", "GPSampleField", "GridField", "ScatteredField", "FunctionField",
            "FIELDS", "make_field", "load_field", "save_npz_field"]
 
 
@@ -96,6 +96,31 @@ class Field:
 
     def __repr__(self):
         return f"{type(self).__name__}({self.describe()})"
+
+
+class FunctionField(Field):
+    """A Python function ``f(points (n, 2)) -> (n,)`` as a field (``run_simulation(field=f)``); its values
+    are checked (shape, finite) at every call.  ``summary.json`` names the function; ``config.toml``
+    cannot repeat it."""
+
+    def __init__(self, fn):
+        if not callable(fn):
+            raise ValueError(f"a field must be callable as f(points (n, 2)) -> (n,), got {type(fn).__name__}")
+        self.fn = fn
+        self.name = getattr(fn, "__qualname__", None) or type(fn).__name__
+
+    def _evaluate(self, pts: np.ndarray) -> np.ndarray:
+        try:
+            values = np.asarray(self.fn(pts), dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"field function {self.name} must return real numbers for points (n, 2): {exc}") from None
+        if values.shape not in ((len(pts),), (len(pts), 1)):
+            raise ValueError(f"field function {self.name} returned shape {values.shape} for {len(pts)} points; "
+                             f"expected ({len(pts)},)")
+        return values.reshape(len(pts))
+
+    def describe(self):
+        return {"name": "function", "function": self.name}
 
 
 class SincField(Field):
@@ -538,13 +563,16 @@ def load_field(path, default_extent=None) -> Field:
 
 
 def make_field(spec, domain=None) -> Field:
-    """The field named ``spec`` (``sinc``, ``plumes``, ``ridge``) or read from the file ``spec``.
+    """The field named ``spec`` (``sinc``, ``plumes``, ``ridge``, ...), read from the file ``spec``, or the
+    function ``spec`` (``f(points (n, 2)) -> (n,)``, :class:`FunctionField`).
 
     ``domain`` (x0, x1, y0, y1) is the default extent of a ``.npy`` file and is checked to be
     covered by gridded file fields.  Raises ``ValueError`` for an unknown name or a bad file.
     """
     if isinstance(spec, Field):
         field = spec
+    elif callable(spec):
+        field = FunctionField(spec)
     else:
         spec = str(spec)
         if spec in FIELDS:

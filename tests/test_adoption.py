@@ -57,3 +57,12 @@ def test_a_misspelt_field_or_domain_names_the_one_meant():
         make_field("plumez")
     with pytest.raises(ValueError, match=r"\(did you mean harbour\?\)"):
         check_source("harbor")
+
+
+def test_a_python_function_is_a_field():
+    import numpy as np
+    from swarmfield.sim.fields import make_field
+    field = make_field(lambda P: 2 + np.sin(P[:, 0]), domain=(0, 20, 0, 20))
+    assert np.allclose(field(np.array([[0.0, 1.0], [np.pi / 2, 3.0]])), [2.0, 3.0])
+    with pytest.raises(ValueError, match=r"returned shape \(3, 2\) for 3 points; expected \(3,\)"):
+        make_field(lambda P: P)(np.zeros((3, 2)))
