@@ -534,6 +534,7 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
     for section in SECTIONS:
         if section in doc and not isinstance(doc[section], dict):
             raise ValueError(f"[{section}] must be a table")
+    _check_tables(doc)
     if cell_size is not None:
         doc["planner"] = {**{k: v for k, v in doc.get("planner", {}).items() if k not in ("nx", "ny")},
                           "cell_size": cell_size}
@@ -574,6 +575,22 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
     planner = dataclass_from_dict(PlannerSettings, pl_map, "planner")
     dom = dataclass_from_dict(DomainSettings, dict(doc.get("domain", {})), "domain")
     return RunConfig(sim=sim, gp=gp, kde=kde, feedback=fb, planner=planner, domain=dom, preset=name)
+
+
+def _check_tables(doc: dict) -> None:
+    """``ValueError`` for a setting written in the wrong table (``[sim] length_scale``): it names the table
+    the setting belongs to.  Unknown keys of no table are left to :func:`dataclass_from_dict`."""
+    classes = {"sim": SimSettings, "gp": GPSettings, "kde": KDESettings, "feedback": FeedbackSettings,
+               "planner": PlannerSettings, "domain": DomainSettings}
+    names = {section: {f.name for f in dataclasses.fields(cls)} for section, cls in classes.items()}
+    for section, table in doc.items():
+        if section not in names:
+            continue
+        for key in table:
+            if key not in names[section]:
+                home = [other for other in SECTIONS if key in names[other]]
+                if home:
+                    raise ValueError(f"{section}.{key} is a setting of [{home[0]}], not [{section}]")
 
 
 def read_toml(path) -> dict:

@@ -66,3 +66,8 @@ def test_a_python_function_is_a_field():
     assert np.allclose(field(np.array([[0.0, 1.0], [np.pi / 2, 3.0]])), [2.0, 3.0])
     with pytest.raises(ValueError, match=r"returned shape \(3, 2\) for 3 points; expected \(3,\)"):
         make_field(lambda P: P)(np.zeros((3, 2)))
+
+
+def test_a_setting_in_the_wrong_table_names_its_table():
+    with pytest.raises(ValueError, match=r"^sim\.length_scale is a setting of \[gp\], not \[sim\]$"):
+        config_from_dict({"sim": {"length_scale": 2.0}})
