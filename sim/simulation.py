@@ -290,12 +290,11 @@ class Simulation:
     def _swarm_scale(self):
         """The run-time rule of ``sim.swarm_scale = "spacing-capped"`` (:class:`sim.site_scale.SpacingCappedByLength`,
         its cap from the free area and the robots), None for any other rule or when the cap is 1."""
-        from .site_scale import SpacingCappedByLength, area_ratio, spacing_factor
+        from .site_scale import SpacingCappedByLength, area_ratio, site_area, spacing_factor
         s = self.settings
         if s.swarm_scale != "spacing-capped":
             return None
-        x0, x1, y0, y1 = s.domain
-        area = (x1 - x0) * (y1 - y0) if self.region is None else float(self.region.free_area)
+        area = site_area(s.domain, self.region)         # the map's free area, else the rectangle's
         cap = spacing_factor(area, s.robots, s.swarm_scale, area_ratio(s.domain, s.site_scale, area))
         if cap == 1.0:
             return None

@@ -165,8 +165,7 @@ def spacing_ratio(area: float, robots: int, rule: str = "spacing", site_ratio: f
         raise ValueError(f"sim.swarm_scale must be one of {', '.join(repr(r) for r in SWARM_SCALE_RULES)}, got {rule!r}")
     if rule == "off":
         return 1.0
-    if rule == "spacing-capped":                 # the cap of the run-time factor: the static rule's value
-        rule = "spacing"
+    # "spacing" and "spacing-capped" alike: the run-time rule's cap is the static rule's value
     q2 = float(area) / (int(robots) * REFERENCE_ROBOT_AREA)
     ratio = q2 / float(site_ratio)
     return ratio if ratio > 1.0 else 1.0

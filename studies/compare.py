@@ -344,6 +344,12 @@ def time_to_rmse(rows, level: float) -> float | None:
     return next((r["t_T"] for r in rows if r.get("rmse") is not None and r["rmse"] <= level), None)
 
 
+def threshold_time(rows, gamma: float) -> float | None:
+    """The first t_T at which a run's sup V is at or below its own threshold (``gamma`` where a row records none;
+    None if never)."""
+    return next((r["t_T"] for r in rows if r["max_variance"] <= r.get("threshold", gamma)), None)
+
+
 def coverage_at_stop(rows, gamma: float) -> float | None:
     """The 95 % band coverage of a run where sup V first reached its threshold (where its stop rule would
     stop it), or at its end if never."""
@@ -385,7 +391,7 @@ def summary_table(runs, gamma: float, times) -> str:
         limit = limits.get(sc)
         ttt, reached, early = [], 0, 0
         for _, rows in grp:
-            hit = next((r["t_T"] for r in rows if r["max_variance"] <= r.get("threshold", gamma)), None)
+            hit = threshold_time(rows, gamma)
             ttt.append(hit)
             reached += hit is not None
             early += hit is not None and limit is not None and hit < limit - 1e-9
@@ -432,15 +438,13 @@ def paired_section(runs, gamma: float, times) -> str:
     def rmse_at(t):
         return lambda task, rows: (_value_at(rows, t) or {}).get("rmse")
 
-    def threshold(task, rows):
-        return next((r["t_T"] for r in rows if r["max_variance"] <= r.get("threshold", gamma)), None)
-
     def good_map(task, rows):
         b = best.get(tuple(task.get(key) for key in keys))
         return None if b is None else time_to_rmse(rows, k * b)
 
     quantities = [(f"RMSE at {t:g}T", rmse_at(t)) for t in times]
-    quantities += [("sup V ≤ γ at", threshold), (f"RMSE ≤ {k:g}× best at", good_map)]
+    quantities += [("sup V ≤ γ at", lambda task, rows: threshold_time(rows, gamma)),
+                   (f"RMSE ≤ {k:g}× best at", good_map)]
     table = paired_table(runs, keys, controller_label, quantities)
     if not table:
         return ""
