@@ -128,24 +128,42 @@ def test_flooded_message_accounting_by_hand():
     assert isinstance(est, FloodedDensities)
 
 
-def test_flooded_run_with_every_robot_within_the_hop_bound_is_the_centralized_run():
-    """A connected graph (not complete) whose diameter is within comm_rounds hops: every robot holds every
-    current position, so the run is the centralized one bit for bit (the map, the motion, the stop)."""
-    from swarmfield.sim import config_from_dict, run_simulation
-    small = {
-        "sim": {"robots": 16, "domain": [0.0, 10.0, 0.0, 10.0], "start_box": [0.0, 4.0, 0.0, 4.0],
+def _small_run(start_box):
+    """A 16-robot run on a 10 m square, two short periods: small enough to run the closed loop twice in a test."""
+    from swarmfield.sim import config_from_dict
+    return config_from_dict({
+        "sim": {"robots": 16, "domain": [0.0, 10.0, 0.0, 10.0], "start_box": start_box,
                 "period": 1.75, "max_periods": 2, "substeps": 4, "seed": 3},
         "gp": {"length_scale": 1.5}, "kde": {"bins": [32, 32]},
         "planner": {"nx": 16, "ny": 16, "n_intervals": 3, "n_modes_x": 3, "n_modes_y": 3},
-    }
-    base = config_from_dict(small)
+    })
+
+
+def _thin_wall():
+    """The 10 m square with a 5 cm wall at x = 4.0-4.05 and a door at 6.0 < y < 7.5 (0.05 m pixels)."""
+    from swarmfield.domain import Domain
+    xc = (np.arange(200) + 0.5) * 0.05
+    X, Y = np.meshgrid(xc, xc, indexing="ij")
+    return Domain.from_raster(~((X > 4.0) & (X < 4.05) & ~((Y > 6.0) & (Y < 7.5))), (0.0, 10.0, 0.0, 10.0))
+
+
+def _assert_the_centres_run(flooded, central):
+    """Every row of the centre's run, bit for bit, and the robots' estimates the centre's."""
+    keep = [k for k in central.rows[0]]
+    assert [{k: r[k] for k in keep} for r in flooded.rows] == central.rows
+    assert all(r["density_error"] < 1e-12 for r in flooded.rows)
+
+
+def test_flooded_run_with_every_robot_within_the_hop_bound_is_the_centralized_run():
+    """A connected graph (not complete) whose diameter is within comm_rounds hops: every robot holds every
+    current position, so the run is the centralized one bit for bit (the map, the motion, the stop)."""
+    from swarmfield.sim import run_simulation
+    base = _small_run([0.0, 4.0, 0.0, 4.0])
     central = run_simulation(base)
     with warnings.catch_warnings():
         warnings.simplefilter("error")                # no split
         flooded = run_simulation(base.replace(comm_radius=6.0, comm_rounds=16, comm_density="flooded"))
-    keep = [k for k in central.rows[0]]
-    assert [{k: r[k] for k in keep} for r in flooded.rows] == central.rows
-    assert all(r["density_error"] < 1e-12 for r in flooded.rows)
+    _assert_the_centres_run(flooded, central)
     comm = flooded.communication
     assert comm["bytes_by_kind"]["density"] > 0 and comm["max_components"] == 1
 
@@ -180,39 +198,25 @@ def test_flooded_run_on_a_thin_wall_map_is_the_centralized_run():
     in that sliver's rows: the centre counts a robot there in the cell on its own side (Domain.on_kept_pieces), and
     so must every robot's flooded table and the designated robot's plan (they took the robots where they stood,
     and the runs parted after the first re-plan).  Within the hop bound the run is the centre's bit for bit."""
-    from swarmfield.domain import Domain
-    from swarmfield.sim import config_from_dict, run_simulation
-    xc = (np.arange(200) + 0.5) * 0.05
-    X, Y = np.meshgrid(xc, xc, indexing="ij")
-    dom = Domain.from_raster(~((X > 4.0) & (X < 4.05) & ~((Y > 6.0) & (Y < 7.5))), (0.0, 10.0, 0.0, 10.0))
-    small = {
-        "sim": {"robots": 16, "domain": [0.0, 10.0, 0.0, 10.0], "start_box": [2.5, 3.95, 0.0, 4.0],
-                "period": 1.75, "max_periods": 2, "substeps": 4, "seed": 3},
-        "gp": {"length_scale": 1.5}, "kde": {"bins": [32, 32]},
-        "planner": {"nx": 16, "ny": 16, "n_intervals": 3, "n_modes_x": 3, "n_modes_y": 3},
-    }
-    base = config_from_dict(small)
+    from swarmfield.sim import run_simulation
+    dom = _thin_wall()
+    base = _small_run([2.5, 3.95, 0.0, 4.0])
     central = run_simulation(base, domain=dom)
     start = central.positions[0]
     assert (dom.on_kept_pieces(start, 16, 16) != start).any()         # robots in the sliver from the start
     with warnings.catch_warnings():
         warnings.simplefilter("error")                # no split
         flooded = run_simulation(base.replace(comm_radius=6.0, comm_rounds=16, comm_density="flooded"), domain=dom)
-    keep = [k for k in central.rows[0]]
-    assert [{k: r[k] for k in keep} for r in flooded.rows] == central.rows
-    assert all(r["density_error"] < 1e-12 for r in flooded.rows)
+    _assert_the_centres_run(flooded, central)
 
 
 def test_the_communication_graph_joins_robots_where_they_stand_not_their_proxies():
     """A robot in the sliver west of a 5 cm wall (3.75 < x < 4.0, its cell's kept piece east of the wall) counts for
     the laws a quarter cell into the cell west of it (x = 3.59); the radio graph takes it where it stands: 0.4 m from
     a robot east of the wall, a link at r = 0.5 m (the proxy, 0.7 m away, had none: the swarm split)."""
-    from swarmfield.domain import Domain
     from swarmfield.sim.config import config_from_dict
     from swarmfield.sim.simulation import Simulation
-    xc = (np.arange(200) + 0.5) * 0.05
-    X, Y = np.meshgrid(xc, xc, indexing="ij")
-    dom = Domain.from_raster(~((X > 4.0) & (X < 4.05) & ~((Y > 6.0) & (Y < 7.5))), (0.0, 10.0, 0.0, 10.0))
+    dom = _thin_wall()
     cfg = config_from_dict({"sim": {"robots": 2, "domain": [0.0, 10.0, 0.0, 10.0], "start_box": [0.0, 3.0, 0.0, 3.0],
                                     "comm_radius": 0.5, "substeps": 2},
                             "planner": {"nx": 16, "ny": 16, "n_intervals": 2, "n_modes_x": 2, "n_modes_y": 2}})
