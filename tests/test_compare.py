@@ -1,6 +1,5 @@
 """compare-controllers and the generic sweep runner: tidy CSV, table, plots, resuming, Dask."""
 import csv
-import json
 import math
 
 import numpy as np

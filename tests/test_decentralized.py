@@ -11,7 +11,7 @@ import pytest
 
 from swarmfield.control import KernelDensity
 from swarmfield.control.consensus import CosineMoments, PIConsensus, RobotDensities, metropolis_laplacian
-from swarmfield.sim.comm import CommGraph, MessageLog, disk_graph
+from swarmfield.sim.comm import MessageLog, disk_graph
 
 DOMAIN = (0.0, 20.0, 0.0, 20.0)
 

@@ -10,7 +10,6 @@ from swarmfield.regression import GaussianProcess, GPSettings
 from swarmfield.regression.hyper import refit_online
 from swarmfield.sim.config import config_from_dict
 from swarmfield.sim.loop import run_simulation
-from swarmfield.sim.stopping import make_stop_rule
 
 DOMAIN = (0.0, 10.0, 0.0, 10.0)
 

@@ -160,7 +160,6 @@ def test_gradient_substep_rule_keeps_every_admissible_update_non_negative(speed_
     """substep_rule = "gradient": about half the sub-steps of "sup", and still 1 - dt * outflow >= 0 in every
     cell (the update is a non-negative combination of old cell values) at the limit's worst coefficients:
     all of the budget on the steepest mode, and random admissible draws scaled onto the limit."""
-    from swarmfield.ocp.problem import norm_polygon
     from swarmfield.ocp.transport import FaceBasis, upwind_split
     kw = dict(domain=(0.0, 20.0, 0.0, 20.0), nx=20, ny=20, n_modes_x=8, n_modes_y=8, v_max=24.0,
               speed_limit=speed_limit, basis=basis)
