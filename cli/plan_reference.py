@@ -81,7 +81,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="solver: IPOPT on the NLP (default), or the paper's GRG baseline")
     g.add_argument("--domain", metavar="FILE|NAME",
                    help="obstacles: a built-in domain (harbour, floor, lake) or a map file (.npz, .png, .tif, "
-                        ".geojson); cells are free iff their free-area fraction >= --min-free-fraction")
+                        ".geojson, ROS .yaml); cells are free iff their free-area fraction >= --min-free-fraction")
     g.add_argument("--min-free-fraction", type=float, default=0.5, metavar="F",
                    help="with --domain: a cell is free iff at least this fraction of it is free (default 0.5)")
     s = p.add_argument_group("IPOPT")

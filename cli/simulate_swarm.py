@@ -51,7 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "extent, or .csv x,y,value (docs/getting-started.md) (default sinc)")
     p.add_argument("--domain", metavar="FILE|NAME",
                    help="obstacles: a built-in domain (harbour, floor, lake) or a map file: .npz mask, .png image, "
-                        ".tif GeoTIFF or .geojson polygons (docs/guide/domains.md); default: the empty rectangle")
+                        ".tif GeoTIFF, .geojson polygons or a ROS map .yaml (docs/guide/domains.md); default: the empty rectangle")
     p.add_argument("--controller", choices=_controller_names(),
                    help="feedback: the paper's mean-field law (default); open-loop: follow v_r alone; baselines "
                         "without a planner: diffusion (Brownian motion only), coverage (feedback towards the "

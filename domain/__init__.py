@@ -10,7 +10,7 @@ Modules, one concept each:
 ``geodesic``  geodesic distances between planner cells (:class:`GeodesicGrid`)
 ``spectrum``  eigenfunctions of the Neumann Laplacian on the free cells, walls removed (:func:`neumann_modes`)
 ``builtin``   the built-in maps (``harbour``, ``floor``, ``lake``)
-``loaders``   domain files (.npz, .png, .tif, .geojson) and :func:`make_domain`
+``loaders``   domain files (.npz, .png, .tif, .geojson, ROS .yaml) and :func:`make_domain`
 ``limits``    how large a domain file may be (pixels, vertices, nesting) before it is refused
 ``settings``  the ``[domain]`` table of a configuration (:class:`DomainSettings`)
 

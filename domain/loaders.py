@@ -1,5 +1,5 @@
-"""Domain files: ``.npz`` masks, ``.png`` images, ``.tif`` GeoTIFFs and ``.geojson`` polygons
-(docs/guide/domains.md), and :func:`make_domain` (a built-in name, a file or a Domain)."""
+"""Domain files: ``.npz`` masks, ``.png`` images, ``.tif`` GeoTIFFs, ``.geojson`` polygons and ROS
+``map_server`` maps (``.yaml`` beside a PGM or PNG image) (docs/guide/domains.md), and :func:`make_domain` (a built-in name, a file or a Domain)."""
 from __future__ import annotations
 
 import json
@@ -402,8 +402,162 @@ def _load_geojson(path: Path, sim_extent):
     return dom
 
 
+#: A ROS ``map_server`` map file (``map.yaml``): the keys its loader requires, and its modes (docs/guide/domains.md)
+ROS_KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
+ROS_MODES = ("trinary", "scale", "raw")
+
+
+def _ros_number(path, key, value, low=None, high=None, positive=False) -> float:
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(float(value))
+    if ok and positive:
+        ok = value > 0
+    if ok and low is not None:
+        ok = low <= value <= high
+    if not ok:
+        want = ("a positive number (metres per pixel)" if positive else
+                f"a number in [{low:g}, {high:g}]" if low is not None else "a finite number")
+        raise ValueError(f"domain file {path}: {key} must be {want}, got {value!r}")
+    return float(value)
+
+
+def _ros_settings(path: Path, doc) -> dict:
+    """The checked keys of a ROS map file, or ``ValueError`` naming the first problem."""
+    if not isinstance(doc, dict):
+        raise ValueError(f"domain file {path} is not a ROS map (.yaml): expected 'key: value' lines "
+                         f"({', '.join(ROS_KEYS)}), got {type(doc).__name__}")
+    missing = [k for k in ROS_KEYS if k not in doc]
+    if missing:
+        raise ValueError(f"domain file {path}: no {', '.join(missing)} (a ROS map file needs {', '.join(ROS_KEYS)}; "
+                         "mode is optional)")
+    image = doc["image"]
+    if not isinstance(image, str) or not image.strip():
+        raise ValueError(f"domain file {path}: image must be the file name of the map's image, got {image!r}")
+    res = _ros_number(path, "resolution", doc["resolution"], positive=True)
+    origin = doc["origin"]
+    if not isinstance(origin, (list, tuple)) or len(origin) != 3:
+        raise ValueError(f"domain file {path}: origin must be [x, y, yaw] (the lower-left pixel's corner in metres and "
+                         f"the map's rotation in radians), got {origin!r}")
+    ox, oy, yaw = (_ros_number(path, f"origin[{i}]", v) for i, v in enumerate(origin))
+    negate = doc["negate"]
+    if negate not in (0, 1) or isinstance(negate, float):          # ROS: an integer 0 / 1 or a boolean
+        raise ValueError(f"domain file {path}: negate must be 0 or 1 (or false / true), got {negate!r}")
+    occ = _ros_number(path, "occupied_thresh", doc["occupied_thresh"], 0.0, 1.0)
+    free = _ros_number(path, "free_thresh", doc["free_thresh"], 0.0, 1.0)
+    mode = doc.get("mode", "trinary")
+    if not isinstance(mode, str) or mode.strip().lower() not in ROS_MODES:
+        raise ValueError(f"domain file {path}: mode must be one of {', '.join(ROS_MODES)}, got {mode!r}")
+    img = Path(image.strip()).expanduser()
+    if not img.is_absolute():
+        img = path.parent / img                       # ROS: relative to the folder of the .yaml
+    return {"image": img, "resolution": res, "origin": (ox, oy), "yaw": yaw, "negate": bool(negate),
+            "occupied_thresh": occ, "free_thresh": free, "mode": mode.strip().lower()}
+
+
+def _ros_occupancy(a: np.ndarray, mode: str, negate: bool):
+    """ROS ``map_server``'s reading of an image (nav2_map_server ``loadMapFromFile``): ``(p, unknown)``, the
+    occupancy probability of each pixel and where it is unknown before the thresholds.  ``a`` is (rows, cols[,
+    bands]) at its full scale; the shade is the mean of the R, G, B values (a grey pixel counts three times)
+    over the full scale, in trinary mode with the opacity averaged in; ``p = 1 - shade`` (``negate``: ``shade``).
+    Scale mode: a pixel not fully opaque is unknown.  Raw mode: the value (0-255) is the occupancy in per cent,
+    above 100 unknown; ``negate`` is ignored, as ROS does."""
+    a = np.asarray(a)
+    if a.dtype == bool:
+        a = a.astype(np.uint8) * 255
+    if not np.issubdtype(a.dtype, np.integer):
+        raise ValueError(f"pixels of type {a.dtype}: a ROS map's image has 8- or 16-bit integer pixels")
+    if a.dtype == np.int32 and a.size and a.min() >= 0 and a.max() <= 65535:
+        a = a.astype(np.uint16)                       # Pillow's mode "I" for a 16-bit PNG or PGM
+    full = float(np.iinfo(a.dtype).max)
+    if a.ndim == 2:
+        a = a[:, :, None]
+    bands = a.shape[2]
+    if a.ndim != 3 or bands not in (1, 2, 3, 4):
+        raise ValueError(f"a ROS map's image must be grey, grey+alpha, RGB or RGBA, got shape {a.shape}")
+    af = a.astype(float)
+    colour = af[:, :, :3] if bands >= 3 else np.repeat(af[:, :, :1], 3, axis=2)
+    alpha = af[:, :, -1] if bands in (2, 4) else None
+    unknown = np.zeros(a.shape[:2], bool)
+    if mode == "raw":
+        value = np.rint(colour.mean(axis=2) / full * 255.0)
+        unknown = value > 100.0
+        return value / 100.0, unknown
+    if mode == "trinary" and alpha is not None:
+        shade = (colour.sum(axis=2) + alpha) / 4.0 / full
+    else:
+        shade = colour.mean(axis=2) / full
+    if mode == "scale" and alpha is not None:
+        unknown = alpha < full
+    return (shade if negate else 1.0 - shade), unknown
+
+
+def _load_ros_yaml(path: Path, sim_extent):
+    """A ROS ``map_server`` map: ``map.yaml`` beside its image (PGM, PNG, ...).  Free = the pixels ROS calls free
+    (occupancy below ``free_thresh``); occupied and unknown pixels are obstacles.  The extent is ``origin`` +
+    ``resolution`` x the image's size; image row 0 is the top (largest y)."""
+    yaml = _need("yaml", "pyyaml", "a ROS map (.yaml) domain")
+    PIL = _need("PIL.Image", "pillow", "a ROS map (.yaml) domain")
+    try:
+        text = path.read_text()
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"domain file {path} is not a ROS map (.yaml): {exc}") from None
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        where = getattr(exc, "problem_mark", None)
+        at = f" at line {where.line + 1}" if where is not None else ""
+        what = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ValueError(f"domain file {path} is not a ROS map (.yaml): not YAML{at} ({what})") from None
+    except RecursionError:
+        raise ValueError(f"domain file {path}: nested too deeply to read") from None
+    s = _ros_settings(path, doc)
+    img = s["image"]
+    if not img.is_file():
+        raise ValueError(f"domain file {path}: its image {doc['image']!r} does not exist (looked for {img})")
+    from .limits import max_pixels
+    bomb = PIL.MAX_IMAGE_PIXELS
+    PIL.MAX_IMAGE_PIXELS = max(bomb or 0, max_pixels())
+    try:
+        with _reading(img, "an image"), PIL.open(img) as im:
+            check_pixels(img, *im.size)
+            if im.mode == "P":
+                im = im.convert("RGBA" if "transparency" in im.info else "RGB")
+            elif im.mode == "PA":
+                im = im.convert("RGBA")
+            elif im.mode not in ("1", "L", "LA", "RGB", "RGBA", "I;16", "I;16B", "I;16L", "I"):
+                im = im.convert("RGBA" if "A" in im.mode else "RGB")
+            a = np.asarray(im)
+    finally:
+        PIL.MAX_IMAGE_PIXELS = bomb
+    if a.dtype.byteorder == ">":
+        a = a.astype(a.dtype.newbyteorder("="))
+    with _reading(img, "a ROS map image"):
+        p, unknown = _ros_occupancy(a, s["mode"], s["negate"])
+    H, W = p.shape
+    res, (ox, oy), yaw = s["resolution"], s["origin"], s["yaw"]
+    if abs(yaw) * max(H, W) > 0.01:                # turns the far corner by more than a hundredth of a pixel
+        raise ValueError(f"domain file {path}: its origin's yaw {yaw:g} rad rotates the map; a domain's grid is "
+                         "aligned with x and y: resample the image onto the map frame's axes and set yaw 0")
+    occupied = ~unknown & (p > s["occupied_thresh"])
+    free = ~unknown & ~occupied & (p < s["free_thresh"])
+    if not free.any():
+        raise ValueError(f"domain file {path}: no free pixel: ROS reads a pixel as free when its occupancy "
+                         f"(1 - shade{'' if not s['negate'] else ', negated: shade'}) is below free_thresh = "
+                         f"{s['free_thresh']:g}; its occupancy ranges from {np.nanmin(p):.3g} to {np.nanmax(p):.3g} "
+                         "(check negate and the thresholds)")
+    ext = (ox, ox + W * res, oy, oy + H * res)
+    dom = Domain.from_raster(free[::-1, :].T.copy(), ext, name=path.stem)
+    dom._pixel_stated = True                       # the resolution states the pixel size
+    between = int((~free & ~occupied).sum())
+    if between:
+        what = "unknown" if s["mode"] == "trinary" else "unknown or between the thresholds"
+        dom.notes = (f"domain file {path}: {100.0 * between / free.size:.3g} % of the map's pixels are {what} "
+                     f"(occupancy from free_thresh = {s['free_thresh']:g} to occupied_thresh = "
+                     f"{s['occupied_thresh']:g}, e.g. map_saver's grey 205) and are treated as obstacles",)
+    return dom
+
+
 LOADERS = {".npz": _load_npz, ".png": _load_png, ".tif": _load_tif, ".tiff": _load_tif,
-           ".geojson": _load_geojson, ".json": _load_geojson}
+           ".geojson": _load_geojson, ".json": _load_geojson, ".yaml": _load_ros_yaml, ".yml": _load_ros_yaml}
 
 
 def check_source(path) -> None:
@@ -423,14 +577,15 @@ def check_source(path) -> None:
 
 
 def load_domain(path, sim_extent=None) -> Domain:
-    """Read a domain file: ``.npz`` mask, ``.png`` image, ``.tif`` GeoTIFF or ``.geojson`` polygons
+    """Read a domain file: ``.npz`` mask, ``.png`` image, ``.tif`` GeoTIFF, ``.geojson`` polygons or ROS ``.yaml`` map
     (module docstring of :mod:`domain.domain` and docs/guide/domains.md).  ``sim_extent`` is used when
     the file itself gives none, and otherwise must equal the file's extent."""
     path = Path(path)
     check_source(path)
     ext = path.suffix.lower()
     if ext not in LOADERS:
-        raise ValueError(f"domain file {path} is not a mask, image or polygon file: use .npz, .png, .tif or .geojson")
+        raise ValueError(f"domain file {path} is not a mask, image or polygon file, nor a ROS map: use .npz, .png, .tif, "
+                         ".geojson or .yaml")
     try:
         dom = LOADERS[ext](path, None if sim_extent is None else _extent(sim_extent))
     except OSError as exc:

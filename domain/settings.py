@@ -8,7 +8,8 @@ class DomainSettings:
     """The ``[domain]`` table of a configuration.
 
     source             "" (default): the empty rectangle sim.domain; a built-in name (``harbour``,
-                       ``floor``, ``lake``) or a file (.npz, .png, .tif/.tiff, .geojson/.json)
+                       ``floor``, ``lake``) or a file (.npz, .png, .tif/.tiff, .geojson/.json, a ROS
+                       map .yaml/.yml)
     min_free_fraction  a planner cell is free iff at least this fraction of its area is free (0.5)
     unreachable        free space the swarm cannot reach from sim.start_box: ``"exclude"`` (default:
                        warn with its area and leave it out of the planner, sup V, RMSE and the target)

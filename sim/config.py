@@ -13,7 +13,7 @@ the GP (``regression.GPSettings``), the KDE (:class:`KDESettings`), the feedback
     [feedback]   alpha, sigma, p_floor, v_max
     [planner]    cell_size (or nx, ny), horizon, n_intervals, n_modes_x, n_modes_y, w_f, w_p, w_v, v_max, ...
     [planner.ipopt]  tol, max_iter, ...
-    [domain]     source ("harbour", "floor", "lake" or a .npz/.png/.tif/.geojson file; "" = the empty
+    [domain]     source ("harbour", "floor", "lake" or a .npz/.png/.tif/.geojson/ROS .yaml file; "" = the empty
                  rectangle), min_free_fraction (0.5), unreachable ("exclude" or "refuse"); see the domain package
 
 Unknown tables or keys and bad values raise ``ValueError`` naming them.  Shared quantities have one

@@ -549,7 +549,7 @@ def build_parser():
     p.add_argument("--robots", nargs="+", type=int, default=None, metavar="N",
                    help="robot counts (default: the configuration's, 100)")
     p.add_argument("--domains", "--domain", nargs="+", default=None, metavar="NAME|FILE",
-                   help="obstacles: built-in domains (harbour, floor, lake) or map files (.npz, .png, .tif, .geojson) "
+                   help="obstacles: built-in domains (harbour, floor, lake) or map files (.npz, .png, .tif, .geojson, ROS .yaml) "
                         "as an axis of the sweep (default: the configuration's [domain], the empty rectangle)")
     p.add_argument("--start-box", type=float, nargs=4, metavar=("X0", "X1", "Y0", "Y1"),
                    help="the swarm is released uniformly on this box (default: the configuration's, 0 7 0 7)")

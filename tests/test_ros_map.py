@@ -1,0 +1,128 @@
+"""A ROS ``map_server`` map (``map.yaml`` beside a PGM image) as a domain: ROS's reading of the pixels and the
+thresholds, row 0 at the top, the extent from origin and resolution, unknown pixels as obstacles, and one line for
+a bad file."""
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+
+from swarmfield.cli.simulate_swarm import main as simulate_swarm
+from swarmfield.domain import load_domain
+
+RES = 0.1
+ORIGIN = (-5.0, 2.0)
+EXTENT = (-5.0, 15.0, 2.0, 12.0)           # 200 x 100 pixels of 0.1 m from the origin
+
+
+def _pgm(path, img: np.ndarray):
+    """A binary PGM (P5) written by hand: rows top first, as ROS's map_saver writes it."""
+    h, w = img.shape
+    path.write_bytes(b"P5\n# CREATOR: test\n%d %d\n255\n" % (w, h) + img.astype(np.uint8).tobytes())
+
+
+def _room():
+    """Rows top first (row 0 = y from 11.9 to 12): a grey 205 unknown margin of 1 m, a black one-pixel outer wall,
+    a one-pixel wall at x = 5 m with a 1 m door for 6 <= y < 7, and a black pillar in the north-west corner."""
+    H, W = 100, 200
+    yc = EXTENT[3] - (np.arange(H) + 0.5) * RES
+    xc = EXTENT[0] + (np.arange(W) + 0.5) * RES
+    Y, X = np.meshgrid(yc, xc, indexing="ij")
+    img = np.full((H, W), 254, np.uint8)
+    inner = (X > -4) & (X < 14) & (Y > 3) & (Y < 11)
+    img[~inner] = 0
+    img[(X < -4.1) | (X > 14.1) | (Y < 2.9) | (Y > 11.1)] = 205
+    wall = (np.abs(X - 5.05) < 0.05) & inner & ~((Y > 6) & (Y < 7))
+    img[wall] = 0
+    img[(X > -3.5) & (X < -2.5) & (Y > 9.5) & (Y < 10.5)] = 0         # the pillar, near the top left
+    return img
+
+
+def _map(tmp_path, img=None, name="map", **keys):
+    _pgm(tmp_path / f"{name}.pgm", _room() if img is None else img)
+    doc = {"image": f"{name}.pgm", "resolution": RES, "origin": [ORIGIN[0], ORIGIN[1], 0.0], "negate": 0,
+           "occupied_thresh": 0.65, "free_thresh": 0.196}
+    doc.update(keys)
+    lines = [f"{k}: {v}" for k, v in doc.items() if v is not None]
+    (tmp_path / f"{name}.yaml").write_text("\n".join(lines) + "\n")
+    return tmp_path / f"{name}.yaml"
+
+
+def test_a_room_with_a_door_loads_with_its_extent_and_the_door_open(tmp_path):
+    dom = load_domain(_map(tmp_path))
+    assert dom.extent == pytest.approx(EXTENT)
+    assert dom.free_pixels.shape == (200, 100)                         # x first
+    P = np.array([[0.0, 7.0], [10.0, 7.0], [5.05, 6.5],                # both rooms, the door
+                  [5.05, 4.0], [-3.0, 10.0], [-4.6, 7.0], [0.0, 11.5]])  # the wall, the pillar, unknown, wall
+    assert dom.contains(P).tolist() == [True, True, True, False, False, False, False]
+    assert dom.contains([[-3.0, 4.0]]).item()                          # the pillar is at the top, not the bottom
+    reach = dom.reachable_pixels([-3.0, -1.0, 4.0, 6.0])
+    i, j = dom._pix(np.array([[12.0, 8.0]]))
+    assert reach[i, j].all()                                           # through the door
+    assert any("unknown" in n and "obstacles" in n for n in dom.notes)
+
+
+def test_ros_thresholds_and_negate(tmp_path):
+    """p = (255 - v) / 255: 205 is unknown (p = 0.19608 > 0.196), 206 free, 89 occupied (p > 0.65), 90 unknown;
+    negate reads the inverted image the same way; raw mode reads values as per cent."""
+    img = np.full((10, 40), 254, np.uint8)
+    img[:, 10] = 205
+    img[:, 20] = 206
+    img[:, 30] = 89
+    img[:, 35] = 90
+    dom = load_domain(_map(tmp_path, img, name="t", origin=[0, 0, 0], resolution=0.5))
+    assert dom.extent == (0.0, 20.0, 0.0, 5.0)
+    col = dom.free_pixels[:, 3]
+    assert col.sum() == 37 and not col[10] and col[20] and not col[30] and not col[35]
+    neg = load_domain(_map(tmp_path, 255 - img, name="n", origin=[0, 0, 0], resolution=0.5, negate=1))
+    assert np.array_equal(neg.free_pixels, dom.free_pixels)
+    raw = np.full((10, 40), 0, np.uint8)            # raw: the value is the occupancy in per cent
+    raw[:, 5], raw[:, 6], raw[:, 7] = 19, 20, 255   # 0.19 < 0.196 free; 0.20 not free; 255 unknown
+    r = load_domain(_map(tmp_path, raw, name="r", origin=[0, 0, 0], resolution=0.5, mode="raw"))
+    assert r.free_pixels[:, 0].tolist() == [True] * 5 + [True, False, False] + [True] * 32
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"resolution": None}, ["no resolution", "needs image, resolution, origin"]),
+    ({"resolution": -0.05}, ["resolution must be a positive number", "-0.05"]),
+    ({"image": "elsewhere.pgm"}, ["its image 'elsewhere.pgm' does not exist"]),
+    ({"origin": "[0.0, 0.0, 0.3]"}, ["yaw 0.3 rad", "set yaw 0"]),
+    ({"origin": "[0.0, 0.0]"}, ["origin must be [x, y, yaw]"]),
+    ({"free_thresh": 19.6}, ["free_thresh must be a number in [0, 1]"]),
+    ({"mode": "ternary"}, ["mode must be one of trinary, scale, raw"]),
+    ({"negate": "maybe"}, ["negate must be 0 or 1"]),
+])
+def test_a_bad_map_file_is_one_line_before_any_work(tmp_path, capsys, change, words):
+    path = _map(tmp_path, **change)
+    out = tmp_path / "out"
+    code = simulate_swarm(["--domain", str(path), "--out", str(out), "--controller", "lawnmower", "--no-figures"])
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert code == 2 and len(lines) == 1, lines
+    assert "map.yaml" in lines[0] and all(w in lines[0] for w in words), lines[0]
+    assert not out.exists()
+
+
+def test_not_yaml_and_a_missing_pyyaml_are_one_line(tmp_path, monkeypatch):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("image: [unclosed\n")
+    with pytest.raises(ValueError, match=r"bad.yaml is not a ROS map \(.yaml\): not YAML"):
+        load_domain(bad)
+    monkeypatch.setitem(sys.modules, "yaml", None)
+    with pytest.raises(ValueError, match=r"needs the Python package pyyaml: pip install 'swarmfield\[domains\]'"):
+        load_domain(_map(tmp_path))
+
+
+def test_simulate_swarm_runs_on_a_ros_map(tmp_path, capsys):
+    path = _map(tmp_path)
+    cfg = tmp_path / "site.toml"
+    cfg.write_text(f"[sim]\ndomain = {list(EXTENT)}\nstart_box = [-3.0, 0.0, 4.0, 7.0]\n")
+    out = tmp_path / "run"
+    code = simulate_swarm(["--config", str(cfg), "--domain", str(path), "--out", str(out), "--controller",
+                           "lawnmower", "--max-periods", "1", "--robots", "20", "--no-figures"])
+    assert code == 0, capsys.readouterr().err
+    X = np.load(out / "trajectory.npz")["X"]
+    assert load_domain(path).contains(X.reshape(-1, 2)).all()
+    # the default [0, 20]^2 domain names the map's extent to set
+    code = simulate_swarm(["--domain", str(path), "--out", str(tmp_path / "x"), "--no-figures"])
+    assert code == 2 and "set [sim] domain = [-5.0, 15.0, 2.0, 12.0]" in capsys.readouterr().err
