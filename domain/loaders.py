@@ -537,6 +537,12 @@ def _load_ros_yaml(path: Path, sim_extent):
     if abs(yaw) * max(H, W) > 0.01:                # turns the far corner by more than a hundredth of a pixel
         raise ValueError(f"domain file {path}: its origin's yaw {yaw:g} rad rotates the map; a domain's grid is "
                          "aligned with x and y: resample the image onto the map frame's axes and set yaw 0")
+    saver = np.zeros_like(unknown)
+    if s["mode"] == "trinary" and not s["negate"] and (255 - SAVER_UNKNOWN) / 255 < s["free_thresh"]:
+        # nav2's map_saver writes unknown cells as grey 205 beside free_thresh 0.25, under which ROS reloads them as
+        # free (unmapped space a planner may enter); here they stay unknown
+        saver = _saver_grey(a) & ~unknown
+        unknown = unknown | saver
     occupied = ~unknown & (p > s["occupied_thresh"])
     free = ~unknown & ~occupied & (p < s["free_thresh"])
     if not free.any():
@@ -547,13 +553,37 @@ def _load_ros_yaml(path: Path, sim_extent):
     ext = (ox, ox + W * res, oy, oy + H * res)
     dom = Domain.from_raster(free[::-1, :].T.copy(), ext, name=path.stem)
     dom._pixel_stated = True                       # the resolution states the pixel size
-    between = int((~free & ~occupied).sum())
+    between = int((~free & ~occupied & ~saver).sum())
     if between:
         what = "unknown" if s["mode"] == "trinary" else "unknown or between the thresholds"
         dom.notes = (f"domain file {path}: {100.0 * between / free.size:.3g} % of the map's pixels are {what} "
                      f"(occupancy from free_thresh = {s['free_thresh']:g} to occupied_thresh = "
                      f"{s['occupied_thresh']:g}, e.g. map_saver's grey 205) and are treated as obstacles",)
+    if saver.any():
+        dom.notes += (f"domain file {path}: {100.0 * saver.sum() / free.size:.3g} % of the map's pixels are grey "
+                      f"{SAVER_UNKNOWN}, which map_saver writes for unknown cells; under free_thresh = "
+                      f"{s['free_thresh']:g} (nav2 map_saver's default 0.25) ROS would read them as free, here they are "
+                      f"unknown, obstacles (free_thresh: 0.196 in the .yaml says the same to ROS)",)
     return dom
+
+
+#: the grey ``map_saver`` writes for an unknown cell of a trinary map
+SAVER_UNKNOWN = 205
+
+
+def _saver_grey(a: np.ndarray) -> np.ndarray:
+    """Where an 8-bit image holds exactly :data:`SAVER_UNKNOWN` in every colour band (and is opaque)."""
+    a = np.asarray(a)
+    if a.dtype != np.uint8:
+        return np.zeros(a.shape[:2], bool)
+    if a.ndim == 2:
+        return a == SAVER_UNKNOWN
+    bands = a.shape[2]
+    colour = a[:, :, :3] if bands >= 3 else a[:, :, :1]
+    grey = (colour == SAVER_UNKNOWN).all(axis=2)
+    if bands in (2, 4):
+        grey &= a[:, :, -1] == 255
+    return grey
 
 
 LOADERS = {".npz": _load_npz, ".png": _load_png, ".tif": _load_tif, ".tiff": _load_tif,

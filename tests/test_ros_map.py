@@ -126,3 +126,18 @@ def test_simulate_swarm_runs_on_a_ros_map(tmp_path, capsys):
     # the default [0, 20]^2 domain names the map's extent to set
     code = simulate_swarm(["--domain", str(path), "--out", str(tmp_path / "x"), "--no-figures"])
     assert code == 2 and "set [sim] domain = [-5.0, 15.0, 2.0, 12.0]" in capsys.readouterr().err
+
+
+def test_map_saver_grey_stays_unknown_under_nav2s_free_thresh(tmp_path):
+    """nav2's map_saver writes unknown cells as grey 205 and free_thresh 0.25, under which ROS reloads them as free
+    ((255 - 205) / 255 = 0.196 < 0.25): the unmapped margin of a SLAM map would be free space.  205 stays unknown;
+    its neighbours 204 and 206 are free by the thresholds, as ROS reads them."""
+    img = np.full((10, 40), 254, np.uint8)
+    img[:, 10], img[:, 11], img[:, 12] = 204, 205, 206
+    dom = load_domain(_map(tmp_path, img, name="s", origin=[0, 0, 0], resolution=0.5, free_thresh=0.25))
+    col = dom.free_pixels[:, 0]
+    assert col[10] and not col[11] and col[12] and col.sum() == 39
+    assert any("map_saver" in n and "205" in n and "0.25" in n for n in dom.notes), dom.notes
+    # under ROS 1's free_thresh 0.196 it is unknown by the thresholds: the same map, no map_saver note
+    dom = load_domain(_map(tmp_path, img, name="s", origin=[0, 0, 0], resolution=0.5, free_thresh=0.196))
+    assert not dom.free_pixels[11, 0] and not any("ROS would read them as free" in n for n in dom.notes)
