@@ -149,6 +149,7 @@ from .gmrf import (WIDTH, GmrfPrior, band_of_blocks, barrier_prior, barrier_prio
                    gmrf_prior_derivative, lattice_cuts)
 from .kernels import GMRF_KERNELS
 from .settings import GPSettings
+from .trend import TrendSums, trend_columns, trend_design, trend_sums
 
 
 def kernel_key(settings: GPSettings, length_scale: float, length_scale_y: float | None = None):
@@ -534,6 +535,8 @@ class GaussianProcess:
         self._assembled = None     # (key, A) for the current data and noise
         self._cov = None           # _Covariance: Sigma for some data version and hyperparameters
         self._mu = None            # (key, mu) with key (version, hyperparameters, prior mean)
+        self._trend = None         # mean "linear": (key, columns, beta, Z = Sigma B_H, G) of the last posterior
+        self._trend_stats = None   # mean "linear": (data version, :class:`regression.trend.TrendSums`)
         # positions added since the data version of self._cov (since no data while it is None),
         # kept for a Woodbury update; None once they exceed the update rank (refactorise then)
         self._pending: list[np.ndarray] | None = [] if self._n == 0 else None
@@ -717,6 +720,38 @@ class GaussianProcess:
         if self._settings.prior_mean is not None:
             return self._settings.prior_mean
         return self._y0 + self._sum_y / self._n if self._n else 0.0
+
+    @property
+    def trend(self) -> np.ndarray | None:
+        """``mean = "linear"``: the GLS trend (beta_0, beta_1, beta_2) of the last posterior, in field units per unit
+        of the trend's coordinates (:mod:`regression.trend`: (u - u_c) / s, s half the domain's longer side; a slope
+        absent when the data do not determine it is 0); None before a posterior or with a constant mean."""
+        if self._trend is None:
+            return None
+        _, cols, beta, _, _ = self._trend
+        out = np.zeros(3)
+        out[cols] = beta
+        out[0] += self._y0
+        return out
+
+    def _trend_frame(self) -> tuple[tuple[float, float], float]:
+        """(centre, scale) of the trend's coordinates: the domain's centre in the lattice frame and half its longer
+        side (:mod:`regression.trend`)."""
+        x0, x1, y0, y1 = self._domain
+        c = self._frame.to_frame(np.array([[0.5 * (x0 + x1), 0.5 * (y0 + y1)]]))[0]
+        return (float(c[0]), float(c[1])), 0.5 * max(x1 - x0, y1 - y0)
+
+    def _trend_sums(self) -> TrendSums:
+        """The trend's sufficient statistics (:func:`regression.trend.trend_sums`) of the data, cached per data
+        version."""
+        hit = self._trend_stats
+        if hit is not None and hit[0] == self._version:
+            return hit[1]
+        centre, scale = self._trend_frame()
+        t = trend_sums(self._mom, self._momy, self._ax, self._ay, centre, scale, self._idx_b, self._n_nodes,
+                       self._sum_y2, self._n)
+        self._trend_stats = (self._version, t)
+        return t
 
     def _centred_square_sum(self) -> float:
         """r^T r = sum (y_i - m)^2 over the data, m the :attr:`prior_mean` in use, from the running sums."""
@@ -1165,6 +1200,8 @@ class GaussianProcess:
         cov = self._cov
         if cov is None or cov.hyper != hyper or cov.version != self._version:
             cov = self._update_covariance(hyper)
+        if s.mean == "linear":
+            return self._linear_posterior(cov, hyper)
         key = (self._version, hyper, mean)
         if self._mu is None or self._mu[0] != key:
             b = self._assemble_b(mean)
@@ -1177,6 +1214,47 @@ class GaussianProcess:
                     mu -= g @ (g.T @ b)
             self._mu = (key, mu)
         return mean, self._mu[1], self._sigma_band(cov), (cov.kcx, cov.kcy)
+
+    def _sigma_apply(self, cov: _Covariance, b: np.ndarray) -> np.ndarray:
+        """Sigma b for the columns of b (M, k), from whichever form ``cov`` keeps Sigma in."""
+        if cov.sigma is not None:
+            return cov.sigma @ b
+        out = cov.hyper[0] * (cov.half @ self._kron_left(cov.basis.fx.T, cov.basis.fy.T, b))
+        if cov.rank:
+            g = cov.low[:, :cov.rank]
+            out -= g @ (g.T @ b)
+        return out
+
+    def _linear_posterior(self, cov: _Covariance, hyper):
+        """:meth:`_get_posterior` with ``mean = "linear"`` (universal kriging, :mod:`regression.trend`): Z = Sigma B_H
+        and mu_y = Sigma b from one product with four columns, the GLS beta = (H^T C^-1 H)^-1 H^T C^-1 y,
+        mu = mu_y - Z beta; (key, columns, beta, Z, G = (H^T C^-1 H)^-1) kept for :meth:`predict`.  The mean returned
+        is the data's offset y_0 (the trend's part is added per point)."""
+        key = (self._version, hyper, "linear")
+        if self._trend is None or self._trend[0] != key or self._mu is None or self._mu[0] != key:
+            t = self._trend_sums()
+            sn2 = hyper[2]
+            cols = trend_columns(t.hth)
+            while True:
+                bmat = np.column_stack([t.py, t.ph[:, cols]]) / sn2
+                sb = self._sigma_apply(cov, bmat)
+                muy, z = sb[:, 0], sb[:, 1:]
+                gi = t.hth[np.ix_(cols, cols)] / sn2 - bmat[:, 1:].T @ z          # H^T C^-1 H
+                gi = 0.5 * (gi + gi.T)
+                try:
+                    chol = np.linalg.cholesky(gi)
+                    break
+                except np.linalg.LinAlgError:
+                    if cols.size == 1:
+                        raise
+                    cols = cols[:1]                  # pragma: no cover - the slopes not determined after all
+            rhs = t.hty[cols] / sn2 - z.T @ bmat[:, 0]                              # H^T C^-1 y
+            linv = np.linalg.inv(chol)
+            ginv = linv.T @ linv
+            beta = ginv @ rhs
+            self._trend = (key, cols, beta, z, ginv)
+            self._mu = (key, muy - z @ beta)
+        return self._y0, self._mu[1], self._sigma_band(cov), (cov.kcx, cov.kcy)
 
     def _sigma_band(self, cov: _Covariance) -> np.ndarray:
         """Sigma's entries between nodes at most 3 apart per axis, (gx, gy, 7, 7): ``band[i, j, di, dj]`` is
@@ -1511,6 +1589,7 @@ class GaussianProcess:
         if self._cut_active:
             return self._predict_cut(pts)
         mean, mu, band, prior = self._get_posterior()
+        trend = self._trend if s.mean == "linear" else None
         if self._band_offsets is None:
             # node pair (p, q), (r, s) of a cell with first node (i, j): band entry [i + p, j + q, r - p + 3, s - q + 3]
             p_, q_, r_, s_ = np.meshgrid(*(np.arange(4),) * 4, indexing="ij")
@@ -1560,6 +1639,12 @@ class GaussianProcess:
                     self._prior_var_cache = (prior, pts, np.empty(npts))
                 self._prior_var_cache[2][sl] = prior_var
             out_var[sl] = np.maximum(post, 0.0) / prior_var
+            if trend is not None:               # universal kriging: h^T beta and r^T G r, r = h - Z^T phi
+                _, cols, beta, z, ginv = trend
+                hq = trend_design(pts[sl], *self._trend_frame())[:, cols]
+                out_mean[sl] += hq @ beta
+                r = hq - np.einsum("ij,ijk->ik", phi, z[node])
+                out_var[sl] += np.einsum("ij,jk,ik->i", r, ginv, r)
         return out_mean, out_var
 
     def map_variance(self, var: np.ndarray) -> np.ndarray:
@@ -1669,6 +1754,8 @@ class GaussianProcess:
         return t
 
     def _lml(self, s2: float, ell: float, a: np.ndarray, b: np.ndarray) -> float:
+        if self._settings.mean == "linear":             # the restricted likelihood (b is formed from the sums)
+            return self._reml_and_gradient(s2, ell, a, None)[0]
         return self._lml_parts(s2, ell, a, b)[0]
 
     def _gmrf_lml(self, s2: float, key, a: np.ndarray, b: np.ndarray, factor: np.ndarray | None = None,
@@ -1750,7 +1837,7 @@ class GaussianProcess:
         sn2 = self._settings.residual_variance if noise is None else float(noise)
         rr = self._centred_square_sum()
         chol, basis = self._factorize(s2, ell, a)
-        sb = self._kron_left(basis.fx.T, basis.fy.T, b[:, None])          # S^T b
+        sb = self._kron_left(basis.fx.T, basis.fy.T, b[:, None] if b.ndim == 1 else b)     # S^T b
         if basis.keep is not None:
             sb = sb[basis.keep]
         v, info = lapack.dpotrs(chol.T, sb, lower=0)                      # B^{-1} S^T b (chol.T: Fortran-ordered L^T)
@@ -1758,7 +1845,8 @@ class GaussianProcess:
             raise np.linalg.LinAlgError(f"solve with the Cholesky factor of I + S A S failed (info={info})")
         quad = s2 * float(sb[:, 0] @ v[:, 0])
         logdet = 2.0 * float(np.sum(np.log(np.diag(chol))))
-        return -0.5 * (rr / sn2 - quad + logdet + self._n * math.log(2.0 * math.pi * sn2)), chol, basis, sb, v[:, 0]
+        return (-0.5 * (rr / sn2 - quad + logdet + self._n * math.log(2.0 * math.pi * sn2)), chol, basis, sb,
+                v[:, 0] if b.ndim == 1 else v)
 
     def _lml_and_gradient(self, s2: float, ell, a: np.ndarray, b: np.ndarray,
                           tied: bool = False, noise: float | None = None) -> tuple[float, np.ndarray]:
@@ -1792,23 +1880,96 @@ class GaussianProcess:
         (the four entries sum to 1/2 (r^T C^{-1} r - n): scaling every variance scales C)."""
         if isinstance(ell, tuple) and ell[0] in GMRF_KERNELS:
             return self._gmrf_lml_and_gradient(s2, ell, a, b, tied=tied, noise=noise)
+        if self._settings.mean == "linear":             # the restricted likelihood (b is formed from the sums)
+            return self._reml_and_gradient(s2, ell, a, noise)
         got = self._lml_through_data(s2, ell, a, b, noise) if self._settings.low_rank_updates else None
         if got is not None:
-            lml, basis, sb, v, cxx, cyy = got
+            lml, basis, sb, v, cxx, cyy, _ = got
         else:
-            lml, basis, sb, v, cxx, cyy = self._lml_dense(s2, ell, a, b, noise)
+            lml, basis, sb, v, cxx, cyy, _ = self._lml_dense(s2, ell, a, b, noise)
         return lml, self._lml_gradient(s2, ell, basis, sb, v, cxx, cyy, noise)
+
+    def _reml_and_gradient(self, s2: float, ell, a: np.ndarray, noise) -> tuple[float, np.ndarray]:
+        """``mean = "linear"``: the restricted (REML) log likelihood of :mod:`regression.trend` and its gradient in
+        (log s_f^2, log l_x, log l_y[, log s^2]), as :meth:`_lml_and_gradient` (whose ``a`` and ``noise`` it takes;
+        b and the trend's B_H = Phi^T H / s^2 come from the power sums).  One factorisation of B, solved for the four
+        right-hand sides S_K^T [b, B_H]::
+
+            H^T C^-1 H = H^T H / s^2 - s_f^2 (S^T B_H)^T B^-1 S^T B_H,   H^T C^-1 y likewise with b,
+            log p_R = log p(y - H beta_hat) - 1/2 log det(s_n0^2 H^T C^-1 H) + 1/2 log det(H^T H) + p/2 log 2 pi,
+
+        log p(y - H beta_hat) the constant-mean likelihood of the GLS residual (its b, S^T b and B^-1 S^T b are those
+        of the four columns combined with (1, -beta_hat)).  The gradient is the constant-mean one at that residual
+        (beta_hat minimises the quadratic form: no term through beta_hat) plus 1/2 tr(G H^T C^-1 dC C^-1 H), G =
+        (H^T C^-1 H)^-1 = L L^T: :meth:`_data_gradient` of the three columns H L."""
+        sn2 = self._settings.residual_variance if noise is None else float(noise)
+        t = self._trend_sums()
+        cols = trend_columns(t.hth)
+        bmat = np.column_stack([t.py, t.ph[:, cols]]) / sn2
+        got = self._lml_through_data(s2, ell, a, bmat, noise) if self._settings.low_rank_updates else None
+        if got is None:
+            got = self._lml_dense(s2, ell, a, bmat, noise)
+        _, basis, sb, v, cxx, cyy, logdet = got
+        sby, sbh, vy, vh = sb[:, 0], sb[:, 1:], v[:, 0], v[:, 1:]
+        hth = t.hth[np.ix_(cols, cols)]
+        hty = t.hty[cols]
+        gi = hth / sn2 - s2 * (sbh.T @ vh)                                  # H^T C^-1 H
+        gi = 0.5 * (gi + gi.T)
+        rhs = hty / sn2 - s2 * (sbh.T @ vy)                                 # H^T C^-1 y
+        chol = np.linalg.cholesky(gi)                                       # LinAlgError: the refit rejects the point
+        beta = np.linalg.solve(gi, rhs)
+        sbr, vr = sby - sbh @ beta, vy - vh @ beta                         # of the residual y - H beta
+        rr = t.yy - 2.0 * float(beta @ hty) + float(beta @ hth @ beta)
+        n, p = self._n, cols.size
+        lml = -0.5 * (rr / sn2 - s2 * float(sbr @ vr) + logdet + n * math.log(2.0 * math.pi * sn2))
+        nv = self._settings.noise_variance
+        logdet_g = 2.0 * float(np.sum(np.log(np.diag(chol)))) + p * math.log(nv)
+        logdet_h = float(np.linalg.slogdet(hth)[1])
+        reml = lml - 0.5 * (logdet_g - logdet_h) + 0.5 * p * math.log(2.0 * math.pi)
+        grad = self._lml_gradient(s2, ell, basis, sbr[:, None], vr, cxx, cyy, noise, rr=rr)
+        lg = np.linalg.inv(chol).T                                          # G = (L^-T)(L^-T)^T
+        grad += self._data_gradient(s2, ell, basis, sbh @ lg, vh @ lg, np.einsum("jk,jl,lk->k", lg, hth, lg), noise)
+        return reml, grad
+
+    def _data_gradient(self, s2: float, ell, basis: _PriorBasis, sbw: np.ndarray, vw: np.ndarray, rrw: np.ndarray,
+                       noise) -> np.ndarray:
+        """The quadratic-form part of :meth:`_lml_gradient`, 1/2 w^T C^-1 dC C^-1 w, summed over the columns w_k
+        given by S_K^T Phi^T w_k / s^2 (``sbw`` (r, k)), v_k = B^-1 of it (``vw``) and w_k^T w_k (``rrw``)."""
+        if isinstance(ell, tuple):
+            kernel, l_x, l_y = ell
+        else:
+            kernel, l_x, l_y = "squared-exponential", float(ell), float(ell)
+        cx, cy = basis.fx.shape[1], basis.fy.shape[1]
+        k = vw.shape[1]
+        if basis.keep is None:
+            v3 = vw.T.reshape(k, cx, cy)
+        else:
+            ve = np.zeros((k, cx * cy))
+            ve[:, basis.keep] = vw.T
+            v3 = ve.reshape(k, cx, cy)
+        grad = np.zeros(3 if noise is None else 4)
+        grad[0] = 0.5 * s2 * float(np.sum(vw * vw))
+        if noise is not None:
+            grad[3] = 0.5 * (float(np.sum(rrw)) / float(noise) - s2 * float(np.sum(sbw * vw)) - s2 * float(np.sum(vw * vw)))
+        for j, (axis, ell_j, c_j) in enumerate(((self._ax, l_x, cx), (self._ay, l_y, cy))):
+            _, lam, vec = axis.prior_factor(ell_j, kernel)
+            w = vec[:, :c_j] / np.sqrt(lam[:c_j])
+            g = w.T @ axis.prior_factor_dlog(ell_j, kernel) @ w
+            data = float(np.sum(v3 * (g @ v3))) if j == 0 else float(np.sum(v3 * (v3 @ g)))
+            grad[j + 1] = 0.5 * s2 * data
+        return grad
 
     def _lml_dense(self, s2: float, ell, a: np.ndarray, b: np.ndarray, noise):
         """(log p, basis, S_K^T b, v, cxx, cyy) of :meth:`_lml_and_gradient` from the Cholesky factor L of B and
         X = L^{-1} (one triangular inversion): the partial traces of B^{-1} = X^T X."""
         lml, chol, basis, sb, v = self._lml_parts(s2, ell, a, b, noise=noise)
+        logdet = 2.0 * float(np.sum(np.log(np.diag(chol))))
         # X = L^{-1}: dtrtri on the Fortran-ordered upper factor L^T gives L^-T (in place); its transpose is X
         xu, info = lapack.dtrtri(chol.T, lower=0, overwrite_c=1)
         if info != 0:
             raise np.linalg.LinAlgError(f"inverse of the Cholesky factor of I + S A S failed (info={info})")
         cxx, cyy = self._gram_partial_traces(basis, xu.T)
-        return lml, basis, sb, v, cxx, cyy
+        return lml, basis, sb, v, cxx, cyy, logdet
 
     def _gram_partial_traces(self, basis: _PriorBasis, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The partial traces (cxx, cyy) of X^T X for X of r columns in the kept order (any number of rows)."""
@@ -1848,11 +2009,14 @@ class GaussianProcess:
             return None                                      # pragma: no cover
         _, lc, y_t = got
         sn2 = self._settings.residual_variance if noise is None else float(noise)
-        sb = self._kron_left(basis.fx.T, basis.fy.T, b[:, None])          # S^T b
+        sb = self._kron_left(basis.fx.T, basis.fy.T, b[:, None] if b.ndim == 1 else b)     # S^T b
         if basis.keep is not None:
             sb = sb[basis.keep]
-        v = sb[:, 0] - s2 * (y_t.T @ (y_t @ sb[:, 0]))                   # B^{-1} S^T b
-        quad = s2 * float(sb[:, 0] @ v)
+        if b.ndim == 1:
+            v = sb[:, 0] - s2 * (y_t.T @ (y_t @ sb[:, 0]))               # B^{-1} S^T b
+        else:
+            v = sb - s2 * (y_t.T @ (y_t @ sb))
+        quad = s2 * float(sb[:, 0] @ (v if b.ndim == 1 else v[:, 0]))
         logdet = 2.0 * float(np.sum(np.log(np.diag(lc))))
         rr = self._centred_square_sum()
         lml = -0.5 * (rr / sn2 - quad + logdet + self._n * math.log(2.0 * math.pi * sn2))
@@ -1860,7 +2024,7 @@ class GaussianProcess:
         nq, np_ = self._kept_counts(basis)
         cxx = np.diag(nq) - s2 * pxx                                      # of B^{-1} = I - s_f^2 Y Y^T
         cyy = np.diag(np_) - s2 * pyy
-        return lml, basis, sb, v, cxx, cyy
+        return lml, basis, sb, v, cxx, cyy, logdet
 
     @staticmethod
     def _kept_counts(basis: _PriorBasis) -> tuple[np.ndarray, np.ndarray]:
@@ -1874,8 +2038,9 @@ class GaussianProcess:
         return kept.sum(axis=1), kept.sum(axis=0)
 
     def _lml_gradient(self, s2: float, ell, basis: _PriorBasis, sb: np.ndarray, v: np.ndarray, cxx: np.ndarray,
-                      cyy: np.ndarray, noise) -> np.ndarray:
-        """The gradient of :meth:`_lml_and_gradient` from v = B^{-1} S_K^T b and B^{-1}'s partial traces."""
+                      cyy: np.ndarray, noise, rr: float | None = None) -> np.ndarray:
+        """The gradient of :meth:`_lml_and_gradient` from v = B^{-1} S_K^T b and B^{-1}'s partial traces (``rr``: r^T r
+        of the residual b is of, default the constant mean's)."""
         if isinstance(ell, tuple):
             kernel, l_x, l_y = ell
         else:
@@ -1892,7 +2057,8 @@ class GaussianProcess:
         grad = np.empty(3 if noise is None else 4)
         grad[0] = 0.5 * (s2 * float(v @ v) - r + float(np.trace(cxx)))
         if noise is not None:
-            rr = self._centred_square_sum()
+            if rr is None:
+                rr = self._centred_square_sum()
             grad[3] = 0.5 * (rr / float(noise) - s2 * float(sb[:, 0] @ v) - s2 * float(v @ v) - self._n + r
                              - float(np.trace(cxx)))
         for k, (axis, ell_k, c_k, part, count) in enumerate(((self._ax, l_x, cx, cxx, nq), (self._ay, l_y, cy, cyy, np_))):

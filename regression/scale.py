@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-__all__ = ["robust_variance", "reference_variance", "running_variance", "SIGNAL_BOUNDS"]
+__all__ = ["robust_variance", "reference_variance", "running_variance", "detrended_variance", "SIGNAL_BOUNDS"]
 
 #: bounds of a learned s_f^2 as multiples of the data's variance v_y (:func:`running_variance`)
 SIGNAL_BOUNDS = (1e-4, 1e4)
@@ -45,14 +45,30 @@ def reference_variance(y, noise_variance: float) -> float:
     return max(robust_variance(y) - sn2, sn2)
 
 
+def detrended_variance(gp, var: float) -> float:
+    """The variance of gp's data about their least-squares plane (``mean = "linear"``: the part of the data's
+    variance the GP's kernel is to explain, :mod:`regression.trend`), from the trend's sums; ``var`` (the plain
+    sample variance) when the data do not determine a plane."""
+    from .trend import trend_columns
+    t = gp._trend_sums()
+    if trend_columns(t.hth).size < 3:
+        return var
+    beta = np.linalg.solve(t.hth, t.hty)
+    rss = t.yy - float(beta @ t.hty)
+    return max(rss / (t.n - 3), 0.0)
+
+
 def running_variance(gp) -> float:
-    """v_y of all data a :class:`regression.GaussianProcess` holds: max(sample variance - s_n^2, s_n^2)."""
+    """v_y of all data a :class:`regression.GaussianProcess` holds: max(sample variance - s_n^2, s_n^2); with
+    ``mean = "linear"`` the variance about the data's least-squares plane (:func:`detrended_variance`)."""
     sn2 = gp.settings.noise_variance
     n = gp.n_observations
     if n < 2:
         return sn2
     mean = gp._sum_y / n                  # of y - y0 (the GP's offset): the variance is the same, without cancellation
     var = max(gp._sum_y2 / n - mean * mean, 0.0)
+    if gp.settings.mean == "linear" and n > 3:
+        var = detrended_variance(gp, var)
     if not math.isfinite(var):         # pragma: no cover - sums overflow only beyond MAX_MAGNITUDE data
         return sn2
     return max(var - sn2, sn2)

@@ -9,7 +9,7 @@ import math
 import numbers
 from dataclasses import dataclass
 
-from ..runtime.validation import MAX_MAGNITUDE
+from ..runtime.validation import MAX_MAGNITUDE, did_you_mean
 
 #: Numerical limits of the GP (measured: signal_variance 1e100 with noise 0.04 fails its Cholesky
 #: factorisation and overflows the float32 variance snapshots of a run).
@@ -28,6 +28,8 @@ SIGNAL_SCALES = ("absolute", "data")
 GRID_BUDGETS = ("error", "coarsen")
 #: choices of :attr:`GPSettings.amplitude`
 AMPLITUDES = ("stationary", "local")
+#: choices of :attr:`GPSettings.mean`
+MEANS = ("constant", "linear")
 
 
 def _finite_positive(name: str, value) -> float:
@@ -64,6 +66,14 @@ class GPSettings:
     prior_mean
         Constant prior mean m of the field, or ``None`` for the running mean of all data added
         so far (0 before any data).
+    mean
+        The mean function of the GP.  ``"constant"`` (the default, the paper's): the constant ``prior_mean``.
+        ``"linear"``: universal kriging, m(x) = beta_0 + beta_1 x + beta_2 y with beta estimated by generalized least
+        squares under a flat prior and its uncertainty included in the predictive variance V
+        (:mod:`regression.trend`); the hyperparameter refits maximise the restricted (REML) likelihood.  For fields
+        that are a trend plus structure (a temperature gradient across a room, depth sloping to a shore): with a
+        constant mean the learned length scale follows the trend and the structure is smoothed away.  Needs
+        ``prior_mean`` unset and a separable kernel (not the GMRF ones, nor ``amplitude = "local"``).
     inducing_spacing
         Requested spacing h of the cubic-B-spline inducing grid (``None``: ``length_scale / 2``).
         Each axis of length L gets ``ceil(L / h)`` cells of equal width <= h. The kernel
@@ -253,6 +263,7 @@ class GPSettings:
     amplitude_cells: int = 6
     amplitude_prior_sd: float = 0.5
     low_rank_updates: bool = False
+    mean: str = "constant"
 
     def __post_init__(self):
         object.__setattr__(self, "signal_variance", _finite_positive("signal_variance", self.signal_variance))
@@ -359,6 +370,19 @@ class GPSettings:
             raise ValueError(f"learn_nugget must be true or false, got {self.learn_nugget!r}")
         if not isinstance(self.low_rank_updates, bool):
             raise ValueError(f"low_rank_updates must be true or false, got {self.low_rank_updates!r}")
+        if self.mean not in MEANS:
+            raise ValueError(did_you_mean(f"mean must be one of {', '.join(repr(m) for m in MEANS)}, got {self.mean!r}",
+                                          self.mean, MEANS))
+        if self.mean == "linear":
+            if self.prior_mean is not None:
+                raise ValueError(f"mean = \"linear\" estimates the mean from the data: leave prior_mean unset (got "
+                                 f"{self.prior_mean!r})")
+            if self.kernel in GMRF_KERNELS:
+                raise ValueError(f"mean = \"linear\" needs a separable kernel (squared-exponential, matern52, "
+                                 f"matern32), not kernel {self.kernel!r}")
+            if self.amplitude == "local":
+                raise ValueError("mean = \"linear\" is not available with amplitude = \"local\" (the local "
+                                 "amplitude's fit has no restricted likelihood); use one of them")
         for name in ("hyper_step_sd", "hyper_prior_sd_signal"):
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, _finite_positive(name, getattr(self, name)))
