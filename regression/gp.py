@@ -734,6 +734,17 @@ class GaussianProcess:
         out[0] += self._y0
         return out
 
+    def trend_in_world(self) -> tuple[float, float, float] | None:
+        """``mean = "linear"``: the GLS trend of the last posterior as (its value at the domain's centre, d/dx, d/dy)
+        in field units and field units per unit length of the domain; None as :attr:`trend`."""
+        beta = self.trend
+        if beta is None:
+            return None
+        _, scale = self._trend_frame()
+        gu = beta[1:] / scale
+        c, s = rotation(self._frame.angle) if not self._frame.identity else (1.0, 0.0)
+        return float(beta[0]), float(c * gu[0] - s * gu[1]), float(s * gu[0] + c * gu[1])
+
     def _trend_frame(self) -> tuple[tuple[float, float], float]:
         """(centre, scale) of the trend's coordinates: the domain's centre in the lattice frame and half its longer
         side (:mod:`regression.trend`)."""

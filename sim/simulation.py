@@ -538,11 +538,14 @@ class Simulation:
             self.scale_to_swarm()
             if self.swarm_scale is not None:
                 self.result.kernel["swarm_factor"] = self.swarm_scale.factor
+            self.mean, self.var = self.predict()
+            trend = self.gp.trend_in_world()
+            if trend is not None:            # gp.mean = "linear": the GLS trend (value at the centre, gradient)
+                self.result.kernel["trend"] = [float(v) for v in trend]
             g = self.gp.log_amplitude
             if g is not None:                # a local signal variance: the range of its factor exp(g) on the grid
                 vf = np.exp(g(self.centers))
                 self.result.kernel["variance_factor_range"] = [float(vf.min()), float(vf.max())]
-            self.mean, self.var = self.predict()
             self.result.timings["regression"] += time.perf_counter() - t0
             self._notify("refitted")
 

@@ -1,0 +1,222 @@
+"""A linear trend in the GP's mean (``gp.mean = "linear"``: universal kriging, regression.trend)."""
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from swarmfield.regression import GaussianProcess, GPSettings
+from swarmfield.regression.gp import kernel_key
+from swarmfield.regression.hyper import refit_online
+from swarmfield.regression.trend import trend_design
+
+#: a tuned-preset-like GP (standardized data, Matérn 5/2, MAP refits with priors and trust region)
+TUNED = dict(signal_variance=1.0, signal_scale="data", kernel="matern52", learn_hyperparameters=True, hyper_maxiter=8,
+             hyper_prior_sd=0.5, hyper_step_sd=1.0)
+
+
+def _dense_universal_kriging(gp, X, y, Q):
+    """The textbook universal-kriging mean, variance and REML of gp's spline kernel phi^T K_c phi', in plain NumPy on
+    the n x n covariance C (not from the power sums)."""
+    s = gp.settings
+    basis = gp._prior_basis(s.kernel_key)
+    kc = s.signal_variance * np.kron(basis.kcx, basis.kcy)
+
+    def design(P):
+        _, _, _, _, node, phi = gp._basis(gp.frame.to_frame(P))
+        out = np.zeros((len(P), gp._n_nodes))
+        for k in range(16):
+            out[np.arange(len(P)), node[:, k]] += phi[:, k]
+        return out
+
+    F, Fq = design(X), design(Q)
+    C = F @ kc @ F.T + s.residual_variance * np.eye(len(y))
+    Ci = np.linalg.inv(C)
+    centre, scale = gp._trend_frame()
+    H, Hq = trend_design(gp.frame.to_frame(X), centre, scale), trend_design(gp.frame.to_frame(Q), centre, scale)
+    Gi = H.T @ Ci @ H
+    G = np.linalg.inv(Gi)
+    beta = G @ (H.T @ Ci @ y)
+    kq = Fq @ kc @ F.T
+    mean = Hq @ beta + kq @ Ci @ (y - H @ beta)
+    prior = np.einsum("ij,jk,ik->i", Fq, kc, Fq)
+    r = Hq - (H.T @ Ci @ kq.T).T
+    # the GP normalises the spline part of V by the spline prior's variance (its value far from data is s_f^2)
+    var = (prior - np.einsum("ij,jk,ik->i", kq, Ci, kq)) * s.signal_variance / prior + np.einsum("ij,jk,ik->i", r, G, r)
+    res = y - H @ beta
+    lml = -0.5 * (res @ Ci @ res + np.linalg.slogdet(C)[1] + len(y) * math.log(2 * math.pi))
+    reml = (lml - 0.5 * (np.linalg.slogdet(s.noise_variance * Gi)[1] - np.linalg.slogdet(H.T @ H)[1])
+            + 1.5 * math.log(2 * math.pi))
+    return mean, var, reml, beta
+
+
+def _data(rng, n=60, box=(4.0, 3.0)):
+    X = rng.uniform([0, 0], box, size=(n, 2))
+    y = 5 + 2 * X[:, 0] - X[:, 1] + np.sin(3 * X[:, 0]) + 0.2 * rng.standard_normal(n)
+    return X, y
+
+
+def test_settings_mean_choices_and_refusals():
+    assert GPSettings().mean == "constant"
+    with pytest.raises(ValueError, match=r"mean must be one of 'constant', 'linear', got 'linaer' \(did you mean linear\?\)"):
+        GPSettings(mean="linaer")
+    with pytest.raises(ValueError, match="leave prior_mean unset"):
+        GPSettings(mean="linear", prior_mean=1.0)
+    with pytest.raises(ValueError, match=r"mean = \"linear\" needs a separable kernel .* not kernel 'gmrf2'"):
+        GPSettings(mean="linear", kernel="gmrf2")
+    with pytest.raises(ValueError, match=r"mean = \"linear\" is not available with amplitude = \"local\""):
+        GPSettings(mean="linear", amplitude="local")
+
+
+@pytest.mark.parametrize("low_rank, angle", [(False, 0.0), (True, 0.0), (False, 30.0), (True, 30.0)])
+def test_universal_kriging_matches_a_dense_oracle(low_rank, angle):
+    """Mean, variance, GLS trend and REML against the dense textbook formulas with the same (spline) kernel, after
+    a factorisation and a Woodbury update (dense or low-rank), axis-aligned and in a rotated frame."""
+    rng = np.random.default_rng(0)
+    s = GPSettings(signal_variance=0.3, length_scale=1.0, length_scale_y=1.3, noise_variance=0.05, prior_truncation=0.0,
+                   kernel="matern52", kernel_angle=angle, low_rank_updates=low_rank, mean="linear")
+    gp = GaussianProcess(s, (0, 4, 0, 3))
+    X, y = _data(rng)
+    Q = rng.uniform([0, 0], [4, 3], size=(50, 2))
+    for lo, hi in ((0, 50), (50, 60)):         # the first posterior, then a Woodbury update with 10 more points
+        gp.add(X[lo:hi], y[lo:hi])
+        mean, var = gp.predict(Q)
+        m_o, v_o, reml_o, beta_o = _dense_universal_kriging(gp, X[:hi], y[:hi], Q)
+        assert np.max(np.abs(mean - m_o)) <= 1e-10 * np.max(np.abs(m_o))
+        assert np.allclose(var, v_o, rtol=1e-8, atol=0)
+        assert np.allclose(gp.trend, beta_o, rtol=1e-9)
+        assert gp.log_marginal_likelihood() == pytest.approx(reml_o, rel=1e-10)
+    assert gp.n_woodbury_updates >= 1
+
+
+def test_reml_gradient_matches_finite_differences():
+    rng = np.random.default_rng(1)
+    for low_rank in (False, True):
+        s = GPSettings(signal_variance=0.3, noise_variance=0.05, prior_truncation=0.0, kernel="matern52",
+                       length_scale_y=1.2, low_rank_updates=low_rank, mean="linear")
+        gp = GaussianProcess(s, (0, 6, 0, 5))
+        X, y = _data(rng, 80, (6.0, 5.0))
+        gp.add(X, y)
+        a, b = gp._assemble(gp.prior_mean)
+
+        def f(th):
+            res = math.exp(th[3])
+            ratio = s.residual_variance / res
+            return gp._lml_and_gradient(math.exp(th[0]), kernel_key(s, math.exp(th[1]), math.exp(th[2])), a * ratio,
+                                        b * ratio, noise=res)
+
+        th = np.log([0.4, 1.3, 1.6, 0.06])
+        grad = f(th)[1]
+        for k in range(4):
+            e = np.zeros(4)
+            e[k] = 1e-5
+            assert grad[k] == pytest.approx((f(th + e)[0] - f(th - e)[0]) / 2e-5, rel=1e-6)
+
+
+def test_the_trend_uncertainty_adds_to_the_variance():
+    """At the same hyperparameters V with the trend is V without plus r^T G r >= 0, and far from the data (where the
+    trend is extrapolated) clearly larger."""
+    rng = np.random.default_rng(2)
+    X, y = _data(rng, 100, (4.0, 4.0))
+    Q = np.array([[2.0, 2.0], [9.5, 9.5], [0.5, 9.5], [9.5, 0.5]])
+    out = {}
+    for mean in ("constant", "linear"):
+        gp = GaussianProcess(GPSettings(signal_variance=0.5, noise_variance=0.04, kernel="matern52", mean=mean),
+                             (0, 10, 0, 10))
+        gp.add(X, y)
+        out[mean] = gp.predict(Q)[1]
+    assert np.all(out["linear"] >= out["constant"])
+    assert np.all(out["linear"][1:] >= 1.5 * out["constant"][1:])        # far from the data in [0, 4]^2
+
+
+def _refitted(mean, X, y, domain, noise_variance, batches=2, **extra):
+    gp = GaussianProcess(GPSettings(noise_variance=noise_variance, mean=mean, **{**TUNED, **extra}), domain)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")              # bounds
+        for Xb, yb in zip(np.array_split(X, batches), np.array_split(y, batches)):
+            gp.add(Xb, yb)
+            refit_online(gp)
+    return gp
+
+
+def test_a_linear_field_is_recovered_with_a_small_variance():
+    """An exactly linear field plus noise, data in one corner: the linear mean extrapolates it (RMSE far from the data
+    ~0.05 of a field that spans 50) with V far below the constant mean's there."""
+    rng = np.random.default_rng(0)
+    X = rng.uniform([0, 0], [4, 4], size=(300, 2))
+
+    def f(P):
+        return 10 + 3 * P[:, 0] - 2 * P[:, 1]
+
+    y = f(X) + 0.1 * rng.standard_normal(300)
+    Q = rng.uniform([6, 6], [10, 10], size=(50, 2))
+    res = {}
+    for mean in ("constant", "linear"):
+        gp = _refitted(mean, X, y, (0, 10, 0, 10), 0.01, grid_cells=20)
+        m, v = gp.predict(Q)
+        res[mean] = (float(np.sqrt(np.mean((m - f(Q)) ** 2))), v)
+    assert res["linear"][0] < 0.2 and res["constant"][0] > 1.0
+    assert np.all(res["linear"][1] < 0.05 * res["constant"][1])
+    assert np.all(res["linear"][1] >= 0.25 * 0.1 ** 2 / 300)          # ... but not zero: beta's uncertainty
+
+
+def _tabletop(P):
+    x, y = P[:, 0], P[:, 1]
+    bumps = sum(a * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / (2 * s * s))
+                for a, cx, cy, s in ((1.0, 0.8, 1.4, 0.2), (-0.8, 2.1, 0.6, 0.25), (0.7, 2.5, 1.6, 0.15)))
+    return 45 + 2 * x + 0.4 * bumps
+
+
+def test_a_trend_plus_bumps_learns_the_bumps_length_scale():
+    """The held-out tabletop (45 + 6 K across 3 m plus bumps of 0.15-0.25 m): with a constant mean the learned length
+    scale follows the trend (~1.6 m), with the linear mean the bumps (~0.4 m), and the map is better."""
+    rng = np.random.default_rng(0)
+    X = rng.uniform([0, 0], [3, 2], size=(800, 2))
+    y = _tabletop(X) + 0.1 * rng.standard_normal(800)
+    Q = np.stack(np.meshgrid(np.linspace(0.05, 2.95, 30), np.linspace(0.05, 1.95, 20)), -1).reshape(-1, 2)
+    res = {}
+    for mean in ("constant", "linear"):
+        gp = _refitted(mean, X, y, (0, 3, 0, 2), 0.01, grid_cells=30, low_rank_updates=True)
+        m, _ = gp.predict(Q)
+        res[mean] = (gp.settings.length_scale, float(np.sqrt(np.mean((m - _tabletop(Q)) ** 2))))
+    assert res["linear"][0] < 0.6 and res["constant"][0] > 1.2
+    assert res["linear"][1] < res["constant"][1]
+
+
+def test_the_linear_mean_is_equivariant_under_a_change_of_units():
+    """f -> a f + b with the noise sd x |a|: the same learned length scale, s_f^2 x a^2, mean a f̄ + b, V x a^2."""
+    rng = np.random.default_rng(3)
+    X = rng.uniform(0, 6, size=(200, 2))
+    y = 0.3 * X[:, 0] + np.sin(X[:, 0]) * np.cos(X[:, 1]) + 0.2 * rng.standard_normal(200)
+    Q = rng.uniform(0, 10, size=(50, 2))
+    out = []
+    for a, b in ((1.0, 0.0), (1000.0, 400.0)):
+        gp = _refitted("linear", X, a * y + b, (0, 10, 0, 10), 0.04 * a * a, batches=1, learn_nugget=True,
+                       low_rank_updates=True)
+        m, v = gp.predict(Q)
+        out.append((m, v, gp.settings.signal_variance, gp.settings.length_scale))
+    (m1, v1, s1, l1), (m2, v2, s2, l2) = out
+    assert s2 == pytest.approx(1e6 * s1, rel=1e-5) and l2 == pytest.approx(l1, rel=1e-5)
+    assert np.allclose(m2, 1000 * m1 + 400, rtol=0, atol=1e-5 * 1000)
+    assert np.allclose(v2, 1e6 * v1, rtol=1e-5)
+
+
+def test_followers_and_the_coarse_refit_grid_keep_the_trend():
+    """The stop rule's follower holds the same sums: the same trend, mean and variance; the refit's coarse grid the
+    same trend statistics."""
+    from swarmfield.regression.hyper import coarsened
+    rng = np.random.default_rng(4)
+    X, y = _data(rng, 200, (8.0, 8.0))
+    gp = GaussianProcess(GPSettings(signal_variance=0.5, length_scale=2.0, noise_variance=0.04, kernel="matern52",
+                                    mean="linear"), (0, 8, 0, 8))
+    f = gp.follower()
+    gp.add(X[:100], y[:100])
+    gp.add(X[100:], y[100:])
+    Q = rng.uniform(0, 8, size=(20, 2))
+    m, v = gp.predict(Q)
+    mf, vf = f.predict(Q)
+    assert np.allclose(mf, m, rtol=1e-12) and np.allclose(vf, v, rtol=1e-10)
+    # the coarse grid's sums are an exact image of the fine ones: so are the trend's H^T H and H^T y
+    t, tc = gp._trend_sums(), coarsened(gp, 2)._trend_sums()
+    assert np.allclose(tc.hth, t.hth, rtol=1e-12) and np.allclose(tc.hty, t.hty, rtol=1e-12)
+    assert np.allclose(tc.ph.sum(axis=0), t.hth[0], rtol=1e-12)        # the B-splines sum to one
