@@ -800,7 +800,7 @@ class GaussianProcess:
         if n == 0:
             return
         if self._n == 0 and self._settings.signal_scale == "data":
-            self._standardize(y)
+            self._standardize(y, X)
             self._y0 = float(np.median(y))
         raw_y, y = y, (y - self._y0 if self._y0 else y)
         U = self._frame.to_frame(X)             # the lattice's frame (X itself without a rotation)
@@ -849,12 +849,17 @@ class GaussianProcess:
             f._raw = None
             f._reframe(angle, raw)
 
-    def _standardize(self, y: np.ndarray) -> None:
-        """``signal_scale = "data"``: s_f^2 = signal_variance x v_y of the first batch (:mod:`regression.scale`);
+    def _standardize(self, y: np.ndarray, X: np.ndarray) -> None:
+        """``signal_scale = "data"``: s_f^2 = signal_variance x v_y of the first batch (:mod:`regression.scale`; with
+        ``mean = "linear"`` of the batch's residuals about its least-squares plane, the part the kernel is to explain);
         the settings are in field units from here on (``initial_settings`` keeps the relative ones)."""
         from .scale import reference_variance
         from .settings import signal_variance_limits
         s = self._settings
+        if s.mean == "linear" and y.shape[0] > 3:
+            h = np.column_stack([np.ones(y.shape[0]), X - X.mean(axis=0)])
+            if np.linalg.matrix_rank(h) == 3:
+                y = y - h @ np.linalg.lstsq(h, y, rcond=None)[0]
         self.data_variance = reference_variance(y, s.noise_variance)
         lo, hi = signal_variance_limits(s.noise_variance)
         s2 = min(max(s.signal_variance * self.data_variance, lo), hi)
