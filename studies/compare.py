@@ -88,6 +88,8 @@ def run_task(task: dict) -> list[dict]:
     with warnings.catch_warnings(record=True) as seen:    # the domain's warnings: said once by make_tasks
         warnings.simplefilter("default")
         warnings.filterwarnings("ignore", message=".*cannot be reached", category=UserWarning)
+        # the notes of loading the map (unknown pixels, a repaired polygon, stretched pixels): said once per domain
+        warnings.filterwarnings("ignore", message="domain file ", category=UserWarning)
         # a GP grid coarsened to its budget is a fact of the configuration: said by the checks, not by every run
         warnings.filterwarnings("ignore", message=GRID_BUDGET_WARNING, category=UserWarning)
         res = run_simulation(cfg, stop_rule=make_stop_rule(cfg.sim, stops=False))

@@ -141,3 +141,17 @@ def test_map_saver_grey_stays_unknown_under_nav2s_free_thresh(tmp_path):
     # under ROS 1's free_thresh 0.196 it is unknown by the thresholds: the same map, no map_saver note
     dom = load_domain(_map(tmp_path, img, name="s", origin=[0, 0, 0], resolution=0.5, free_thresh=0.196))
     assert not dom.free_pixels[11, 0] and not any("ROS would read them as free" in n for n in dom.notes)
+
+
+def test_compare_controllers_says_a_maps_note_once(tmp_path, capsys):
+    """The note of loading a map (here its unknown pixels) was said once for the sweep and again by every run."""
+    from swarmfield.studies.compare import main as compare_controllers
+    path = _map(tmp_path)
+    cfg = tmp_path / "site.toml"
+    cfg.write_text(f"[sim]\ndomain = {list(EXTENT)}\nstart_box = [-3.0, 0.0, 4.0, 7.0]\n")
+    code = compare_controllers(["--config", str(cfg), "--domains", str(path), "--controllers", "lawnmower", "diffusion",
+                                "--seeds", "0", "--max-periods", "1", "--robots", "20", "--workers", "1",
+                                "--no-plots", "--quiet", "--out", str(tmp_path / "cmp")])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert err.count("are unknown") == 1, err
