@@ -117,12 +117,14 @@ def resolve(args):
     try:
         preset = getattr(args, "preset", None)
         cell_size = getattr(args, "cell_size", None)
-        config = load_config(args.config, overrides, preset, cell_size) if args.config is not None else \
-            config_from_dict({}, overrides, preset, cell_size)
+        # --domain goes in before the settings are resolved: the site and swarm rules scale by its free area
+        given = domain_source(getattr(args, "domain", None))
+        config = load_config(args.config, overrides, preset, cell_size, given) if args.config is not None else \
+            config_from_dict({}, overrides, preset, cell_size, given)
         if angle is not None:
             import dataclasses
             config = dataclasses.replace(config, gp=dataclasses.replace(config.gp, kernel_angle=angle))
-        source = getattr(args, "domain", None)
+        source = given
         if source is None and config.domain.source:
             source = config.domain.source      # a file from [domain] source is made absolute as --domain's is
         config = with_domain(config, source)
@@ -160,19 +162,24 @@ def kernel_angle_argument(value):
     return angle
 
 
-def with_domain(config, source):
-    """``config`` with ``[domain] source`` replaced by ``source`` (a built-in name, or a file made
-    absolute so that DIR/config.toml repeats the run from anywhere); unchanged for None."""
-    import dataclasses
+def domain_source(source):
+    """``source`` as ``[domain] source`` records it: a built-in name, "", or a file made absolute (so that
+    DIR/config.toml repeats the run from anywhere) after checking it can be read; None stays None."""
     from ..domain import BUILTIN_DOMAINS
+    if source is None or source in BUILTIN_DOMAINS or source == "":
+        return source
+    check_path(source, "domain file")
+    from ..domain import check_source
+    check_source(source)                  # missing, a folder, unreadable: one line
+    return str(Path(source).resolve())
+
+
+def with_domain(config, source):
+    """``config`` with ``[domain] source`` replaced by ``source`` (:func:`domain_source`); unchanged for None."""
+    import dataclasses
     if source is None:
         return config
-    if source not in BUILTIN_DOMAINS and source != "":
-        check_path(source, "domain file")
-        from ..domain import check_source
-        check_source(source)                  # missing, a folder, unreadable: one line
-        source = str(Path(source).resolve())
-    return dataclasses.replace(config, domain=dataclasses.replace(config.domain, source=source))
+    return dataclasses.replace(config, domain=dataclasses.replace(config.domain, source=domain_source(source)))
 
 
 def with_absolute_field(config):

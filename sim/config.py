@@ -511,9 +511,11 @@ def _with_sim(doc: dict, sim_changes: dict) -> dict:
 
 
 def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | None = None,
-                     cell_size: float | None = None) -> RunConfig:
+                     cell_size: float | None = None, domain_source: str | None = None) -> RunConfig:
     """Build a :class:`RunConfig` from a TOML-like mapping; ``overrides`` replace ``[sim]`` entries;
-    ``cell_size`` (the commands' ``--cell-size``) replaces ``planner.cell_size`` and any ``nx`` / ``ny``.
+    ``cell_size`` (the commands' ``--cell-size``) replaces ``planner.cell_size`` and any ``nx`` / ``ny``;
+    ``domain_source`` (the commands' ``--domain``) replaces ``[domain] source`` before anything is resolved, so
+    that the site and swarm rules scale by that map's free area, as with the source in the document.
 
     The document's tables are laid over a preset (:mod:`sim.presets`): ``preset`` if given, else
     the document's top-level ``preset`` key, else ``"paper"``.  Raises ``ValueError`` naming
@@ -522,6 +524,9 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
     if not isinstance(doc, dict):
         raise ValueError("configuration must be a table")
     doc = dict(doc)
+    if domain_source is not None:
+        table = doc.get("domain")
+        doc["domain"] = {**(table if isinstance(table, dict) else {}), "source": domain_source}
     name = doc.pop("preset", DEFAULT_PRESET)
     if preset is not None:
         name = preset
@@ -614,15 +619,17 @@ def read_toml(path) -> dict:
 
 
 def load_config(path, overrides: dict | None = None, preset: str | None = None,
-                cell_size: float | None = None) -> RunConfig:
+                cell_size: float | None = None, domain_source: str | None = None) -> RunConfig:
     """Read a TOML file (see module docstring); ``ValueError`` with the file name on any problem.
 
-    ``preset`` (if given) replaces the file's own top-level ``preset`` key; ``cell_size`` as in
-    :func:`config_from_dict`."""
+    ``preset`` (if given) replaces the file's own top-level ``preset`` key; ``cell_size`` and ``domain_source`` as
+    in :func:`config_from_dict`."""
     doc = read_toml(path)
     try:
-        return config_from_dict(doc, overrides, preset, cell_size)
+        return config_from_dict(doc, overrides, preset, cell_size, domain_source)
     except ValueError as exc:
+        if str(exc).startswith(("domain ", "cannot read domain file")):
+            raise                  # a map's own problem (its site area is resolved here), naming its file
         raise ValueError(f"config file {path}: {exc}") from None
 
 

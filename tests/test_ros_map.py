@@ -155,3 +155,4 @@ def test_compare_controllers_says_a_maps_note_once(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 0, err
     assert err.count("are unknown") == 1, err
+

@@ -150,3 +150,28 @@ def test_on_a_map_the_site_is_its_free_area_not_its_rectangle(tmp_path):
     assert config_from_dict(three.as_dict()) == three                       # repeats from its resolved config
     rect = config_from_dict({"sim": site}, preset="tuned")                  # no map: the rectangle's 800 m^2
     assert rect.kde.bandwidth == pytest.approx(math.sqrt(2.0)) and site_summary(rect)["area_m2"] == 800.0
+
+
+def test_simulate_swarm_domain_flag_scales_by_the_maps_free_area(tmp_path, capsys):
+    """The tuned preset scales its bandwidth, planner weights, ... with the site's area, a map's free area.  With
+    --domain the settings were resolved on the rectangle (40 m x 30 m here, against the map's free 20 m x 30 m), so
+    simulate-swarm --domain ran other settings than the same map as [domain] source or in compare-controllers."""
+    import json
+    from swarmfield.cli.simulate_swarm import main as simulate_swarm
+    big = (0.0, 40.0, 0.0, 30.0)
+    free = np.ones((200, 150), bool)                          # 40 m x 30 m at 0.2 m, x first: the east half blocked
+    free[100:, :] = False
+    np.savez(tmp_path / "half.npz", free=free, extent=np.array(big))
+    (tmp_path / "site.toml").write_text(f"[sim]\ndomain = {list(big)}\nstart_box = [1.0, 5.0, 1.0, 5.0]\n")
+    (tmp_path / "with.toml").write_text(f"[sim]\ndomain = {list(big)}\nstart_box = [1.0, 5.0, 1.0, 5.0]\n"
+                                        f"[domain]\nsource = \"{tmp_path / 'half.npz'}\"\n")
+    common = ["--preset", "tuned", "--controller", "lawnmower", "--max-periods", "1", "--robots", "20", "--no-figures"]
+    a, b = tmp_path / "flag", tmp_path / "table"
+    assert simulate_swarm(["--config", str(tmp_path / "site.toml"), "--domain", str(tmp_path / "half.npz"),
+                           "--out", str(a), *common]) == 0, capsys.readouterr().err
+    assert simulate_swarm(["--config", str(tmp_path / "with.toml"), "--out", str(b), *common]) == 0, \
+        capsys.readouterr().err
+    ca, cb = (json.loads((d / "summary.json").read_text())["config"] for d in (a, b))
+    assert ca["kde"]["bandwidth"] == pytest.approx(cb["kde"]["bandwidth"])
+    assert ca["planner"]["w_v"] == pytest.approx(cb["planner"]["w_v"])
+    assert ca["kde"]["bandwidth"] == pytest.approx(np.sqrt(600.0 / 400.0), rel=0.02)   # the free 20 m x 30 m
