@@ -245,6 +245,9 @@ class _PanelRow:
         t = np.linspace(x0, x1, n)
         self.ax.xaxis.set_major_locator(FixedLocator(np.concatenate([t + dx for dx in self.offsets])))
         self.ax.xaxis.set_major_formatter(FixedFormatter(_tick_text(t, _origin(x0, x1)) * len(self.offsets)))
+        if n > 1:     # the labels at the walls inside their panel: neighbours' "24.7" and "-7.3" ran together
+            for k, label in enumerate(self.ax.get_xticklabels()):
+                label.set_horizontalalignment("left" if k % n == 0 else "right" if k % n == n - 1 else "center")
         self.ax.set_xlabel(_axis_name("x", _origin(x0, x1)))
 
 

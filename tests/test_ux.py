@@ -503,3 +503,21 @@ def test_compare_plot_one_curve_per_controller_with_labels():
     assert "[field units]" in rmse_ax.get_ylabel() and rmse_ax.get_xlabel() == "t / T (periods)"
     assert var_ax.get_yscale() == "log" and var_ax.get_title()
     np.testing.assert_allclose(var_ax.lines[1].get_ydata(), [0.25 * 2.0 / (1 + k) / 0.1 for k in range(5)])
+
+
+def test_the_wall_labels_of_neighbouring_panels_do_not_run_together():
+    """A ROS map from origin (-7.3, -4.15): the x labels at the walls, "24.7" under one panel's east wall and
+    "-7.3" under the next one's west wall, ran together ("24.7-7.3"); the labels at the walls now sit inside their
+    panel's span."""
+    from swarmfield.runtime.plotting import new_figure
+    from swarmfield.sim.figures import _PanelRow, panel_height
+    dom = (-7.3, 24.7, -4.15, 15.85)
+    fig = new_figure(9.4, 3)
+    ax = fig.add_axes([0.1, 0.2, 0.8, panel_height(dom, 2.4) / 3])
+    row = _PanelRow(ax, dom, 3, 0.3, 2.4)
+    row.ticks(x=True)
+    fig.canvas.draw()
+    r = fig.canvas.get_renderer()
+    boxes = [t.get_window_extent(r) for t in ax.get_xticklabels()]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["-7.3", "8.7", "24.7"] * 3
+    assert all(a.x1 < b.x0 for a, b in zip(boxes, boxes[1:])), [(round(a.x0), round(a.x1)) for a in boxes]
