@@ -636,7 +636,36 @@ def load_domain(path, sim_extent=None) -> Domain:
                 f"domain file {path}: its {dom.state.shape[0]} x {dom.state.shape[1]} pixels (x by y) over the extent "
                 f"{[round(v, 9) for v in dom.extent]} are {px:.3g} m x {py:.3g} m, stretched {max(px, py) / min(px, py):.2f}x; "
                 "check the extent (a sidecar .json or [sim] domain) and, for an .npz, that free is x first (nx, ny)",)
+    if dom.geometry is None:
+        note = _margin_note(dom, path)
+        if note:
+            dom.notes = tuple(dom.notes) + (note,)
     return dom
+
+
+#: A raster whose free pixels lie in a box of less than this fraction of its extent gets a note (a SLAM map saved
+#: with its whole unknown canvas: gmapping's 4000 x 4000 pixels round a building of 30 m)
+FREE_BOX_NOTE = 0.25
+
+
+def _margin_note(dom: Domain, path: Path) -> str | None:
+    """The note for a raster whose free space fills a small box of its extent (:data:`FREE_BOX_NOTE`), else None."""
+    free = dom.free_pixels
+    xs, ys = np.flatnonzero(free.any(axis=1)), np.flatnonzero(free.any(axis=0))
+    if not xs.size:
+        return None
+    x0, x1, y0, y1 = dom.extent
+    px, py = dom.pixel
+    box = (x0 + xs[0] * px, x0 + (xs[-1] + 1) * px, y0 + ys[0] * py, y0 + (ys[-1] + 1) * py)
+    frac = (box[1] - box[0]) * (box[3] - box[2]) / ((x1 - x0) * (y1 - y0))
+    if frac >= FREE_BOX_NOTE:
+        return None
+    text = lambda b: "[" + ", ".join(f"{v:.10g}" for v in b) + "]"
+    hint = (f"crop the image to it and set origin: [{box[0]:.10g}, {box[2]:.10g}, 0.0]"
+            if path.suffix.lower() in (".yaml", ".yml") else "crop the map to it")
+    return (f"domain file {path}: its free space lies within {text(box)}, {100 * frac:.2g} % of its extent "
+            f"{text(dom.extent)}; the planner's cells ({max(x1 - x0, y1 - y0) / 40:.3g} m at the default 40 along the "
+            f"longer side), the GP's grid and the figures span the whole extent: {hint} for finer cells")
 
 
 #: A raster whose pixels over its extent are more than this far from square gets a warning (a map in image

@@ -156,3 +156,14 @@ def test_compare_controllers_says_a_maps_note_once(tmp_path, capsys):
     assert code == 0, err
     assert err.count("are unknown") == 1, err
 
+
+
+def test_a_slam_map_with_a_wide_unknown_canvas_gets_the_crop_it_needs(tmp_path):
+    """gmapping saves its whole canvas: a 10 m x 8 m room in 60 m x 60 m of unknown grey.  The planner's cells would
+    be 1.5 m; the note gives the box of the free space and the origin of the cropped image."""
+    img = np.full((600, 600), 205, np.uint8)            # 0.1 m pixels, origin (-30, -30)
+    img[300:380, 300:400] = 254                           # rows 300-379 from the top: y from -8 to 0; x from 0 to 10
+    dom = load_domain(_map(tmp_path, img, name="big", origin=[-30.0, -30.0, 0.0], resolution=0.1))
+    note = [n for n in dom.notes if "crop" in n]
+    assert len(note) == 1 and "[0, 10, -8, 0]" in note[0] and "origin: [0, -8, 0.0]" in note[0], dom.notes
+    assert not any("crop" in n for n in load_domain(_map(tmp_path)).notes)       # the room of the other tests
