@@ -156,8 +156,19 @@ def _colorbar(fig, mappable, cax, label, values=None):
     cax.xaxis.set_visible(False)         # the short side of a vertical bar: no ticks, nothing to draw
     cb.locator = _few_ticks()
     cb.update_ticks()
-    cb.set_label(label + note, fontsize=9 if note else None)
+    size = 9 if note else 10
+    cb.set_label(_wrapped(label + note, cax, size), fontsize=size)
     return cb
+
+
+def _wrapped(text: str, cax, points: float) -> str:
+    """``text`` broken into lines no longer than the colour bar ``cax`` (vertical): a label longer than its bar ran
+    into the labels of the rows above and below (a clipped mean's range beside the √V bar's nugget note)."""
+    import textwrap
+    fig = cax.figure
+    length = cax.get_position().height * fig.get_size_inches()[1] * 72.0      # points
+    width = max(12, int(length / (0.6 * points)))                              # characters of ~0.6 em
+    return "\n".join(line for part in text.split("\n") for line in (textwrap.wrap(part, width) or [""]))
 
 
 def panel_snapshots(result, periods=PANEL_PERIODS):
@@ -285,13 +296,17 @@ def make_panels(result, periods=PANEL_PERIODS):
             ys = y0 + (np.arange(sn.velocity.shape[1]) + 0.5) * (y1 - y0) / sn.velocity.shape[1]
             XQ, YQ = np.meshgrid(xs, ys, indexing="ij")
             vel = np.array(sn.velocity, float)
+            keep = np.ones(XQ.shape, bool)
             if getattr(result, "region", None) is not None:       # no arrows inside obstacles
-                vel[~result.region.contains(np.column_stack([XQ.ravel(), YQ.ravel()])).reshape(XQ.shape)] = 0.0
+                keep = result.region.contains(np.column_stack([XQ.ravel(), YQ.ravel()])).reshape(XQ.shape)
+                vel[~keep] = 0.0
             sp = np.hypot(vel[..., 0], vel[..., 1])
             # matplotlib's autoscaling as for an Axes one panel wide: a typical arrow 1 / (1.8 k) and the
             # shaft 0.06 / k of the panel's width, k = max(10, sqrt(number of arrows))
             k = max(10.0, np.sqrt(sp.size))
             amean = float(sp.mean()) or 1.0
+            # the points inside obstacles are left out: a zero arrow is drawn as a dot, a grid of them over a pond
+            XQ, YQ, vel, sp = XQ[keep], YQ[keep], vel[keep], sp[keep]
             q = rows[3].clip(c, axes[3].quiver(XQ + dx, YQ, vel[..., 0], vel[..., 1], sp, cmap="plasma",
                                                clim=(0, vmax_speed), angles="xy", scale_units="xy",
                                                scale=1.8 * amean * k / (x1 - x0), units="xy",

@@ -521,3 +521,44 @@ def test_the_wall_labels_of_neighbouring_panels_do_not_run_together():
     boxes = [t.get_window_extent(r) for t in ax.get_xticklabels()]
     assert [t.get_text() for t in ax.get_xticklabels()] == ["-7.3", "8.7", "24.7"] * 3
     assert all(a.x1 < b.x0 for a, b in zip(boxes, boxes[1:])), [(round(a.x0), round(a.x1)) for a in boxes]
+
+
+def test_colour_bar_labels_stay_beside_their_own_bar():
+    """The f̄ bar's "clipped to [1.6, 8.89] (data 1.56 to 8.28)" and the √V bar's nugget note were each longer than
+    their bar and ran into each other (a pond of 48 m x 32 m, tuned preset): labels are wrapped to their bar."""
+    from swarmfield.runtime.plotting import new_figure
+    from swarmfield.sim.figures import _colorbar, _row_axes
+    fig = new_figure(9.4, 11)
+    rows, cax = _row_axes(fig, 4, 1.15, 0.55, 0.85, 0.32, 7.8, 2.4, 1.6)
+    im = [rows[r].imshow(np.random.default_rng(r).random((4, 4)) * 9) for r in range(2)]
+    _colorbar(fig, im[0], cax[0], "f̄ [field units]", np.array([1.56, 8.28, 9.5]))
+    _colorbar(fig, im[1], cax[1], "√V [field units] (resolvable; + nugget τ = 0.0196)")
+    fig.canvas.draw()
+    r = fig.canvas.get_renderer()
+    a, b = (c.yaxis.label.get_window_extent(r) for c in cax[:2])
+    assert a.y0 > b.y1, (a, b)                       # the upper bar's label ends above the lower one's
+    bars = [c.get_window_extent(r) for c in cax[:2]]
+    assert a.y0 >= bars[0].y0 - 12 and b.y1 <= bars[1].y1 + 12     # about as long as its bar
+
+
+
+def test_no_velocity_arrows_inside_obstacles(result):
+    """The feedback row drew a zero arrow, a dot, at every grid point inside an obstacle (a grid of dots over a
+    pond); those points are left out."""
+    from swarmfield.domain import Domain
+    from swarmfield.sim.figures import make_panels, panel_snapshots
+    x0, x1, y0, y1 = result.grid.domain
+    free = np.ones((100, 100), bool)
+    free[50:, 50:] = False                                   # the north-east quarter is an obstacle
+    with_pond = copy.copy(result)
+    with_pond.region = Domain.from_raster(free, (x0, x1, y0, y1))
+    shapes = [sn.velocity.shape[:2] for sn in panel_snapshots(with_pond) if sn.velocity is not None]
+    fig = make_panels(with_pond)
+    quivers = [c for a in fig.axes for c in a.collections if type(c).__name__ == "Quiver"]
+    assert len(quivers) == len(shapes) > 0
+    for q, (m, n) in zip(quivers, shapes):
+        xs = x0 + (np.arange(m) + 0.5) * (x1 - x0) / m
+        ys = y0 + (np.arange(n) + 0.5) * (y1 - y0) / n
+        X, Y = np.meshgrid(xs, ys, indexing="ij")
+        n_free = int(with_pond.region.contains(np.column_stack([X.ravel(), Y.ravel()])).sum())
+        assert q.N == n_free < m * n
