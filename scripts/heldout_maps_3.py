@@ -146,6 +146,20 @@ def pond(out: Path):
            + 1.5 * np.exp(-((u - 20) ** 2 / 40 + (v - 27.5) ** 2 / 4)) + 0.3 * np.sin(u / 2.9) * np.sin(v / 2.1))
 
 
+def stuck(run: Path) -> dict:
+    """Robots that may be stuck, from ``run/trajectory.npz``: those that never left the start box, and those whose
+    path over the last period of measurements is shorter than 1 m (a robot pinned at a wall or in a dead end)."""
+    summ = json.loads((run / "summary.json").read_text())
+    cfg = summ["config"]
+    X = np.load(run / "trajectory.npz")["X"]                       # (steps, n, 2)
+    bx0, bx1, by0, by1 = cfg["sim"]["start_box"]
+    inbox = (X[..., 0] >= bx0) & (X[..., 0] <= bx1) & (X[..., 1] >= by0) & (X[..., 1] <= by1)
+    per = int(round(cfg["sim"]["period"] / cfg["sim"]["dt"]))
+    last = X[-per - 1:] if X.shape[0] > per else X
+    path = np.linalg.norm(np.diff(last, axis=0), axis=2).sum(axis=0)
+    return {"never_left_start_box": int(inbox.all(axis=0).sum()), "path_under_1m_last_period": int((path < 1.0).sum())}
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=Path("heldout_maps_3"))
@@ -154,7 +168,7 @@ def main(argv=None):
     a = ap.parse_args(argv)
     if a.check is not None:
         for run in a.check:
-            print(json.dumps(check_run(run)))
+            print(json.dumps({**check_run(run), **stuck(run)}))
         return
     a.out.mkdir(parents=True, exist_ok=True)
     for make in (warehouse, office, pond):
