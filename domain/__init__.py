@@ -23,8 +23,9 @@ from .common import MissingExtra
 from .domain import Domain
 from .geodesic import GeodesicGrid, geodesic_graph, spread_kernel
 from .spectrum import neumann_laplacian, neumann_modes
-from .loaders import check_source, load_domain, make_domain
+from .loaders import ExtentMismatch, check_source, load_domain, make_domain
 from .settings import DomainSettings
 
 __all__ = ["Domain", "DomainSettings", "BUILTIN_DOMAINS", "load_domain", "make_domain", "check_source", "MissingExtra",
+           "ExtentMismatch",
            "cell_fractions", "geodesic_graph", "GeodesicGrid", "spread_kernel", "neumann_laplacian", "neumann_modes"]

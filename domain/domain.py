@@ -484,12 +484,34 @@ class Domain:
             iny = (ys[1:] >= by0) & (ys[:-1] <= by1)
         return bool((self.state[np.ix_(inx, iny)] == 1).all())
 
+    def free_box(self, width: float, height: float) -> tuple | None:
+        """The free box of ``width`` x ``height`` (on the pixel raster's lines) whose lower-left corner is nearest
+        the extent's, shrunk by halves (at most three times) where none of that size is free; None if none."""
+        x0, x1, y0, y1 = self.extent
+        Nx, Ny = self.state.shape
+        px, py = (x1 - x0) / Nx, (y1 - y0) / Ny
+        free = np.zeros((Nx + 1, Ny + 1))
+        free[1:, 1:] = np.cumsum(np.cumsum(self.state == 1, axis=0), axis=1)      # summed-area table
+        for _ in range(4):
+            kx, ky = max(1, math.ceil(width / px - 1e-9)), max(1, math.ceil(height / py - 1e-9))
+            if kx <= Nx and ky <= Ny:
+                inside = free[kx:, ky:] - free[:-kx, ky:] - free[kx:, :-ky] + free[:-kx, :-ky]   # [i, j]: corner pixel
+                ok = np.argwhere(inside >= kx * ky - 0.5)
+                if len(ok):
+                    i, j = ok[np.argmin(np.hypot(ok[:, 0] * px, ok[:, 1] * py))]
+                    bx, by = x0 + i * px, y0 + j * py
+                    return tuple(round(float(v), 9) for v in (bx, bx + kx * px, by, by + ky * py))
+            width, height = width / 2, height / 2
+        return None
+
     def check_start_box(self, box) -> None:
-        """``ValueError`` unless the start box lies in the free space."""
+        """``ValueError`` unless the start box lies in the free space; the message suggests a free box of the
+        same size (the built-in domain's own, or :meth:`free_box`)."""
         if not self.box_is_free(box):
+            hint = self.start_box or self.free_box(box[1] - box[0], box[3] - box[2])
             raise ValueError(f"domain {self.name}: the start box {list(box)} is not free (it overlaps an obstacle); "
                              "choose sim.start_box inside the free space"
-                             + (f", e.g. {list(self.start_box)}" if self.start_box else ""))
+                             + (f", e.g. {list(hint)}" if hint else ""))
 
     # -- robots
     def sample(self, n: int, box, rng: np.random.Generator, max_rounds: int = 1000) -> np.ndarray:

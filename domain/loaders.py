@@ -105,9 +105,16 @@ def _image_to_free(a: np.ndarray, nodata=None, what="image") -> np.ndarray:
 
 def _load_npz(path: Path, sim_extent):
     try:
-        z = np.load(path, allow_pickle=False)
+        fh = open(path, "rb")                        # ours to close: np.load leaves a damaged archive's file open
     except PermissionError as exc:
         raise ValueError(f"cannot read domain file {path}: {exc.strerror or exc}") from None
+    with fh:
+        return _read_npz(fh, path, sim_extent)
+
+
+def _read_npz(fh, path: Path, sim_extent):
+    try:
+        z = np.load(fh, allow_pickle=False)
     except _ARCHIVE_ERRORS as exc:   # ValueError: pickled data, e.g. a text file; BadZipFile: truncated
         raise ValueError(f"domain file {path} is not a mask (.npz): not a NumPy archive, or a damaged one "
                          f"({exc.__class__.__name__})") from None
@@ -673,12 +680,22 @@ def _margin_note(dom: Domain, path: Path) -> str | None:
 PIXEL_ASPECT_WARNING = 1.25
 
 
+class ExtentMismatch(ValueError):
+    """A map whose own extent is not the simulation's; ``domain`` is the map as loaded, with its own extent."""
+
+    def __init__(self, message: str, domain: Domain):
+        super().__init__(message)
+        self.domain = domain
+
+
 def check_extent(dom: Domain, sim_extent, tol: float = 1e-6) -> None:
+    """:class:`ExtentMismatch` unless ``dom``'s extent is ``sim_extent`` (to ``tol`` of its longer side)."""
     se = _extent(sim_extent)
     scale = max(se[1] - se[0], se[3] - se[2])
     if any(abs(a - b) > tol * scale for a, b in zip(dom.extent, se)):
-        raise ValueError(f"domain {dom.name}: its extent {[round(v, 9) for v in dom.extent]} does not match the "
-                         f"simulation domain {list(se)}; set [sim] domain = {[round(v, 9) for v in dom.extent]}")
+        raise ExtentMismatch(f"domain {dom.name}: its extent {[round(v, 9) for v in dom.extent]} does not match the "
+                             f"simulation domain {list(se)}; set [sim] domain = {[round(v, 9) for v in dom.extent]}",
+                             dom)
 
 
 _CACHE: dict = {}
@@ -697,7 +714,12 @@ def make_domain(source, sim_extent=None) -> Domain | None:
         key = (str(source), stamp, None if sim_extent is None else tuple(float(v) for v in sim_extent))
         if key in _CACHE:
             return _CACHE[key]
-    dom = _make_domain(source, sim_extent)
+    try:
+        dom = _make_domain(source, sim_extent)
+    except ExtentMismatch as exc:           # kept under its own extent, which the caller may adopt
+        if key is not None:
+            _CACHE[(key[0], key[1], tuple(float(v) for v in exc.domain.extent))] = exc.domain
+        raise
     if key is not None:
         if len(_CACHE) > 16:
             _CACHE.clear()

@@ -552,8 +552,9 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
         doc["planner"] = {k: v for k, v in doc["planner"].items() if k != "cell_size"}
     sim_map = dict(doc.get("sim", {}))
     sim_map.update({k: v for k, v in (overrides or {}).items() if v is not None})
-    sim = dataclass_from_dict(SimSettings, sim_map, "sim")
     source = (doc.get("domain") or {}).get("source", "")
+    sim_map = _map_extent_defaults(sim_map, given.get("sim", {}), overrides or {}, source)
+    sim = dataclass_from_dict(SimSettings, sim_map, "sim")
     area = resolved_site_area(sim, source)    # a map's free area
     defaults = {"kde": KDESettings, "feedback": FeedbackSettings, "planner": PlannerSettings}
     site_ratio = area_ratio(sim.domain, sim.site_scale, area)
@@ -580,6 +581,44 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
     planner = dataclass_from_dict(PlannerSettings, pl_map, "planner")
     dom = dataclass_from_dict(DomainSettings, dict(doc.get("domain", {})), "domain")
     return RunConfig(sim=sim, gp=gp, kde=kde, feedback=fb, planner=planner, domain=dom, preset=name)
+
+
+def _map_extent_defaults(sim_map: dict, given_sim: dict, overrides: dict, source) -> dict:
+    """``sim_map`` with ``domain`` set to the extent a map file states (a GeoTIFF's, a ROS map's, an .npz's own, an
+    image's sidecar), where neither the document nor the overrides set ``[sim] domain`` and the map does not fit
+    the default one; then, where they set no start box either, the start box is the paper's lower-left corner
+    scaled to that extent (the lower-left 35 % on each axis), or the free box of that size nearest it when that
+    corner is not free (:meth:`domain.Domain.free_box`).  Says what it chose in one line; otherwise unchanged."""
+    from ..domain import BUILTIN_DOMAINS, ExtentMismatch, make_domain
+    if (not isinstance(source, str) or not source or source in BUILTIN_DOMAINS or "domain" in given_sim
+            or overrides.get("domain") is not None):
+        return sim_map
+    import warnings
+    default = sim_map.get("domain", SimSettings.domain)
+    try:
+        with warnings.catch_warnings():         # a reader's own warnings: the run's loading says them
+            warnings.simplefilter("ignore")
+            make_domain(source, default)
+        return sim_map                          # the map fits the default domain (or has no extent of its own)
+    except ExtentMismatch as exc:
+        dom = exc.domain
+    except (ValueError, OSError, ImportError):
+        return sim_map                          # the run's own loading says what is wrong, in its words
+    x0, x1, y0, y1 = (round(float(v), 9) for v in dom.extent)
+    sim_map = {**sim_map, "domain": [x0, x1, y0, y1]}
+    chosen = f"sim.domain = {sim_map['domain']} (the map's extent)"
+    if "start_box" not in given_sim and overrides.get("start_box") is None:
+        w, h = 0.35 * (x1 - x0), 0.35 * (y1 - y0)
+        box = (x0, round(x0 + w, 9), y0, round(y0 + h, 9))
+        how = "the paper's lower-left corner scaled to it"
+        if not dom.box_is_free(box):
+            box = dom.free_box(w, h) or box     # none free: the run's check says so, with its hint
+            how = "the free box nearest the paper's corner scaled to it"
+        sim_map["start_box"] = list(box)
+        chosen += f" and sim.start_box = {list(box)} ({how})"
+    warnings.warn(f"domain {dom.name}: {chosen}; set [sim] domain / start_box (or --start-box) to choose them",
+                  stacklevel=3)
+    return sim_map
 
 
 def _check_tables(doc: dict) -> None:

@@ -492,7 +492,6 @@ def test_domain_table_round_trips_through_toml(tmp_path):
 def _bad_files(tmp_path):
     from PIL import Image
     np.savez(tmp_path / "allblocked.npz", free=np.zeros((10, 10), bool), extent=np.array(EXT))
-    np.savez(tmp_path / "small.npz", free=np.ones((10, 10), bool), extent=np.array([0, 10, 0, 10]))
     np.savez(tmp_path / "nofree.npz", mask=np.ones((10, 10), bool))
     Image.fromarray(np.zeros((8, 8), np.uint8)).save(tmp_path / "black.png")
     (tmp_path / "fake.png").write_text("not an image")
@@ -513,7 +512,7 @@ def _bad_files(tmp_path):
     return {"broken.tif": "is not a GeoTIFF: no readable image in it", "pickled.npz": "is not a mask .* Object arrays",
             "nan.geojson": "a polygon has a coordinate that is not a finite number",
 "single.npz": "is not a mask .* single array", "text.npz": "is not a mask .* not a NumPy archive",
-            "strext.npz": "'extent' must be four numbers","allblocked.npz": "no free cell", "small.npz": "does not match the simulation domain",
+            "strext.npz": "'extent' must be four numbers","allblocked.npz": "no free cell",
             "nofree.npz": "is not a mask", "black.png": "no free cell", "fake.png": "is not an image",
             "map.txt": "is not a mask, image or polygon file", "point.geojson": "is not a Polygon",
             "broken.geojson": "is not GeoJSON", "rock.npz": "start box .* is not free",

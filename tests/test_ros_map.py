@@ -123,9 +123,17 @@ def test_simulate_swarm_runs_on_a_ros_map(tmp_path, capsys):
     assert code == 0, capsys.readouterr().err
     X = np.load(out / "trajectory.npz")["X"]
     assert load_domain(path).contains(X.reshape(-1, 2)).all()
-    # the default [0, 20]^2 domain names the map's extent to set
-    code = simulate_swarm(["--domain", str(path), "--out", str(tmp_path / "x"), "--no-figures"])
+    # a [sim] domain given that is not the map's extent names the extent to set
+    cfg.write_text("[sim]\ndomain = [0.0, 20.0, 0.0, 20.0]\n")
+    code = simulate_swarm(["--config", str(cfg), "--domain", str(path), "--out", str(tmp_path / "x"), "--no-figures"])
     assert code == 2 and "set [sim] domain = [-5.0, 15.0, 2.0, 12.0]" in capsys.readouterr().err
+    # none given: the run takes the map's extent, and a start box in its free space, and says so
+    code = simulate_swarm(["--domain", str(path), "--out", str(tmp_path / "y"), "--controller", "lawnmower",
+                           "--max-periods", "1", "--robots", "20", "--no-figures"])
+    err = capsys.readouterr().err
+    assert code == 0 and "sim.domain = [-5.0, 15.0, 2.0, 12.0] (the map's extent)" in err, err
+    X = np.load(tmp_path / "y" / "trajectory.npz")["X"]
+    assert load_domain(path).contains(X.reshape(-1, 2)).all()
 
 
 def test_map_saver_grey_stays_unknown_under_nav2s_free_thresh(tmp_path):
