@@ -73,3 +73,13 @@ def test_a_domain_given_that_is_not_the_maps_extent_is_an_error(tmp_path):
     cfg = config_from_dict({"sim": {"domain": [0.0, 20.0, 0.0, 20.0]}}, domain_source=src)
     with pytest.raises(ValueError, match=r"does not match the simulation domain .* set \[sim\] domain = \[-5.0, 25.0"):
         check_config(cfg)
+
+
+def test_plan_reference_suggests_a_free_start_box(tmp_path, capsys):
+    from swarmfield.cli.plan_reference import main
+    free = np.ones((200, 200), bool)
+    free[:50, :50] = False                               # a 5 m block over the default start box's corner
+    np.savez(tmp_path / "corner.npz", free=free, extent=np.array([0, 20, 0, 20.0]))
+    assert main(["--domain", str(tmp_path / "corner.npz"), "--out", str(tmp_path / "p.npz")]) == 2
+    assert "e.g. --start-box 0 7 5 12" in capsys.readouterr().err
+    assert not (tmp_path / "p.npz").exists()
