@@ -1698,7 +1698,8 @@ class GaussianProcess:
             log p = -1/2 [ r^T r / s_n^2 - s_f^2 (S b)^T B^{-1} (S b) + log det B + n log(2 pi s_n^2) ]
 
         where B = I + s_f^2 S A S; computed from the sufficient statistics in O(M^3), for any n.
-        Defaults to the current settings; the length scale must be >= 1.5 x inducing spacing.
+        Defaults to the current settings; the length scale must be >= 1.5 x inducing spacing.  With
+        ``mean = "linear"`` the restricted (REML) likelihood of :mod:`regression.trend` (r the GLS residual).
         """
         if self._n == 0:
             raise ValueError("log_marginal_likelihood needs at least one observation")
