@@ -220,3 +220,62 @@ def test_followers_and_the_coarse_refit_grid_keep_the_trend():
     t, tc = gp._trend_sums(), coarsened(gp, 2)._trend_sums()
     assert np.allclose(tc.hth, t.hth, rtol=1e-12) and np.allclose(tc.hty, t.hty, rtol=1e-12)
     assert np.allclose(tc.ph.sum(axis=0), t.hth[0], rtol=1e-12)        # the B-splines sum to one
+
+
+def test_universal_kriging_is_close_to_the_exact_kernel():
+    """An independent oracle: the textbook universal kriging with the exact separable Matérn 5/2 kernel (scikit-learn's
+    Matern factors, not the spline's projection): mean and variance within the spline approximation's error."""
+    sk = pytest.importorskip("sklearn.gaussian_process.kernels")
+    rng = np.random.default_rng(5)
+    X, y = _data(rng, 150, (8.0, 6.0))
+    gp = GaussianProcess(GPSettings(signal_variance=0.5, length_scale=1.5, noise_variance=0.04, kernel="matern52",
+                                    inducing_spacing=0.375, mean="linear"), (0, 8, 0, 6))
+    gp.add(X, y)
+    Q = rng.uniform([0, 0], [8, 6], size=(60, 2))
+    mean, var = gp.predict(Q)
+    k1 = sk.Matern(length_scale=1.5, nu=2.5)
+
+    def kern(A, B):
+        return 0.5 * k1(A[:, :1], B[:, :1]) * k1(A[:, 1:], B[:, 1:])
+
+    C = kern(X, X) + 0.04 * np.eye(len(y))
+    Ci = np.linalg.inv(C)
+    centre, scale = gp._trend_frame()
+    H, Hq = trend_design(X, centre, scale), trend_design(Q, centre, scale)
+    G = np.linalg.inv(H.T @ Ci @ H)
+    beta = G @ H.T @ Ci @ y
+    kq = kern(Q, X)
+    m_o = Hq @ beta + kq @ Ci @ (y - H @ beta)
+    r = Hq - kq @ Ci @ H
+    v_o = 0.5 - np.einsum("ij,jk,ik->i", kq, Ci, kq) + np.einsum("ij,jk,ik->i", r, G, r)
+    assert np.max(np.abs(mean - m_o)) < 5e-3 * np.std(y)          # measured 1.1e-3
+    assert np.max(np.abs(var - v_o)) < 5e-3 * 0.5                 # measured 5.7e-4
+    assert np.allclose(gp.trend, beta, rtol=1e-3)
+
+
+def test_a_tuned_run_with_the_linear_mean_is_the_same_in_other_units():
+    """The closed loop (greedy, the tuned preset with gp.mean = "linear") on field x 1000 + 400 with the noise sd x 1000:
+    the same robot paths, RMSE and sqrt(V) x 1000; summary.json's kernel records the trend, x 1000."""
+    from swarmfield.sim.config import config_from_dict
+    from swarmfield.sim.fields import make_field
+    from swarmfield.sim.loop import run_simulation
+    from test_units import Affine
+
+    def run(a, b):
+        cfg = config_from_dict({"sim": {"noise_variance": 0.04 * a * a, "controller": "greedy", "max_periods": 2,
+                                        "robots": 30, "domain": [0, 10, 0, 10], "start_box": [0, 4, 0, 4]},
+                                "planner": {"nx": 20, "ny": 20}, "gp": {"mean": "linear"}}, preset="tuned")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return run_simulation(cfg, field=Affine(make_field("sinc", cfg.sim.domain), a, b))
+
+    r1, r2 = run(1.0, 0.0), run(1000.0, 400.0)
+    assert len(r1.rows) == len(r2.rows)
+    for s1, s2 in zip(r1.snapshots, r2.snapshots):
+        assert np.allclose(s1.X, s2.X, atol=1e-9)
+    rm1, rm2 = (np.array([r["rmse"] for r in r.rows]) for r in (r1, r2))
+    assert np.allclose(rm2, 1000 * rm1, rtol=1e-6)
+    v1, v2 = (np.array([r["max_variance"] for r in r.rows]) for r in (r1, r2))
+    assert np.allclose(np.sqrt(v2), 1000 * np.sqrt(v1), rtol=1e-6)
+    t1, t2 = np.array(r1.kernel["trend"]), np.array(r2.kernel["trend"])
+    assert np.allclose(t2, 1000 * t1 + [400, 0, 0], rtol=1e-6)
