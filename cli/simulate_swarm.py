@@ -216,11 +216,11 @@ def headline(result) -> list[str]:
     if hit is not None and hit.get("threshold") is not None and hit["threshold"] != thr:
         when += f" (threshold there {hit['threshold']:.4g})"
     rule = make_stop_rule(result.config.sim).describe()
-    return [f"{PROG}: sup V {first['max_variance']:.4f} -> {last['max_variance']:.4f} "
+    return [f"{PROG}: sup V {first['max_variance']:.4g} -> {last['max_variance']:.4g} "
             f"(threshold {thr:.4g}: {rule}), {when}; stopped at t = {last['t']:.2f} s: "
             f"{STOP_REASONS.get(result.stop_reason, result.stop_reason)}",
-            f"{PROG}: mean V {first['mean_variance']:.4f} -> {last['mean_variance']:.4f}; RMSE of the estimate "
-            f"{first['rmse']:.4f} at t = 0 -> {last['rmse']:.4f} at t = {last['t']:.2f} s; "
+            f"{PROG}: mean V {first['mean_variance']:.4g} -> {last['mean_variance']:.4g}; RMSE of the estimate "
+            f"{first['rmse']:.4g} at t = 0 -> {last['rmse']:.4g} at t = {last['t']:.2f} s; "
             f"simulation wall time {result.wall_time:.1f} s"] + _map_note(result, thr) + \
         _rmse_note(result.config, first["rmse"], last["rmse"])
 

@@ -37,9 +37,9 @@ def progress_lines(config, prog: str = "swarmfield", stream=None, done_suffix: s
             hyper = (f"  s_f^2 = {info['signal_variance']:.4g}, l = {info['length_scale']:.3g} m (learned)"
                      if info.get("learned") else "")
             thr = info.get("threshold")
-            say(f"t = {info['t']:7.2f} s ({info['t'] / T:4.1f} T)  sup V = {info['max_variance']:.4f}"
+            say(f"t = {info['t']:7.2f} s ({info['t'] / T:4.1f} T)  sup V = {info['max_variance']:.4g}"
                 + (f" (threshold now {thr:.4g})" if thr is not None else "") + hyper +
-                f"  rmse = {info['rmse']:.4f}  planner: {words}, {info['iterations']} it, "
+                f"  rmse = {info['rmse']:.4g}  planner: {words}, {info['iterations']} it, "
                 f"{info['solve_time_s']:.2f} s")
         elif info["event"] == "done":
             say(f"simulated {info['t']:.2f} s in {info['wall_time']:.1f} s (stopped: "

@@ -329,6 +329,16 @@ def _travel_limit_T(task) -> float | None:
 MAP_FACTORS = (1.5, 1.25)
 
 
+def rmse_format(best: float | None) -> str:
+    """The format of a scenario's RMSE cells: three decimals, more when the scenario's best final RMSE ``best`` would
+    show fewer than two significant digits, so that a field in small units (a pressure in Pa mapped to a few mPa, a
+    dose rate in µSv/h) does not read 0.002 or 0.000 for every controller; the same decimals for every cell of the
+    scenario, so that its values line up."""
+    if best is None or not (math.isfinite(best) and best > 0):
+        return "{:.3f}"
+    return "{:.%df}" % max(3, 1 - math.floor(math.log10(best)))
+
+
 def best_final_rmse(runs) -> dict:
     """``{scenario: the smallest final RMSE of any of its runs}`` (every controller, preset and seed of the same
     [domain,] field, robots and loss): the map the sweep shows can be made there."""
@@ -402,12 +412,13 @@ def summary_table(runs, gamma: float, times) -> str:
             tcell += f" ({len(grp) - reached}/{len(grp)} never)"
         cells = ([key[0]] if dom else []) + [key[-5], str(key[-4]), f"{100 * key[-3]:.0f} %", key[-2], key[-1], tcell,
                                               _median_never_inf(ttt), "—" if limit is None else f"{early}/{len(grp)}"]
+        b = best.get(sc)
+        rmse_fmt = rmse_format(b)
         for t in times:
-            cell = _stat([(_value_at(rows, t) or {}).get("rmse") for _, rows in grp])
+            cell = _stat([(_value_at(rows, t) or {}).get("rmse") for _, rows in grp], rmse_fmt)
             if any(rows and rows[-1]["t_T"] < t - 1e-9 for _, rows in grp):
                 cell += " †"                # a run had stopped: its last estimate stands for this time
             cells.append(cell)
-        b = best.get(sc)
         for k in MAP_FACTORS:
             hits = [time_to_rmse(rows, k * b) if b is not None else None for _, rows in grp]
             cell = _stat([x for x in hits if x is not None], "{:.2f}")

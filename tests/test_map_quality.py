@@ -230,3 +230,19 @@ def test_a_signal_variance_at_the_numerical_limit_is_not_blamed_on_the_data():
         refit_online(gp)
     said = [str(w.message) for w in caught if "signal variance" in str(w.message)]
     assert all("numerical limit" in m and "far below the fitted" not in m for m in said)
+
+
+def test_summary_rmse_cells_keep_their_digits_in_small_units():
+    """A pressure in Pa mapped to a few mPa: every controller's RMSE read 0.002 (in kPa it would read 0.000); the
+    cells keep two significant digits of the scenario's best final RMSE, and fields of order one keep three decimals."""
+    from swarmfield.studies.compare import summary_table
+
+    def cells(scale):
+        runs = [_fake("greedy", [scale * v for v in (1.0, 0.5, 0.3, 0.2, 0.1)]),
+                _fake("feedback", [scale * v for v in (1.0, 0.2, 0.14, 0.13, 0.12)])]
+        table = summary_table(runs, 0.1, [1.0])
+        head = table.splitlines()[0].split(" | ")
+        return {ln.split(" | ")[4]: dict(zip(head, ln.split(" | "))) for ln in table.splitlines()[2:]}
+    assert cells(1.0)["feedback"]["RMSE at 1T"] == "0.120" and cells(1.0)["greedy"]["RMSE at 1T"] == "0.100"
+    small = cells(0.016)                       # best final 0.0016: four decimals (three read 0.002 for both)
+    assert small["feedback"]["RMSE at 1T"] == "0.0019" and small["greedy"]["RMSE at 1T"] == "0.0016"

@@ -124,3 +124,24 @@ def test_headline_says_why_a_run_kept_measuring_when_the_map_condition_cannot_be
     assert len(note) == 1 and "cannot be met" in note[0] and "3229" in note[0] and "kept measuring" in note[0]
     assert _map_note(res, 12.0) == []                                       # a threshold it can reach
     assert _map_note(SimpleNamespace(config=RunConfig.default(), kernel=None, stop_reason="max_time"), 0.0) == []
+
+
+def _headline_of(scale):
+    """simulate-swarm's headline of a run whose variances are ``scale``^2 and RMSE ``scale`` times a unit run's."""
+    from types import SimpleNamespace
+    from swarmfield.cli.simulate_swarm import headline
+    from swarmfield.sim.config import RunConfig
+    rows = [{"t": t, "max_variance": v * scale ** 2, "mean_variance": 0.4 * v * scale ** 2, "rmse": e * scale,
+             "threshold": 0.1 * scale ** 2} for t, v, e in ((0.0, 1.2345, 1.5), (7.0, 0.3456, 0.5), (14.0, 0.0123, 0.2))]
+    res = SimpleNamespace(rows=rows, config=RunConfig.default(), time_to_threshold=14.0, threshold_row=rows[-1],
+                          stop_reason="threshold", wall_time=1.0, kernel=None)
+    return headline(res)
+
+
+def test_headline_numbers_keep_their_digits_in_any_units():
+    # a field in Pa around 101325 with a few Pa of structure and a 5 mPa sensor, or a dose rate in uSv/h: sup V of
+    # 1e-6 printed with four decimals read "sup V 0.0000 -> 0.0000"; the mantissas must not depend on the units
+    unit, small = _headline_of(1.0), _headline_of(1e-3)
+    assert "0.0000" not in " ".join(small)
+    assert "sup V 1.234e-06 -> 1.23e-08" in small[0] and "RMSE of the estimate 0.0015 at t = 0 -> 0.0002" in small[1]
+    assert "sup V 1.234 -> 0.0123" in unit[0]

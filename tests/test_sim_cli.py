@@ -59,11 +59,11 @@ def test_normal_run_writes_metrics_summary_and_figures(tmp_path, cfg, capsys):
     def sup(r, c):
         return float(r[col[c]])
     head = next(i for i, ln in enumerate(lines) if ln.startswith("simulate-swarm: sup V "))
-    assert lines[head] == (f"simulate-swarm: sup V {sup(first, 'max_variance'):.4f} -> {sup(last, 'max_variance'):.4f} "
+    assert lines[head] == (f"simulate-swarm: sup V {sup(first, 'max_variance'):.4g} -> {sup(last, 'max_variance'):.4g} "
                          f"(threshold 0.1: sim.gamma = 0.1, in field units squared), never at or below it; stopped at t = 1.75 s: time limit (--max-periods)")
-    assert lines[head + 1].startswith(f"simulate-swarm: mean V {sup(first, 'mean_variance'):.4f} -> "
-                                f"{sup(last, 'mean_variance'):.4f}; RMSE of the estimate {sup(first, 'rmse'):.4f} at "
-                                f"t = 0 -> {sup(last, 'rmse'):.4f} at t = 1.75 s; simulation wall time ")
+    assert lines[head + 1].startswith(f"simulate-swarm: mean V {sup(first, 'mean_variance'):.4g} -> "
+                                f"{sup(last, 'mean_variance'):.4g}; RMSE of the estimate {sup(first, 'rmse'):.4g} at "
+                                f"t = 0 -> {sup(last, 'rmse'):.4g} at t = 1.75 s; simulation wall time ")
     for name in ("metrics.csv", "replans.csv", "summary.json", "config.toml", "trajectory.npz", "panels.png",
                  "convergence.png", "field_error.png", MARKER):
         assert (out / name).is_file(), name
