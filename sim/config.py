@@ -510,6 +510,23 @@ def _with_sim(doc: dict, sim_changes: dict) -> dict:
     return doc
 
 
+def _counts_of_cell_size(doc: dict, planner: dict) -> dict:
+    """``planner`` without its ``nx`` / ``ny`` when they are the counts its ``cell_size`` gives on the domain (a run's
+    own DIR/config.toml spells out both, and compare-controllers' tasks carry that resolved configuration); a
+    ``ValueError`` when they disagree."""
+    domain = planner.get("domain") or doc.get("sim", {}).get("domain") or SimSettings.domain
+    try:
+        counts = grid_cells(domain, cell_size=planner["cell_size"])
+    except (TypeError, ValueError):
+        counts = None
+    if counts is not None and (planner.get("nx", counts[0]), planner.get("ny", counts[1])) == counts:
+        return {k: v for k, v in planner.items() if k not in ("nx", "ny")}
+    raise ValueError("give either planner.cell_size or planner.nx / planner.ny, not both"
+                     + ("" if counts is None else f" (cell_size {planner['cell_size']:g} m gives {counts[0]} x "
+                                                  f"{counts[1]} cells on {list(domain)}, not {planner.get('nx')} x "
+                                                  f"{planner.get('ny')})"))
+
+
 def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | None = None,
                      cell_size: float | None = None, domain_source: str | None = None) -> RunConfig:
     """Build a :class:`RunConfig` from a TOML-like mapping; ``overrides`` replace ``[sim]`` entries;
@@ -545,7 +562,8 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
                           "cell_size": cell_size}
     mine = doc.get("planner", {})
     if mine.get("cell_size") is not None and (mine.get("nx") is not None or mine.get("ny") is not None):
-        raise ValueError("give either planner.cell_size or planner.nx / planner.ny, not both")
+        mine = _counts_of_cell_size(doc, mine)
+        doc["planner"] = mine
     given = doc
     doc = merge_under_preset(doc, name)
     if mine.get("nx") is not None or mine.get("ny") is not None:     # the user's cell counts beat a preset's cell size

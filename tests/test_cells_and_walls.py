@@ -36,6 +36,19 @@ def test_run_configurations_take_the_cell_size_and_follow_the_extent():
         config_from_dict({"planner": {"nx": 16, "cell_size": 1.0}})
 
 
+def test_a_resolved_configuration_with_a_cell_size_loads_again():
+    """A run's DIR/config.toml (and compare-controllers' tasks) spell out the cell counts a cell size gave; with
+    planner.cell_size set that document failed to load ("not both"): every compare-controllers run of a
+    configuration with a cell size failed, and the run could not be repeated from its own config.toml."""
+    cfg = config_from_dict({"preset": "tuned", "sim": {"domain": [0, 150, 0, 8], "start_box": [65, 85, 0, 8]},
+                            "planner": {"cell_size": 1.0}})
+    assert (cfg.planner.nx, cfg.planner.ny) == (150, 8)
+    again = config_from_dict(cfg.as_dict())
+    assert again.as_dict() == cfg.as_dict()
+    with pytest.raises(ValueError, match="gives 150 x 8 cells"):     # counts that disagree with the cell size
+        config_from_dict({**cfg.as_dict(), "planner": {**cfg.as_dict()["planner"], "nx": 40}})
+
+
 def test_cell_size_on_every_command(tmp_path):
     from swarmfield.cli.simulate_swarm import build_parser, resolve
     args = build_parser().parse_args(["--cell-size", "1.0", "--out", str(tmp_path / "run")])
