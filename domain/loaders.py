@@ -415,6 +415,13 @@ ROS_MODES = ("trinary", "scale", "raw")
 
 
 def _ros_number(path, key, value, low=None, high=None, positive=False) -> float:
+    """``value`` of ``key`` as a float.  A string that reads as a number counts as one: ROS's yaml-cpp converts a
+    scalar when it is asked for a double, while PyYAML's YAML 1.1 reads ``5e-2`` (no dot) as a string."""
+    if isinstance(value, str):
+        try:
+            value = float(value.strip())
+        except ValueError:
+            pass
     ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(float(value))
     if ok and positive:
         ok = value > 0
@@ -446,6 +453,8 @@ def _ros_settings(path: Path, doc) -> dict:
                          f"the map's rotation in radians), got {origin!r}")
     ox, oy, yaw = (_ros_number(path, f"origin[{i}]", v) for i, v in enumerate(origin))
     negate = doc["negate"]
+    if isinstance(negate, str) and negate.strip() in ("0", "1"):     # yaml-cpp reads a quoted "0" as an integer too
+        negate = int(negate.strip())
     if negate not in (0, 1) or isinstance(negate, float):          # ROS: an integer 0 / 1 or a boolean
         raise ValueError(f"domain file {path}: negate must be 0 or 1 (or false / true), got {negate!r}")
     occ = _ros_number(path, "occupied_thresh", doc["occupied_thresh"], 0.0, 1.0)

@@ -175,3 +175,12 @@ def test_a_slam_map_with_a_wide_unknown_canvas_gets_the_crop_it_needs(tmp_path):
     note = [n for n in dom.notes if "crop" in n]
     assert len(note) == 1 and "[0, 10, -8, 0]" in note[0] and "origin: [0, -8, 0.0]" in note[0], dom.notes
     assert not any("crop" in n for n in load_domain(_map(tmp_path)).notes)       # the room of the other tests
+
+
+def test_numbers_as_yaml_cpp_reads_them(tmp_path):
+    """``resolution: 5e-2`` is a string to PyYAML (YAML 1.1 floats need a dot) and a double to ROS's yaml-cpp, which
+    converts a scalar on demand: it was refused; numbers written as text now read as ROS reads them."""
+    dom = load_domain(_map(tmp_path, resolution="5e-2", free_thresh="'0.196'", negate='"0"', origin="[-5, 2, 0]"))
+    assert dom.extent == pytest.approx((-5.0, 5.0, 2.0, 7.0))
+    with pytest.raises(ValueError, match="resolution must be a positive number"):
+        load_domain(_map(tmp_path, resolution="fine"))
