@@ -45,9 +45,16 @@ def _connected_to_box(mask: np.ndarray, extent, box) -> np.ndarray:
     return _touching_box(ndimage.label(mask)[0], extent, box)
 
 
+#: a grid's domain and a map's extent are the same when they differ by less than this fraction of the larger side (as
+#: the loaders' extent check): a ROS map's origin + resolution x width is 30.200000000000003 for the 30.2 a user sets
+EXTENT_TOLERANCE = 1e-6
+
+
 def _grid_shape(g, extent):
     if hasattr(g, "nx"):
-        if tuple(float(v) for v in g.domain) != tuple(extent):
+        gd, ext = [float(v) for v in g.domain], [float(v) for v in extent]
+        scale = max(ext[1] - ext[0], ext[3] - ext[2])
+        if any(abs(a - b) > EXTENT_TOLERANCE * scale for a, b in zip(gd, ext)):
             raise ValueError(f"grid domain {list(g.domain)} differs from the domain's extent {list(extent)}")
         return int(g.nx), int(g.ny)
     nx, ny = (int(v) for v in g)

@@ -184,3 +184,18 @@ def test_numbers_as_yaml_cpp_reads_them(tmp_path):
     assert dom.extent == pytest.approx((-5.0, 5.0, 2.0, 7.0))
     with pytest.raises(ValueError, match="resolution must be a positive number"):
         load_domain(_map(tmp_path, resolution="fine"))
+
+
+def test_the_extent_a_user_types_for_a_map_with_round_off_runs(tmp_path, capsys):
+    """nav2's depot map, 604 x 307 pixels of 0.05 m: its extent is 604 x 0.05 = 30.200000000000003 m.  The message
+    says set [sim] domain = [0.0, 30.2, ...]; set so, the run failed with "grid domain [0.0, 30.2, 0.0, 5.0] differs
+    from the domain's extent [0.0, 30.200000000000003, 0.0, 5.0]"."""
+    img = np.full((100, 604), 254, np.uint8)
+    img[:, 300] = 0
+    img[40:60, 300] = 254                                 # a door in a one-pixel wall
+    path = _map(tmp_path, img, name="depot", origin=[0.0, 0.0, 0], resolution=0.05)
+    cfg = tmp_path / "depot.toml"
+    cfg.write_text("[sim]\ndomain = [0.0, 30.2, 0.0, 5.0]\nstart_box = [1.0, 4.0, 1.0, 4.0]\n")
+    code = simulate_swarm(["--config", str(cfg), "--domain", str(path), "--out", str(tmp_path / "run"), "--controller",
+                           "lawnmower", "--max-periods", "1", "--robots", "20", "--no-figures"])
+    assert code == 0, capsys.readouterr().err
