@@ -477,13 +477,21 @@ def _check_formulation(s):
 
 #: cells along the longer side of the extent when neither the cell counts nor the cell size is given
 CELLS_LONG_SIDE = 40
+#: ... but at least this many across the shorter side (the longer side then gets more, for square cells), and at most
+#: :data:`MAX_DEFAULT_CELLS` in all: on a 150 m x 8 m river reach 40 cells along the reach left 3 across, cells of
+#: 3.75 m x 2.67 m for the plan, the stop rule's sup V and the map's RMSE, and the tuned feedback's map at 3 T was
+#: 6-8x the lawnmower's (with 1 m cells 0.5x); no extent of aspect ratio up to 4 changes
+CELLS_SHORT_SIDE_MIN = 10
+MAX_DEFAULT_CELLS = 4 * CELLS_LONG_SIDE ** 2
 
 
 def grid_cells(domain, nx=None, ny=None, cell_size=None) -> tuple[int, int]:
     """``(nx, ny)`` of the planner grid on ``domain`` = (x0, x1, y0, y1) (:class:`PlannerSettings`):
     ``cell_size`` (when given) decides both, nx = max(3, round(width / cell_size)) and likewise ny;
     else the given counts, a missing one chosen for cells as square as the extent allows; neither:
-    ``CELLS_LONG_SIDE`` along the longer side (the paper's [0, 20]^2: 40 x 40)."""
+    ``CELLS_LONG_SIDE`` along the longer side (the paper's [0, 20]^2: 40 x 40), raised for square cells with
+    ``CELLS_SHORT_SIDE_MIN`` across the shorter side of an elongated extent (150 m x 8 m: 188 x 10; at most
+    ``MAX_DEFAULT_CELLS`` in all)."""
     x0, x1, y0, y1 = (float(v) for v in domain)
     lx, ly = x1 - x0, y1 - y0
     for name, v in (("nx", nx), ("ny", ny)):
@@ -499,6 +507,11 @@ def grid_cells(domain, nx=None, ny=None, cell_size=None) -> tuple[int, int]:
                              f"{n[0]} x {n[1]} cells; use larger cells")
         return n[0], n[1]
     if nx is None and ny is None:
+        aspect = max(lx, ly) / min(lx, ly)
+        short = max(CELLS_SHORT_SIDE_MIN, int(round(CELLS_LONG_SIDE / aspect)))
+        long_ = max(CELLS_LONG_SIDE, min(int(round(short * aspect)), MAX_DEFAULT_CELLS // short))
+        if short > CELLS_LONG_SIDE / aspect + 0.5:          # elongated: both counts from the short side's minimum
+            return (long_, short) if lx >= ly else (short, long_)
         if lx >= ly:
             nx = CELLS_LONG_SIDE
         else:

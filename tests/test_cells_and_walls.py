@@ -24,6 +24,19 @@ def test_square_cells_on_a_two_to_one_domain():
         PlannerSettings(cell_size=0.0)
 
 
+def test_an_elongated_site_gets_cells_across_its_width():
+    """A 150 m x 8 m river reach had 40 x 3 planner cells (3.75 m x 2.67 m): the plan, the stop rule's sup V and the
+    map's RMSE saw three points across the river.  At least ten across now, square cells; no extent of aspect ratio
+    up to four changes."""
+    assert grid_cells((0, 150, 0, 8)) == (188, 10) and grid_cells((0, 8, 0, 150)) == (10, 188)
+    assert grid_cells((0, 200, 0, 10)) == (200, 10)
+    for extent, cells in (((0, 20, 0, 20), (40, 40)), ((0, 60, 0, 40), (40, 27)), ((0, 40, 0, 10), (40, 10)),
+                          ((0, 3, 0, 2), (40, 27))):
+        assert grid_cells(extent) == cells
+    nx, ny = grid_cells((0, 10000, 0, 1))                               # bounded in all
+    assert nx * ny <= 6400 and ny == 10
+
+
 def test_run_configurations_take_the_cell_size_and_follow_the_extent():
     cfg = config_from_dict({"sim": {"domain": [0, 30, 0, 15], "start_box": [0, 5, 0, 5]}})
     assert (cfg.planner.nx, cfg.planner.ny) == (40, 20)
