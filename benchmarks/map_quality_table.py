@@ -68,7 +68,8 @@ def _t(v):
 
 
 def _r(v):
-    return f"{v:.3f}" if v < 10 else f"{v:.2f}"
+    """Three significant digits at least (a pressure mapped to a few mPa read 0.002 for every controller)."""
+    return f"{v:.3g}" if v < 0.1 else (f"{v:.3f}" if v < 10 else f"{v:.2f}")
 
 
 def _ratio(v: float) -> str:

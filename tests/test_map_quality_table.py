@@ -68,3 +68,8 @@ def test_a_run_in_two_inputs_is_refused(tmp_path, capsys):
     assert m.main([str(tmp_path / "a"), str(tmp_path / "b")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "feedback on fine, seed 0 is in both" in err
+
+
+def test_rmse_cells_keep_three_digits_in_small_units():
+    r = _module()._r               # a pressure in Pa mapped to a few mPa read 0.002 for every controller
+    assert (r(0.001647), r(0.0023), r(0.233), r(187.4)) == ("0.00165", "0.0023", "0.233", "187.40")
