@@ -143,8 +143,8 @@ class PlannerSettings:
 
     domain: tuple = (0.0, 20.0, 0.0, 20.0)
     #: cells along x and y; None (default): from ``cell_size``, or square cells with ``CELLS_LONG_SIDE``
-    #: cells along the longer side (the paper's 20 m x 20 m: 40 x 40).  One of them alone: the other for
-    #: cells as square as the extent allows
+    #: cells along the longer side (the paper's 20 m x 20 m: 40 x 40), at least ``CELLS_SHORT_SIDE_MIN`` across the
+    #: shorter side (:func:`grid_cells`).  One of them alone: the other for cells as square as the extent allows
     nx: int | None = None
     ny: int | None = None
     #: side of the (square) planner cells [m]; when set it decides nx = round(width / cell_size) and
