@@ -477,7 +477,10 @@ class GaussianProcess:
             settings = _within_budget(self._domain, settings)
         self._spacing = settings.resolved_inducing_spacing
         self._initial_settings = settings
-        self._settings = settings
+        self._settings = settings if settings.mean != "auto" else dataclasses.replace(settings, mean="constant")
+        #: ``mean = "auto"``: (data points, profile log likelihood with the constant mean, with the linear one, the mean
+        #: kept) of each refit's choice (:func:`regression.hyper.refit_online`)
+        self.mean_choices: list = []
         self._tol = 1e-9 * max(x1 - x0, y1 - y0)
         self._n = 0
         #: the data's offset: the sums below (and the per-cell power sums) are of y - _y0. 0 unless
@@ -733,6 +736,26 @@ class GaussianProcess:
         out[cols] = beta
         out[0] += self._y0
         return out
+
+    def set_mean(self, mean: str) -> None:
+        """Switch the mean function in use to ``"constant"`` or ``"linear"`` (``gp.mean = "auto"`` chooses at each
+        refit, :func:`regression.hyper.refit_online`); the posterior covariance is kept (it does not depend on the
+        mean), the mean is recomputed at the next :meth:`predict`; followers follow."""
+        if mean not in ("constant", "linear"):
+            raise ValueError(f"set_mean needs \"constant\" or \"linear\", got {mean!r}")
+        if mean != self._settings.mean:
+            self._settings = dataclasses.replace(self._settings, mean=mean, inducing_spacing=self._spacing)
+            self._mu, self._trend = None, None
+        for f in self._followers:
+            f.set_mean(mean)
+
+    def profile_log_likelihood(self, columns: int) -> float:
+        """log N(y - H beta_hat; 0, C) at the current hyperparameters, beta_hat the GLS estimate of the first
+        ``columns`` of the trend's H (1: the constant alone, 3: the plane; :mod:`regression.trend`): the profile
+        likelihood ``gp.mean = "auto"`` compares, whatever mean this GP uses."""
+        s = self._settings
+        key = s.kernel_key
+        return self._reml_and_gradient(s.signal_variance, key, self._assemble_a(), None, columns=int(columns))
 
     def trend_in_world(self) -> tuple[float, float, float] | None:
         """``mean = "linear"``: the GLS trend of the last posterior as (its value at the domain's centre, d/dx, d/dy)
@@ -1906,7 +1929,7 @@ class GaussianProcess:
             lml, basis, sb, v, cxx, cyy, _ = self._lml_dense(s2, ell, a, b, noise)
         return lml, self._lml_gradient(s2, ell, basis, sb, v, cxx, cyy, noise)
 
-    def _reml_and_gradient(self, s2: float, ell, a: np.ndarray, noise) -> tuple[float, np.ndarray]:
+    def _reml_and_gradient(self, s2: float, ell, a: np.ndarray, noise, columns: int | None = None):
         """``mean = "linear"``: the restricted (REML) log likelihood of :mod:`regression.trend` and its gradient in
         (log s_f^2, log l_x, log l_y[, log s^2]), as :meth:`_lml_and_gradient` (whose ``a`` and ``noise`` it takes;
         b and the trend's B_H = Phi^T H / s^2 come from the power sums).  One factorisation of B, solved for the four
@@ -1918,10 +1941,13 @@ class GaussianProcess:
         log p(y - H beta_hat) the constant-mean likelihood of the GLS residual (its b, S^T b and B^-1 S^T b are those
         of the four columns combined with (1, -beta_hat)).  The gradient is the constant-mean one at that residual
         (beta_hat minimises the quadratic form: no term through beta_hat) plus 1/2 tr(G H^T C^-1 dC C^-1 H), G =
-        (H^T C^-1 H)^-1 = L L^T: :meth:`_data_gradient` of the three columns H L."""
+        (H^T C^-1 H)^-1 = L L^T: :meth:`_data_gradient` of the three columns H L.
+
+        ``columns`` given: the profile log likelihood log N(y - H beta_hat; 0, C) alone (no gradient), H its first
+        ``columns`` columns (:meth:`profile_log_likelihood`)."""
         sn2 = self._settings.residual_variance if noise is None else float(noise)
         t = self._trend_sums()
-        cols = trend_columns(t.hth)
+        cols = trend_columns(t.hth) if columns is None else np.arange(columns)
         bmat = np.column_stack([t.py, t.ph[:, cols]]) / sn2
         got = self._lml_through_data(s2, ell, a, bmat, noise) if self._settings.low_rank_updates else None
         if got is None:
@@ -1939,6 +1965,8 @@ class GaussianProcess:
         rr = t.yy - 2.0 * float(beta @ hty) + float(beta @ hth @ beta)
         n, p = self._n, cols.size
         lml = -0.5 * (rr / sn2 - s2 * float(sbr @ vr) + logdet + n * math.log(2.0 * math.pi * sn2))
+        if columns is not None:
+            return lml
         nv = self._settings.noise_variance
         logdet_g = 2.0 * float(np.sum(np.log(np.diag(chol)))) + p * math.log(nv)
         logdet_h = float(np.linalg.slogdet(hth)[1])

@@ -354,28 +354,11 @@ def _choose_barrier(gp: GaussianProcess, prior, previous: list, out: dict):
 NO_SIGNAL = 0.25
 
 
-def refit_online(gp: GaussianProcess):
-    """One online MAP refit of gp (``settings.learn_hyperparameters``), warm-started from the current
-    values, ``hyper_maxiter`` iterations, with the log-normal prior of :func:`_prior` and, with
-    ``hyper_step_sd``, the soft trust region around the current values (:func:`refit`).
-
-    Multi-resolution: the likelihood is evaluated on the grid coarsened ``hyper_coarsening`` times (exact
-    sufficient statistics, ~30x cheaper); when the learned l sits at that grid's lower bound (1.5 x its
-    cell width) the fit is repeated on the GP's own grid, whose bound is half as long, so that the data
-    decide a length scale below the coarse grid's resolution (a GMRF kernel: the GP's own grid at once,
-    :func:`coarsening_factor`).  A learned value at a bound of the grid it
-    was fitted on gets a one-line ``UserWarning`` (once per GP and bound).  With ``amplitude = "local"`` the
-    signal variance's spatial factor exp(g) is then fitted at the new values on the same coarse grid
-    (:func:`regression.amplitude.fit_log_amplitude`).  Updates gp's settings (the posterior is recomputed at the next
-    ``predict``) and returns them."""
+def _fit(gp: GaussianProcess, prior, c: int, previous: list, out: dict):
+    """The multi-resolution MAP refit of :func:`refit_online` on gp (with ``barrier = "auto"`` both models), from gp's
+    current values; ``previous``: those values as a list (the fine repeat's start).  Returns (s_f^2, l, l_y or None,
+    and the bounds of l on the grid of the fit); ``out`` receives :func:`refit`'s outputs."""
     s0 = gp.initial_settings
-    if gp._raw is not None:                    # kernel_angle "auto": the first refit chooses the angle
-        choose_kernel_angle(gp)
-    prior = _prior(gp)
-    c = coarsening_factor(gp, s0.hyper_coarsening)
-    cur = gp.settings
-    previous = [cur.signal_variance, cur.length_scale] + ([cur.length_scale_y] if cur.length_scale_y is not None else [])
-    out = {}
     if s0.barrier == "auto" and gp._barrier is not None:
         s2, ell, *rest = _choose_barrier(gp, prior, previous, out)
     else:
@@ -390,6 +373,75 @@ def refit_online(gp: GaussianProcess):
         s2, ell, *rest = refit(gp, prior, s0.hyper_maxiter, 1, step_sd=s0.hyper_step_sd, start=previous, out=out)
         ell_y = rest[0] if len(rest) == 2 else None
         lo, hi = length_scale_bounds(gp, 1)
+    return s2, ell, ell_y, lo, hi
+
+
+def _choose_mean(gp: GaussianProcess, c: int, previous: list, fit: tuple, out: dict) -> tuple:
+    """``gp.mean = "auto"``: after the refit of the mean in use (``fit``, :func:`_fit`), the other mean is refitted the
+    same way on a twin of gp (from its own last fit, or gp's ``previous`` values = (s_f^2, l[, l_y], tau^2) the first
+    time), and gp keeps the mean of the larger BIC: the profile log likelihood log N(y - H beta_hat; 0, C) of each at
+    its own fit (:meth:`GaussianProcess.profile_log_likelihood`, on gp's own grid), the linear mean when its exceeds
+    the constant's by more than log n (BIC: two more parameters, 2 dl > 2 log n).  REML values are not compared: the
+    restricted likelihoods of two mean structures are of different contrasts of the data.  The twin's fit is kept for
+    the next refit's start; (n, profile log likelihoods, choice) is appended to ``gp.mean_choices``.  Returns the fit
+    kept; ``out`` receives the twin's :func:`refit` outputs when its mean is chosen."""
+    from .trend import trend_columns
+    in_use = gp.settings.mean
+    other = "linear" if in_use == "constant" else "constant"
+    if trend_columns(gp._trend_sums().hth).size < 3:           # the data do not determine a plane: no choice
+        return fit
+    fits = gp.__dict__.setdefault("_mean_fits", {})
+    start = fits.get(other)
+    if start is None:
+        *values, tau = previous
+        start = (values[0], values[1], values[2] if len(values) == 3 else None, tau)
+    twin = gp._twin(dataclasses.replace(gp.settings, mean=other, inducing_spacing=gp._spacing))
+    twin._initial_settings = gp.initial_settings          # the same priors (relative to the twin's data variance)
+    twin.set_hyperparameters(start[0], start[1], start[2], nugget=start[3])
+    out_t = {}
+    begin = [start[0], start[1]] + ([start[2]] if start[2] is not None else [])
+    fit_t = _fit(twin, _prior(twin), c, begin, out_t)
+    gp.set_hyperparameters(fit[0], fit[1], fit[2], nugget=out["nugget"])
+    twin.set_hyperparameters(fit_t[0], fit_t[1], fit_t[2], nugget=out_t["nugget"])
+    columns = {"constant": 1, "linear": 3}
+    ll = {in_use: gp.profile_log_likelihood(columns[in_use]), other: twin.profile_log_likelihood(columns[other])}
+    n = gp.n_observations
+    choice = "linear" if ll["linear"] - ll["constant"] > math.log(n) else "constant"
+    gp.mean_choices.append((n, ll["constant"], ll["linear"], choice))
+    fits[in_use] = (fit[0], fit[1], fit[2], out["nugget"])
+    fits[other] = (fit_t[0], fit_t[1], fit_t[2], out_t["nugget"])
+    if choice == in_use:
+        return fit
+    gp.set_mean(choice)
+    out.update(out_t)
+    return fit_t
+
+
+def refit_online(gp: GaussianProcess):
+    """One online MAP refit of gp (``settings.learn_hyperparameters``), warm-started from the current
+    values, ``hyper_maxiter`` iterations, with the log-normal prior of :func:`_prior` and, with
+    ``hyper_step_sd``, the soft trust region around the current values (:func:`refit`).
+
+    Multi-resolution: the likelihood is evaluated on the grid coarsened ``hyper_coarsening`` times (exact
+    sufficient statistics, ~30x cheaper); when the learned l sits at that grid's lower bound (1.5 x its
+    cell width) the fit is repeated on the GP's own grid, whose bound is half as long, so that the data
+    decide a length scale below the coarse grid's resolution (a GMRF kernel: the GP's own grid at once,
+    :func:`coarsening_factor`).  A learned value at a bound of the grid it
+    was fitted on gets a one-line ``UserWarning`` (once per GP and bound).  With ``amplitude = "local"`` the
+    signal variance's spatial factor exp(g) is then fitted at the new values on the same coarse grid
+    (:func:`regression.amplitude.fit_log_amplitude`).  With ``mean = "auto"`` the other mean function is fitted too and
+    the one of the larger BIC kept (:func:`_choose_mean`).  Updates gp's settings (the posterior is recomputed at the
+    next ``predict``) and returns them."""
+    s0 = gp.initial_settings
+    if gp._raw is not None:                    # kernel_angle "auto": the first refit chooses the angle
+        choose_kernel_angle(gp)
+    c = coarsening_factor(gp, s0.hyper_coarsening)
+    cur = gp.settings
+    previous = [cur.signal_variance, cur.length_scale] + ([cur.length_scale_y] if cur.length_scale_y is not None else [])
+    out = {}
+    s2, ell, ell_y, lo, hi = _fit(gp, _prior(gp), c, previous, out)
+    if s0.mean == "auto":
+        s2, ell, ell_y, lo, hi = _choose_mean(gp, c, previous + [cur.nugget], (s2, ell, ell_y, lo, hi), out)
     tau2 = out["nugget"]
     sv_lo, sv_hi = signal_variance_bounds(gp)
     warned = gp.__dict__.setdefault("_bound_warnings", set())

@@ -29,7 +29,7 @@ GRID_BUDGETS = ("error", "coarsen")
 #: choices of :attr:`GPSettings.amplitude`
 AMPLITUDES = ("stationary", "local")
 #: choices of :attr:`GPSettings.mean`
-MEANS = ("constant", "linear")
+MEANS = ("constant", "linear", "auto")
 
 
 def _finite_positive(name: str, value) -> float:
@@ -72,7 +72,10 @@ class GPSettings:
         squares under a flat prior and its uncertainty included in the predictive variance V
         (:mod:`regression.trend`); the hyperparameter refits maximise the restricted (REML) likelihood.  For fields
         that are a trend plus structure (a temperature gradient across a room, depth sloping to a shore): with a
-        constant mean the learned length scale follows the trend and the structure is smoothed away.  Needs
+        constant mean the learned length scale follows the trend and the structure is smoothed away.  ``"auto"``:
+        the GP starts with the constant mean and every online refit (with ``learn_hyperparameters``) fits both and
+        keeps the one of the larger BIC, the trend when its profile log likelihood exceeds the constant's by more than
+        log n (its two more parameters; :func:`regression.hyper.refit_online`).  ``"linear"`` and ``"auto"`` need
         ``prior_mean`` unset and a separable kernel (not the GMRF ones, nor ``amplitude = "local"``).
     inducing_spacing
         Requested spacing h of the cubic-B-spline inducing grid (``None``: ``length_scale / 2``).
@@ -373,15 +376,15 @@ class GPSettings:
         if self.mean not in MEANS:
             raise ValueError(did_you_mean(f"mean must be one of {', '.join(repr(m) for m in MEANS)}, got {self.mean!r}",
                                           self.mean, MEANS))
-        if self.mean == "linear":
+        if self.mean != "constant":
             if self.prior_mean is not None:
-                raise ValueError(f"mean = \"linear\" estimates the mean from the data: leave prior_mean unset (got "
+                raise ValueError(f"mean = \"{self.mean}\" estimates the mean from the data: leave prior_mean unset (got "
                                  f"{self.prior_mean!r})")
             if self.kernel in GMRF_KERNELS:
-                raise ValueError(f"mean = \"linear\" needs a separable kernel (squared-exponential, matern52, "
+                raise ValueError(f"mean = \"{self.mean}\" needs a separable kernel (squared-exponential, matern52, "
                                  f"matern32), not kernel {self.kernel!r}")
             if self.amplitude == "local":
-                raise ValueError("mean = \"linear\" is not available with amplitude = \"local\" (the local "
+                raise ValueError(f"mean = \"{self.mean}\" is not available with amplitude = \"local\" (the local "
                                  "amplitude's fit has no restricted likelihood); use one of them")
         for name in ("hyper_step_sd", "hyper_prior_sd_signal"):
             if getattr(self, name) is not None:

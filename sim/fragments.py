@@ -83,6 +83,8 @@ def empty_map_like(sim, kernel_angle) -> GaussianProcess:
         gp.use_barrier(sim.gp.barrier_on)            # barrier = "auto": the main map's choice
     gp.set_hyperparameters(gs.signal_variance, gs.length_scale, getattr(gs, "length_scale_y", None),
                            nugget=getattr(gs, "nugget", None))
+    if getattr(gs, "mean", "constant") != gp.settings.mean:     # gp.mean = "auto": the main map's choice
+        gp.set_mean(gs.mean)
     g = getattr(sim.gp, "log_amplitude", None)
     if g is not None:                                # gp.amplitude = "local": the main map's learned factor (world x)
         gp.set_log_amplitude(g)

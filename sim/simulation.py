@@ -539,6 +539,8 @@ class Simulation:
             if self.swarm_scale is not None:
                 self.result.kernel["swarm_factor"] = self.swarm_scale.factor
             self.mean, self.var = self.predict()
+            if self.config.gp.mean == "auto":    # the mean the refit chose
+                self.result.kernel["mean"] = gs.mean
             trend = self.gp.trend_in_world()
             if trend is not None:            # gp.mean = "linear": the GLS trend (value at the centre, gradient)
                 self.result.kernel["trend"] = [float(v) for v in trend]

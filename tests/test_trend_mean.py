@@ -279,3 +279,40 @@ def test_a_tuned_run_with_the_linear_mean_is_the_same_in_other_units():
     assert np.allclose(np.sqrt(v2), 1000 * np.sqrt(v1), rtol=1e-6)
     t1, t2 = np.array(r1.kernel["trend"]), np.array(r2.kernel["trend"])
     assert np.allclose(t2, 1000 * t1 + [400, 0, 0], rtol=1e-6)
+
+
+def test_auto_keeps_the_trend_on_the_tabletop_and_the_constant_mean_on_a_stationary_field():
+    """``mean = "auto"``: every refit fits both means and keeps the linear one when its profile log likelihood exceeds the
+    constant's by more than log n (BIC); the stop rule's follower follows the choice."""
+    rng = np.random.default_rng(0)
+    X = rng.uniform([0, 0], [3, 2], size=(600, 2))
+    y = _tabletop(X) + 0.1 * rng.standard_normal(600)
+    gp = _refitted("auto", X, y, (0, 3, 0, 2), 0.01, grid_cells=30, low_rank_updates=True, learn_nugget=True)
+    assert [c[3] for c in gp.mean_choices] == ["linear", "linear"]
+    n, ll_const, ll_lin, _ = gp.mean_choices[-1]
+    assert n == 600 and ll_lin - ll_const > 3 * math.log(n)
+    assert gp.settings.mean == "linear" and gp.initial_settings.mean == "auto" and gp.settings.length_scale < 0.6
+    f = gp.follower()
+    assert f.settings.mean == "linear"
+
+    X = rng.uniform(0, 10, size=(400, 2))
+    y = np.sin(X[:, 0]) * np.cos(X[:, 1]) + 0.2 * rng.standard_normal(400)
+    gp = GaussianProcess(GPSettings(noise_variance=0.04, mean="auto", grid_cells=20, **TUNED), (0, 10, 0, 10))
+    f = gp.follower()
+    gp.set_mean("linear")                      # as if an earlier refit had chosen the trend
+    assert f.settings.mean == "linear"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        gp.add(X, y)
+        refit_online(gp)
+    assert gp.mean_choices[-1][3] == "constant" and gp.settings.mean == "constant" and f.settings.mean == "constant"
+    assert gp.trend is None
+
+
+def test_auto_needs_the_refits():
+    from swarmfield.sim.config import config_from_dict
+    with pytest.raises(ValueError, match=r"gp.mean = \"auto\" is chosen at each hyperparameter refit"):
+        config_from_dict({"gp": {"mean": "auto"}})
+    assert config_from_dict({"gp": {"mean": "auto"}}, preset="tuned").gp.mean == "auto"
+    with pytest.raises(ValueError, match=r"mean = \"auto\" needs a separable kernel"):
+        GPSettings(mean="auto", kernel="gmrf")
