@@ -440,7 +440,7 @@ def refit_online(gp: GaussianProcess):
     previous = [cur.signal_variance, cur.length_scale] + ([cur.length_scale_y] if cur.length_scale_y is not None else [])
     out = {}
     s2, ell, ell_y, lo, hi = _fit(gp, _prior(gp), c, previous, out)
-    if s0.mean == "auto":
+    if s0.mean == "auto" and s0.trend_available:
         s2, ell, ell_y, lo, hi = _choose_mean(gp, c, previous + [cur.nugget], (s2, ell, ell_y, lo, hi), out)
     tau2 = out["nugget"]
     sv_lo, sv_hi = signal_variance_bounds(gp)

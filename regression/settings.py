@@ -75,8 +75,9 @@ class GPSettings:
         constant mean the learned length scale follows the trend and the structure is smoothed away.  ``"auto"``:
         the GP starts with the constant mean and every online refit (with ``learn_hyperparameters``) fits both and
         keeps the one of the larger BIC, the trend when its profile log likelihood exceeds the constant's by more than
-        log n (its two more parameters; :func:`regression.hyper.refit_online`).  ``"linear"`` and ``"auto"`` need
-        ``prior_mean`` unset and a separable kernel (not the GMRF ones, nor ``amplitude = "local"``).
+        log n (its two more parameters; :func:`regression.hyper.refit_online`).  ``"linear"`` needs ``prior_mean``
+        unset and a separable kernel (not the GMRF ones, nor ``amplitude = "local"``); ``"auto"`` is the constant mean
+        where the trend is not available (:attr:`trend_available`) and without the refits.
     inducing_spacing
         Requested spacing h of the cubic-B-spline inducing grid (``None``: ``length_scale / 2``).
         Each axis of length L gets ``ceil(L / h)`` cells of equal width <= h. The kernel
@@ -376,7 +377,7 @@ class GPSettings:
         if self.mean not in MEANS:
             raise ValueError(did_you_mean(f"mean must be one of {', '.join(repr(m) for m in MEANS)}, got {self.mean!r}",
                                           self.mean, MEANS))
-        if self.mean != "constant":
+        if self.mean == "linear":
             if self.prior_mean is not None:
                 raise ValueError(f"mean = \"{self.mean}\" estimates the mean from the data: leave prior_mean unset (got "
                                  f"{self.prior_mean!r})")
@@ -398,6 +399,13 @@ class GPSettings:
             x0, x1, y0, y1 = domain
             h = min(h, max(x1 - x0, y1 - y0) / self.grid_cells)
         return h
+
+    @property
+    def trend_available(self) -> bool:
+        """Whether this GP can have a linear trend in its mean (``mean = "linear"``, or ``"auto"``'s choice): a separable
+        kernel, a stationary amplitude and no fixed ``prior_mean``."""
+        from .kernels import GMRF_KERNELS
+        return self.kernel not in GMRF_KERNELS and self.amplitude != "local" and self.prior_mean is None
 
     @property
     def residual_variance(self) -> float:

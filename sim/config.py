@@ -465,9 +465,6 @@ class RunConfig:
             raise ValueError(f"sim.gamma ({s.gamma:g}) must be below the GP prior variance gp.signal_variance "
                              f"({self.gp.signal_variance:g}): sup V starts there, so Algorithm 1 would stop before "
                              "the robots move")
-        if self.gp.mean == "auto" and not self.gp.learn_hyperparameters:
-            raise ValueError("gp.mean = \"auto\" is chosen at each hyperparameter refit: it needs "
-                             "gp.learn_hyperparameters = true (the tuned preset's), or give \"constant\" or \"linear\"")
         if self.gp.kernel_angle == "auto" and not self.gp.learn_hyperparameters:
             raise ValueError("gp.kernel_angle = \"auto\" is chosen at the first hyperparameter refit: it needs "
                              "gp.learn_hyperparameters = true (the tuned preset's), or give the angle in degrees")

@@ -58,7 +58,7 @@ def _data(rng, n=60, box=(4.0, 3.0)):
 
 def test_settings_mean_choices_and_refusals():
     assert GPSettings().mean == "constant"
-    with pytest.raises(ValueError, match=r"mean must be one of 'constant', 'linear', got 'linaer' \(did you mean linear\?\)"):
+    with pytest.raises(ValueError, match=r"mean must be one of 'constant', 'linear', 'auto', got 'linaer' \(did you mean linear\?\)"):
         GPSettings(mean="linaer")
     with pytest.raises(ValueError, match="leave prior_mean unset"):
         GPSettings(mean="linear", prior_mean=1.0)
@@ -309,10 +309,17 @@ def test_auto_keeps_the_trend_on_the_tabletop_and_the_constant_mean_on_a_station
     assert gp.trend is None
 
 
-def test_auto_needs_the_refits():
-    from swarmfield.sim.config import config_from_dict
-    with pytest.raises(ValueError, match=r"gp.mean = \"auto\" is chosen at each hyperparameter refit"):
-        config_from_dict({"gp": {"mean": "auto"}})
-    assert config_from_dict({"gp": {"mean": "auto"}}, preset="tuned").gp.mean == "auto"
-    with pytest.raises(ValueError, match=r"mean = \"auto\" needs a separable kernel"):
-        GPSettings(mean="auto", kernel="gmrf")
+def test_auto_is_the_constant_mean_where_the_trend_is_not_available():
+    """A GMRF kernel, a local amplitude or a fixed prior mean have no trend: "auto" keeps the constant mean there (an
+    explicit "linear" is refused), and the refit makes no choice."""
+    rng = np.random.default_rng(6)
+    X, y = _data(rng, 200, (6.0, 6.0))
+    for extra in ({"kernel": "gmrf2"}, {"amplitude": "local"}, {"prior_mean": 3.0}):
+        s = GPSettings(mean="auto", noise_variance=0.04, learn_hyperparameters=True, **extra)
+        assert not s.trend_available
+        gp = GaussianProcess(s, (0, 6, 0, 6))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            gp.add(X, y)
+            refit_online(gp)
+        assert gp.settings.mean == "constant" and gp.mean_choices == [] and gp.trend is None
