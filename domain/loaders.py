@@ -527,8 +527,14 @@ def _load_ros_yaml(path: Path, sim_extent):
         raise ValueError(f"domain file {path}: nested too deeply to read") from None
     s = _ros_settings(path, doc)
     img = s["image"]
+    moved = None
     if not img.is_file():
-        raise ValueError(f"domain file {path}: its image {doc['image']!r} does not exist (looked for {img})")
+        beside = path.parent / img.name
+        if Path(doc["image"]).is_absolute() and beside.is_file():
+            # map_saver given a path writes it whole: a map folder copied to another machine names its old place
+            moved, img = img, beside
+        else:
+            raise ValueError(f"domain file {path}: its image {doc['image']!r} does not exist (looked for {img})")
     from .limits import max_pixels
     bomb = PIL.MAX_IMAGE_PIXELS
     PIL.MAX_IMAGE_PIXELS = max(bomb or 0, max_pixels())
@@ -575,6 +581,8 @@ def _load_ros_yaml(path: Path, sim_extent):
         dom.notes = (f"domain file {path}: {100.0 * between / free.size:.3g} % of the map's pixels are {what} "
                      f"(occupancy from free_thresh = {s['free_thresh']:g} to occupied_thresh = "
                      f"{s['occupied_thresh']:g}, e.g. map_saver's grey 205) and are treated as obstacles",)
+    if moved is not None:
+        dom.notes += (f"domain file {path}: its image {str(moved)!r} does not exist; read {img.name} beside it instead",)
     if saver.any():
         dom.notes += (f"domain file {path}: {100.0 * saver.sum() / free.size:.3g} % of the map's pixels are grey "
                       f"{SAVER_UNKNOWN}, which map_saver writes for unknown cells; under free_thresh = "

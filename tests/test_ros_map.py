@@ -199,3 +199,34 @@ def test_the_extent_a_user_types_for_a_map_with_round_off_runs(tmp_path, capsys)
     code = simulate_swarm(["--config", str(cfg), "--domain", str(path), "--out", str(tmp_path / "run"), "--controller",
                            "lawnmower", "--max-periods", "1", "--robots", "20", "--no-figures"])
     assert code == 0, capsys.readouterr().err
+
+
+def test_scale_mode_and_an_rgba_image(tmp_path):
+    """mode: scale (nav2): a pixel not fully opaque is unknown, one between the thresholds a probability ROS scales
+    (an obstacle here), one below free_thresh free; trinary mode averages the opacity into the shade."""
+    from PIL import Image
+    rgba = np.zeros((4, 8, 4), np.uint8)
+    rgba[..., :3] = 254
+    rgba[..., 3] = 255
+    rgba[:, 1, 3] = 254                 # white, not quite opaque
+    rgba[:, 2, :3] = 128                # between the thresholds (p = 0.498)
+    rgba[:, 3, :3] = 0                  # occupied
+    Image.fromarray(rgba, "RGBA").save(tmp_path / "s.png")
+    doc = "image: s.png\nresolution: 1.0\norigin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    (tmp_path / "s.yaml").write_text(doc + "mode: scale\n")
+    row = load_domain(tmp_path / "s.yaml").free_pixels[:, 0]
+    assert row.tolist() == [True, False, False, False, True, True, True, True]
+    (tmp_path / "t.yaml").write_text(doc + "mode: trinary\n")
+    row = load_domain(tmp_path / "t.yaml").free_pixels[:, 0]       # (3 x 254 + 254) / 4: free, as ROS averages it
+    assert row.tolist() == [True, True, False, False, True, True, True, True]
+
+
+def test_an_absolute_image_path_from_another_machine_reads_the_image_beside_the_map(tmp_path):
+    """map_saver given a path writes it whole (image: /home/robot/maps/map.pgm): a map folder copied elsewhere named
+    an image that is not there.  The image of that name beside the .yaml is read, with a note."""
+    path = _map(tmp_path, image="/home/robot/maps/map.pgm")
+    dom = load_domain(path)
+    assert dom.extent == pytest.approx(EXTENT)
+    assert any("/home/robot/maps/map.pgm" in n and "beside" in n for n in dom.notes)
+    with pytest.raises(ValueError, match="its image '/home/robot/maps/other.pgm' does not exist"):
+        load_domain(_map(tmp_path, image="/home/robot/maps/other.pgm"))
