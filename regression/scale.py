@@ -55,7 +55,7 @@ def detrended_variance(gp, var: float) -> float:
         return var
     beta = np.linalg.solve(t.hth, t.hty)
     rss = t.yy - float(beta @ t.hty)
-    return max(rss / (t.n - 3), 0.0)
+    return max(rss / (t.n_points - 3), 0.0)
 
 
 def running_variance(gp) -> float:

@@ -60,13 +60,13 @@ RANK_TOLERANCE = 1e-8
 @dataclasses.dataclass(frozen=True)
 class TrendSums:
     """The trend's sufficient statistics of the data (all of y - y_0, the GP's offset): ``py`` = Phi^T y (M,),
-    ``ph`` = Phi^T H (M, 3), ``hth`` = H^T H, ``hty`` = H^T y, ``yy`` = y^T y, ``n`` the number of points."""
+    ``ph`` = Phi^T H (M, 3), ``hth`` = H^T H, ``hty`` = H^T y, ``yy`` = y^T y, ``n_points`` the number of points."""
     py: np.ndarray
     ph: np.ndarray
     hth: np.ndarray
     hty: np.ndarray
     yy: float
-    n: int
+    n_points: int
 
 
 def trend_design(points: np.ndarray, centre, scale: float) -> np.ndarray:
