@@ -58,8 +58,8 @@ from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict, g
 from ..regression import GPSettings
 from ..domain import DomainSettings
 from .presets import DEFAULT_PRESET, PRESETS, merge_under_preset
-from .site_scale import (SITE_SCALE_RULES, SWARM_SCALE_RULES, SWARM_SCALED, area_ratio, resolved_site_area,
-                         scale_document, site_area, spacing_ratio)
+from .site_scale import (SITE_SCALE_RULES, SWARM_SCALE_RULES, SWARM_SCALED, area_ratio, length_ratio,
+                         resolved_site_area, scale_document, scale_lengths, site_area, spacing_ratio)
 from .stopping import STOP_RULES
 
 __all__ = ["SimSettings", "KDESettings", "RunConfig", "load_config", "read_toml", "config_from_dict", "to_toml",
@@ -574,9 +574,11 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
     sim_map = _map_extent_defaults(sim_map, given.get("sim", {}), overrides or {}, source)
     sim = dataclass_from_dict(SimSettings, sim_map, "sim")
     area = resolved_site_area(sim, source)    # a map's free area
-    defaults = {"kde": KDESettings, "feedback": FeedbackSettings, "planner": PlannerSettings}
+    defaults = {"kde": KDESettings, "feedback": FeedbackSettings, "planner": PlannerSettings, "gp": GPSettings}
     site_ratio = area_ratio(sim.domain, sim.site_scale, area)
     doc, _ = scale_document(doc, given, site_ratio, defaults)
+    # a site smaller than the paper's: the GP's prior length scale (sim.site_scale, "A site smaller than the paper's")
+    doc, _ = scale_lengths(doc, given, length_ratio(sim.domain, sim.site_scale, area), defaults, sim.domain)
     if sim.swarm_scale == "spacing":          # a swarm sparser than the paper's (sim.site_scale, "A swarm sparser")
         free = site_area(sim.domain, source) if area is None else area
         doc, _ = scale_document(doc, given, spacing_ratio(free, sim.robots, sim.swarm_scale, site_ratio), defaults,

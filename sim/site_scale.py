@@ -23,11 +23,29 @@ With ``sim.site_scale = "area"`` (the tuned preset's) the settings of :data:`SCA
 2 T was 0.91 / 0.92x what it was with 1.53 (seeds 0 / 1; docs/results/map-quality.md, "The site's area on a map").
 The bandwidth by s (the robots' spacing sqrt(|Omega| / n) grows
 with s), the energy weight by 1 / s^2 (the penalty on the site's mean |v|^2 stays the rectangle's).  On any
-rectangle of at most 400 m^2 s is 1 and nothing changes (not a bit): a bandwidth wider than the robots' spacing
+rectangle of at most 400 m^2 s is 1 and these two do not change (not a bit): a bandwidth wider than the robots' spacing
 only smooths more, and the preset was not measured on smaller sites.  Only values the user's configuration does not
 give are scaled: the preset's values and the defaults; a value given in a ``--config`` file is used as given, so a
 run's own ``DIR/config.toml`` (which spells out every resolved value) repeats it.  ``"off"`` (the paper preset's)
 keeps every value as given.  summary.json records the factor and the resolved values (:func:`site_summary`).
+
+**A site smaller than the paper's** (:data:`LENGTH_SCALED`; docs/results/stop-rule.md, "A length-scale prior relative
+to a small site").  On a rectangle of less than 400 m^2 the GP's prior length scale ``gp.length_scale`` (the centre of
+its log-normal prior, regression.hyper, and the length the robust stop rule checks its threshold at, sim.stopping;
+``gp.length_scale_y`` too when set) is multiplied by
+
+    s_small = sqrt(|Omega| / A_ref) < 1,
+
+|Omega| the free area as above, but not below twice the inducing grid's cell (longer side / ``gp.grid_cells``;
+1.5 x ``gp.inducing_spacing`` when that is given; :func:`length_floor`): the grid min(l / 2, longer side / grid_cells)
+stays the one the 1 m prior gets, and the prior's centre stays a third above the shortest learnable length.  With the
+tuned preset's 40 cells that floor is what binds on a rectangle (longer side / 20: the paper's 1 m on its 20 m): 0.15 m
+on a 3 m x 2 m table, 0.25 m on a 5 m x 3 m bench.  On the table, 100 measurements in the start box refitted at t = 0
+learned the 1 m prior's median (0.98 m), the band was as narrow as 1 m makes it and the stop fired at 0.12-0.62 T
+with the band covering 0.57-0.88 of the cells.  Every rectangle of 400 m^2 or more (with or without a map) keeps its
+length scale, bit for bit; the KDE bandwidth and the energy weight are not scaled down (a bandwidth wider than the
+robots' spacing only smooths more; on the bench a smaller one did not help).  Values given in the configuration are
+used as given, as above; summary.json's block records s_small (``length_factor``) and the resolved length scales.
 
 Not scaled, measured on the yard (same page): the reference speed (``planner.reference_speed`` x s: the plans did
 not use the budget they had, the same maps within the runs' spread) and the stirring speed (x s: the robots
@@ -75,7 +93,7 @@ from __future__ import annotations
 import math
 
 __all__ = ["SITE_SCALE_RULES", "REFERENCE_AREA", "SCALED", "area_ratio", "site_area", "site_factor", "scaled_value",
-           "scale_document", "site_summary", "resolved_site_area", "SWARM_SCALE_RULES", "REFERENCE_ROBOT_AREA",
+           "scale_document", "LENGTH_SCALED", "length_ratio", "length_factor", "length_floor", "scale_lengths", "site_summary", "resolved_site_area", "SWARM_SCALE_RULES", "REFERENCE_ROBOT_AREA",
            "SWARM_SCALED", "spacing_ratio", "spacing_factor", "swarm_summary", "capped_factor", "SpacingCappedByLength"]
 
 #: ``sim.site_scale``: "off" (values as given) or "area" (scaled by s = max(1, sqrt(area / REFERENCE_AREA)))
@@ -92,6 +110,14 @@ SCALED: tuple[tuple[str, str, int], ...] = (
     ("planner", "w_v", -2),
 )
 
+
+#: (section, key, power of s_small): the settings the rule scales on a site smaller than :data:`REFERENCE_AREA`
+#: (:func:`length_ratio`): the GP's prior length scale, the centre of its log-normal prior and the length the robust
+#: stop rule checks the threshold at (sim.stopping), and an anisotropic kernel's second one
+LENGTH_SCALED: tuple[tuple[str, str, int], ...] = (
+    ("gp", "length_scale", 1),
+    ("gp", "length_scale_y", 1),
+)
 
 #: ``sim.swarm_scale``: "off" (values as given), "spacing" (scaled by c = max(1, q / s) when the configuration is
 #: resolved) or "spacing-capped" (scaled during the run by max(1, min(c, l / l_0)), :class:`SpacingCappedByLength`)
@@ -143,11 +169,60 @@ def site_factor(domain, rule: str = "area", area: float | None = None) -> float:
 
 def resolved_site_area(sim, source="") -> float | None:
     """The area the rule scales by for a run's ``[sim]`` settings and ``[domain] source``: None when it cannot
-    matter (rule "off", or a rectangle of at most :data:`REFERENCE_AREA`, whose free area is no larger), else
+    matter (rule "off", or a rectangle of exactly :data:`REFERENCE_AREA`: neither factor applies), else
     :func:`site_area` (which loads the map)."""
-    if sim.site_scale == "off" or _rectangle_area(sim.domain) <= REFERENCE_AREA:
+    if sim.site_scale == "off" or _rectangle_area(sim.domain) == REFERENCE_AREA:
         return None
     return site_area(sim.domain, source)
+
+
+def length_ratio(domain, rule: str = "area", area: float | None = None) -> float:
+    """s_small^2 = min(1, |Omega| / :data:`REFERENCE_AREA`) for ``rule`` "area" on a rectangle ``domain`` smaller than
+    :data:`REFERENCE_AREA`, else 1.0 (rule "off", and every rectangle of 400 m^2 or more, with or without a map:
+    not measured); |Omega| is ``area`` if given (a map's free area, :func:`site_area`), else the rectangle's."""
+    if rule not in SITE_SCALE_RULES:
+        raise ValueError(f"sim.site_scale must be one of {', '.join(repr(r) for r in SITE_SCALE_RULES)}, got {rule!r}")
+    rect = _rectangle_area(domain)
+    if rule == "off" or rect >= REFERENCE_AREA:
+        return 1.0
+    area = rect if area is None else float(area)
+    return area / REFERENCE_AREA if area < REFERENCE_AREA else 1.0
+
+
+def length_factor(domain, rule: str = "area", area: float | None = None) -> float:
+    """s_small = sqrt(:func:`length_ratio`): the factor of the prior length scale on a small site."""
+    return math.sqrt(length_ratio(domain, rule, area))
+
+
+def length_floor(gp: dict, domain, defaults) -> float:
+    """The shortest prior length scale the rule gives on ``domain`` for the ``[gp]`` table ``gp`` (defaults from the
+    settings class ``defaults``): twice the inducing grid's cell, longer side / ``grid_cells``, so that the grid
+    min(l / 2, longer side / grid_cells) stays the one the unscaled length scale gets (no finer, no costlier) and the
+    prior's centre lies a third above the shortest learnable length (1.5 cells; regression.hyper); 1.5 x a given
+    ``inducing_spacing``; 0 with neither (the grid is l / 2 and follows)."""
+    spacing = gp.get("inducing_spacing", getattr(defaults, "inducing_spacing", None))
+    if isinstance(spacing, (int, float)) and not isinstance(spacing, bool):
+        return 1.5 * float(spacing)
+    cells = gp.get("grid_cells", getattr(defaults, "grid_cells", None))
+    if isinstance(cells, int) and not isinstance(cells, bool) and cells > 0:
+        x0, x1, y0, y1 = (float(v) for v in domain)
+        return 2.0 * max(x1 - x0, y1 - y0) / cells
+    return 0.0
+
+
+def scale_lengths(doc: dict, given: dict, ratio: float, defaults: dict, domain) -> tuple[dict, dict]:
+    """``doc`` with the :data:`LENGTH_SCALED` settings that ``given`` does not set multiplied by s_small
+    (s_small^2 = ``ratio``, :func:`length_ratio`) but not below :func:`length_floor` (nor above the value itself);
+    like :func:`scale_document`, whose (document, scaled values) it returns.  A ratio of 1 returns ``doc`` itself."""
+    out, scaled = scale_document(doc, given, ratio, defaults, LENGTH_SCALED)
+    if not scaled:
+        return out, scaled
+    floor = length_floor(out.get("gp", {}), domain, defaults["gp"])
+    for name, (before, after) in scaled.items():
+        new = min(before, max(after, floor))
+        out["gp"][name.split(".", 1)[1]] = new
+        scaled[name] = [before, new]
+    return out, scaled
 
 
 def scaled_value(value: float, ratio: float, power: int) -> float:
@@ -205,13 +280,14 @@ def scale_document(doc: dict, given: dict, ratio: float, defaults: dict, setting
 
 def site_summary(config) -> dict:
     """summary.json's ``site_scale`` block: the rule, the reference area, the site's area (the map's free area with a
-    ``[domain]`` map, :func:`site_area`), the factor s and the resolved values of the settings the rule scales
-    (whether scaled or given)."""
+    ``[domain]`` map, :func:`site_area`), the factor s, the small site's factor s_small (:func:`length_factor`) and
+    the resolved values of the settings the rule scales (whether scaled or given)."""
     s = config.sim
     area = site_area(s.domain, config.domain.source)
     return {"rule": s.site_scale, "reference_area_m2": REFERENCE_AREA, "area_m2": area,
             "factor": site_factor(s.domain, s.site_scale, area),
-            "settings": {f"{sec}.{key}": getattr(getattr(config, sec), key) for sec, key, _ in SCALED}}
+            "length_factor": length_factor(s.domain, s.site_scale, area),
+            "settings": {f"{sec}.{key}": getattr(getattr(config, sec), key) for sec, key, _ in SCALED + LENGTH_SCALED}}
 
 
 def swarm_summary(config) -> dict:

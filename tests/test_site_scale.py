@@ -55,7 +55,8 @@ def test_yard_scales_bandwidth_and_energy_weight_unless_given_and_repeats_from_i
     s = site_summary(cfg)
     assert s["rule"] == "area" and s["area_m2"] == 2400.0 and s["reference_area_m2"] == REFERENCE_AREA
     assert s["factor"] == pytest.approx(math.sqrt(6.0))
-    assert s["settings"] == {"kde.bandwidth": cfg.kde.bandwidth, "planner.w_v": cfg.planner.w_v}
+    assert s["settings"] == {"kde.bandwidth": cfg.kde.bandwidth, "planner.w_v": cfg.planner.w_v,
+                             "gp.length_scale": 2.0, "gp.length_scale_y": None}
     with pytest.raises(ValueError, match="sim.site_scale"):
         config_from_dict({"sim": {"site_scale": "yes"}}, preset="tuned")
 
@@ -121,7 +122,8 @@ def test_a_run_on_a_larger_site_records_the_scaling_and_repeats_from_its_config_
                           "--no-figures"]) == 0, capsys.readouterr().err
     summary = json.loads((out / "summary.json").read_text())
     assert summary["site_scale"]["factor"] == 1.5 and summary["site_scale"]["rule"] == "area"
-    assert summary["site_scale"]["settings"] == {"kde.bandwidth": 1.5, "planner.w_v": 0.01 / 2.25}
+    assert summary["site_scale"]["settings"] == {"kde.bandwidth": 1.5, "planner.w_v": 0.01 / 2.25,
+                                                 "gp.length_scale": 1.5, "gp.length_scale_y": None}
     assert summary["config"]["kde"]["bandwidth"] == 1.5 and summary["config"]["planner"]["w_v"] == 0.01 / 2.25
     # the resolved config.toml spells the scaled values out: the run repeats, scaled once
     assert simulate_main(["--config", str(out / "config.toml"), "--out", str(again), "--quiet", "--no-figures"]) == 0
@@ -175,3 +177,40 @@ def test_simulate_swarm_domain_flag_scales_by_the_maps_free_area(tmp_path, capsy
     assert ca["kde"]["bandwidth"] == pytest.approx(cb["kde"]["bandwidth"])
     assert ca["planner"]["w_v"] == pytest.approx(cb["planner"]["w_v"])
     assert ca["kde"]["bandwidth"] == pytest.approx(np.sqrt(600.0 / 400.0), rel=0.02)   # the free 20 m x 30 m
+
+
+TABLE = {"sim": {"domain": [0.0, 3.0, 0.0, 2.0], "start_box": [0.0, 1.05, 0.0, 0.7]}}
+
+
+def test_a_site_smaller_than_the_papers_gets_a_shorter_prior_length_scale_larger_ones_not():
+    """On a 3 m x 2 m table the prior length scale 1 m (the paper square's) is scaled by s_small = sqrt(6 / 400), but
+    not below twice the inducing grid's cell (3 m / 40 cells): 0.15 m; the 20 m and 50 m squares keep 1 m, bit for bit."""
+    table = config_from_dict(TABLE, preset="tuned")
+    assert table.gp.length_scale == pytest.approx(0.15, rel=1e-12) and table.gp.length_scale_y is None
+    finer = config_from_dict({**TABLE, "gp": {"grid_cells": 80}}, preset="tuned")    # floor 0.075 m: s_small binds
+    assert finer.gp.length_scale == pytest.approx(math.sqrt(6.0 / 400.0), rel=1e-12)
+    assert config_from_dict(table.as_dict()) == table                   # repeats from its resolved config
+    s = site_summary(table)
+    assert s["length_factor"] == pytest.approx(math.sqrt(6.0 / 400.0)) and s["factor"] == 1.0
+    assert s["settings"]["gp.length_scale"] == table.gp.length_scale
+    assert table.kde.bandwidth == 1.0 and table.planner.w_v == 0.01     # the other settings as before
+    for side in (20.0, 50.0):
+        big = config_from_dict({"sim": {"domain": [0.0, side, 0.0, side]}}, preset="tuned")
+        assert big.gp.length_scale == 1.0 and site_summary(big)["length_factor"] == 1.0
+    # the paper's square resolves to the preset's values: nothing of the rule (the settings it scales included)
+    square = config_from_dict({}, preset="tuned").as_dict()
+    assert square["gp"]["length_scale"] == 1.0 and square["gp"]["length_scale_y"] is None
+    assert square["kde"]["bandwidth"] == 1.0 and square["planner"]["w_v"] == 0.01
+    assert config_from_dict({"sim": {"site_scale": "off"}, "gp": {"length_scale": 1.0}}, preset="tuned").gp == \
+        config_from_dict({"sim": {"site_scale": "off"}}, preset="tuned").gp
+    # off and the paper preset: the 1 m as given
+    assert config_from_dict({**TABLE, "sim": {**TABLE["sim"], "site_scale": "off"}}, preset="tuned").gp.length_scale == 1.0
+    assert config_from_dict(TABLE).gp.length_scale == 1.0
+
+
+def test_a_small_sites_length_scale_given_in_the_configuration_is_kept():
+    mine = config_from_dict({**TABLE, "gp": {"length_scale": 0.5}}, preset="tuned")
+    assert mine.gp.length_scale == 0.5
+    both = config_from_dict({**TABLE, "gp": {"length_scale_y": 0.4}}, preset="tuned")
+    assert both.gp.length_scale == pytest.approx(0.15, rel=1e-12) and both.gp.length_scale_y == 0.4
+    assert site_summary(mine)["settings"]["gp.length_scale"] == 0.5
