@@ -66,7 +66,10 @@ def test_gp_keeps_its_digits_on_a_field_with_a_large_offset():
 def _run(a, b, controller="greedy", periods=2, cells=20):
     cfg = config_from_dict({"sim": {"noise_variance": 0.04 * a * a, "controller": controller, "max_periods": periods,
                                     "robots": 30, "domain": [0, 10, 0, 10], "start_box": [0, 4, 0, 4]},
-                            "planner": {"nx": cells, "ny": cells}}, preset="tuned")
+                            "planner": {"nx": cells, "ny": cells},
+                            # the 1 m prior this test was written with (the tuned preset's own on a 10 m square is
+                            # 0.5 m, sim.site_scale): at 0.5 m greedy's goals differ between the units after a period
+                            "gp": {"length_scale": 1.0}}, preset="tuned")
     base = make_field("sinc", cfg.sim.domain)
     return run_simulation(cfg, field=Affine(base, a, b))
 
