@@ -218,7 +218,12 @@ PRESETS: dict[str, dict] = {
         # lawnmower 3.88 / 3.75), RMSE at 4 T 1.27 / 1.20x greedy's -> 0.98 / 0.95x, paths 56 -> 71 m in 4 T; with the
         # spreading too, on the yard and two sites drawn afterwards (seeds 0-3): the threshold first on 12 of 12, the
         # map at 4 T the best of four controllers on 12 of 12, at 2 T on 6 (docs/results/map-quality.md, "Larger
-        # sites").  Not scaled, measured: the reference speed, the stirring speed, alpha, p_floor, spread_radius
+        # sites").  Not scaled, measured: the reference speed, the stirring speed, alpha, p_floor, spread_radius.
+        # On a site smaller than 400 m^2 the GP's prior length scale (1 m, the centre of its prior and the robust
+        # rule's check) x sqrt(area / 400 m^2), not below two inducing-grid cells (sim.site_scale.LENGTH_SCALED): on
+        # a 3 m x 2 m tabletop 0.15 m, the stop at 1.6-2.8 T with the band covering 0.91-0.98 of the cells and the
+        # RMSE 0.24-0.28 of the bumps' sd, instead of 0.12-0.38 T, 0.68-0.88 and 0.73-1.21 (seeds 0-3, four
+        # controllers; docs/results/stop-rule.md, "A length-scale prior relative to a small site")
         # swarm_scale "spacing-capped": a swarm sparser than 100 robots per 400 m^2 (on a site of 400 m^2 or more:
         # fewer than 100 robots) gets the KDE bandwidth and the spreading radius widened towards its spacing, at every
         # refit, never beyond the learned length scale's ratio (sim.site_scale); at 100 robots or more nothing changes
