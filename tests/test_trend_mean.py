@@ -323,3 +323,30 @@ def test_auto_is_the_constant_mean_where_the_trend_is_not_available():
             gp.add(X, y)
             refit_online(gp)
         assert gp.settings.mean == "constant" and gp.mean_choices == [] and gp.trend is None
+
+
+def test_auto_takes_no_trend_from_data_in_a_corner_of_the_site():
+    """A plane fitted to the start box's data is the field's local slope, not a trend over the site: "auto" considers
+    the trend only once the data spread over half the site along every direction (``hyper.data_spread``)."""
+    from swarmfield.regression.hyper import TREND_SPREAD, data_spread
+    rng = np.random.default_rng(3)
+    slope = lambda X: 2.0 + 0.5 * X[:, 0] - 0.3 * X[:, 1]                      # an exact trend, for the test's sake
+    gp = GaussianProcess(GPSettings(noise_variance=0.01, mean="auto", grid_cells=20, **TUNED), (0, 20, 0, 20))
+    X = rng.uniform(0, 7, size=(300, 2))                                        # the paper's start box
+    H = trend_design(X, *gp._trend_frame())
+    assert data_spread(gp, H.T @ H) == pytest.approx(0.35, abs=0.03)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        gp.add(X, slope(X) + 0.1 * rng.standard_normal(300))
+        refit_online(gp)
+    assert gp.mean_choices[-1][3] == "constant" and gp.mean_choices[-1][1] is None and gp.settings.mean == "constant"
+    X2 = rng.uniform(0, 20, size=(600, 2))                                      # the swarm has spread
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        gp.add(X2, slope(X2) + 0.1 * rng.standard_normal(600))
+        refit_online(gp)
+    assert data_spread(gp) > TREND_SPREAD and gp.settings.mean == "linear"
+    rotated = GaussianProcess(GPSettings(noise_variance=0.01, mean="auto", grid_cells=20, kernel_angle=30.0, **TUNED),
+                              (0, 20, 0, 20))
+    rotated.add(X, slope(X))
+    assert data_spread(rotated) == pytest.approx(0.35, abs=0.03)         # the same in a rotated lattice frame
