@@ -326,14 +326,18 @@ def test_auto_is_the_constant_mean_where_the_trend_is_not_available():
 
 
 def test_auto_takes_no_trend_from_data_in_a_corner_of_the_site():
-    """A plane fitted to the start box's data is the field's local slope, not a trend over the site: "auto" considers
-    the trend only once the data spread over half the site along every direction (``hyper.data_spread``)."""
+    """A plane fitted to data from a corner of the site is the field's local slope, not a trend over the site: "auto"
+    considers the trend only once the data spread over ``TREND_SPREAD`` of the site along every direction
+    (``hyper.data_spread``)."""
     from swarmfield.regression.hyper import TREND_SPREAD, data_spread
     rng = np.random.default_rng(3)
     slope = lambda X: 2.0 + 0.5 * X[:, 0] - 0.3 * X[:, 1]                      # an exact trend, for the test's sake
     gp = GaussianProcess(GPSettings(noise_variance=0.01, mean="auto", grid_cells=20, **TUNED), (0, 20, 0, 20))
-    X = rng.uniform(0, 7, size=(300, 2))                                        # the paper's start box
+    X = rng.uniform(0, 4, size=(300, 2))                                        # a start box of 4 m in 20 m
     H = trend_design(X, *gp._trend_frame())
+    assert data_spread(gp, H.T @ H) == pytest.approx(0.2, abs=0.02) and 0.22 < TREND_SPREAD
+    P = rng.uniform(0, 7, size=(300, 2))                                        # the paper's start box: 0.35
+    H = trend_design(P, *gp._trend_frame())
     assert data_spread(gp, H.T @ H) == pytest.approx(0.35, abs=0.03)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -349,4 +353,4 @@ def test_auto_takes_no_trend_from_data_in_a_corner_of_the_site():
     rotated = GaussianProcess(GPSettings(noise_variance=0.01, mean="auto", grid_cells=20, kernel_angle=30.0, **TUNED),
                               (0, 20, 0, 20))
     rotated.add(X, slope(X))
-    assert data_spread(rotated) == pytest.approx(0.35, abs=0.03)         # the same in a rotated lattice frame
+    assert data_spread(rotated) == pytest.approx(0.2, abs=0.02)          # the same in a rotated lattice frame
