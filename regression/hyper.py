@@ -415,7 +415,9 @@ def _choose_mean(gp: GaussianProcess, c: int, previous: list, fit: tuple, out: d
     same way on a twin of gp (from its own last fit, or gp's ``previous`` values = (s_f^2, l[, l_y], tau^2) the first
     time), and gp keeps the mean of the larger BIC: the profile log likelihood log N(y - H beta_hat; 0, C) of each at
     its own fit (:meth:`GaussianProcess.profile_log_likelihood`, on gp's own grid), the linear mean when its exceeds
-    the constant's by more than log n (BIC: two more parameters, 2 dl > 2 log n).  REML values are not compared: the
+    the constant's by more than log n (BIC: two more parameters, 2 dl > 2 log n) and the data spread over
+    :data:`TREND_SPREAD` of the site (:func:`data_spread`; before that the constant mean, without the twin's refit).
+    REML values are not compared: the
     restricted likelihoods of two mean structures are of different contrasts of the data.  The twin's fit is kept for
     the next refit's start; (n, profile log likelihoods, choice) is appended to ``gp.mean_choices``.  Returns the fit
     kept; ``out`` receives the twin's :func:`refit` outputs when its mean is chosen."""

@@ -75,7 +75,9 @@ class GPSettings:
         constant mean the learned length scale follows the trend and the structure is smoothed away.  ``"auto"``:
         the GP starts with the constant mean and every online refit (with ``learn_hyperparameters``) fits both and
         keeps the one of the larger BIC, the trend when its profile log likelihood exceeds the constant's by more than
-        log n (its two more parameters; :func:`regression.hyper.refit_online`).  ``"linear"`` needs ``prior_mean``
+        log n (its two more parameters; :func:`regression.hyper.refit_online`), and only once the data spread over
+        :data:`regression.hyper.TREND_SPREAD` of the site along every direction (a slope in a corner of the site is
+        not a trend over it).  ``"linear"`` needs ``prior_mean``
         unset and a separable kernel (not the GMRF ones, nor ``amplitude = "local"``); ``"auto"`` is the constant mean
         where the trend is not available (:attr:`trend_available`) and without the refits.
     inducing_spacing
