@@ -38,8 +38,8 @@ from swarmfield.sim.fields import save_npz_field
 
 
 def _gp_sample(rng, P, length, n=3000):
-    """A squared-exponential GP sample of sd ~1 by random Fourier features."""
-    w = rng.standard_normal((n, 2)) / length
+    """A squared-exponential GP sample of sd ~1 by random Fourier features; ``length`` a scalar or (lx, ly)."""
+    w = rng.standard_normal((n, 2)) / np.asarray(length, float)
     b = rng.uniform(0, 2 * np.pi, n)
     return np.sqrt(2.0 / n) * np.cos(P @ w.T + b).sum(axis=1)
 

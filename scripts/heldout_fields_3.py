@@ -47,22 +47,10 @@ NOISE_SD = {"step": 0.02, "sandwaves": 0.05, "hotspot": 0.01, "ridge": 0.05, "lo
             "corridor": 0.05}
 
 
-def _gp_sample(rng, P, length, n=3000):
-    """A squared-exponential GP sample of sd ~1 by random Fourier features; ``length`` a scalar or (lx, ly)."""
-    w = rng.standard_normal((n, 2)) / np.asarray(length, float)
-    b = rng.uniform(0, 2 * np.pi, n)
-    return np.sqrt(2.0 / n) * np.cos(P @ w.T + b).sum(axis=1)
-
-
-def _lattice(x1, y1, h):
-    xs = np.arange(0, x1 + h / 2, h)
-    ys = np.arange(0, y1 + h / 2, h)
-    X, Y = np.meshgrid(xs, ys, indexing="ij")
-    return X, Y, np.column_stack([X.ravel(), Y.ravel()])
-
-
 def main(out: Path) -> None:
     out.mkdir(parents=True, exist_ok=True)
+    r2 = _round2()                   # round 2's GP sampler (random Fourier features) and lattice
+    _gp_sample, _lattice = r2._gp_sample, r2._lattice
     X, Y, P = _lattice(20.0, 20.0, 0.05)
     square = (0.0, 20.0, 0.0, 20.0)
 
