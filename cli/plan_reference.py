@@ -236,7 +236,7 @@ def domain_problem(args, grid, p0, target):
         if args.initial is None:
             box = start_box(args)
             if not dom.box_is_free(box):
-                hint = dom.start_box or dom.free_box(box[1] - box[0], box[3] - box[2])
+                hint = dom.start_box_hint(box)
                 suggestion = f" (e.g. --start-box {' '.join(f'{v:g}' for v in hint)})" if hint else ""
                 raise ValueError(f"domain {dom.name}: the default initial density (uniform on the start box "
                                  f"{[round(v, 9) for v in box]}) overlaps an obstacle; choose a free --start-box"

@@ -504,11 +504,15 @@ class Domain:
             width, height = width / 2, height / 2
         return None
 
+    def start_box_hint(self, box) -> tuple | None:
+        """A free start box to suggest instead of ``box``: the built-in domain's own, or :meth:`free_box` of its size."""
+        return self.start_box or self.free_box(box[1] - box[0], box[3] - box[2])
+
     def check_start_box(self, box) -> None:
-        """``ValueError`` unless the start box lies in the free space; the message suggests a free box of the
-        same size (the built-in domain's own, or :meth:`free_box`)."""
+        """``ValueError`` unless the start box lies in the free space; the message suggests a free box
+        (:meth:`start_box_hint`)."""
         if not self.box_is_free(box):
-            hint = self.start_box or self.free_box(box[1] - box[0], box[3] - box[2])
+            hint = self.start_box_hint(box)
             raise ValueError(f"domain {self.name}: the start box {list(box)} is not free (it overlaps an obstacle); "
                              "choose sim.start_box inside the free space"
                              + (f", e.g. {list(hint)}" if hint else ""))

@@ -370,8 +370,7 @@ class SimSettings:
         x0, x1, y0, y1 = self.domain
         b = self.start_box
         if b[0] < x0 or b[1] > x1 or b[2] < y0 or b[3] > y1:
-            # the paper releases the swarm in the lower-left 35 % of its [0, 20]^2 square: the same corner here
-            hint = [x0, round(x0 + 0.35 * (x1 - x0), 3), y0, round(y0 + 0.35 * (y1 - y0), 3)]
+            hint = paper_corner(self.domain, 3)
             raise ValueError(f"sim.start_box {list(b)} is not inside sim.domain {list(self.domain)}; set it "
                              f"(--start-box or [sim] start_box), e.g. {hint}, the paper's lower-left corner scaled")
         if self.gamma > 0 and self.eta >= self.gamma:
@@ -603,6 +602,17 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
     return RunConfig(sim=sim, gp=gp, kde=kde, feedback=fb, planner=planner, domain=dom, preset=name)
 
 
+#: the paper releases the swarm on [0, 7]^2 of its [0, 20]^2 square: the lower-left 35 % of each side
+START_FRACTION = 0.35
+
+
+def paper_corner(domain, digits: int) -> list:
+    """The paper's start box scaled to ``domain`` = (x0, x1, y0, y1): its lower-left :data:`START_FRACTION` of each
+    side, the far corner rounded to ``digits`` decimals."""
+    x0, x1, y0, y1 = domain
+    return [x0, round(x0 + START_FRACTION * (x1 - x0), digits), y0, round(y0 + START_FRACTION * (y1 - y0), digits)]
+
+
 def _map_extent_defaults(sim_map: dict, given_sim: dict, overrides: dict, source) -> dict:
     """``sim_map`` with ``domain`` set to the extent a map file states (a GeoTIFF's, a ROS map's, an .npz's own, an
     image's sidecar), where neither the document nor the overrides set ``[sim] domain`` and the map does not fit
@@ -628,8 +638,8 @@ def _map_extent_defaults(sim_map: dict, given_sim: dict, overrides: dict, source
     sim_map = {**sim_map, "domain": [x0, x1, y0, y1]}
     chosen = f"sim.domain = {sim_map['domain']} (the map's extent)"
     if "start_box" not in given_sim and overrides.get("start_box") is None:
-        w, h = 0.35 * (x1 - x0), 0.35 * (y1 - y0)
-        box = (x0, round(x0 + w, 9), y0, round(y0 + h, 9))
+        w, h = START_FRACTION * (x1 - x0), START_FRACTION * (y1 - y0)
+        box = tuple(paper_corner((x0, x1, y0, y1), 9))
         how = "the paper's lower-left corner scaled to it"
         if not dom.box_is_free(box):
             box = dom.free_box(w, h) or box     # none free: the run's check says so, with its hint
