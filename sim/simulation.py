@@ -201,6 +201,11 @@ class Simulation:
         grid = planner.grid if planner is not None else Grid(config.planner.domain, config.planner.nx,
                                                               config.planner.ny)
         self.region, self.free = resolve_domain(config, grid, domain)
+        if domain is not None and self.region is not None and not config.domain.source:
+            from .site_scale import unscaled_map_note
+            note = unscaled_map_note(s, self.region.free_area)
+            if note:
+                warnings.warn(note, UserWarning, stacklevel=2)
         # walls thinner than a planner cell: faces between free cells they close (domain.Domain.closed_faces)
         self.walls = None if self.region is None else self.region.closed_faces(self.free)
         if self.controller.needs_plan:

@@ -93,7 +93,7 @@ from __future__ import annotations
 import math
 
 __all__ = ["SITE_SCALE_RULES", "REFERENCE_AREA", "SCALED", "area_ratio", "site_area", "site_factor", "scaled_value",
-           "scale_document", "LENGTH_SCALED", "length_ratio", "length_factor", "length_floor", "scale_lengths", "site_summary", "resolved_site_area", "SWARM_SCALE_RULES", "REFERENCE_ROBOT_AREA",
+           "scale_document", "LENGTH_SCALED", "length_ratio", "length_factor", "length_floor", "scale_lengths", "site_summary", "resolved_site_area", "unscaled_map_note", "SWARM_SCALE_RULES", "REFERENCE_ROBOT_AREA",
            "SWARM_SCALED", "spacing_ratio", "spacing_factor", "swarm_summary", "capped_factor", "SpacingCappedByLength"]
 
 #: ``sim.site_scale``: "off" (values as given) or "area" (scaled by s = max(1, sqrt(area / REFERENCE_AREA)))
@@ -276,6 +276,27 @@ def scale_document(doc: dict, given: dict, ratio: float, defaults: dict, setting
         table[key] = new
         scaled[f"{section}.{key}"] = [float(value), new]
     return out, scaled
+
+
+def unscaled_map_note(sim, free_area: float) -> str | None:
+    """One line when a configuration resolved without a map (``[domain] source`` empty) runs on one whose free area
+    ``free_area`` [m^2] gives other factors than the rectangle's area did (:func:`area_ratio`, :func:`length_ratio`,
+    :func:`spacing_ratio`): e.g. ``run_simulation(config, domain=Domain)`` with the tuned preset.  The run keeps the
+    values as resolved; the note says how to have them scaled by the map.  None when the factors agree (always with
+    the paper preset's rules "off")."""
+    rect = _rectangle_area(sim.domain)
+
+    def factors(area):
+        site = area_ratio(sim.domain, sim.site_scale, area)
+        return (site, length_ratio(sim.domain, sim.site_scale, area),
+                spacing_ratio(area, sim.robots, sim.swarm_scale, site))
+
+    if all(math.isclose(a, b, rel_tol=1e-12) for a, b in zip(factors(rect), factors(float(free_area)))):
+        return None
+    return (f"the configuration was resolved without this map, so the site and swarm rules (sim.site_scale, "
+            f"sim.swarm_scale) scaled its defaults by the rectangle's {rect:.4g} m^2, not the map's free "
+            f"{float(free_area):.4g} m^2; to scale by the map, give it as [domain] source (a file or built-in name; "
+            f"config_from_dict(..., domain_source=...), the commands' --domain)")
 
 
 def site_summary(config) -> dict:

@@ -214,3 +214,31 @@ def test_a_small_sites_length_scale_given_in_the_configuration_is_kept():
     both = config_from_dict({**TABLE, "gp": {"length_scale_y": 0.4}}, preset="tuned")
     assert both.gp.length_scale == pytest.approx(0.15, rel=1e-12) and both.gp.length_scale_y == 0.4
     assert site_summary(mine)["settings"]["gp.length_scale"] == 0.5
+
+
+def test_a_map_given_to_the_run_but_not_to_the_configuration_is_named_when_it_would_scale_otherwise():
+    """run_simulation(config, domain=...) with a configuration resolved without the map: its defaults were scaled by
+    the rectangle's area; a map whose free area gives other factors gets one warning line saying so, one that does not
+    (or the paper preset, whose rules are off) none."""
+    import warnings
+
+    from swarmfield.domain import Domain
+    from swarmfield.sim import Simulation
+
+    site = {"domain": [0.0, 40.0, 0.0, 20.0], "start_box": [0.0, 5.0, 0.0, 5.0], "robots": 20}
+    free = np.zeros((400, 200), bool)                     # 0.1 m pixels, x first
+    free[:300] = True                                     # 600 m^2 free of the rectangle's 800
+    dom = Domain.from_raster(free, (0.0, 40.0, 0.0, 20.0), name="three")
+    everything = np.ones_like(free)
+
+    def notes(config, domain):
+        with warnings.catch_warnings(record=True) as w:
+            warnings.simplefilter("always")
+            Simulation(config, domain=domain)
+        return [str(x.message) for x in w if "resolved without this map" in str(x.message)]
+
+    tuned = config_from_dict({"sim": site}, preset="tuned")
+    got = notes(tuned, dom)
+    assert len(got) == 1 and "800 m^2" in got[0] and "600 m^2" in got[0] and "[domain] source" in got[0]
+    assert notes(tuned, Domain.from_raster(everything, (0.0, 40.0, 0.0, 20.0), name="all")) == []
+    assert notes(config_from_dict({"sim": site}), dom) == []              # the paper preset scales nothing
