@@ -134,6 +134,8 @@ def resolve_settings(args) -> PlannerSettings:
     elif cfg.get("cell_size") is not None and (cfg.get("nx") is not None or cfg.get("ny") is not None):
         raise InputError(f"config {args.config}: give either cell_size or nx / ny in [planner], not both")
     cfg.update({k: v for k, v in flags.items() if v is not None})
+    if getattr(args, "domain", None) is not None and "domain" not in cfg:
+        _adopt_map_extent(args, cfg)
     ip = dict(cfg.get("ipopt", {}))
     ipflags = {"tol": args.tol, "max_iter": args.max_iter, "hessian_approximation": args.hessian,
                "linear_solver": args.linear_solver, "print_level": args.print_level}
@@ -215,6 +217,26 @@ def check_start_box(args, grid) -> None:
         raise InputError(f"--start-box must be X0 X1 Y0 Y1 with X1 > X0 and Y1 > Y0, got {list(args.start_box)}")
     if x0 < gx0 or x1 > gx1 or y0 < gy0 or y1 > gy1:
         raise InputError(f"--start-box {[x0, x1, y0, y1]} is not inside the planner's domain {list(grid.domain)}")
+
+
+def _adopt_map_extent(args, cfg: dict) -> None:
+    """A map that states its extent (a ROS map, a GeoTIFF, an .npz, an image's sidecar) and does not fit the default
+    domain sets the planner's domain, and without ``--start-box`` the start box, as it does for simulate-swarm
+    (:func:`swarmfield.sim.config._map_extent_defaults`: the paper's corner scaled to the extent, or the free box of
+    that size nearest it; one warning line says what it chose).  ``cfg`` (the [planner] table) and ``args`` change
+    in place; a map that fits, or does not load, is left to the domain's own checks."""
+    import warnings
+    from ..sim.config import _map_extent_defaults
+    given = {} if getattr(args, "start_box", None) is None else {"start_box": list(args.start_box)}
+    default = list(PlannerSettings.domain)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        chosen = _map_extent_defaults({"domain": default}, given, {}, args.domain)
+    args.extent_notes = [str(w.message) for w in said]    # printed with the domain's notes, after every check
+    if chosen["domain"] != default:
+        cfg["domain"] = chosen["domain"]
+        if "start_box" in chosen and not given:
+            args.start_box = [float(v) for v in chosen["start_box"]]
 
 
 def domain_problem(args, grid, p0, target):
@@ -352,7 +374,7 @@ def run(argv=None) -> int:
             planner.initial_coefficients(warm, args.t0)
         except ValueError as exc:
             raise InputError(f"warm-start plan {args.warm_start}: {exc}") from None
-    for note in notes:
+    for note in getattr(args, "extent_notes", []) + notes:
         print(f"{PROG}: warning: {note}", file=sys.stderr)
     try:
         plan = planner.solve(p0, target, t0=args.t0, warm_start=warm, **extra)

@@ -665,6 +665,22 @@ def _check_tables(doc: dict) -> None:
                 home = [other for other in SECTIONS if key in names[other]]
                 if home:
                     raise ValueError(f"{section}.{key} is a setting of [{home[0]}], not [{section}]")
+                if key in NOISE_SD_KEYS:
+                    raise ValueError(_noise_sd_hint(section, key, table[key]))
+
+
+#: keys a user writes for the sensor's standard deviation (the flag is --noise-sd); a file takes the variance
+NOISE_SD_KEYS = ("noise_sd", "noise_std", "noise_stddev", "noise_sigma", "noise_standard_deviation", "sensor_sd")
+
+
+def _noise_sd_hint(section: str, key: str, value) -> str:
+    """The one line for ``[section] key = value`` with ``key`` one of :data:`NOISE_SD_KEYS`: the configuration file
+    takes the noise's *variance*, ``[sim] noise_variance`` (the square of the sd the ``--noise-sd`` flag takes)."""
+    hint = "[sim] noise_variance = SD^2"
+    if isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value > 0:
+        hint = f"[sim] noise_variance = {float(value) ** 2:.6g} (= {float(value):g}^2)"
+    return (f"{section}.{key} is not a setting: a configuration file gives the noise's variance in the field's units "
+            f"squared, {hint}; the flag --noise-sd takes the standard deviation")
 
 
 def read_toml(path) -> dict:
