@@ -222,7 +222,31 @@ def headline(result) -> list[str]:
             f"{PROG}: mean V {first['mean_variance']:.4g} -> {last['mean_variance']:.4g}; RMSE of the estimate "
             f"{first['rmse']:.4g} at t = 0 -> {last['rmse']:.4g} at t = {last['t']:.2f} s; "
             f"simulation wall time {result.wall_time:.1f} s"] + _map_note(result, thr) + \
-        _rmse_note(result.config, first["rmse"], last["rmse"])
+        (_reach_note(result) or _rmse_note(result.config, first["rmse"], last["rmse"]))
+
+
+def _reach_note(result) -> list[str]:
+    """When the run ended by its time limit before any robot could have measured the farthest part of the site
+    (:func:`sim.stopping.travel_time_limit` at the controller's speed, around the obstacles): one line saying so,
+    instead of :func:`_rmse_note`'s (on a site of 500 m the RMSE barely moves in 2 T because most of it is still
+    out of reach, not because the first measurements predict it)."""
+    if result.stop_reason != "max_time" or not result.rows:
+        return []
+    from ..sim.controllers import make_controller
+    from ..sim.stopping import travel_time_limit
+    config = result.config
+    try:
+        speed = float(make_controller(config.sim.controller, config).v_max)
+        limit = travel_time_limit(config, speed=speed, free=result.free)
+    except (ValueError, KeyError, TypeError):           # pragma: no cover - a user's own controller or map
+        return []
+    T, end = config.sim.period, float(result.rows[-1]["t"])
+    if not (limit > end + 1e-9):
+        return []
+    return [f"{PROG}: the run ended at t = {end:.2f} s ({end / T:.2f} T), before its robots could have measured the "
+            f"whole site: the farthest cell is {limit * speed:.4g} m from the start box, {limit / T:.2f} T at "
+            f"{speed:g} m/s (the travel-time limit); the map of the part out of reach is the prior's (raise "
+            f"--max-periods to at least {math.ceil(limit / T - 1e-9)})"]
 
 
 def _map_note(result, thr) -> list[str]:

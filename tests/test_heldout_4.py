@@ -28,3 +28,24 @@ def test_plan_reference_takes_a_maps_own_extent_as_simulate_swarm_does(tmp_path)
     assert "the map's extent" in args.extent_notes[0]
     args = build_parser().parse_args(["--domain", str(tmp_path / "site.npz"), "--start-box", "-4", "-3", "1", "2"])
     assert resolve_settings(args).domain == (-12.35, -2.35, -3.3, 2.7) and args.start_box == [-4.0, -3.0, 1.0, 2.0]
+
+
+def test_a_run_that_ends_before_the_swarm_can_cross_the_site_says_so():
+    # a 500 m x 300 m lake, 2 T: the RMSE barely moved and simulate-swarm said "the first measurements already
+    # predict this field about as well as the last" (RMSE 2.6 -> 2.4 K, the field's sd 1.6 K): most of the lake was
+    # out of every robot's reach
+    from types import SimpleNamespace
+    from swarmfield.cli.simulate_swarm import headline
+    lake = config_from_dict({"preset": "tuned", "sim": {"domain": [0.0, 500.0, 0.0, 300.0],
+                                                        "start_box": [0.0, 175.0, 0.0, 105.0], "field": "bumps"}})
+    rows = [{"t": t, "max_variance": 0.33, "mean_variance": 0.24, "rmse": e, "threshold": 0.04}
+            for t, e in ((0.0, 2.61), (14.0, 2.39))]
+    res = SimpleNamespace(rows=rows, config=lake, time_to_threshold=None, threshold_row=None, stop_reason="max_time",
+                          wall_time=1.0, kernel=None, free=None)
+    lines = headline(res)
+    assert not any("predict this field" in line for line in lines)
+    assert any("before its robots could have measured the whole site" in line and "at least 18" in line
+               for line in lines), lines
+    res.config = config_from_dict({"sim": {"field": "plumes"}})            # the paper's square: within reach at 1 T
+    res.rows = [dict(r, t=7.0 * k) for k, r in enumerate(rows)]
+    assert not any("whole site" in line for line in headline(res))
