@@ -484,10 +484,13 @@ class Domain:
             iny = (ys[1:] >= by0) & (ys[:-1] <= by1)
         return bool((self.state[np.ix_(inx, iny)] == 1).all())
 
-    def free_box(self, width: float, height: float) -> tuple | None:
+    def free_box(self, width: float, height: float, near=None) -> tuple | None:
         """The free box of ``width`` x ``height`` (on the pixel raster's lines) whose lower-left corner is nearest
-        the extent's, shrunk by halves (at most three times) where none of that size is free; None if none."""
+        the extent's (or the point ``near``), shrunk by halves (at most three times) where none of that size is free;
+        None if none.  Its sides are rounded inwards to a tenth of a pixel (a box in UTM metres reads 500008.13, not
+        500008.130208333), so that it stays free."""
         x0, x1, y0, y1 = self.extent
+        nx0, ny0 = (x0, y0) if near is None else (float(near[0]), float(near[1]))
         Nx, Ny = self.state.shape
         px, py = (x1 - x0) / Nx, (y1 - y0) / Ny
         free = np.zeros((Nx + 1, Ny + 1))
@@ -498,15 +501,16 @@ class Domain:
                 inside = free[kx:, ky:] - free[:-kx, ky:] - free[kx:, :-ky] + free[:-kx, :-ky]   # [i, j]: corner pixel
                 ok = np.argwhere(inside >= kx * ky - 0.5)
                 if len(ok):
-                    i, j = ok[np.argmin(np.hypot(ok[:, 0] * px, ok[:, 1] * py))]
+                    i, j = ok[np.argmin(np.hypot(x0 + ok[:, 0] * px - nx0, y0 + ok[:, 1] * py - ny0))]
                     bx, by = x0 + i * px, y0 + j * py
-                    return tuple(round(float(v), 9) for v in (bx, bx + kx * px, by, by + ky * py))
+                    return _rounded_inwards((bx, bx + kx * px, by, by + ky * py), min(px, py) / 10)
             width, height = width / 2, height / 2
         return None
 
     def start_box_hint(self, box) -> tuple | None:
-        """A free start box to suggest instead of ``box``: the built-in domain's own, or :meth:`free_box` of its size."""
-        return self.start_box or self.free_box(box[1] - box[0], box[3] - box[2])
+        """A free start box to suggest instead of ``box``: the built-in domain's own, or :meth:`free_box` of its size
+        nearest it."""
+        return self.start_box or self.free_box(box[1] - box[0], box[3] - box[2], near=(box[0], box[2]))
 
     def check_start_box(self, box) -> None:
         """``ValueError`` unless the start box lies in the free space; the message suggests a free box
@@ -607,3 +611,17 @@ class Domain:
         if len(active):                # still bouncing: stop at the last boundary point reached
             Q[active] = P[active]
         return Q
+
+
+def _rounded_inwards(box, step: float) -> tuple:
+    """``box`` = (x0, x1, y0, y1) with x0, y0 rounded up and x1, y1 down to the decimal place of ``step`` (a power of
+    ten at most ``step``); the same box to 9 decimals when that place would empty it."""
+    d = max(0, -math.floor(math.log10(step))) if step > 0 else 9
+    d = min(d, 9)
+    q = 10.0 ** d
+    x0, x1, y0, y1 = (float(v) for v in box)
+    out = (math.ceil(x0 * q - 1e-6) / q, math.floor(x1 * q + 1e-6) / q, math.ceil(y0 * q - 1e-6) / q,
+           math.floor(y1 * q + 1e-6) / q)
+    if not (out[1] > out[0] and out[3] > out[2]):
+        return tuple(round(v, 9) for v in box)
+    return tuple(round(v, d) for v in out)

@@ -148,8 +148,8 @@ class PlannerSettings:
     nx: int | None = None
     ny: int | None = None
     #: side of the (square) planner cells [m]; when set it decides nx = round(width / cell_size) and
-    #: ny = round(height / cell_size) (at least 3 each; the cells are square to within the rounding,
-    #: dx = width / nx, dy = height / ny)
+    #: ny = round(height / cell_size) (a cell size that gives fewer than 3 across is an error; the cells are square to
+    #: within the rounding, dx = width / nx, dy = height / ny)
     cell_size: float | None = None
     horizon: float = 7.0
     n_intervals: int = 12
@@ -487,7 +487,7 @@ MAX_DEFAULT_CELLS = 4 * CELLS_LONG_SIDE ** 2
 
 def grid_cells(domain, nx=None, ny=None, cell_size=None) -> tuple[int, int]:
     """``(nx, ny)`` of the planner grid on ``domain`` = (x0, x1, y0, y1) (:class:`PlannerSettings`):
-    ``cell_size`` (when given) decides both, nx = max(3, round(width / cell_size)) and likewise ny;
+    ``cell_size`` (when given) decides both, nx = round(width / cell_size) and likewise ny (fewer than 3 across: an error);
     else the given counts, a missing one chosen for cells as square as the extent allows; neither:
     ``CELLS_LONG_SIDE`` along the longer side (the paper's [0, 20]^2: 40 x 40), raised for square cells with
     ``CELLS_SHORT_SIDE_MIN`` across the shorter side of an elongated extent (150 m x 8 m: 188 x 10; at most
@@ -501,6 +501,13 @@ def grid_cells(domain, nx=None, ny=None, cell_size=None) -> tuple[int, int]:
         if isinstance(cell_size, bool) or not isinstance(cell_size, (int, float)) or not \
                 (math.isfinite(cell_size) and cell_size > 0):
             raise ValueError(f"planner.cell_size must be a finite number of metres > 0, got {cell_size!r}")
+        short = min(lx, ly)
+        if int(round(short / cell_size)) < 3:
+            # max(3, ...) would stretch the cells: 0.6 m on a 2 m x 1 m tray gave 3 x 3 cells of 0.67 m x 0.33 m,
+            # --cell-size 100 on the paper's square 3 x 3 of 6.7 m, silently
+            raise ValueError(f"planner.cell_size {cell_size:g} m on an extent of {lx:g} m x {ly:g} m gives "
+                             f"{short / cell_size:.3g} cells across its {short:g} m side; the planner needs at least "
+                             f"3: use at most {short / 3:.3g} m, or no cell size (40 cells along the longer side)")
         n = [max(3, int(round(side / cell_size))) for side in (lx, ly)]
         if max(n) > 100_000:
             raise ValueError(f"planner.cell_size {cell_size:g} m on an extent of {lx:g} m x {ly:g} m gives "

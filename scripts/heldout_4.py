@@ -30,6 +30,11 @@ Maps
                    ``wifi_field.npz`` (a Wi-Fi signal strength in dBm, -38 at the access point, -80 far away,
                    negative everywhere); --noise-sd 2.
 
+    python scripts/heldout_4.py --outliers OUTDIR/front.npz 0.05 [SEED]
+
+runs the tuned feedback on a field with an outlier-prone sensor (5 % of the measurements with 20x the noise sd; the
+commands have no such sensor, so this mode replaces the simulator's ``measure``) and with the Gaussian one.
+
     python scripts/heldout_4.py --check RUNS [RUNS ...]
 
 reads compare-controllers folders (their runs.csv and the field files they name) and prints, run by run, the time the
@@ -165,13 +170,81 @@ def main(out: Path) -> None:
               f"(noise sd {NOISE_SD[f.stem]:g})")
 
 
+def detrended_sd(path, domain, nx, ny) -> float:
+    """The sd of the field about its least-squares plane over the centres of an nx x ny grid on ``domain``: the
+    spread of the structure a trend leaves (the bathymetry's bumps under its 120 m slope)."""
+    from scipy.interpolate import RegularGridInterpolator
+    f = np.load(path)
+    v = f["values"]
+    x0, x1, y0, y1 = f["extent"]
+    xs, ys = np.linspace(x0, x1, v.shape[0]), np.linspace(y0, y1, v.shape[1])
+    cx = domain[0] + (np.arange(nx) + 0.5) * (domain[1] - domain[0]) / nx
+    cy = domain[2] + (np.arange(ny) + 0.5) * (domain[3] - domain[2]) / ny
+    P = np.array(np.meshgrid(cx, cy, indexing="ij")).reshape(2, -1).T
+    z = RegularGridInterpolator((xs, ys), v)(P)
+    A = np.column_stack([np.ones(len(P)), P - P.mean(axis=0)])
+    return float(np.std(z - A @ np.linalg.lstsq(A, z, rcond=None)[0]))
+
+
 def check(folders) -> None:
-    """Round 3's check: the stop, the RMSE there in field sd, the band coverage, the learned values at the end."""
+    """Round 3's check (the stop, the RMSE there in field sd, the band coverage, the learned values at the end), then
+    the RMSE at the stop and at the end against the field's sd about its least-squares plane."""
+    import csv
+    from collections import defaultdict
     _load("heldout_fields_3").check(folders)
+    for folder in map(Path, folders):
+        task = json.loads(next((folder / "runs").glob("*.json")).read_text())
+        cfg = task.get("task", task)["config"]
+        sd = detrended_sd(cfg["sim"]["field"], cfg["sim"]["domain"], cfg["planner"]["nx"], cfg["planner"]["ny"])
+        runs = defaultdict(list)
+        for r in csv.DictReader(open(folder / "runs.csv")):
+            runs[(r["controller"], r["seed"])].append(r)
+        cells = []
+        for (c, seed), rows in sorted(runs.items()):
+            hit = next((r for r in rows if r["threshold"] and float(r["max_variance"]) <= float(r["threshold"])), None)
+            at = f"{float(hit['rmse']) / sd:.3f}" if hit else "-"
+            cells.append(f"{c} {seed}: {at} / {float(rows[-1]['rmse']) / sd:.3f}")
+        print(f"{folder}: detrended sd {sd:.4g}; RMSE at the stop / at the end in it: {', '.join(cells)}")
+
+
+def outliers(field_file: str, noise_sd: float, seed: int = 0, periods: int = 3, share: float = 0.05,
+             spike: float = 20.0) -> None:
+    """The tuned feedback on ``field_file`` with an outlier-prone sensor: each measurement's noise is N(0, noise_sd^2)
+    but, with probability ``share``, N(0, (spike noise_sd)^2) (a contaminated normal; the commands have no such
+    sensor, so the simulator's ``measure`` is replaced here), against the same run with the Gaussian sensor.  Prints,
+    per run, the stop, the RMSE there and at the end in the field's sd, the band coverage, the learned values."""
+    import math
+    from swarmfield.sim import RunConfig, run_simulation
+    from swarmfield.sim import simulation as simmod
+    gauss = simmod.measure
+
+    def contaminated(field, X, noise_variance, rng):
+        y = gauss(field, X, noise_variance, rng)
+        hit = rng.random(len(y)) < share
+        return y + hit * (spike ** 2 - 1) ** 0.5 * math.sqrt(noise_variance) * rng.standard_normal(len(y))
+
+    fsd = float(np.load(field_file)["values"].std())
+    for name, fn in (("gaussian", gauss), (f"{share:.0%} spikes of {spike:g} sd", contaminated)):
+        simmod.measure = fn
+        try:
+            cfg = RunConfig.from_preset("tuned").replace(field=field_file, noise_variance=noise_sd ** 2, seed=seed,
+                                                        max_periods=periods)
+            res = run_simulation(cfg)
+        finally:
+            simmod.measure = gauss
+        rows, hit = res.rows, res.threshold_row
+        end = rows[-1]
+        at = (f"stop at {hit['t'] / cfg.sim.period:.2f} T, RMSE {hit['rmse'] / fsd:.3f} sd, coverage "
+              f"{hit['coverage']:.2f}" if hit is not None else "never stopped")
+        print(f"{name}: {at}; at {end['t'] / cfg.sim.period:.2f} T RMSE {end['rmse'] / fsd:.3f} sd, coverage "
+              f"{end['coverage']:.2f}; learned s_f^2 {res.kernel['signal_variance']:.4g}, l "
+              f"{res.kernel['length_scale']:.3g}, nugget {res.kernel.get('nugget', 0):.4g}")
 
 
 if __name__ == "__main__":
     if len(sys.argv) > 1 and sys.argv[1] == "--check":
         check(sys.argv[2:])
+    elif len(sys.argv) > 1 and sys.argv[1] == "--outliers":
+        outliers(sys.argv[2], float(sys.argv[3]), *(int(a) for a in sys.argv[4:5]))
     else:
         main(Path(sys.argv[1] if len(sys.argv) > 1 else "heldout_4"))

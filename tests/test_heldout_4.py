@@ -49,3 +49,34 @@ def test_a_run_that_ends_before_the_swarm_can_cross_the_site_says_so():
     res.config = config_from_dict({"sim": {"field": "plumes"}})            # the paper's square: within reach at 1 T
     res.rows = [dict(r, t=7.0 * k) for k, r in enumerate(rows)]
     assert not any("whole site" in line for line in headline(res))
+
+
+def test_a_cell_size_that_gives_fewer_than_three_cells_across_is_refused():
+    # --cell-size 0.6 on a 2 m x 1 m tray gave 3 x 3 cells of 0.67 m x 0.33 m, --cell-size 100 on the paper's square
+    # 3 x 3 cells of 6.7 m: max(3, ...) stretched them, silently
+    from swarmfield.ocp.settings import PlannerSettings, grid_cells
+    with pytest.raises(ValueError, match=r"planner\.cell_size 0\.6 m on an extent of 2 m x 1 m gives 1\.67 cells "
+                                         r"across its 1 m side; the planner needs at least 3: use at most 0\.333 m"):
+        PlannerSettings(domain=(0.0, 2.0, 0.0, 1.0), cell_size=0.6)
+    with pytest.raises(ValueError, match="at least 3"):
+        grid_cells((0, 20, 0, 20), cell_size=100.0)
+    assert grid_cells((0.0, 2.0, 0.0, 1.0), cell_size=0.3) == (7, 3)
+
+
+def test_the_start_box_hint_is_near_the_box_given_and_reads_in_round_numbers(tmp_path):
+    # a start box across a wall of a flat in UTM metres: the hint was the free box at the map's far corner, in
+    # digits of the polygon raster ([500000.09375, 500001.125, 4649776.093567251, 4649777.122807018])
+    import numpy as np
+    from swarmfield.domain import make_domain
+    E, N = 500000.0, 4649776.0
+    free = np.ones((1000, 700), bool)               # 0.024 m x 0.0229 m pixels over 24 m x 16 m
+    free[333:338, :] = False                        # a wall at x = 8.0 m
+    np.savez(tmp_path / "flat.npz", free=free, extent=np.array([E, E + 24, N, N + 16]))
+    dom = make_domain(str(tmp_path / "flat.npz"), (E, E + 24, N, N + 16))
+    box = (E + 7.5, E + 8.5, N + 10.0, N + 11.0)
+    assert not dom.box_is_free(box)
+    hint = dom.start_box_hint(box)
+    assert dom.box_is_free(hint)
+    assert abs(hint[0] - box[0]) < 1.5 and abs(hint[2] - box[2]) < 1.5          # beside the wall, not a far corner
+    assert all(round(v, 4) == v for v in hint), hint
+    assert hint[1] - hint[0] > 0.95 and hint[3] - hint[2] > 0.95
