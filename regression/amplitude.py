@@ -37,6 +37,24 @@ and d / d theta = B^T d / d g.  Summed over j it is d log p / d log s_f^2: a uni
 ``tests/test_amplitude.py`` checks the model against a dense GP with the kernel a(x) a(x') k0(x, x')
 (scikit-learn's Matérn) and the gradient against finite differences.
 
+With a trend in the mean (``GPSettings.mean = "linear"``, or ``"auto"``'s choice; :mod:`regression.trend`) the
+trend's sums enter in the same primed coefficients: B_H' = D B_H and b' = D b, so that H^T C^-1 H, the GLS
+beta_hat and the trend's share r^T G r of V are those of the amplitude-scaled covariance C = Phi D K_c D Phi^T +
+s^2 I (:meth:`regression.gp.GaussianProcess._trend_rhs`).  theta is then fitted by the restricted (REML)
+likelihood, the criterion the trend's (s_f^2, l, tau^2) are fitted by, so that one objective is maximised over all
+of them and the amplitude's fit accounts for the trend's three degrees of freedom (the profile likelihood with
+beta_hat plugged in would not: its variance estimates are biased low by them, most where few data are).  With
+G = (H^T C^-1 H)^-1 = L L^T, the gradient of log p_R = log N(y - H beta_hat; 0, C) - 1/2 log det(H^T C^-1 H) + const
+is the one above at the GLS residual (b' = D (b - B_H beta_hat), u = Sigma' b' the trend posterior's mean: no term
+through beta_hat, which minimises the quadratic form) plus 1/2 tr(G H^T C^-1 dC C^-1 H), the quadratic-form part of
+the same formula summed over the three columns H l_k (b'_k = D B_H l_k, u_k = Sigma' b'_k = Z l_k, Z = Sigma' B_H'
+kept by the trend's posterior)::
+
+    d log p_R / d g_j = 1/2 [ b'_j u_j - u_j (A' u)_j - (A' Sigma')_jj + sum_k (b'_kj u_kj - u_kj (A' u_k)_j) ]
+
+``tests/test_amplitude.py`` checks it against finite differences and the model against a dense universal-kriging
+GP with the kernel s_f^2 a(x) a(x') k0(x, x').
+
 Not chosen: a plug-in that scales V by a local roughness of f̄ (the mean's residuals at the GP's length scale).
 It changes neither f̄ nor the likelihood, so the map itself keeps the stationary GP's shrinkage where the field
 varies most (the learned s_f^2 of even data is the quiet rooms'), it has no likelihood to say how large a
@@ -116,13 +134,22 @@ def _banded_apply(a: np.ndarray, u: np.ndarray) -> np.ndarray:
 def log_amplitude_gradient(gp, s2: float, key) -> tuple[float, np.ndarray]:
     """(log marginal likelihood, d log p / d g_j at every lattice node j) of ``gp`` (a separable kernel) at its
     amplitude in force, s_f^2 = ``s2`` and kernel key ``key``, with its settings' residual variance (module
-    docstring)."""
+    docstring); with ``mean = "linear"`` the restricted likelihood and its gradient (module docstring, *With a
+    trend in the mean*).  ``s2`` and ``key`` must be gp's own (the gradient reads gp's posterior)."""
     a, b = gp._assemble(gp.prior_mean)                       # A' = D A D, b' = D b
-    lml = gp._lml(s2, key, a, b)
+    lml = gp._lml(s2, key, a, b)                             # mean "linear": the restricted likelihood
     _, mu, band, _ = gp._get_posterior()                     # u = Sigma' b', Sigma''s band
+    extra = 0.0
+    if gp.settings.mean == "linear":                         # b' of the GLS residual, and the REML's own term
+        _, cols, beta, z, ginv = gp._trend
+        bmat = gp._trend_rhs(gp._trend_sums(), cols, gp.settings.residual_variance)     # [D b_y, D B_H]
+        b = bmat[:, 0] - bmat[:, 1:] @ beta                  # mu = Sigma' b' already (regression.gp._linear_posterior)
+        lw = np.linalg.cholesky(ginv)                        # G = L L^T
+        bw, uw = bmat[:, 1:] @ lw, z @ lw                    # D B_H l_k and Sigma' D B_H l_k = Z l_k
+        extra = sum(bw[:, k] * uw[:, k] - uw[:, k] * _banded_apply(a, uw[:, k]) for k in range(uw.shape[1]))
     au = _banded_apply(a, mu)
     tr = np.einsum("idje,ijde->ij", a, band).reshape(-1)     # (A' Sigma')_jj
-    return lml, 0.5 * (b * mu - mu * au - tr)
+    return lml, 0.5 * (b * mu - mu * au - tr + extra)
 
 
 def fit_log_amplitude(gp, coarse=None, maxiter: int = AMPLITUDE_MAXITER, out: dict | None = None):

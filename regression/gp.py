@@ -787,6 +787,14 @@ class GaussianProcess:
         self._trend_stats = (self._version, t)
         return t
 
+    def _trend_rhs(self, t: TrendSums, cols: np.ndarray, sn2: float) -> np.ndarray:
+        """[b, B_H] = [Phi^T y, Phi^T H[:, cols]] / s^2 (M, 1 + len(cols)) of the trend's sums ``t``, in the
+        coefficients the posterior is of: with a local signal variance (``amplitude = "local"``) those of the primed
+        model, D Phi^T (:mod:`regression.amplitude`), so that H^T C^-1 H, beta_hat and the trend's share of V use the
+        amplitude-scaled covariance C = Phi D K_c D Phi^T + s^2 I."""
+        bmat = np.column_stack([t.py, t.ph[:, cols]]) / sn2
+        return bmat if self._amp is None else bmat * self._amp[:, None]
+
     def _centred_square_sum(self) -> float:
         """r^T r = sum (y_i - m)^2 over the data, m the :attr:`prior_mean` in use, from the running sums."""
         m = self.prior_mean - self._y0                 # the sums are of y - y0
@@ -1275,7 +1283,7 @@ class GaussianProcess:
             sn2 = hyper[2]
             cols = trend_columns(t.hth)
             while True:
-                bmat = np.column_stack([t.py, t.ph[:, cols]]) / sn2
+                bmat = self._trend_rhs(t, cols, sn2)
                 sb = self._sigma_apply(cov, bmat)
                 muy, z = sb[:, 0], sb[:, 1:]
                 gi = t.hth[np.ix_(cols, cols)] / sn2 - bmat[:, 1:].T @ z          # H^T C^-1 H
@@ -1948,7 +1956,7 @@ class GaussianProcess:
         sn2 = self._settings.residual_variance if noise is None else float(noise)
         t = self._trend_sums()
         cols = trend_columns(t.hth) if columns is None else np.arange(columns)
-        bmat = np.column_stack([t.py, t.ph[:, cols]]) / sn2
+        bmat = self._trend_rhs(t, cols, sn2)
         got = self._lml_through_data(s2, ell, a, bmat, noise) if self._settings.low_rank_updates else None
         if got is None:
             got = self._lml_dense(s2, ell, a, bmat, noise)

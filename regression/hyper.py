@@ -438,6 +438,8 @@ def _choose_mean(gp: GaussianProcess, c: int, previous: list, fit: tuple, out: d
         start = (values[0], values[1], values[2] if len(values) == 3 else None, tau)
     twin = gp._twin(dataclasses.replace(gp.settings, mean=other, inducing_spacing=gp._spacing))
     twin._initial_settings = gp.initial_settings          # the same priors (relative to the twin's data variance)
+    if gp.log_amplitude is not None:                      # a local signal variance: both means under the same g
+        twin.set_log_amplitude(gp.log_amplitude)
     twin.set_hyperparameters(start[0], start[1], start[2], nugget=start[3])
     out_t = {}
     begin = [start[0], start[1]] + ([start[2]] if start[2] is not None else [])

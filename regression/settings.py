@@ -78,8 +78,10 @@ class GPSettings:
         log n (its two more parameters; :func:`regression.hyper.refit_online`), and only once the data spread over
         :data:`regression.hyper.TREND_SPREAD` of the site along every direction (a slope in a corner of the site is
         not a trend over it).  ``"linear"`` needs ``prior_mean``
-        unset and a separable kernel (not the GMRF ones, nor ``amplitude = "local"``); ``"auto"`` is the constant mean
-        where the trend is not available (:attr:`trend_available`) and without the refits.
+        unset and a separable kernel (not the GMRF ones); with ``amplitude = "local"`` the trend's GLS estimate and
+        its variance use the amplitude-scaled covariance and the amplitude is fitted by the same restricted likelihood
+        (:mod:`regression.amplitude`).  ``"auto"`` is the constant mean where the trend is not available
+        (:attr:`trend_available`) and without the refits.
     inducing_spacing
         Requested spacing h of the cubic-B-spline inducing grid (``None``: ``length_scale / 2``).
         Each axis of length L gets ``ceil(L / h)`` cells of equal width <= h. The kernel
@@ -386,9 +388,6 @@ class GPSettings:
             if self.kernel in GMRF_KERNELS:
                 raise ValueError(f"mean = \"{self.mean}\" needs a separable kernel (squared-exponential, matern52, "
                                  f"matern32), not kernel {self.kernel!r}")
-            if self.amplitude == "local":
-                raise ValueError(f"mean = \"{self.mean}\" is not available with amplitude = \"local\" (the local "
-                                 "amplitude's fit has no restricted likelihood); use one of them")
         for name in ("hyper_step_sd", "hyper_prior_sd_signal"):
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, _finite_positive(name, getattr(self, name)))
@@ -405,9 +404,9 @@ class GPSettings:
     @property
     def trend_available(self) -> bool:
         """Whether this GP can have a linear trend in its mean (``mean = "linear"``, or ``"auto"``'s choice): a separable
-        kernel, a stationary amplitude and no fixed ``prior_mean``."""
+        kernel (with either amplitude) and no fixed ``prior_mean``."""
         from .kernels import GMRF_KERNELS
-        return self.kernel not in GMRF_KERNELS and self.amplitude != "local" and self.prior_mean is None
+        return self.kernel not in GMRF_KERNELS and self.prior_mean is None
 
     @property
     def residual_variance(self) -> float:

@@ -64,8 +64,7 @@ def test_settings_mean_choices_and_refusals():
         GPSettings(mean="linear", prior_mean=1.0)
     with pytest.raises(ValueError, match=r"mean = \"linear\" needs a separable kernel .* not kernel 'gmrf2'"):
         GPSettings(mean="linear", kernel="gmrf2")
-    with pytest.raises(ValueError, match=r"mean = \"linear\" is not available with amplitude = \"local\""):
-        GPSettings(mean="linear", amplitude="local")
+    assert GPSettings(mean="linear", amplitude="local").trend_available        # tests/test_amplitude_trend.py
 
 
 @pytest.mark.parametrize("low_rank, angle", [(False, 0.0), (True, 0.0), (False, 30.0), (True, 30.0)])
@@ -310,11 +309,11 @@ def test_auto_keeps_the_trend_on_the_tabletop_and_the_constant_mean_on_a_station
 
 
 def test_auto_is_the_constant_mean_where_the_trend_is_not_available():
-    """A GMRF kernel, a local amplitude or a fixed prior mean have no trend: "auto" keeps the constant mean there (an
-    explicit "linear" is refused), and the refit makes no choice."""
+    """A GMRF kernel or a fixed prior mean have no trend: "auto" keeps the constant mean there (an explicit "linear" is
+    refused), and the refit makes no choice."""
     rng = np.random.default_rng(6)
     X, y = _data(rng, 200, (6.0, 6.0))
-    for extra in ({"kernel": "gmrf2"}, {"amplitude": "local"}, {"prior_mean": 3.0}):
+    for extra in ({"kernel": "gmrf2"}, {"prior_mean": 3.0}):
         s = GPSettings(mean="auto", noise_variance=0.04, learn_hyperparameters=True, **extra)
         assert not s.trend_available
         gp = GaussianProcess(s, (0, 6, 0, 6))
