@@ -222,7 +222,7 @@ def headline(result) -> list[str]:
             f"{PROG}: mean V {first['mean_variance']:.4g} -> {last['mean_variance']:.4g}; RMSE of the estimate "
             f"{first['rmse']:.4g} at t = 0 -> {last['rmse']:.4g} at t = {last['t']:.2f} s; "
             f"simulation wall time {result.wall_time:.1f} s"] + _map_note(result, thr) + \
-        (_reach_note(result) or _rmse_note(result.config, first["rmse"], last["rmse"]))
+        (_reach_note(result) or (_rmse_note(result.config, first["rmse"], last["rmse"]) if last["t"] > first["t"] else []))
 
 
 def _reach_note(result) -> list[str]:

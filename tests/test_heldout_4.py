@@ -80,3 +80,14 @@ def test_the_start_box_hint_is_near_the_box_given_and_reads_in_round_numbers(tmp
     assert abs(hint[0] - box[0]) < 1.5 and abs(hint[2] - box[2]) < 1.5          # beside the wall, not a far corner
     assert all(round(v, 4) == v for v in hint), hint
     assert hint[1] - hint[0] > 0.95 and hint[3] - hint[2] > 0.95
+
+
+def test_a_run_that_failed_at_its_first_plan_does_not_say_the_rmse_barely_moved():
+    # the paper preset on a 2 m x 1 m tray: the planner failed at t = 0, and the headline said "the RMSE barely
+    # moves ... the first measurements already predict this field about as well as the last", of one measurement
+    from types import SimpleNamespace
+    from swarmfield.cli.simulate_swarm import headline
+    rows = [{"t": 0.0, "max_variance": 0.05, "mean_variance": 0.05, "rmse": 0.098, "threshold": 0.1}]
+    res = SimpleNamespace(rows=rows, config=config_from_dict({"sim": {"field": "plumes"}}), time_to_threshold=None,
+                          threshold_row=None, stop_reason="planner_failed", wall_time=1.0, kernel=None, free=None)
+    assert not any("barely moves" in line for line in headline(res))
