@@ -232,9 +232,16 @@ class Simulation:
             # the noise (in field units, as the range): a relative test (range <= 1e-6 |f|) called a gravity survey
             # of 9.8e8 +- 100 uGal constant, and depended on the field's offset
             from .fields import FIELDS
+            from .config import SimSettings
             name = self.field.describe().get('name', '')
             hint = ("the built-in fields are defined around the paper's [0, 20]^2; give a field file on this domain "
                     "(--field FILE)" if name in FIELDS else "the measurements will see the noise alone")
+            if name not in FIELDS and s.noise_variance == SimSettings.noise_variance:
+                # a field in mol/L (1e-9) run without --noise-sd: the paper's sd of 0.2 is 10^8 times its spread
+                hint += (f"; the noise is the paper's default (sd {noise_sd:g}): give the sensor's sd in the field's "
+                         "units with --noise-sd (or [sim] noise_variance)")
+            if name not in FIELDS and isinstance(s.field, str) and s.field:
+                name = s.field
             warnings.warn(f"the field {name!r} is constant on sim.domain {list(s.domain)} (range {span:.3g}, under "
                           f"a thousandth of the noise's sd {noise_sd:.3g}): {hint}", UserWarning, stacklevel=2)
 

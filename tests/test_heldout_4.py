@@ -91,3 +91,18 @@ def test_a_run_that_failed_at_its_first_plan_does_not_say_the_rmse_barely_moved(
     res = SimpleNamespace(rows=rows, config=config_from_dict({"sim": {"field": "plumes"}}), time_to_threshold=None,
                           threshold_row=None, stop_reason="planner_failed", wall_time=1.0, kernel=None, free=None)
     assert not any("barely moves" in line for line in headline(res))
+
+
+def test_a_tiny_field_run_without_its_noise_sd_is_told_to_give_one(tmp_path):
+    # a concentration of 2e-9 mol/L run without --noise-sd: "the field 'grid' is constant ... the measurements will
+    # see the noise alone", not saying that the noise was the paper's default sd of 0.2 nor which file it was
+    import numpy as np
+    from swarmfield.sim.fields import save_npz_field
+    from swarmfield.sim.simulation import Simulation
+    x = np.linspace(0, 2, 41)
+    path = save_npz_field(tmp_path / "nano.npz", 2e-9 + 4e-10 * np.sin(x)[:, None] * np.ones(21), (0, 2, 0, 1))
+    sim = {"domain": [0.0, 2.0, 0.0, 1.0], "start_box": [0.0, 0.7, 0.0, 0.35], "controller": "diffusion",
+           "max_periods": 1, "robots": 20, "field": str(path)}
+    with pytest.warns(UserWarning, match=r"field '.*nano\.npz' is constant .* the noise is the paper's default "
+                                         r"\(sd 0\.2\): give the sensor's sd in the field's units with --noise-sd"):
+        Simulation(config_from_dict({"sim": sim}))
