@@ -27,7 +27,7 @@ Maps
 ``wifi.yaml``      a ROS map_server map (``wifi.pgm``): resolution 0.07 m (247 x 171 pixels, 17.29 m x 11.97 m, so
                    no round cell size divides it), origin [-12.35, -3.3, 0], walls two pixels thick, three rooms,
                    doors of 1.05 m, an unknown margin; ``wifi.toml`` (domain, start box, ``cell_size = 0.6``) and
-                   ``wifi_field.npz`` (a Wi-Fi signal strength in dBm, -38 at the access point, -80 far away,
+                   ``wifi_field.npz`` (a Wi-Fi signal strength in dBm, -37 at the access point, -65 in the far room,
                    negative everywhere); --noise-sd 2.
 
     python scripts/heldout_4.py --outliers OUTDIR/front.npz 0.05 [SEED]
