@@ -29,7 +29,8 @@ PROG = "plan-reference"
 def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog=PROG, description=__doc__.split("\n\n")[0])
     p.add_argument("--config", type=Path, help="TOML file with [planner] and [planner.ipopt] tables (flags override it), or a "
-                        "simulate-swarm configuration: its [planner], the domain and start box of its [sim]")
+                        "simulate-swarm configuration: its [planner], the domain and start box of its [sim], "
+                        "the map of its [domain]")
     p.add_argument("--out", type=Path, default=Path("plan.npz"), help="plan file to write (.npz)")
     p.add_argument("--plot", type=Path, help="also write a PNG of p_r snapshots with v_r arrows and the target")
     p.add_argument("--initial", type=Path, help="initial density p0 as an (nx, ny) .npy array (normalised here)")
@@ -82,8 +83,9 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--domain", metavar="FILE|NAME",
                    help="obstacles: a built-in domain (harbour, floor, lake) or a map file (.npz, .png, .tif, "
                         ".geojson, ROS .yaml); cells are free iff their free-area fraction >= --min-free-fraction")
-    g.add_argument("--min-free-fraction", type=float, default=0.5, metavar="F",
-                   help="with --domain: a cell is free iff at least this fraction of it is free (default 0.5)")
+    g.add_argument("--min-free-fraction", type=float, default=None, metavar="F",
+                   help="with --domain: a cell is free iff at least this fraction of it is free (default 0.5, or "
+                        "the [domain] table of a simulate-swarm configuration)")
     s = p.add_argument_group("IPOPT")
     s.add_argument("--tol", type=float, help="IPOPT tol (default 1e-6)")
     s.add_argument("--max-iter", type=int, help="IPOPT max_iter (default 500)")
@@ -155,8 +157,9 @@ def resolve_settings(args) -> PlannerSettings:
 def _from_run_config(args, doc: dict) -> dict:
     """A simulate-swarm configuration (it has ``[sim]``) read by plan-reference: its ``[planner]`` table, the
     planner's domain from ``[sim] domain`` unless ``[planner]`` states one, and ``[sim] start_box`` as the
-    start box unless ``--start-box`` is given (a map in UTM coordinates needs both); the closed loop's other
-    tables ([gp], [kde], [feedback], ...) do not concern a single plan and are passed over."""
+    start box unless ``--start-box`` is given (a map in UTM coordinates needs both), and its ``[domain]`` map (source
+    and min_free_fraction) unless ``--domain`` is given; the closed loop's other tables ([gp], [kde], [feedback],
+    ...) do not concern a single plan and are passed over."""
     from ..sim.config import SECTIONS
     unknown = sorted(set(doc) - set(SECTIONS) - {"preset"})
     if unknown:
@@ -175,6 +178,17 @@ def _from_run_config(args, doc: dict) -> dict:
             args.start_box = [float(v) for v in box]
         except (TypeError, ValueError):
             raise InputError(f"config {args.config}: [sim] start_box must be four numbers, got {box!r}") from None
+    table = doc.get("domain", {})
+    if isinstance(table, dict) and table.get("source") and getattr(args, "domain", None) is None:
+        # a run's own config.toml on a map: its [domain] is the map the run's plans saw (it was passed over, and the
+        # plan was made on the empty rectangle, silently)
+        args.domain = str(table["source"])
+        if getattr(args, "min_free_fraction", None) is None and table.get("min_free_fraction") is not None:
+            try:
+                args.min_free_fraction = float(table["min_free_fraction"])
+            except (TypeError, ValueError):
+                raise InputError(f"config {args.config}: [domain] min_free_fraction must be a number, got "
+                                 f"{table['min_free_fraction']!r}") from None
     return {"planner": planner}
 
 
@@ -247,6 +261,8 @@ def domain_problem(args, grid, p0, target):
     excluded; ``warnings`` (one line each: their area, repaired polygons) are for the caller to
     print once every input has passed its checks, so that a bad input is one line."""
     from ..domain import make_domain
+    if args.min_free_fraction is None:
+        args.min_free_fraction = 0.5
     f = args.min_free_fraction
     if not (0 < f <= 1):
         raise InputError(f"--min-free-fraction must be in (0, 1], got {f}")

@@ -106,3 +106,23 @@ def test_a_tiny_field_run_without_its_noise_sd_is_told_to_give_one(tmp_path):
     with pytest.warns(UserWarning, match=r"field '.*nano\.npz' is constant .* the noise is the paper's default "
                                          r"\(sd 0\.2\): give the sensor's sd in the field's units with --noise-sd"):
         Simulation(config_from_dict({"sim": sim}))
+
+
+def test_plan_reference_with_a_runs_configuration_plans_on_the_runs_map(tmp_path):
+    # plan-reference --config RUN/config.toml of a run on the flat (GeoJSON, 0.12 m walls) planned on the empty
+    # rectangle: the [domain] table was passed over, silently
+    import json
+    import numpy as np
+    from swarmfield.cli.plan_reference import main as plan_main
+    free = np.ones((160, 120), bool)
+    free[79:81, :100] = False                                  # a wall with a gap at the top
+    np.savez(tmp_path / "site.npz", free=free, extent=np.array([0.0, 16.0, 0.0, 12.0]))
+    cfg = tmp_path / "config.toml"
+    cfg.write_text(f'preset = "tuned"\n[sim]\ndomain = [0.0, 16.0, 0.0, 12.0]\nstart_box = [0.5, 4.5, 0.5, 4.5]\n'
+                   f'[domain]\nsource = "{tmp_path / "site.npz"}"\nmin_free_fraction = 0.25\n'
+                   "[planner]\nnx = 8\nny = 6\nn_intervals = 2\nn_modes_x = 2\nn_modes_y = 2\n")
+    out = tmp_path / "plan.npz"
+    assert plan_main(["--config", str(cfg), "--out", str(out)]) == 0
+    z = np.load(out)
+    assert "closed_x" in z and "free" in z
+    assert json.loads(str(z["meta"]))["domain"]["min_free_fraction"] == 0.25
