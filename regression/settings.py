@@ -310,8 +310,12 @@ class GPSettings:
             raise ValueError(f"signal_scale must be one of {', '.join(SIGNAL_SCALES)}, got {self.signal_scale!r}")
         ratio = self.signal_variance / self.noise_variance
         if self.signal_scale == "absolute" and not 1.0 / MAX_SIGNAL_TO_NOISE <= ratio <= MAX_SIGNAL_TO_NOISE:
+            # a field of 1e-9 mol/L with its sensor's sd of 2e-11 under the paper's s_f^2 = 0.25: say what to change
             raise ValueError(f"signal_variance / noise_variance = {ratio:.3g} is outside [1e-10, 1e10]: beyond it the "
-                             "posterior's Cholesky factorisations lose accuracy (at 1e102 they fail)")
+                             "posterior's Cholesky factorisations lose accuracy (at 1e102 they fail); signal_variance "
+                             f"{self.signal_variance:g} is in the field's units squared (the paper's 0.25, for a field "
+                             "of order 1): set it to about the field's variance, or use the tuned preset (--preset "
+                             "tuned), whose GP takes its scale from the data")
         if self.prior_mean is not None:
             if isinstance(self.prior_mean, bool):
                 raise ValueError(f"prior_mean must be None or a finite number, got {self.prior_mean!r}")

@@ -126,3 +126,14 @@ def test_plan_reference_with_a_runs_configuration_plans_on_the_runs_map(tmp_path
     z = np.load(out)
     assert "closed_x" in z and "free" in z
     assert json.loads(str(z["meta"]))["domain"]["min_free_fraction"] == 0.25
+
+
+def test_a_field_of_order_1e_minus_9_under_the_paper_preset_is_told_what_to_change():
+    # the paper preset's s_f^2 = 0.25 against a sensor sd of 2e-11 mol/L: "signal_variance / noise_variance =
+    # 6.25e+20 is outside [1e-10, 1e10] ..." for a setting the user never wrote, without a way out
+    with pytest.raises(ValueError, match=r"6\.25e\+20 is outside .* signal_variance 0\.25 is in the field's units "
+                                         r"squared .* or use the tuned preset \(--preset tuned\)"):
+        config_from_dict({"sim": {"domain": [0.0, 2.0, 0.0, 1.0], "start_box": [0.0, 0.7, 0.0, 0.35],
+                                  "noise_variance": 4e-22}})
+    config_from_dict({"preset": "tuned", "sim": {"domain": [0.0, 2.0, 0.0, 1.0], "start_box": [0.0, 0.7, 0.0, 0.35],
+                                                 "noise_variance": 4e-22}})
