@@ -66,6 +66,10 @@ class FeedbackSettings:
     stir_speed : speed u [m/s] of the density-preserving stirring flux J added to the numerator
             (:mod:`control.stirring`; beyond the paper); 0 (default) is the paper's law.
     stir_cells : number k of stirring cells per axis (k and k + 1 alternate between periods).
+    stir_shape : how k becomes cells on the site (:func:`control.stirring.stirring_cells`): ``"mean-side"``
+            (default) k x k cells with the speed set by the mean side; ``"square"`` k^2 cells as square as the
+            site allows, the stirring speed at most stir_speed along either axis; ``"auto"`` (the tuned preset's)
+            ``"square"`` beyond an aspect ratio of 4, else ``"mean-side"``.
     transport_rate : rate beta [1/s] of the global mass-transport flux beta grad psi added to the
             numerator (:mod:`control.poisson_flux`; beyond the paper): with it the error decays as
             dPhi/dt = div(alpha grad Phi) - beta Phi, through doors and around obstacles; 0 (default)
@@ -88,6 +92,7 @@ class FeedbackSettings:
     v_max: float = 4.0
     stir_speed: float = 0.0
     stir_cells: int = 2
+    stir_shape: str = "mean-side"
     transport_rate: float = 0.0
     spread_radius: float = 0.0
     spread_priority: str = "sum"
@@ -96,6 +101,10 @@ class FeedbackSettings:
         if self.spread_priority not in SPREAD_PRIORITIES:
             raise ValueError(f"feedback.spread_priority must be one of {', '.join(repr(p) for p in SPREAD_PRIORITIES)}, "
                              f"got {self.spread_priority!r}")
+        from .stirring import STIR_SHAPES
+        if self.stir_shape not in STIR_SHAPES:
+            raise ValueError(f"feedback.stir_shape must be one of {', '.join(repr(p) for p in STIR_SHAPES)}, "
+                             f"got {self.stir_shape!r}")
         k = self.stir_cells
         if isinstance(k, bool) or not isinstance(k, (int, np.integer, float)) or k != int(k) or not 1 <= k <= 64:
             raise ValueError(f"feedback.stir_cells must be an integer in [1, 64], got {k!r}")
@@ -324,7 +333,7 @@ def _tracking_block(X, plan, t, est, settings, stir_pattern, plan_dom, transport
     if settings.stir_speed > 0:
         from .stirring import stirring_flux
         k, sense = stir_pattern if stir_pattern is not None else (settings.stir_cells, 1.0)
-        flux = stirring_flux(X, p_r, grad_p_r, plan_dom, settings.stir_speed, k, sense)
+        flux = stirring_flux(X, p_r, grad_p_r, plan_dom, settings.stir_speed, k, sense, settings.stir_shape)
     if transport is not None:
         solver, faces = transport
         extra = solver.at(X, faces)

@@ -659,10 +659,19 @@ def tracking_velocity(X: np.ndarray, plan, t: float, est, settings, stir_pattern
         bx, by = sx1 - sx0, sy1 - sy0
         kk = int(kk)
         q.stir = 1
-        q.sc = float(sense) * s.stir_speed * 0.5 * (bx + by) / (kk * math.pi)
-        q.kpi = kk * math.pi
-        q.kpbx, q.kpby = kk * math.pi / bx, kk * math.pi / by
-        q.sx0, q.sy0, q.sbx, q.sby = sx0, sy0, bx, by
+        from .stirring import stirring_cells
+        square = stirring_cells(plan_dom, kk, s.stir_shape)
+        if square is None:
+            q.sc = float(sense) * s.stir_speed * 0.5 * (bx + by) / (kk * math.pi)
+            q.kpi = kk * math.pi
+            q.kpbx, q.kpby = kk * math.pi / bx, kk * math.pi / by
+            q.sx0, q.sy0, q.sbx, q.sby = sx0, sy0, bx, by
+        else:       # k_x x k_y cells (control.stirring.stirring_cells): the phases k pi (x - x0) / b per axis
+            kx, ky, cu = square
+            q.sc = float(sense) * s.stir_speed * cu
+            q.kpi = 1.0
+            q.kpbx, q.kpby = kx * math.pi / bx, ky * math.pi / by
+            q.sx0, q.sy0, q.sbx, q.sby = sx0, sy0, bx / (kx * math.pi), by / (ky * math.pi)
     V = np.empty((n, 2))
     rc = lib.sf_tracking(n, X, V, ctypes.byref(q))
     del keep

@@ -39,7 +39,14 @@ import math
 
 import numpy as np
 
-__all__ = ["stirring_flux", "stirring_pattern"]
+__all__ = ["stirring_flux", "stirring_pattern", "stirring_cells", "STIR_SHAPES", "SQUARE_CELLS_ASPECT"]
+
+#: ``feedback.stir_shape``: how the k of :func:`stirring_pattern` becomes cells on the site (:func:`stirring_cells`)
+STIR_SHAPES = ("mean-side", "square", "auto")
+
+#: aspect ratio (longer side / shorter side) beyond which ``stir_shape = "auto"`` takes square cells: up to it the
+#: mean side's k x k cells, with which every tuned result up to this ratio was measured, bit for bit
+SQUARE_CELLS_ASPECT = 4.0
 
 
 def stirring_pattern(period_index: int, cells: int) -> tuple[int, float]:
@@ -49,13 +56,40 @@ def stirring_pattern(period_index: int, cells: int) -> tuple[int, float]:
     return int(cells) + (j % 2), (1.0 if (j // 2) % 2 == 0 else -1.0)
 
 
-def stirring_flux(X, p_r, grad_p_r, domain, speed: float, cells: int, sense: float = 1.0) -> np.ndarray:
+def stirring_cells(domain, cells: int, shape: str = "mean-side") -> tuple[int, int, float] | None:
+    """``(k_x, k_y, c / u)`` of the stirring on ``domain = (x0, x1, y0, y1)`` for the pattern's ``cells`` = k, or
+    None for ``shape = "mean-side"`` (k x k cells, c = u L / (k pi) with L the mean side: the module docstring).
+
+    ``"square"``: the same number k^2 of cells, as square as the site allows, k_x = max(1, round(k sqrt(a))) and
+    k_y = max(1, round(k / sqrt(a))) with a = b_x / b_y, and c = u / max(k_x pi / b_x, k_y pi / b_y), so that the
+    stirring velocity u grad^perp Phi / max(...) where p_hat = p_r is at most u along either axis.  With the mean
+    side on a site of aspect a the velocity along the longer side reaches u (1 + a) / 2 (30 m/s for u = 3 m/s on a
+    150 m x 8 m reach, ten times the robots' speed limit: the saturated law then follows the stirring's stripes
+    instead of the reference).  On a square both give k x k cells and the same c.  ``"auto"``: ``"square"`` beyond
+    the aspect ratio :data:`SQUARE_CELLS_ASPECT`, else ``"mean-side"``.
+    """
+    if shape not in STIR_SHAPES:
+        raise ValueError(f"stirring shape must be one of {', '.join(STIR_SHAPES)}, got {shape!r}")
+    x0, x1, y0, y1 = (float(v) for v in domain)
+    bx, by = x1 - x0, y1 - y0
+    if shape == "auto":
+        shape = "square" if max(bx, by) > SQUARE_CELLS_ASPECT * min(bx, by) else "mean-side"
+    if shape == "mean-side":
+        return None
+    r = math.sqrt(bx / by)
+    kx, ky = max(1, int(round(cells * r))), max(1, int(round(cells / r)))
+    return kx, ky, 1.0 / max(kx * math.pi / bx, ky * math.pi / by)
+
+
+def stirring_flux(X, p_r, grad_p_r, domain, speed: float, cells: int, sense: float = 1.0,
+                  shape: str = "mean-side") -> np.ndarray:
     """J = grad^perp (c p_r Phi_k) at the points X (n, 2), with c = speed L / (cells pi).
 
     ``p_r`` (n,) and ``grad_p_r`` (n, 2) are the reference density and its gradient at X (e.g. from
     ``ReferencePlan.density_and_gradient``); ``domain = (x0, x1, y0, y1)``.  Returns J (n, 2), a
     flux (density x velocity) whose divergence vanishes identically and whose normal component
-    vanishes on the walls (module docstring).
+    vanishes on the walls (module docstring).  ``shape`` (:func:`stirring_cells`): ``"square"`` takes
+    k_x x k_y cells as square as the site allows and c so that the stirring speed stays at most ``speed``.
     """
     X = np.asarray(X, dtype=float).reshape(-1, 2)
     p_r = np.asarray(p_r, dtype=float).reshape(-1)
@@ -66,6 +100,16 @@ def stirring_flux(X, p_r, grad_p_r, domain, speed: float, cells: int, sense: flo
         raise ValueError(f"stirring cells must be an integer >= 1, got {cells!r}")
     x0, x1, y0, y1 = (float(v) for v in domain)
     bx, by = x1 - x0, y1 - y0
+    square = stirring_cells(domain, int(cells), shape)
+    if square is not None:
+        kx, ky, cu = square
+        c = float(sense) * speed * cu
+        ax, ay = kx * math.pi * (X[:, 0] - x0) / bx, ky * math.pi * (X[:, 1] - y0) / by
+        sx, sy, cx, cy = np.sin(ax), np.sin(ay), np.cos(ax), np.cos(ay)
+        phi = sx * sy
+        dpsi_dx = c * (grad_p_r[:, 0] * phi + p_r * ((kx * math.pi / bx) * cx * sy))
+        dpsi_dy = c * (grad_p_r[:, 1] * phi + p_r * ((ky * math.pi / by) * sx * cy))
+        return np.column_stack([-dpsi_dy, dpsi_dx])
     k = int(cells)
     c = float(sense) * speed * 0.5 * (bx + by) / (k * math.pi)
     ax, ay = k * math.pi * (X[:, 0] - x0) / bx, k * math.pi * (X[:, 1] - y0) / by

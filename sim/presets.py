@@ -114,6 +114,13 @@ PRESETS: dict[str, dict] = {
             # density-preserving stirring (control.stirring): the robots keep sweeping inside p_r
             "stir_speed": 3.0,
             "stir_cells": 3,
+            # the stirring cells on a site longer than four times its width: k^2 cells as square as the site allows, the
+            # stirring speed at most stir_speed along either axis (control.stirring.stirring_cells).  With the mean
+            # side's k x k cells a 150 m x 8 m river reach was stirred at up to 30 m/s along the reach: the saturated
+            # law followed the stirring's stripes and a third of the swarm stayed in the middle (docs/results/
+            # map-quality.md, "Elongated sites: the river reach again").  Up to an aspect ratio of 4 the mean side's
+            # cells, bit for bit
+            "stir_shape": "auto",
             # the global transport flux beta grad psi, Delta psi = p_hat - p_r over the free space
             # (control.poisson_flux): the error decays at the rate beta = 3/s on top of the diffusion, through
             # doors and around obstacles (docs/results/domains.md: the floor 2.88 -> 2.12 T, the harbour

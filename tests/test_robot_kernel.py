@@ -58,21 +58,26 @@ def test_binning_is_bit_for_bit_the_numpy_binning():
     assert abs(got.sum() - 5000) < 1e-8
 
 
-@pytest.mark.parametrize("basis, stir, vmax, t, beta", [("sine", 0.0, 4.0, 1.3, 0.0), ("sine-cosine", 3.0, 4.0, 4.2, 0.0),
-                                                        ("sine", 0.0, math.inf, 6.0, 0.0), ("sine", 1.0, 4.0, 8.0, 0.0),
-                                                        ("sine", 0.0, math.inf, 1.3, 2.0),
-                                                        ("sine-cosine", 3.0, 4.0, 4.2, 2.0)])
-def test_compiled_tracking_velocity_agrees_with_numpy(monkeypatch, basis, stir, vmax, t, beta):
+@pytest.mark.parametrize("basis, stir, vmax, t, beta, shape", [("sine", 0.0, 4.0, 1.3, 0.0, "mean-side"),
+                                                               ("sine-cosine", 3.0, 4.0, 4.2, 0.0, "mean-side"),
+                                                               ("sine", 0.0, math.inf, 6.0, 0.0, "mean-side"),
+                                                               ("sine", 1.0, 4.0, 8.0, 0.0, "mean-side"),
+                                                               ("sine", 0.0, math.inf, 1.3, 2.0, "mean-side"),
+                                                               ("sine-cosine", 3.0, 4.0, 4.2, 2.0, "mean-side"),
+                                                               ("sine-cosine", 3.0, 4.0, 4.2, 2.0, "square"),
+                                                               ("sine", 1.0, math.inf, 8.0, 0.0, "square")])
+def test_compiled_tracking_velocity_agrees_with_numpy(monkeypatch, basis, stir, vmax, t, beta, shape):
     rng = np.random.default_rng(7)
     plan = _plan(rng, basis)
     X = _robots(rng, 3000)
     est = KernelDensity(DOMAIN).fit(X[: 1500] * 0.5 + 2.0)          # a clustered estimate: floor and saturation act
     s = FeedbackSettings(alpha=1.0, sigma=0.05, p_floor=2.5e-4, v_max=vmax, stir_speed=stir, stir_cells=2,
-                         transport_rate=beta)
+                         transport_rate=beta, stir_shape=shape)
+    pattern = (7, -1.0) if shape == "square" else (3, -1.0)          # square: 8 x 6 cells on the 20 m x 16 m site
     monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "numpy")
-    ref = tracking_velocity(X, plan, t, est, s, (3, -1.0))
+    ref = tracking_velocity(X, plan, t, est, s, pattern)
     monkeypatch.setenv("SWARMFIELD_ROBOT_KERNEL", "compiled")
-    got = tracking_velocity(X, plan, t, est, s, (3, -1.0))
+    got = tracking_velocity(X, plan, t, est, s, pattern)
     scale = np.abs(ref).max()
     assert scale > 0.1
     # a few ulps: libm's sin/cos and the order of the v_r sums differ from NumPy's
