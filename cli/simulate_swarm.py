@@ -221,8 +221,28 @@ def headline(result) -> list[str]:
             f"{STOP_REASONS.get(result.stop_reason, result.stop_reason)}",
             f"{PROG}: mean V {first['mean_variance']:.4g} -> {last['mean_variance']:.4g}; RMSE of the estimate "
             f"{first['rmse']:.4g} at t = 0 -> {last['rmse']:.4g} at t = {last['t']:.2f} s; "
-            f"simulation wall time {result.wall_time:.1f} s"] + _map_note(result, thr) + \
+            f"simulation wall time {result.wall_time:.1f} s"] + (_map_note(result, thr) or _nugget_note(result)) + \
         (_reach_note(result) or (_rmse_note(result.config, first["rmse"], last["rmse"]) if last["t"] > first["t"] else []))
+
+
+#: A learned nugget above this multiple of the sensor's noise variance gets a line in the headline.
+NUGGET_NOTE = 4.0
+
+
+def _nugget_note(result) -> list[str]:
+    """When the learned nugget tau^2 (:mod:`regression.hyper`, "Nugget") is more than :data:`NUGGET_NOTE` times the
+    sensor's noise variance: the data scatter about the map more than the sensor explains.  Either the field varies
+    finer than the GP resolves, or the sensor is noisier or more prone to outliers than ``--noise-sd`` says (5 % of
+    the measurements at 20x the noise's sd: a nugget 14-16x the noise variance, the run never stopping, nothing said)."""
+    kernel = getattr(result, "kernel", None) or {}
+    tau2 = float(kernel.get("nugget") or 0.0)
+    sn2 = float(result.config.sim.noise_variance)
+    if not (sn2 > 0 and tau2 > NUGGET_NOTE * sn2):
+        return []
+    return [f"{PROG}: the learned nugget {tau2:.4g} is {tau2 / sn2:.3g} x the sensor's noise variance {sn2:.4g} "
+            f"(--noise-sd {sn2 ** 0.5:.4g}): the data scatter about the map more than the sensor's noise explains, "
+            "from variation finer than the GP resolves (a step, a front) or from a sensor noisier or more prone to "
+            "outliers than --noise-sd says; the map's band includes that scatter"]
 
 
 def _reach_note(result) -> list[str]:

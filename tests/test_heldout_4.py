@@ -137,3 +137,19 @@ def test_a_field_of_order_1e_minus_9_under_the_paper_preset_is_told_what_to_chan
                                   "noise_variance": 4e-22}})
     config_from_dict({"preset": "tuned", "sim": {"domain": [0.0, 2.0, 0.0, 1.0], "start_box": [0.0, 0.7, 0.0, 0.35],
                                                  "noise_variance": 4e-22}})
+
+
+def test_a_nugget_far_above_the_sensors_noise_is_said():
+    # 5 % of the soil-moisture measurements at 20x the noise's sd: the learned nugget went to 14x the noise variance,
+    # the run never stopped, and nothing said why
+    from types import SimpleNamespace
+    from swarmfield.cli.simulate_swarm import headline
+    cfg = config_from_dict({"preset": "tuned", "sim": {"noise_variance": 4e-6}})
+    rows = [{"t": t, "max_variance": 1e-4, "mean_variance": 5e-5, "rmse": e, "threshold": 1e-6}
+            for t, e in ((0.0, 0.006), (21.0, 0.001))]
+    res = SimpleNamespace(rows=rows, config=cfg, time_to_threshold=None, threshold_row=None, stop_reason="max_time",
+                          wall_time=1.0, kernel={"nugget": 5.5e-5, "signal_variance": 1.5e-4}, free=None)
+    lines = [ln for ln in headline(res) if "nugget" in ln]
+    assert len(lines) == 1 and "13.8 x the sensor's noise variance" in lines[0] and "outliers" in lines[0], lines
+    res.kernel = {"nugget": 5e-6, "signal_variance": 1.5e-4}                  # 1.25x: within what a field gives
+    assert not any("nugget" in ln for ln in headline(res))
