@@ -76,6 +76,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--noise-sd", type=float, metavar="SD",
                    help="standard deviation of the measurement noise, in the field's units (sim.noise_variance = SD^2; "
                         "default the paper's 0.2)")
+    p.add_argument("--outliers", type=float, nargs=2, metavar=("FRACTION", "SCALE"),
+                   help="an outlier-prone sensor: a share FRACTION of the readings has SCALE times the noise sd "
+                        "(sim.noise_model = \"contaminated\", e.g. --outliers 0.05 20; default: Gaussian noise)")
     p.add_argument("--kernel-angle", metavar="DEGREES|auto",
                    help="rotated anisotropic GP kernel: the direction (degrees from x, counter-clockwise) of "
                         "gp.length_scale, gp.length_scale_y across it; auto: chosen by marginal likelihood at the "
@@ -92,7 +95,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def resolve(args):
     """Configuration and field from the arguments; ``InputError`` for every bad input."""
-    from ..sim.config import RunConfig, config_from_dict, load_config
+    from ..sim.config import RunConfig, config_from_dict, load_config, outlier_overrides
     from ..sim.fields import make_field
     from ..sim.loop import check_config
 
@@ -106,6 +109,10 @@ def resolve(args):
     sd = getattr(args, "noise_sd", None)
     if sd is not None and not (math.isfinite(sd) and sd > 0):
         raise InputError(f"--noise-sd must be a positive number in the field's units, got {sd:g}")
+    try:
+        overrides.update(outlier_overrides(getattr(args, "outliers", None)))
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
     for name in ("seed", "robots", "max_periods"):
         v = overrides[name]
         if v is not None and (v < 0 or (v == 0 and name != "seed")):

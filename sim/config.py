@@ -60,6 +60,7 @@ from ..domain import DomainSettings
 from .presets import DEFAULT_PRESET, PRESETS, merge_under_preset
 from .site_scale import (SITE_SCALE_RULES, SWARM_SCALE_RULES, SWARM_SCALED, area_ratio, length_ratio,
                          resolved_site_area, scale_document, scale_lengths, site_area, spacing_ratio)
+from .dynamics import NOISE_MODELS
 from .stopping import STOP_RULES
 
 __all__ = ["SimSettings", "KDESettings", "RunConfig", "load_config", "read_toml", "config_from_dict", "to_toml",
@@ -139,6 +140,13 @@ class SimSettings:
                     on the variance (the run lasts max_periods)
     eta             tolerance of the target density p_f = max(V - eta, 0) / int (paper: "small"); below gamma
     noise_variance  variance of the measurement noise (paper: 0.04)
+    noise_model     the sensor: ``"gaussian"`` (default, the paper's): every reading's noise is N(0, noise_variance);
+                    ``"contaminated"``: a contaminated normal, each reading's noise has its sd times
+                    ``outlier_scale`` with probability ``outlier_fraction`` (an outlier-prone sensor; the draws that
+                    pick and size the outliers come from a stream of their own, so the robots' motion and the
+                    Gaussian part of the noise are those of the Gaussian run until the data differ)
+    outlier_fraction  ``"contaminated"``: the probability epsilon that a reading is an outlier (default 0.05)
+    outlier_scale   ``"contaminated"``: an outlier's noise sd over the sensor's (default 20)
     stop_rule       "absolute" (paper): stop when sup V <= gamma; "relative": stop when
                     sup V <= gamma_relative * s_f^2 (s_f^2 possibly learned, gp.learn_hyperparameters)
                     "robust": "relative", and it must also hold for the variance computed with the
@@ -247,6 +255,9 @@ class SimSettings:
     gamma: float = 0.1
     eta: float = 0.05
     noise_variance: float = 0.04
+    noise_model: str = "gaussian"
+    outlier_fraction: float = 0.05
+    outlier_scale: float = 20.0
     max_periods: int = 20
     field: str = "sinc"
     seed: int = 0
@@ -290,6 +301,17 @@ class SimSettings:
             set_(k, _number(k, getattr(self, k), positive=True))
         for k in ("gamma", "eta"):
             set_(k, _number(k, getattr(self, k), nonneg=True))
+        if self.noise_model not in NOISE_MODELS:
+            raise ValueError(f"sim.noise_model must be one of {', '.join(repr(m) for m in NOISE_MODELS)}, "
+                             f"got {self.noise_model!r}")
+        set_("outlier_fraction", _number("outlier_fraction", self.outlier_fraction, nonneg=True))
+        if not self.outlier_fraction < 1:
+            raise ValueError(f"sim.outlier_fraction must be in [0, 1) (the share of readings that are outliers), "
+                             f"got {self.outlier_fraction:g}")
+        set_("outlier_scale", _number("outlier_scale", self.outlier_scale, positive=True))
+        if self.outlier_scale < 1:
+            raise ValueError(f"sim.outlier_scale must be >= 1 (an outlier's noise sd over the sensor's), "
+                             f"got {self.outlier_scale:g}")
         set_("max_periods", _integer("max_periods", self.max_periods, 1))
         set_("seed", _integer("seed", self.seed, 0))
         set_("substeps", _integer("substeps", self.substeps, 1))
@@ -611,6 +633,18 @@ def paper_corner(domain, digits: int) -> list:
     side, the far corner rounded to ``digits`` decimals."""
     x0, x1, y0, y1 = domain
     return [x0, round(x0 + START_FRACTION * (x1 - x0), digits), y0, round(y0 + START_FRACTION * (y1 - y0), digits)]
+
+
+def outlier_overrides(pair) -> dict:
+    """The ``[sim]`` entries of the ``--outliers FRACTION SCALE`` flag (``sim.noise_model = "contaminated"``); {} for
+    None.  ``ValueError`` (one line) unless 0 <= FRACTION < 1 and SCALE >= 1, both finite."""
+    if pair is None:
+        return {}
+    fraction, scale = (float(v) for v in pair)
+    if not (math.isfinite(fraction) and 0 <= fraction < 1 and math.isfinite(scale) and 1 <= scale <= MAX_MAGNITUDE):
+        raise ValueError(f"--outliers FRACTION SCALE: FRACTION in [0, 1) (the share of readings that are outliers) and "
+                         f"SCALE >= 1 (their noise sd over the sensor's), got {fraction:g} {scale:g}")
+    return {"noise_model": "contaminated", "outlier_fraction": fraction, "outlier_scale": scale}
 
 
 def _map_extent_defaults(sim_map: dict, given_sim: dict, overrides: dict, source) -> dict:

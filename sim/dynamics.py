@@ -85,6 +85,23 @@ def measure(field, X, noise_variance: float, rng: np.random.Generator) -> np.nda
     return f + math.sqrt(noise_variance) * rng.standard_normal(f.shape)
 
 
+#: the sensor models of ``sim.noise_model`` (:func:`contaminate`)
+NOISE_MODELS = ("gaussian", "contaminated")
+
+
+def contaminate(y: np.ndarray, noise_variance: float, fraction: float, scale: float,
+                rng: np.random.Generator) -> np.ndarray:
+    """An outlier-prone sensor from Gaussian readings ``y`` (:func:`measure`): with probability ``fraction`` a reading's
+    noise has its sd times ``scale``, i.e. N(0, noise_variance) plus an independent N(0, (scale^2 - 1)
+    noise_variance) -- a contaminated normal (Tukey), (1 - eps) N(0, s^2) + eps N(0, (k s)^2).  ``rng`` draws which
+    readings are outliers and their extra noise (two draws per reading, whatever the outcome, so a run's outliers do
+    not depend on the values measured)."""
+    n = y.shape[0]
+    hit = rng.random(n) < fraction
+    extra = rng.standard_normal(n)
+    return y + np.where(hit, math.sqrt((scale * scale - 1.0) * noise_variance) * extra, 0.0)
+
+
 def uniform_in_box(n: int, box, rng: np.random.Generator, domain=None) -> np.ndarray:
     """n positions uniform on ``box = (x0, x1, y0, y1)`` (the paper's initial distribution); with a
     :class:`domain.Domain`, uniform on the box intersected with its free space."""

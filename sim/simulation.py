@@ -56,7 +56,7 @@ from ..regression.hyper import refit_online
 from ..runtime.threads import COMMAND_THREADS, limit_threads
 
 from .config import RunConfig
-from .dynamics import euler_maruyama_step, measure, uniform_in_box
+from .dynamics import contaminate, euler_maruyama_step, measure, uniform_in_box
 from .fields import make_field
 from .metrics import l2_norm
 from .network import make_network
@@ -246,6 +246,7 @@ class Simulation:
                           f"a thousandth of the noise's sd {noise_sd:.3g}): {hint}", UserWarning, stacklevel=2)
 
         self.rng = np.random.default_rng(s.seed)
+        self._outlier_rng = np.random.default_rng([s.seed, 0x5E75]) if s.noise_model == "contaminated" else None
         if config.gp.barrier is True and self.region is None:
             raise ValueError(_BARRIER_NEEDS_DOMAIN)
         self.gp = self.attach_barrier(GaussianProcess(config.gp, domain=s.domain))
@@ -504,7 +505,11 @@ class Simulation:
     def measure(self):
         """Noisy measurements y = f(X) + eps of the working robots; the pending data (X_a, y)."""
         Xa = self.working()
-        self._pending = (Xa, measure(self.field, Xa, self.settings.noise_variance, self.rng))
+        s = self.settings
+        y = measure(self.field, Xa, s.noise_variance, self.rng)
+        if s.noise_model == "contaminated":     # an outlier-prone sensor, from a stream of its own (sim.noise_model)
+            y = contaminate(y, s.noise_variance, s.outlier_fraction, s.outlier_scale, self._outlier_rng)
+        self._pending = (Xa, y)
         return self._pending
 
     def regress(self, Xa=None, y=None) -> None:

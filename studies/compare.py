@@ -575,6 +575,10 @@ def build_parser():
     p.add_argument("--noise-sd", type=float, metavar="SD",
                    help="standard deviation of the measurement noise, in the field's units (default: the "
                         "configuration's sim.noise_variance, the paper's 0.04 = 0.2^2)")
+    p.add_argument("--outliers", type=float, nargs=2, metavar=("FRACTION", "SCALE"),
+                   help="an outlier-prone sensor in every run: a share FRACTION of the readings has SCALE times the "
+                        "noise sd (sim.noise_model = \"contaminated\", e.g. --outliers 0.05 20; default: the "
+                        "configuration's sensor, Gaussian)")
     p.add_argument("--max-periods", type=int, default=4, metavar="N", help="length of every run in periods T")
     p.add_argument("--times", nargs="+", type=float, default=None, metavar="K",
                    help="RMSE columns at these multiples of T (default 1 2 and --max-periods)")
@@ -632,6 +636,11 @@ def run(argv=None) -> int:
                              "(multiples of T within the runs)")
     if args.noise_sd is not None and not (math.isfinite(args.noise_sd) and args.noise_sd > 0):
         raise InputError(f"--noise-sd must be a positive number in the field's units, got {args.noise_sd:g}")
+    from ..sim.config import outlier_overrides
+    try:
+        sensor = outlier_overrides(args.outliers)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
     if args.loss_time is not None and not math.isfinite(args.loss_time):
         raise InputError(f"--loss-time must be a finite time in seconds, got {args.loss_time}")
     # one rule for repeated axis values in every sweep command: dropped, with a one-line note
@@ -659,6 +668,8 @@ def run(argv=None) -> int:
             # learned hyperparameters); each task's own preset is checked in make_tasks
             base = load_config(args.config, preset=args.presets[0] if args.presets else None) if args.config else None
             base_doc = read_toml(args.config) if args.config else {}
+            if sensor:                           # --outliers beats the file's sensor
+                base_doc = {**base_doc, "sim": {**base_doc.get("sim", {}), **sensor}}
             if args.cell_size is not None:       # the flag beats the file's cell size and cell counts
                 base_doc = {**base_doc, "planner": {**{k: v for k, v in base_doc.get("planner", {}).items()
                                                        if k not in ("nx", "ny")}, "cell_size": args.cell_size}}
