@@ -117,9 +117,11 @@ PRESETS: dict[str, dict] = {
             # the stirring cells on a site longer than four times its width: k^2 cells as square as the site allows, the
             # stirring speed at most stir_speed along either axis (control.stirring.stirring_cells).  With the mean
             # side's k x k cells a 150 m x 8 m river reach was stirred at up to 30 m/s along the reach: the saturated
-            # law followed the stirring's stripes and a third of the swarm stayed in the middle (docs/results/
-            # map-quality.md, "Elongated sites: the river reach again").  Up to an aspect ratio of 4 the mean side's
-            # cells, bit for bit
+            # law followed the stirring's stripes and 47 of 100 robots were in the middle third at 3 T.  With square
+            # cells the feedback's map there at 3 T 0.243 / 0.225 -> 0.043 / 0.052 (seeds 0 / 1; the best or within 2 %
+            # of every baseline's on seeds 0-3), at 2 T 1.31 / 1.63 -> 1.06 / 1.18x the best other's, the threshold
+            # never -> 4.38-5.50 T; on a 60 m x 10 m canal level (docs/results/map-quality.md, "Elongated sites: the
+            # river reach again").  Up to an aspect ratio of 4 the mean side's cells, bit for bit
             "stir_shape": "auto",
             # the global transport flux beta grad psi, Delta psi = p_hat - p_r over the free space
             # (control.poisson_flux): the error decays at the rate beta = 3/s on top of the diffusion, through
