@@ -208,8 +208,8 @@ class GPSettings:
         the signal variance s_f^2 exp(g(x)) varies over the domain, k(x, x') = s_f^2 a(x) a(x') k0(x, x') with
         a = exp(g / 2), g a coarse cubic B-spline surface of mean 0 learned by MAP at each online refit (with
         ``learn_hyperparameters``; :mod:`regression.amplitude`): V is large where the data vary much, so that the
-        planner, the stop rule and every controller steering by V see where the field's structure is; the tuned
-        preset's.  Separable kernels only (not the GMRF ones); with ``mean = "linear"`` / ``"auto"`` the trend is
+        planner, the stop rule and every controller steering by V see where the field's structure is.  Separable
+        kernels only (not the GMRF ones); with ``mean = "linear"`` / ``"auto"`` the trend is
         estimated under the scaled covariance and g fitted by the restricted likelihood.
     amplitude_cells
         ``amplitude = "local"``: cells of g's cubic B-splines along the domain's longer side (cells of the same width
