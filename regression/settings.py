@@ -230,6 +230,20 @@ class GPSettings:
         moves by <= 6e-7 (a field of unit size) and V by <= 3e-6 relative at l = 1, by <= 4e-5 and
         1.5e-4 at a learned l up to 10 on the same grid.
         0 keeps every direction (the exact spline model); 2e-7 was the default until 2026-11-26.
+    outliers
+        ``"off"`` (the default): every reading enters the GP as measured.  ``"downweight"``: an outlier-robust
+        screen (:mod:`regression.outliers`): a reading more than ``outlier_threshold`` predictive sd from the
+        posterior is held back, accepted as measured when a reading near it disagrees the same way (a front, a
+        hotspot) or the newer data explain it, and otherwise enters after ``outlier_hold`` steps as Huber's
+        pseudo-observation (its residual clipped at ``outlier_threshold`` sd).  For a sensor prone to spikes.
+    outlier_threshold
+        ``outliers = "downweight"``: c, the standardized innovation |y - f̄| / sqrt(V + tau^2 + s_n^2) beyond which a
+        reading is held back and at which an unconfirmed one is clipped (default 3)
+    outlier_radius
+        ``outliers = "downweight"``: the distance [m] within which a reading confirms a held one; None (default):
+        the GP's shortest length scale at the time
+    outlier_hold
+        ``outliers = "downweight"``: the measurement steps a held reading waits for a confirmation (default 2)
     low_rank_updates
         How the posterior follows new data between two factorisations (the Woodbury updates of
         :mod:`regression.gp`): ``False`` (the default) updates the M x M covariance Sigma in place (O(k M^2) for k
@@ -273,6 +287,10 @@ class GPSettings:
     amplitude_prior_sd: float = 0.5
     low_rank_updates: bool = False
     mean: str = "constant"
+    outliers: str = "off"
+    outlier_threshold: float = 3.0
+    outlier_radius: float | None = None
+    outlier_hold: int = 2
 
     def __post_init__(self):
         object.__setattr__(self, "signal_variance", _finite_positive("signal_variance", self.signal_variance))
@@ -396,6 +414,19 @@ class GPSettings:
         for name in ("hyper_step_sd", "hyper_prior_sd_signal"):
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, _finite_positive(name, getattr(self, name)))
+        from .outliers import OUTLIER_RULES
+        if self.outliers not in OUTLIER_RULES:
+            raise ValueError(did_you_mean(f"outliers must be one of {', '.join(repr(r) for r in OUTLIER_RULES)}, "
+                                          f"got {self.outliers!r}", self.outliers, OUTLIER_RULES))
+        object.__setattr__(self, "outlier_threshold", _finite_positive("outlier_threshold", self.outlier_threshold))
+        if self.outlier_threshold < 1:
+            raise ValueError(f"outlier_threshold must be >= 1 (predictive sd), got {self.outlier_threshold:g}")
+        if self.outlier_radius is not None:
+            object.__setattr__(self, "outlier_radius", _finite_positive("outlier_radius", self.outlier_radius))
+        oh = self.outlier_hold
+        if isinstance(oh, bool) or not isinstance(oh, numbers.Integral) or not 0 <= int(oh) <= 1000:
+            raise ValueError(f"outlier_hold must be an integer in [0, 1000] (measurement steps), got {oh!r}")
+        object.__setattr__(self, "outlier_hold", int(oh))
 
     def spacing_on(self, domain) -> float:
         """The inducing spacing on ``domain`` = (x0, x1, y0, y1): ``resolved_inducing_spacing``, at most the longer

@@ -224,6 +224,9 @@ def summary_dict(result, files=(), extra: dict | None = None) -> dict:
     comm = getattr(result, "communication", None)
     if comm is not None:
         summary["communication"] = comm
+    screened = getattr(result, "outliers", None)
+    if screened is not None:             # gp.outliers = "downweight": what the screen did (regression.outliers)
+        summary["outliers"] = screened.as_dict()
     if extra:
         summary.update(extra)
     return _clean(summary)

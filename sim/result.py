@@ -85,6 +85,8 @@ class SimulationResult:
     region: object = None
     #: messages and bytes of a decentralized run (``sim.comm_radius``, :mod:`sim.network`); None with the centre
     communication: dict | None = None
+    #: what the outlier screen did (``gp.outliers``, :class:`regression.outliers.OutlierCounts`); None without it
+    outliers: object | None = None
     #: the GP's kernel after the last hyperparameter refit (kernel, s_f^2, length scales, the rotation in degrees);
     #: None without refits
     kernel: dict | None = None

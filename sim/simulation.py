@@ -53,6 +53,7 @@ import numpy as np
 from ..control import KernelDensity, robot_kernel, tracking_velocity
 from ..regression import GaussianProcess, reachable_target_density, target_density
 from ..regression.hyper import refit_online
+from ..regression.outliers import make_screen
 from ..runtime.threads import COMMAND_THREADS, limit_threads
 
 from .config import RunConfig
@@ -269,6 +270,12 @@ class Simulation:
                                  else (lambda X: X))
         self.recorders = [MetricsRecorder(), *recorders]
         self.network = make_network(config)       # the centre of Algorithm 1, or robots that talk to neighbours
+        self.outlier_screen = make_screen(config.gp)    # gp.outliers: readings judged before they reach the GP
+        if self.outlier_screen is not None:
+            if s.comm_radius is not None and math.isfinite(s.comm_radius):
+                raise ValueError("gp.outliers = \"downweight\" screens the readings at the communication centre; "
+                                 "it needs the centralized loop (no sim.comm_radius)")
+            self.result.outliers = self.outlier_screen.counts
         self.network.bind(self)
         n = s.robots
         self.alive = np.ones(n, bool)
@@ -517,6 +524,8 @@ class Simulation:
         if Xa is None:
             Xa, y = self._pending
         t0 = time.perf_counter()
+        if self.outlier_screen is not None:      # gp.outliers (regression.outliers): held, confirmed or clipped
+            Xa, y = self.outlier_screen.screen(self.gp, Xa, y)
         self.network.share(self, Xa, y)          # to the centre's GP, or the designated robot's
         self.mean, self.var = self.predict()
         self.result.timings["regression"] += time.perf_counter() - t0
