@@ -1,35 +1,43 @@
-"""Outlier-robust data for the GP: readings judged by their innovations and by the readings near them.
+"""Outlier-robust data for the GP: each reading judged by the posterior and by the readings near it.
 
 The GP's likelihood is Gaussian (:mod:`regression.gp`): one reading 20 noise sd off moves the map as much as a
-hundred ordinary ones, and the learned nugget then absorbs the spikes' variance (the band stays honest but wide).
-``GPSettings.outliers = "downweight"`` screens each step's readings before they reach the GP:
+hundred ordinary ones, and the learned nugget then absorbs the spikes' variance (the band stays honest but wide, and
+the stop rule's map condition cannot be met).  ``GPSettings.outliers = "downweight"`` screens each measurement
+step's readings before they reach the GP:
 
-1. *Innovation.*  Against the posterior of the data so far, a new reading y at x has the standardized innovation
-   z = (y - f̄(x)) / s,  s^2 = V(x) + tau^2 + s_n^2  (the predictive variance of a reading: the map's variance,
-   the nugget and the sensor's noise).  |z| <= c (``outlier_threshold``, default 3) is accepted as is.
-2. *Neighbours.*  A reading with |z| > c is held back, not yet in the GP.  A sharp feature (a front, a small
-   hotspot) is also far from the posterior when first seen, so the reading is judged against the readings near it:
-   it is *confirmed* -- accepted as measured -- when another reading within ``outlier_radius`` (default: the
-   GP's shortest length scale), of this step or a held one, disagrees with the posterior the same way
-   (z of the same sign, |z| >= c / 2).  Independent spikes rarely have such a neighbour; a feature does, because the
-   robots measure every Δt and move less than a length scale between two readings.
-3. *Re-judged.*  Each step the held readings are judged again against the posterior that now holds the newer data:
-   one that the newer data explain (|z| <= c) is accepted as measured, one that a neighbour confirms likewise.
+1. *Leave one out.*  The residuals r = y - f̄(X) of the step's readings (and of the held ones, below) are jointly
+   N(0, C) under the posterior, C = D R D + s_n^2 I, D = diag sqrt(V(X)), R the kernel's correlation at the GP's
+   shortest length scale (the posterior's correlation between the readings taken as the prior's), s_n^2 the
+   sensor's noise variance.  Each reading's prediction from the posterior *and the other readings* is the Gaussian
+   conditional of r_i given the rest (the classical leave-one-out formulas from C^-1), its standardized residual
+   z_i.  In a part of the site nobody measured yet V is large and the posterior alone cannot tell a spike from the
+   field; the readings around it can.  Backward elimination: the reading with the largest |z| > c
+   (``outlier_threshold``, default 3) leaves the conditioning set and the others are judged again, until every
+   reading in it has |z| <= c (two spikes cannot hide each other).
+2. *Confirmed by a neighbour.*  A reading with |z| > c is a feature, not a spike, when one of its ``neighbours``
+   (4) nearest readings within ``outlier_radius`` (default: the shortest length scale) is also flagged, with the same
+   sign: it enters as measured.  A sharp front or a small hotspot is far from the posterior when first seen, and
+   from the readings on the other side of it, but the readings on the same side agree; independent spikes rarely
+   have a flagged neighbour of the same sign.
+3. *Held and re-judged.*  An unconfirmed reading is held back (not in the GP) and judged again at the next steps,
+   against the posterior that now holds the newer data and with the newer readings as neighbours: one they explain
+   (|z| <= c) or confirm enters as measured.
 4. *Down-weighted.*  A reading still unconfirmed after ``outlier_hold`` steps (default 2) enters as Huber's
-   pseudo-observation y* = f̄(x) + c s sign(z) (the posterior of that step): its residual clipped at c s.  For a
-   linear-Gaussian model that is the iteratively reweighted least-squares step of Huber's M-estimator: a reading of
-   weight w = c / |z| (noise variance s_n^2 / w) has the same residual term w (y - f̄) = c s sign(z) in the normal
-   equations; the pseudo-observation keeps weight 1, so the GP's machinery (per-cell power sums, Woodbury updates,
-   followers, refits) is untouched and the posterior is the exact GP of the readings it was given.
+   pseudo-observation y* = f̄ + loc + c s sign(z), loc and s its leave-one-out prediction and sd: its residual
+   clipped at c s.  For a linear-Gaussian model that is the iteratively reweighted least-squares step of Huber's
+   M-estimator: a reading of weight w = c / |z| (noise variance s_n^2 / w) has the same residual term
+   w (y - f̄) = c s sign(z) in the normal equations; the pseudo-observation keeps weight 1.
 
-A reading's influence on the map is bounded (by c s) unless its neighbours confirm it.  The first step's readings
-(the GP holds no data yet) are accepted as measured.  Readings still held when a run ends never reach the GP.
+The first step's readings (no posterior yet) enter as measured.  Readings still held when a run ends never reach
+the GP.  The GP is the exact GP of the readings it is given: its machinery (per-cell power sums, Woodbury updates,
+followers, refits, trend sums) is untouched.
 
 Why not per-measurement weights (Σ w φ φ^T, Σ w φ y) in the GP: every path that reads the data -- the compiled power
 sums, the cut basis's sums, the trend's sums, the running n, Σ y, Σ y^2 of the likelihood, the Woodbury batches,
 the followers, the kept data of an "auto" kernel angle -- would carry the weights, and a weight that changes after
-the reading was added (re-judged) would need the old contribution subtracted from each.  Pseudo-observations give
-the same bounded influence with none of that (design note: docs/design/regression.md, "Outlier-prone sensors").
+the reading was added (re-judged) would need the old contribution subtracted from each.  Holding a reading until it
+is judged, and clipping its residual, gives a bounded influence with none of that (docs/design/regression.md,
+"Outlier-prone sensors").
 """
 from __future__ import annotations
 
@@ -59,7 +67,8 @@ class OutlierCounts:
 @dataclass
 class OutlierScreen:
     """The screen of ``GPSettings.outliers = "downweight"`` (module docstring) between a step's readings and the
-    GP: :meth:`screen` takes the step's (X, y) and returns the readings to add."""
+    GP: :meth:`screen` takes the step's (X, y) and returns the readings to add.  ``threshold`` c, ``radius`` (None:
+    the GP's shortest length scale), ``hold`` steps, ``neighbours`` nearest readings that may confirm one."""
 
     threshold: float = 3.0
     radius: float | None = None
@@ -121,7 +130,8 @@ class OutlierScreen:
         """Each reading's prediction from the posterior *and the other readings of the batch* (leave one out):
         the residuals ``r = y - f̄(X)`` are jointly N(0, C) under the posterior, C = D R D + s^2 I with D = diag
         sqrt(V), R the kernel's correlation (the posterior's correlation between the batch's points taken as the
-        prior's) and s^2 = s_n^2 + tau^2.  The readings of the conditioning set A start as all; the one with the
+        prior's) and s^2 = s_n^2, the sensor's noise (not the nugget: one learned from spiky data is inflated by
+        the spikes, and would let the next ones pass).  The readings of the conditioning set A start as all; the one with the
         largest |z| > c is taken out of A and the rest judged again, until every reading in A has |z| <= c
         (backward elimination, so that two spikes cannot hide each other).  Returns the predicted residual and the
         predictive sd of every reading given A (without itself), and A as a mask."""

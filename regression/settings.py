@@ -232,15 +232,16 @@ class GPSettings:
         0 keeps every direction (the exact spline model); 2e-7 was the default until 2026-11-26.
     outliers
         ``"off"`` (the default): every reading enters the GP as measured.  ``"downweight"``: an outlier-robust
-        screen (:mod:`regression.outliers`): a reading more than ``outlier_threshold`` predictive sd from the
-        posterior is held back, accepted as measured when a reading near it disagrees the same way (a front, a
-        hotspot) or the newer data explain it, and otherwise enters after ``outlier_hold`` steps as Huber's
-        pseudo-observation (its residual clipped at ``outlier_threshold`` sd).  For a sensor prone to spikes.
+        screen (:mod:`regression.outliers`): a reading more than ``outlier_threshold`` sd from its prediction by the
+        posterior and the other readings of its step (leave one out) is held back, accepted as measured when a
+        reading near it is flagged the same way (a front, a hotspot) or the newer data explain it, and otherwise
+        enters after ``outlier_hold`` steps as Huber's pseudo-observation (its residual clipped at
+        ``outlier_threshold`` sd).  For a sensor prone to spikes (``sim.noise_model = "contaminated"``).
     outlier_threshold
-        ``outliers = "downweight"``: c, the standardized innovation |y - f̄| / sqrt(V + tau^2 + s_n^2) beyond which a
-        reading is held back and at which an unconfirmed one is clipped (default 3)
+        ``outliers = "downweight"``: c, the standardized leave-one-out residual beyond which a reading is held back
+        and at which an unconfirmed one is clipped (default 3)
     outlier_radius
-        ``outliers = "downweight"``: the distance [m] within which a reading confirms a held one; None (default):
+        ``outliers = "downweight"``: the distance [m] within which a flagged reading confirms another; None (default):
         the GP's shortest length scale at the time
     outlier_hold
         ``outliers = "downweight"``: the measurement steps a held reading waits for a confirmation (default 2)
