@@ -236,16 +236,16 @@ def check_start_box(args, grid) -> None:
 def _adopt_map_extent(args, cfg: dict) -> None:
     """A map that states its extent (a ROS map, a GeoTIFF, an .npz, an image's sidecar) and does not fit the default
     domain sets the planner's domain, and without ``--start-box`` the start box, as it does for simulate-swarm
-    (:func:`swarmfield.sim.config._map_extent_defaults`: the paper's corner scaled to the extent, or the free box of
+    (:func:`swarmfield.sim.config.map_extent_defaults`: the paper's corner scaled to the extent, or the free box of
     that size nearest it; one warning line says what it chose).  ``cfg`` (the [planner] table) and ``args`` change
     in place; a map that fits, or does not load, is left to the domain's own checks."""
     import warnings
-    from ..sim.config import _map_extent_defaults
+    from ..sim.config import map_extent_defaults
     given = {} if getattr(args, "start_box", None) is None else {"start_box": list(args.start_box)}
     default = list(PlannerSettings.domain)
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always")
-        chosen = _map_extent_defaults({"domain": default}, given, {}, args.domain)
+        chosen = map_extent_defaults({"domain": default}, given, {}, args.domain)
     args.extent_notes = [str(w.message) for w in said]    # printed with the domain's notes, after every check
     if chosen["domain"] != default:
         cfg["domain"] = chosen["domain"]

@@ -64,7 +64,7 @@ from .dynamics import NOISE_MODELS
 from .stopping import STOP_RULES
 
 __all__ = ["SimSettings", "KDESettings", "RunConfig", "load_config", "read_toml", "config_from_dict", "to_toml",
-           "SECTIONS"]
+           "SECTIONS", "map_extent_defaults"]
 
 SECTIONS = ("sim", "gp", "kde", "feedback", "planner", "domain")
 
@@ -592,7 +592,7 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
     sim_map = dict(doc.get("sim", {}))
     sim_map.update({k: v for k, v in (overrides or {}).items() if v is not None})
     source = (doc.get("domain") or {}).get("source", "")
-    sim_map = _map_extent_defaults(sim_map, given.get("sim", {}), overrides or {}, source)
+    sim_map = map_extent_defaults(sim_map, given.get("sim", {}), overrides or {}, source)
     sim = dataclass_from_dict(SimSettings, sim_map, "sim")
     area = resolved_site_area(sim, source)    # a map's free area
     defaults = {"kde": KDESettings, "feedback": FeedbackSettings, "planner": PlannerSettings, "gp": GPSettings}
@@ -647,7 +647,7 @@ def outlier_overrides(pair) -> dict:
     return {"noise_model": "contaminated", "outlier_fraction": fraction, "outlier_scale": scale}
 
 
-def _map_extent_defaults(sim_map: dict, given_sim: dict, overrides: dict, source) -> dict:
+def map_extent_defaults(sim_map: dict, given_sim: dict, overrides: dict, source) -> dict:
     """``sim_map`` with ``domain`` set to the extent a map file states (a GeoTIFF's, a ROS map's, an .npz's own, an
     image's sidecar), where neither the document nor the overrides set ``[sim] domain`` and the map does not fit
     the default one; then, where they set no start box either, the start box is the paper's lower-left corner

@@ -1,5 +1,5 @@
 """A map file that states its own extent sets the simulation's domain and start box where the user set neither
-(sim.config._map_extent_defaults), and a start box that overlaps an obstacle gets a free one suggested
+(sim.config.map_extent_defaults), and a start box that overlaps an obstacle gets a free one suggested
 (domain.Domain.free_box)."""
 import warnings
 
