@@ -249,7 +249,9 @@ def _nugget_note(result) -> list[str]:
     return [f"{PROG}: the learned nugget {tau2:.4g} is {tau2 / sn2:.3g} x the sensor's noise variance {sn2:.4g} "
             f"(--noise-sd {sn2 ** 0.5:.4g}): the data scatter about the map more than the sensor's noise explains, "
             "from variation finer than the GP resolves (a step, a front) or from a sensor noisier or more prone to "
-            "outliers than --noise-sd says; the map's band includes that scatter"]
+            "outliers than --noise-sd says; the map's band includes that scatter"
+            + ("" if result.config.gp.outliers != "off" else
+               " (for a sensor prone to spikes: [gp] outliers = \"downweight\")")]
 
 
 def _reach_note(result) -> list[str]:
