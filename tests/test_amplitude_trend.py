@@ -9,7 +9,7 @@ import pytest
 
 from swarmfield.regression import GaussianProcess, GPSettings
 from swarmfield.regression.amplitude import LogAmplitude, fit_log_amplitude, log_amplitude_gradient
-from swarmfield.regression.gp import kernel_key
+from hyper_gradient import assert_hyper_gradient
 from swarmfield.regression.hyper import coarsened, refit_online
 from swarmfield.regression.trend import trend_design
 
@@ -138,20 +138,7 @@ def test_reml_gradient_with_an_amplitude_matches_finite_differences(low_rank):
     gp = GaussianProcess(s, DOM)
     gp.add(*_data(rng, 80))
     gp.set_log_amplitude(_field(rng))
-    a, b = gp._assemble(gp.prior_mean)
-
-    def f(th):
-        res = math.exp(th[3])
-        ratio = s.residual_variance / res
-        return gp._lml_and_gradient(math.exp(th[0]), kernel_key(s, math.exp(th[1]), math.exp(th[2])), a * ratio,
-                                    b * ratio, noise=res)
-
-    th = np.log([0.5, 1.3, 1.6, 0.03])
-    grad = f(th)[1]
-    for k in range(4):
-        e = np.zeros(4)
-        e[k] = 1e-5
-        assert grad[k] == pytest.approx((f(th + e)[0] - f(th - e)[0]) / 2e-5, rel=1e-6)
+    assert_hyper_gradient(gp, s, np.log([0.5, 1.3, 1.6, 0.03]))
 
 
 def test_the_amplitude_gradient_of_the_restricted_likelihood_matches_finite_differences():

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from swarmfield.regression import GaussianProcess, GPSettings
-from swarmfield.regression.gp import kernel_key
+from hyper_gradient import assert_hyper_gradient
 from swarmfield.regression.hyper import refit_online
 from swarmfield.regression.trend import trend_design
 
@@ -96,20 +96,7 @@ def test_reml_gradient_matches_finite_differences():
         gp = GaussianProcess(s, (0, 6, 0, 5))
         X, y = _data(rng, 80, (6.0, 5.0))
         gp.add(X, y)
-        a, b = gp._assemble(gp.prior_mean)
-
-        def f(th):
-            res = math.exp(th[3])
-            ratio = s.residual_variance / res
-            return gp._lml_and_gradient(math.exp(th[0]), kernel_key(s, math.exp(th[1]), math.exp(th[2])), a * ratio,
-                                        b * ratio, noise=res)
-
-        th = np.log([0.4, 1.3, 1.6, 0.06])
-        grad = f(th)[1]
-        for k in range(4):
-            e = np.zeros(4)
-            e[k] = 1e-5
-            assert grad[k] == pytest.approx((f(th + e)[0] - f(th - e)[0]) / 2e-5, rel=1e-6)
+        assert_hyper_gradient(gp, s, np.log([0.4, 1.3, 1.6, 0.06]))
 
 
 def test_the_trend_uncertainty_adds_to_the_variance():
