@@ -56,7 +56,7 @@ from ..regression.hyper import refit_online
 from ..regression.outliers import make_screen
 from ..runtime.threads import COMMAND_THREADS, limit_threads
 
-from .config import RunConfig
+from .config import RunConfig, SimSettings
 from .dynamics import contaminate, euler_maruyama_step, measure, uniform_in_box
 from .fields import make_field
 from .metrics import l2_norm
@@ -233,7 +233,6 @@ class Simulation:
             # the noise (in field units, as the range): a relative test (range <= 1e-6 |f|) called a gravity survey
             # of 9.8e8 +- 100 uGal constant, and depended on the field's offset
             from .fields import FIELDS
-            from .config import SimSettings
             name = self.field.describe().get('name', '')
             hint = ("the built-in fields are defined around the paper's [0, 20]^2; give a field file on this domain "
                     "(--field FILE)" if name in FIELDS else "the measurements will see the noise alone")
