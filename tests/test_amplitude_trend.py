@@ -7,10 +7,10 @@ import warnings
 import numpy as np
 import pytest
 
+from hyper_gradient import assert_amplitude_gradient, assert_hyper_gradient
 from swarmfield.regression import GaussianProcess, GPSettings
-from swarmfield.regression.amplitude import LogAmplitude, fit_log_amplitude, log_amplitude_gradient
-from hyper_gradient import assert_hyper_gradient
-from swarmfield.regression.hyper import coarsened, refit_online
+from swarmfield.regression.amplitude import LogAmplitude, fit_log_amplitude
+from swarmfield.regression.hyper import refit_online
 from swarmfield.regression.trend import trend_design
 
 DOM = (0.0, 6.0, 0.0, 5.0)
@@ -150,23 +150,8 @@ def test_the_amplitude_gradient_of_the_restricted_likelihood_matches_finite_diff
     gp = GaussianProcess(s, DOM)
     X, y = _data(rng, 100)
     gp.add(X, y)
-    field = LogAmplitude(DOM, 3)
-    theta = rng.normal(0.0, 0.5, field.size)
-    c = coarsened(gp, 1)
-    design = field.design(c.node_points())
-
-    def lml(th):
-        c._set_amplitude(np.exp(0.5 * design @ th))
-        return log_amplitude_gradient(c, c.settings.signal_variance, c.settings.kernel_key)
-
-    value, dg = lml(theta)
-    grad = design.T @ dg
-    for k in (0, 5, 11, 19, 30):
-        e = np.zeros_like(theta)
-        e[k] = 1e-3                              # the REML's round-off (~1e-11) swamps smaller steps; O(h^2) ~ 1e-8
-        fd = (lml(theta + e)[0] - lml(theta - e)[0]) / 2e-3
-        assert grad[k] == pytest.approx(fd, rel=1e-5, abs=1e-7)
-    c._set_amplitude(np.exp(0.5 * design @ theta))
+    # a step of 1e-3: the REML's round-off (~1e-11) swamps smaller steps; O(h^2) ~ 1e-8
+    c, design, theta, value, dg = assert_amplitude_gradient(gp, DOM, rng, (0, 5, 11, 19, 30), 1e-3, 1e-5)
     assert value == pytest.approx(c.log_marginal_likelihood(), rel=1e-12)     # the REML, not the constant mean's
     _, g = c._lml_and_gradient(s.signal_variance, c.settings.kernel_key, *c._assemble(c.prior_mean))
     assert dg.sum() == pytest.approx(g[0], rel=1e-8)

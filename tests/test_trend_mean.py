@@ -5,8 +5,8 @@ import warnings
 import numpy as np
 import pytest
 
-from swarmfield.regression import GaussianProcess, GPSettings
 from hyper_gradient import assert_hyper_gradient
+from swarmfield.regression import GaussianProcess, GPSettings
 from swarmfield.regression.hyper import refit_online
 from swarmfield.regression.trend import trend_design
 
