@@ -176,15 +176,7 @@ def main(out: Path) -> None:
 def detrended_sd(path, domain, nx, ny) -> float:
     """The sd of the field about its least-squares plane over the centres of an nx x ny grid on ``domain``: the
     spread of the structure a trend leaves (the bathymetry's bumps under its 120 m slope)."""
-    from scipy.interpolate import RegularGridInterpolator
-    f = np.load(path)
-    v = f["values"]
-    x0, x1, y0, y1 = f["extent"]
-    xs, ys = np.linspace(x0, x1, v.shape[0]), np.linspace(y0, y1, v.shape[1])
-    cx = domain[0] + (np.arange(nx) + 0.5) * (domain[1] - domain[0]) / nx
-    cy = domain[2] + (np.arange(ny) + 0.5) * (domain[3] - domain[2]) / ny
-    P = np.array(np.meshgrid(cx, cy, indexing="ij")).reshape(2, -1).T
-    z = RegularGridInterpolator((xs, ys), v)(P)
+    P, z = _load("heldout_fields_2").field_at_cells(path, domain, nx, ny)
     A = np.column_stack([np.ones(len(P)), P - P.mean(axis=0)])
     return float(np.std(z - A @ np.linalg.lstsq(A, z, rcond=None)[0]))
 

@@ -94,8 +94,9 @@ def main(out: Path) -> None:
         print(f"{f.name}: min {v.min():.4g} max {v.max():.4g} mean {v.mean():.6g} sd {v.std():.4g}")
 
 
-def field_sd(path, domain, nx, ny) -> float:
-    """The field's standard deviation over the centres of an nx x ny grid on ``domain`` (bilinear, as the runs)."""
+def field_at_cells(path, domain, nx, ny):
+    """(P, z): the centres P (nx ny, 2) of an nx x ny grid on ``domain`` and the field file's values z there
+    (bilinear, as the runs)."""
     from scipy.interpolate import RegularGridInterpolator
     f = np.load(path)
     v = f["values"]
@@ -103,7 +104,13 @@ def field_sd(path, domain, nx, ny) -> float:
     xs, ys = np.linspace(x0, x1, v.shape[0]), np.linspace(y0, y1, v.shape[1])
     cx = domain[0] + (np.arange(nx) + 0.5) * (domain[1] - domain[0]) / nx
     cy = domain[2] + (np.arange(ny) + 0.5) * (domain[3] - domain[2]) / ny
-    return float(RegularGridInterpolator((xs, ys), v)(np.array(np.meshgrid(cx, cy, indexing="ij")).reshape(2, -1).T).std())
+    P = np.array(np.meshgrid(cx, cy, indexing="ij")).reshape(2, -1).T
+    return P, RegularGridInterpolator((xs, ys), v)(P)
+
+
+def field_sd(path, domain, nx, ny) -> float:
+    """The field's standard deviation over the centres of an nx x ny grid on ``domain`` (:func:`field_at_cells`)."""
+    return float(field_at_cells(path, domain, nx, ny)[1].std())
 
 
 def check(folders) -> None:
