@@ -95,7 +95,7 @@ def fields(out: Path) -> None:
 def flat(out: Path) -> None:
     """The flat: walls as thin boxes cut out of the floor, doors as gaps in them."""
     from shapely import affinity
-    from shapely.geometry import box, mapping
+    from shapely.geometry import box
     t = 0.12                                            # interior walls
     walls = [box(0, 7 - t / 2, 24, 7 + t / 2), box(0, 9 - t / 2, 24, 9 + t / 2)]      # the hall's two sides
     for x in (8.0, 16.0):                               # north rooms x in [0, 8], [8, 16], [16, 24]
@@ -111,9 +111,7 @@ def flat(out: Path) -> None:
         wall = wall.difference(d)
     site = box(0, 0, 24, 16).difference(wall)
     site = affinity.translate(site, UTM18_E, UTM18_N)
-    doc = {"type": "FeatureCollection", "crs": {"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::32618"}},
-           "features": [{"type": "Feature", "properties": {"name": "flat"}, "geometry": mapping(site)}]}
-    (out / "flat.geojson").write_text(json.dumps(doc))
+    (out / "flat.geojson").write_text(json.dumps(_load("heldout_maps_2").utm_geojson(site, "flat", 32618)))
     ext = (UTM18_E, UTM18_E + 24, UTM18_N, UTM18_N + 16)
     (out / "flat.toml").write_text(f"[sim]\ndomain = {list(ext)}\nstart_box = "
                                    f"{[UTM18_E + 0.3, UTM18_E + 4.3, UTM18_N + 7.2, UTM18_N + 8.8]}\n")

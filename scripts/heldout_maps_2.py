@@ -34,6 +34,14 @@ import numpy as np
 UTM_E, UTM_N = 389000.0, 5819000.0        # a park in Berlin, UTM zone 33N
 
 
+def utm_geojson(geometry, name: str, epsg: int) -> dict:
+    """A GeoJSON FeatureCollection of one feature ``name`` (a shapely ``geometry`` in projected metres) that names its
+    coordinate system ``EPSG:epsg`` the way GDAL writes it (``urn:ogc:def:crs:EPSG::epsg``)."""
+    from shapely.geometry import mapping
+    return {"type": "FeatureCollection", "crs": {"type": "name", "properties": {"name": f"urn:ogc:def:crs:EPSG::{epsg}"}},
+            "features": [{"type": "Feature", "properties": {"name": name}, "geometry": mapping(geometry)}]}
+
+
 def _field(path, extent, fn, n=241):
     x0, x1, y0, y1 = extent
     x, y = np.linspace(x0, x1, n), np.linspace(y0, y1, n)
@@ -50,11 +58,7 @@ def park(out: Path):
     building = Polygon([(8, 20), (14, 20), (14, 25), (8, 25)])
     local = outer.difference(pond).difference(building)
     utm = affinity.translate(local, UTM_E, UTM_N)
-    doc = lambda g, extra=None: {"type": "FeatureCollection", **(extra or {}),
-                                 "features": [{"type": "Feature", "properties": {"name": "park"},
-                                               "geometry": mapping(g)}]}
-    (out / "park_utm.geojson").write_text(json.dumps(doc(utm, {"crs": {"type": "name", "properties": {
-        "name": "urn:ogc:def:crs:EPSG::32633"}}})))
+    (out / "park_utm.geojson").write_text(json.dumps(utm_geojson(utm, "park", 32633)))
     from rasterio.warp import transform_geom
     ll = transform_geom("EPSG:32633", "EPSG:4326", mapping(utm), precision=9)
     (out / "park_lonlat.geojson").write_text(json.dumps({"type": "FeatureCollection", "features": [

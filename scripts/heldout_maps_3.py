@@ -31,13 +31,13 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from heldout_maps_2 import _field, check_run  # noqa: E402
+from heldout_maps_2 import _field, check_run, utm_geojson  # noqa: E402
 
 UTM32_E, UTM32_N = 566000.0, 5933000.0          # Hamburg, UTM zone 32N
 
 
 def warehouse(out: Path):
-    from shapely.geometry import Polygon, box, mapping
+    from shapely.geometry import Polygon, box
     from shapely import affinity
     hall = Polygon([(0, 0), (42, 0), (42, 24), (0, 24)])
     racks = []
@@ -49,9 +49,7 @@ def warehouse(out: Path):
     for r in racks:
         site = site.difference(r)
     site = affinity.translate(site, UTM32_E, UTM32_N)
-    doc = {"type": "FeatureCollection", "crs": {"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::25832"}},
-           "features": [{"type": "Feature", "properties": {"name": "warehouse"}, "geometry": mapping(site)}]}
-    (out / "warehouse.geojson").write_text(json.dumps(doc))
+    (out / "warehouse.geojson").write_text(json.dumps(utm_geojson(site, "warehouse", 25832)))
     ext = (UTM32_E, UTM32_E + 42, UTM32_N, UTM32_N + 24)
     (out / "warehouse.toml").write_text(f"[sim]\ndomain = {list(ext)}\nstart_box = "
                                         f"{[UTM32_E + 0.5, UTM32_E + 5.0, UTM32_N + 0.5, UTM32_N + 4.0]}\n")
