@@ -503,12 +503,12 @@ def grid_cells(domain, nx=None, ny=None, cell_size=None) -> tuple[int, int]:
             raise ValueError(f"planner.cell_size must be a finite number of metres > 0, got {cell_size!r}")
         short = min(lx, ly)
         if int(round(short / cell_size)) < 3:
-            # max(3, ...) would stretch the cells: 0.6 m on a 2 m x 1 m tray gave 3 x 3 cells of 0.67 m x 0.33 m,
+            # a floor of 3 cells would stretch them: 0.6 m on a 2 m x 1 m tray gave 3 x 3 cells of 0.67 m x 0.33 m,
             # --cell-size 100 on the paper's square 3 x 3 of 6.7 m, silently
             raise ValueError(f"planner.cell_size {cell_size:g} m on an extent of {lx:g} m x {ly:g} m gives "
                              f"{short / cell_size:.3g} cells across its {short:g} m side; the planner needs at least "
                              f"3: use at most {short / 3:.3g} m, or no cell size (40 cells along the longer side)")
-        n = [max(3, int(round(side / cell_size))) for side in (lx, ly)]
+        n = [int(round(side / cell_size)) for side in (lx, ly)]     # both >= 3: the shorter side was checked
         if max(n) > 100_000:
             raise ValueError(f"planner.cell_size {cell_size:g} m on an extent of {lx:g} m x {ly:g} m gives "
                              f"{n[0]} x {n[1]} cells; use larger cells")
