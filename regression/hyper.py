@@ -515,6 +515,11 @@ def refit_online(gp: GaussianProcess):
                 # no structure above the noise: the likelihood is flat in l, and its bound says nothing of the field
                 why = (f"the data show no structure above the noise (signal variance {s2:.3g}, "
                        f"{s2 / sn2:.2g} x the noise variance), so the length scale is not identified")
+            elif name == "length scale" and side == "upper" and s2 >= sn2:
+                # a signal well above the noise: a field smoother than the site (a barometric plane), not a constant
+                why = (f"the field varies over scales longer than the domain (over the site close to a plane or a "
+                       f"gentle curve, not a constant: signal variance {s2:.4g}, {s2 / sn2:.3g} x the noise "
+                       "variance); the bound changes the map little where there are data")
             elif name == "length scale" and s2 < sn2:
                 why += (f"; or, with a signal variance of {s2 / sn2:.2g} x the noise variance, the data show little "
                         "structure above the noise and the length scale is barely identified")

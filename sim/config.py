@@ -400,7 +400,11 @@ class SimSettings:
                              "p_f = max(V - eta, 0) is empty while sup V > gamma keeps the loop running")
         ratio = self.period / self.dt
         if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio) or round(ratio) < 1:
-            raise ValueError(f"sim.period ({self.period:g}) must be a whole multiple of sim.dt ({self.dt:g})")
+            lo, hi, k = max(1, math.floor(ratio)), max(1, math.floor(ratio)) + 1, max(1, round(ratio))
+            near = " or ".join(f"{k * self.dt:.6g} ({k} x {self.dt:g})" for k in sorted({lo, hi}))
+            raise ValueError(f"sim.period ({self.period:g}) must be a whole multiple of sim.dt ({self.dt:g}): e.g. "
+                             f"{near}, or [sim] dt = {self.period / k:.6g} ({k} measurement{'s' * (k > 1)} a "
+                             "period)")
         if not isinstance(self.allow_long_run, bool):
             raise ValueError(f"sim.allow_long_run must be true or false, got {self.allow_long_run!r}")
         if not self.allow_long_run:

@@ -1,0 +1,97 @@
+"""What a fifth round of held-out cases found (docs/results/map-quality.md, "Held-out cases, round 5")."""
+import warnings
+
+import numpy as np
+import pytest
+
+from swarmfield.sim.fields import ScatteredField, make_field
+
+SQUARE = (0.0, 20.0, 0.0, 20.0)
+
+
+def _csv(path, P, v):
+    path.write_text("x,y,value\n" + "".join(f"{float(a)!r},{float(b)!r},{float(c)!r}\n" for (a, b), c in zip(P, v)))
+    return path
+
+
+def test_scattered_points_off_the_domain_are_refused_with_the_domain_to_set(tmp_path):
+    # a survey CSV in site coordinates (x 1000-1040, y 2000-2030) with the default [0, 20]^2 domain ran on the
+    # nearest point's value everywhere ("the field is constant"), where a gridded file is refused with its extent
+    rng = np.random.default_rng(0)
+    P = rng.uniform(0, 1, (200, 2)) * [40, 30] + [1000, 2000]
+    f = _csv(tmp_path / "survey.csv", P, np.sin(P[:, 0] / 3))
+    with pytest.raises(ValueError, match=r"survey\.csv: 100% of the simulation domain \[0\.0, 20\.0, 0\.0, 20\.0\] "
+                                         r"lies outside the convex hull of its 200 scattered points.*set \[sim\] "
+                                         r"domain = \[1000\.\d+, 10(39|40)\.\d+, 2000\.\d+, 20(29|30)\.\d+\]"):
+        make_field(str(f), SQUARE)
+    box = make_field(str(f)).bounding_box()
+    assert make_field(str(f), box).outside_hull(box) < 0.5                 # the domain it names is accepted
+    # the same samples in degrees of longitude and latitude
+    ll = _csv(tmp_path / "lonlat.csv", P * 1e-5 + [-73.0, 40.0], np.sin(P[:, 0] / 3))
+    with pytest.raises(ValueError, match=r"if x and y are longitude and latitude in degrees, project them to metres"):
+        make_field(str(ll), SQUARE)
+
+
+def test_scattered_points_that_leave_much_of_the_domain_out_are_refused_or_warned(tmp_path):
+    # samples on [4, 16]^2 of a [0, 20]^2 domain: 64 % of the truth was the nearest sample's value, silently
+    rng = np.random.default_rng(1)
+    P = rng.uniform(4, 16, (300, 2))
+    with pytest.raises(ValueError, match=r"6\d% of the simulation domain"):
+        make_field(str(_csv(tmp_path / "inner.csv", P, P[:, 0])), SQUARE)
+    # 50 uniform samples leave about a fifth out: run, with one warning line
+    from swarmfield.sim import RunConfig
+    from swarmfield.sim.simulation import Simulation
+    P = rng.uniform(0, 20, (50, 2))
+    f = _csv(tmp_path / "fifty.csv", P, P[:, 0])
+    share = make_field(str(f), SQUARE).outside_hull(SQUARE)
+    assert 0.05 < share < 0.5
+    cfg = RunConfig.from_preset("tuned").replace(field=str(f), controller="greedy", robots=20, noise_variance=0.01)
+    with pytest.warns(UserWarning, match=rf"{share:.0%} of sim\.domain .* outside the convex hull of its 50 points"):
+        Simulation(cfg)
+    # a survey with its corners: no warning
+    P = np.vstack([P, [[0, 0], [20, 0], [0, 20], [20, 20]]])
+    assert make_field(str(_csv(tmp_path / "corners.csv", P, P[:, 0])), SQUARE).outside_hull(SQUARE) == 0.0
+
+
+@pytest.mark.parametrize("sep, name", [(";", "semicolons"), ("\t", "tabs"), (" ", "spaces")])
+def test_a_csv_separated_otherwise_than_by_commas_says_so(tmp_path, sep, name):
+    # a European spreadsheet's x;y;value read as "header must name the columns x, y, value, got ['x;y;value']"
+    rows = ["x", "y", "value"], ["0", "0", "1"], ["20", "0", "2"], ["0", "20", "3"], ["20", "20", "4"]
+    for head in (True, False):
+        f = tmp_path / f"f{head}.csv"
+        f.write_text("".join(sep.join(r) + "\n" for r in rows[0 if head else 1:]))
+        with pytest.raises(ValueError, match=rf"its columns are separated by {name}, not commas"):
+            make_field(str(f), SQUARE)
+
+
+def test_a_period_that_is_not_a_multiple_of_dt_names_the_nearest_ones():
+    from swarmfield.sim.config import config_from_dict
+    with pytest.raises(ValueError, match=r"sim\.period \(10\) must be a whole multiple of sim\.dt \(0\.875\): e\.g\. "
+                                         r"9\.625 \(11 x 0\.875\) or 10\.5 \(12 x 0\.875\), or \[sim\] dt = 0\.909091"):
+        config_from_dict({"sim": {"period": 10.0}})
+
+
+def test_a_length_scale_at_its_upper_bound_with_signal_is_not_called_constant():
+    # a barometric field far smoother than the site (101325 Pa + a plane of 30 Pa, noise 0.2 Pa): the warning said
+    # "the data look constant over the domain"
+    from swarmfield.regression import GaussianProcess, GPSettings
+    from swarmfield.regression.hyper import refit_online
+    rng = np.random.default_rng(0)
+    X = rng.uniform(0, 10, (300, 2))
+    y = 101325 + 2.0 * X[:, 0] - 1.0 * X[:, 1] + 0.05 * X[:, 0] ** 2 + rng.normal(0, 0.2, 300)
+    gp = GaussianProcess(GPSettings(learn_hyperparameters=True, signal_scale="data", noise_variance=0.04),
+                         (0.0, 10.0, 0.0, 10.0))
+    gp.add(X, y)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for _ in range(4):
+            refit_online(gp)
+    said = [str(w.message) for w in caught if "upper bound" in str(w.message)]
+    assert said and not any("constant over the domain" in m for m in said), said
+    assert "varies over scales longer than the domain" in said[0]
+
+
+def test_the_scattered_fields_own_check_is_what_make_field_uses():
+    P = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+    f = ScatteredField(P, P[:, 0])
+    assert f.outside_hull((0.0, 1.0, 0.0, 1.0)) == 0.0 and f.outside_hull((0.0, 2.0, 0.0, 1.0)) == pytest.approx(0.5, abs=0.02)
