@@ -400,9 +400,37 @@ class GridField(Field):
         e = self.extent
         tol = 1e-9 * max(x1 - x0, y1 - y0)
         if e[0] > x0 + tol or e[1] < x1 - tol or e[2] > y0 + tol or e[3] < y1 - tol:
+            note = self.layout_note()
             raise ValueError(f"{self.source or 'grid field'}: extent {list(e)} does not cover the simulation "
-                             f"domain {[x0, x1, y0, y1]}; to simulate on the field's extent set [sim] domain = "
-                             f"{[float(v) for v in e]} in a --config file")
+                             f"domain {[x0, x1, y0, y1]}; "
+                             + (f"{note}" if note else f"to simulate on the field's extent set [sim] domain = "
+                                f"{[float(v) for v in e]} in a --config file"))
+
+    def layout_note(self) -> str:
+        """A note when the nodes' spacing is not square as given but would be with the values transposed (an image's
+        rows-first (ny, nx) array) or the extent read in the GIS bounds order [x0, y0, x1, y1]: the likelier reading
+        of a raster of square pixels; "" otherwise (square nodes, or no reading that makes them square)."""
+        a, b = self.values.shape
+        e = [float(v) for v in self.extent]
+
+        def ratio(w, h, nx, ny):
+            return (w / (nx - 1)) / (h / (ny - 1))
+        if abs(ratio(e[1] - e[0], e[3] - e[2], a, b) - 1) <= 0.01:
+            return ""
+        hx, hy = (e[1] - e[0]) / (a - 1), (e[3] - e[2]) / (b - 1)
+        given = f"its {a} x {b} values on the extent {e} give nodes {hx:.4g} m x {hy:.4g} m apart"
+        order = "this project's arrays are x first (values[i, j] at (x_i, y_j)), its extents [x0, x1, y0, y1]"
+        bounds = [e[0], e[2], e[1], e[3]]                       # the file's [x0, y0, x1, y1] read in this order
+        readings = []
+        if a != b and abs(ratio(e[1] - e[0], e[3] - e[2], b, a) - 1) < 1e-6:
+            readings.append("transposed (an image's (ny, nx), rows first) they would be square (save values.T)")
+        if bounds[1] > bounds[0] and bounds[3] > bounds[2] and abs(ratio(bounds[1] - bounds[0], bounds[3] - bounds[2],
+                                                                           a, b) - 1) < 1e-6:
+            readings.append(f"with the extent read as [x0, y0, x1, y1] (the GIS bounds order) they would be square, "
+                            f"on [x0, x1, y0, y1] = {bounds}")
+        if not readings:
+            return ""
+        return f"{given}; {' and '.join(readings)}; {order}"
 
     def describe(self):
         return {"name": self.name, "source": self.source, "sha256": self.sha256, "shape": list(self.values.shape),

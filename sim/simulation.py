@@ -200,6 +200,11 @@ class Simulation:
         self.config = config = config or RunConfig.default()
         s = self.settings = config.sim
         self.field = make_field(s.field if field is None else field, s.domain)
+        layout = getattr(self.field, "layout_note", None)
+        note = layout() if layout is not None else ""
+        if note:
+            # an image's rows-first array or GIS bounds: the run goes on, on the field as the file's numbers say
+            warnings.warn(f"the field {self.field.source or 'grid field'}: {note}", UserWarning, stacklevel=2)
         outside = getattr(self.field, "outside_hull", None)
         share = outside(s.domain) if outside is not None else 0.0
         if share > WARN_OUTSIDE_HULL:

@@ -95,3 +95,33 @@ def test_the_scattered_fields_own_check_is_what_make_field_uses():
     P = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
     f = ScatteredField(P, P[:, 0])
     assert f.outside_hull((0.0, 1.0, 0.0, 1.0)) == 0.0 and f.outside_hull((0.0, 2.0, 0.0, 1.0)) == pytest.approx(0.5, abs=0.02)
+
+
+@pytest.mark.parametrize("how", ["transposed", "bounds"])
+def test_a_raster_in_an_images_or_gis_layout_is_named(tmp_path, how):
+    # the shore's salinity on [1000, 1040] x [2000, 2030] at 0.5 m, saved as an image (rows first) or with its extent
+    # in the GIS bounds order [x0, y0, x1, y1]: both ran silently on a stretched field (the extent still covered
+    # the domain), or the refusal proposed the wrong [sim] domain
+    import json
+    from swarmfield.sim import RunConfig
+    from swarmfield.sim.simulation import Simulation
+    x, y = np.linspace(1000, 1040, 81), np.linspace(2000, 2030, 61)
+    v = np.add.outer(np.sin(x / 3), np.cos(y / 4))                       # (81, 61), x first
+    extent = [1000.0, 1040.0, 2000.0, 2030.0]
+    if how == "transposed":
+        v = v.T
+    else:
+        extent = [1000.0, 2000.0, 1040.0, 2030.0]
+    np.save(tmp_path / "shore.npy", v)
+    (tmp_path / "shore.json").write_text(json.dumps({"extent": extent}))
+    expect = r"transposed \(an image's" if how == "transposed" else r"read as \[x0, y0, x1, y1\] \(the GIS bounds order"
+    with pytest.raises(ValueError, match=rf"does not cover the simulation domain .*{expect}"):
+        make_field(str(tmp_path / "shore.npy"), SQUARE)
+    cfg = RunConfig.from_preset("tuned").replace(field=str(tmp_path / "shore.npy"), controller="greedy", robots=20,
+                                                 domain=(1000.0, 1040.0, 2000.0, 2030.0),
+                                                 start_box=(1000.0, 1008.0, 2000.0, 2008.0))
+    with pytest.warns(UserWarning, match=expect):     # the extent given covers the domain: a warning, and the run
+        Simulation(cfg)
+    np.save(tmp_path / "square.npy", np.add.outer(np.sin(x / 3), np.cos(y / 4)))   # x first, the extent right
+    (tmp_path / "square.json").write_text(json.dumps({"extent": [1000.0, 1040.0, 2000.0, 2030.0]}))
+    assert make_field(str(tmp_path / "square.npy")).layout_note() == ""
