@@ -91,7 +91,7 @@ def ratios(m, place, seed, controllers, feedback="feedback"):
 
     def ratio(key):
         b = min(m[(place, seed, c)][key] for c in tb)
-        if math.isinf(f[key]) and math.isinf(b):
+        if f[key] == b:             # both never, or both at t = 0 (a field no run maps better than its start)
             return 1.0
         return f[key] / b if b > 0 else math.inf
     return f["rmse2"] / best_rmse, ratio("hit"), ratio("m125")

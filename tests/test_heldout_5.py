@@ -125,3 +125,17 @@ def test_a_raster_in_an_images_or_gis_layout_is_named(tmp_path, how):
     np.save(tmp_path / "square.npy", np.add.outer(np.sin(x / 3), np.cos(y / 4)))   # x first, the extent right
     (tmp_path / "square.json").write_text(json.dumps({"extent": [1000.0, 1040.0, 2000.0, 2030.0]}))
     assert make_field(str(tmp_path / "square.npy")).layout_note() == ""
+
+
+def test_a_map_no_run_improves_on_is_level_not_never(tmp_path):
+    # the unresolvable field: every run's RMSE at t = 0 was within 1.25x of the best final one, so every controller's
+    # "1.25x map" time was 0.00, and the ratio table said "never (others did)" for the feedback and counted a loss
+    import sys
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).parent))
+    from test_map_quality_table import _module, _write
+    m = _module()
+    _write(tmp_path / "fuzz", {(c, "fuzz", 0, ""): [(0.0, 3.5, 0.0, 1.99), (1.0, 0.8, 0.0, 1.98), (2.0, 0.4, 0.0, r)]
+                               for c, r in (("feedback", 1.95), ("greedy", 1.93), ("lawnmower", 1.94))})
+    text = m.tables([tmp_path / "fuzz"])
+    assert "| fuzz | feedback | never | 0.00 | 0.00 |" in text
+    assert "| fuzz | 1.01 | 1.00 | 1.00 |" in text and "First or level (ratio ≤ 1) on 0 / 1 / 1 of 1 cases" in text
