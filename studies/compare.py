@@ -328,6 +328,11 @@ def _travel_limit_T(task) -> float | None:
 #: final RMSE
 MAP_FACTORS = (1.5, 1.25)
 
+#: how to read a paired time to a good map (docs/results/map-quality.md, "The time to a good map")
+MAP_TIME_NOTE = ("The time to a 1.25× map is the first crossing of curves that are nearly flat near that level: a few "
+                 "per cent of RMSE, as one run's noise draw gives, move it by a quarter period or more, so its ratio "
+                 "is several times the RMSE ratios around it; read it with those.")
+
 
 def rmse_format(best: float | None) -> str:
     """The format of a scenario's RMSE cells: three decimals, more when the scenario's best final RMSE ``best`` would
@@ -342,12 +347,22 @@ def rmse_format(best: float | None) -> str:
 def best_final_rmse(runs) -> dict:
     """``{scenario: the smallest final RMSE of any of its runs}`` (every controller, preset and seed of the same
     [domain,] field, robots and loss): the map the sweep shows can be made there."""
+    return {sc: value for sc, (value, _) in best_final_runs(runs).items()}
+
+
+def best_final_runs(runs) -> dict:
+    """``{scenario: (the smallest final RMSE of any of its runs, the run that made it)}``, the run as summary.md
+    names it: ``"greedy, seed 1"`` (with the preset when the sweep has several).  The level of the map-quality times
+    is one run's final map, the luckiest of the sweep: it falls as seeds or controllers are added."""
     keys = _keys(runs)[:-2]
+    several = len({task["preset"] for task, _ in runs}) > 1
     best: dict = {}
     for task, rows in runs:
         if rows and rows[-1].get("rmse") is not None and math.isfinite(rows[-1]["rmse"]):
             sc = tuple(task.get(k) for k in keys)
-            best[sc] = min(best.get(sc, math.inf), rows[-1]["rmse"])
+            if rows[-1]["rmse"] < best.get(sc, (math.inf, None))[0]:
+                who = controller_label(task) + (f" ({task['preset']})" if several else "")
+                best[sc] = (rows[-1]["rmse"], f"{who}, seed {task['seed']}")
     return best
 
 
@@ -378,7 +393,8 @@ def summary_table(runs, gamma: float, times) -> str:
     (:func:`sim.stopping.travel_time_limit`, the fastest of the scenario's controllers), RMSE (marked † where a
     run had stopped before that time and its last estimate stands), the times until the RMSE first falls below
     1.5 and 1.25 times the scenario's best final RMSE (:func:`best_final_rmse`), the 95 % band coverage where
-    sup V first reached the threshold (:func:`coverage_at_stop`), that best RMSE, path length, energy.  Each scenario ends with a reference row holding that travel-time limit."""
+    sup V first reached the threshold (:func:`coverage_at_stop`), that best RMSE and the run that made it
+    (:func:`best_final_runs`), path length, energy.  Each scenario ends with a reference row holding that travel-time limit."""
     dom = _keys(runs) is DOMAIN_KEYS
     head = (["domain"] if dom else []) + ["field", "robots", "loss", "preset", "controller", "sup V ≤ γ at [T]", "median, never = ∞ [T]",
             "runs faster than the travel-time limit"] + [f"RMSE at {t:g}T" for t in times] + \
@@ -396,7 +412,8 @@ def summary_table(runs, gamma: float, times) -> str:
             sc = tuple(task.get(k) for k in _keys(runs)[:-2])
             limits[sc] = min(limits.get(sc, math.inf), lim)
     keys = sorted(groups, key=lambda k: (*k[:-2], order[k[-2], k[-1]]))
-    best = best_final_rmse(runs)
+    best_run = best_final_runs(runs)
+    best = {sc: value for sc, (value, _) in best_run.items()}
     for i, key in enumerate(keys):
         grp = groups[key]
         sc = key[:-2]                      # the scenario: [domain,] field, robots, loss
@@ -426,7 +443,7 @@ def summary_table(runs, gamma: float, times) -> str:
             cells.append(cell + (f" ({never}/{len(grp)} never)" if never and cell != "—" else
                                  (" (never)" if never else "")))
         cells.append(_stat([coverage_at_stop(rows, gamma) for _, rows in grp], "{:.2f}"))
-        cells.append("—" if b is None else f"{b:.4g}")
+        cells.append("—" if b is None else f"{b:.4g} ({best_run[sc][1]})")
         cells.append(_stat([rows[-1]["path_length"] for _, rows in grp], "{:.1f}"))
         cells.append(_stat([rows[-1]["energy"] for _, rows in grp], "{:.1f}"))
         lines.append("| " + " | ".join(cells) + " |")
@@ -465,11 +482,12 @@ def paired_section(runs, gamma: float, times) -> str:
     return (f"\n## Paired by seed: {ctrl} ({preset}) against the others\n\nEach cell is the geometric mean over the "
             f"seeds both ran of {ctrl}'s value over the other's (below 1: {ctrl}'s RMSE is smaller, its time "
             f"earlier), its 95 % confidence interval (Student's t on the log ratios; none from one seed or equal "
-            f"ratios), and on how many seeds {ctrl}'s is the better.  Runs of one seed share the field's noise and "
-            f"the start, so the ratio leaves out what the seeds share; an interval across 1 is a difference the "
-            f"seeds do not resolve.  A time never reached counts as later than any reached one and is left out of "
-            f"the mean.  The reference is the sweep's first preset and controller (`--presets`, "
-            f"`--controllers`).\n\n{table}")
+            f"ratios), and on how many seeds {ctrl}'s is the better.  Runs of one seed share the start, and the "
+            f"measurement noise unless a controller draws from the run's random stream itself (greedy draws its "
+            f"robots' order there: its noise is another draw), so the ratio leaves out what the seeds share; an "
+            f"interval across 1 is a difference the seeds do not resolve.  {MAP_TIME_NOTE}  A time never reached "
+            f"counts as later than any reached one and is left out of the mean.  The reference is the sweep's "
+            f"first preset and controller (`--presets`, `--controllers`).\n\n{table}")
 
 
 def plot_name(field: str, robots: int, robot_loss: float, domain: str | None = None) -> str:
@@ -776,7 +794,9 @@ def _sweep_and_publish(args, argv, tasks, gamma, times, folder, client=None) -> 
                      f"sim.stop_rule = relative, tightened by the variance at the prior length scale with "
                      f"robust; sim.stopping), in field units squared; runs.csv records it per row (threshold).  "
                      f"Judged by the map: \"RMSE ≤ k× best\" is the first time the RMSE falls below k times the best "
-                     f"final RMSE of any run of the scenario (its own column), \"95 % band coverage\" the fraction of "
+                     f"final RMSE of any run of the scenario, every seed of this sweep (its own column, with the run "
+                     f"that made it: one run's final map, so the level falls as seeds are added), "
+                     f"\"95 % band coverage\" the fraction of "
                      f"cells whose true value lies in f̄ ± 1.96 √(V + τ²) (τ² the GP's nugget, 0 without one) where "
                      f"sup V first reached γ (at the end if never); "
                      f"† marks an RMSE taken before its time because a run had stopped (its last estimate stands).  "

@@ -1,8 +1,9 @@
 """Seed-by-seed comparison of the controllers of a sweep: paired ratios with a confidence interval.
 
-Runs of one scenario with the same seed share the field's noise draws and the robots' start, and a
-single closed-loop run varies by ten per cent and more from seed to seed (and from round-off to
-round-off).  The median and range of ``summary.md``'s main table cannot say whether one controller
+Runs of one scenario with the same seed share the robots' start and, unless a controller draws from the
+run's random stream itself, the measurement noise (greedy draws its robots' order there, so its noise is
+another draw than the others'), and a single closed-loop run varies by ten per cent and more from seed to
+seed (and from round-off to round-off).  The median and range of ``summary.md``'s main table cannot say whether one controller
 makes the better map; the ratio of two controllers' results on the same seed removes the variation
 the seeds share.  :func:`paired_table` compares a *reference* (a preset and controller; by default
 the first of the sweep, as ``--controllers`` lists them) with every other one, scenario by scenario,

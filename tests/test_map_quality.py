@@ -164,8 +164,8 @@ def test_feedback_keeps_measuring_when_nothing_is_left_to_plan_for():
     assert res.rows[-1]["t"] == pytest.approx(3 * 1.75)
 
 
-def _fake(controller, rmses, stop_at=None):
-    task = {"preset": "tuned", "controller": controller, "field": "f", "robots": 100, "robot_loss": 0.0, "seed": 0,
+def _fake(controller, rmses, stop_at=None, seed=0):
+    task = {"preset": "tuned", "controller": controller, "field": "f", "robots": 100, "robot_loss": 0.0, "seed": seed,
             "config": {"sim": {"period": 7.0}}}
     n = len(rmses) if stop_at is None else stop_at
     rows = [{"t_T": k / 4, "max_variance": 0.05 if k >= 2 else 0.2, "threshold": 0.1, "rmse": rmses[k],
@@ -182,11 +182,26 @@ def test_summary_judges_by_the_map_and_marks_values_of_stopped_runs():
     head = table.splitlines()[0].split(" | ")
     cells = {ln.split(" | ")[4]: dict(zip(head, ln.split(" | "))) for ln in table.splitlines()[2:]}
     g, f = cells["greedy"], cells["feedback"]
-    assert g["best final RMSE"] == f["best final RMSE"] == "0.1"
+    assert g["best final RMSE"] == f["best final RMSE"] == "0.1 (greedy, seed 0)"
     assert g["RMSE ≤ 1.5× best at [T]"] == "1.00" and g["RMSE ≤ 1.25× best at [T]"] == "1.00"
     assert f["RMSE ≤ 1.5× best at [T]"] == "0.50" and f["RMSE ≤ 1.25× best at [T]"] == "— (never)"
     assert g["95 % band coverage at the stop"] == f["95 % band coverage at the stop"] == "0.70"
     assert f["RMSE at 1T"].endswith("†") and not g["RMSE at 1T"].endswith("†")
+
+
+def test_summary_names_the_run_whose_final_map_sets_the_level_of_the_map_times():
+    """The level of "RMSE ≤ k× best" is one run's final map over every seed of the sweep, here greedy's seed 1:
+    the column says which, so that a reader sees why a seed's times move when other seeds are added; the paired
+    section says how to read a time ratio (docs/results/map-quality.md, "The time to a good map")."""
+    from swarmfield.studies.compare import paired_section, summary_table
+    runs = [_fake("feedback", [1.0, 0.5, 0.3, 0.2, 0.16]), _fake("greedy", [1.0, 0.4, 0.3, 0.2, 0.15]),
+            _fake("feedback", [1.0, 0.5, 0.3, 0.2, 0.13], seed=1), _fake("greedy", [1.0, 0.4, 0.3, 0.15, 0.12], seed=1)]
+    table = summary_table(runs, 0.1, [1.0])
+    head = table.splitlines()[0].split(" | ")
+    rows = [dict(zip(head, ln.split(" | "))) for ln in table.splitlines()[2:]]
+    assert {r["best final RMSE"] for r in rows} == {"0.12 (greedy, seed 1)"}
+    paired = paired_section(runs, 0.1, [1.0])
+    assert "nearly flat" in paired and "greedy draws its robots' order" in paired
 
 
 def test_summary_json_records_the_threshold_applied_and_what_it_is_relative_to():
