@@ -355,9 +355,36 @@ def _check_values(values, where: str) -> np.ndarray:
     if v.shape[0] < 2 or v.shape[1] < 2:
         raise ValueError(f"{where}: field grid must be at least 2 x 2 nodes, got {v.shape}")
     if not np.all(np.isfinite(v)):
-        raise ValueError(f"{where}: field values contain {int(np.sum(~np.isfinite(v)))} non-finite entries")
+        bad = int(np.sum(~np.isfinite(v)))
+        raise ValueError(f"{where}: field values contain {bad} non-finite entries ({bad / v.size:.2%} of the nodes)"
+                         + (f"; {NO_DATA_HINT}" if bad > 1 else ""))
     _check_magnitude(v, where)
+    _check_nodata(v, where)
     return v
+
+
+#: what to do with a raster's no-data nodes (land in a sea-surface field): the simulator needs a value everywhere
+NO_DATA_HINT = ("a field needs a value at every node: fill the no-data nodes (e.g. with the nearest value) and give "
+                "that area as obstacles with --domain (an .npz mask, free = the nodes with data, and the extent)")
+#: values rasters use to mark "no data" (GDAL/ArcGIS, Int16 and UInt16 DEMs, float32's lowest, netCDF's fill value)
+NO_DATA_MARKERS = (-9999.0, -99999.0, -32768.0, -32767.0, 32767.0, 65535.0, float(np.finfo(np.float32).min),
+                   9.969209968386869e36)
+
+
+def _check_nodata(v: np.ndarray, where: str) -> None:
+    """Refuse values holding a no-data marker (:data:`NO_DATA_MARKERS`) that lies farther from the other values than
+    their own range: a SST raster's -9999 over land would be mapped as a cliff of 10^4 K."""
+    flat = v.ravel()
+    for marker in NO_DATA_MARKERS:
+        hit = flat == marker
+        count = int(hit.sum())
+        if count == 0 or count == flat.size:
+            continue
+        rest = flat[~hit]
+        lo, hi = float(rest.min()), float(rest.max())
+        if min(abs(marker - lo), abs(marker - hi)) > max(hi - lo, 1e-300):
+            raise ValueError(f"{where}: {count} field values ({count / flat.size:.2%}) are {marker:g}, a common "
+                             f"no-data marker, far outside the others' range [{lo:.6g}, {hi:.6g}]; {NO_DATA_HINT}")
 
 
 #: Largest |f| accepted from a file: squares of the errors (RMSE, L2) must stay finite.
@@ -472,6 +499,7 @@ class ScatteredField(Field):
         if not (np.all(np.isfinite(pts)) and np.all(np.isfinite(vals))):
             raise ValueError(f"{where}: non-finite coordinates or values")
         _check_magnitude(vals, where)
+        _check_nodata(vals, where)
         uniq = np.unique(pts, axis=0)
         if uniq.shape[0] != pts.shape[0]:
             raise ValueError(f"{where}: {pts.shape[0] - uniq.shape[0]} duplicate (x, y) point(s)")

@@ -139,3 +139,24 @@ def test_a_map_no_run_improves_on_is_level_not_never(tmp_path):
     text = m.tables([tmp_path / "fuzz"])
     assert "| fuzz | feedback | never | 0.00 | 0.00 |" in text
     assert "| fuzz | 1.01 | 1.00 | 1.00 |" in text and "First or level (ratio ≤ 1) on 0 / 1 / 1 of 1 cases" in text
+
+
+@pytest.mark.parametrize("marker", [-9999.0, np.nan])
+def test_a_rasters_no_data_area_is_refused_with_what_to_do(tmp_path, marker):
+    # the shore's salinity with its land marked -9999 (GDAL's no-data value) ran as a cliff of 10^4 PSU; with NaN it
+    # was refused as "field values contain 72851 non-finite entries", with nothing on what to do
+    from swarmfield.sim.fields import save_npz_field
+    x, y = np.linspace(0, 20, 41), np.linspace(0, 20, 41)
+    v = 30.0 + np.add.outer(np.sin(x / 3), np.cos(y / 4))
+    v[30:, 30:] = marker
+    save_npz_field(tmp_path / "sst.npz", v, SQUARE)
+    with pytest.raises(ValueError, match=r"sst\.npz: .*(-9999, a common no-data marker|non-finite entries).*fill the "
+                                         r"no-data nodes .* obstacles with --domain"):
+        make_field(str(tmp_path / "sst.npz"), SQUARE)
+    P = np.array([[0.0, 0.0], [20.0, 0.0], [0.0, 20.0], [20.0, 20.0], [10.0, 10.0]])
+    if not np.isnan(marker):                                # the same in a scattered CSV
+        with pytest.raises(ValueError, match=r"a common no-data marker"):
+            make_field(str(_csv(tmp_path / "s.csv", P, [30.0, 31.0, 30.5, -9999.0, 30.2])), SQUARE)
+    v[30:, 30:] = -9999.0 + 1.0                              # a value like it, in a field of that magnitude: kept
+    save_npz_field(tmp_path / "deep.npz", v - 9990.0, SQUARE)
+    make_field(str(tmp_path / "deep.npz"), SQUARE)
