@@ -92,6 +92,7 @@ def _image_to_free(a: np.ndarray, nodata=None, what="image") -> np.ndarray:
         val = colour.mean(axis=2)
         alpha = af[:, :, -1] if bands in (2, 4) else None
     free = np.nan_to_num(val, nan=-1.0) >= LIGHT * full
+    free &= ~_thin_lines(val / full)
     if alpha is not None:
         free &= alpha >= LIGHT * full
     free &= ~nod
@@ -101,6 +102,33 @@ def _image_to_free(a: np.ndarray, nodata=None, what="image") -> np.ndarray:
         raise ValueError(f"{what}: no free cell: a pixel is free when its colour is at least {LIGHT * full:g} "
                          f"(half of the full scale {full:g} of {a.dtype}) and it is opaque and not nodata; {seen}")
     return free[::-1, :].T.copy()
+
+
+def _thin_lines(shade: np.ndarray) -> np.ndarray:
+    """Where two neighbouring pixels (along a row or a column) hold a line of ink split between them: each lighter
+    than the half-scale rule blocks, but their darknesses ``1 - shade`` add up to at least ``1 - LIGHT`` (one pixel's
+    worth at the rule), and both are more than twice as dark as the pixels either side (a ridge, not a grey fill).
+    A one-pixel black wall that an anti-aliased export drew on a pixel boundary is two pixels of 50 % grey (128 of
+    255, light by the rule alone): both are blocked here, so the wall stays closed.  ``shade`` is (rows, cols) in
+    [0, 1]; NaN counts as dark."""
+    dark = 1.0 - np.nan_to_num(np.asarray(shade, float), nan=0.0)
+    dark = np.clip(dark, 0.0, 1.0)
+    out = np.zeros(dark.shape, bool)
+    for axis in (0, 1):
+        d = np.moveaxis(dark, axis, 0)
+        if d.shape[0] < 2:
+            continue
+        pad = np.concatenate([np.zeros((1,) + d.shape[1:]), d, np.zeros((1,) + d.shape[1:])])
+        a, b = pad[1:-2], pad[2:-1]                   # the pair (i, i + 1)
+        before, after = pad[:-3], pad[3:]             # i - 1 and i + 2
+        low = np.minimum(a, b)
+        hit = ((a < 1.0 - LIGHT) & (b < 1.0 - LIGHT) & (a + b >= 1.0 - LIGHT)
+               & (np.maximum(before, after) <= 0.5 * low))
+        m = np.zeros(d.shape, bool)
+        m[:-1] |= hit
+        m[1:] |= hit
+        out |= np.moveaxis(m, 0, axis)
+    return out
 
 
 def _load_npz(path: Path, sim_extent):
@@ -200,6 +228,9 @@ def _load_tif(path: Path, sim_extent):
             check_pixels(path, ds.width, ds.height)
             if ds.crs is not None and ds.crs.is_geographic:
                 raise ValueError(_geographic(path, str(ds.crs)))
+            if ds.crs is not None and _is_web_mercator(str(ds.crs)):
+                b = ds.bounds
+                raise ValueError(_web_mercator(path, str(ds.crs), 0.5 * (b.left + b.right), 0.5 * (b.bottom + b.top)))
             t = ds.transform
             if not t.is_identity and (t.b != 0.0 or t.d != 0.0 or not (t.a > 0.0 and t.e < 0.0)):
                 raise ValueError(f"domain file {path}: its transform {[t.a, t.b, t.d, t.e]} is rotated, sheared or "
@@ -225,6 +256,7 @@ def _load_tif(path: Path, sim_extent):
                 crs = _geotiff_geographic(tags.get(34735))
                 if crs is not None:
                     raise ValueError(_geographic(path, crs))
+                web_mercator = _geotiff_projected(tags.get(34735)) in (3857, 900913, 3785)
                 a = page.asarray()
                 scale = tags.get(33550)
                 tie = tags.get(33922)
@@ -254,6 +286,8 @@ def _load_tif(path: Path, sim_extent):
                         ext = (x0, x0 + W * m[0], y1 + H * m[5], y1)
         finally:
             log.disabled = was
+        if web_mercator and ext is not None:
+            raise ValueError(_web_mercator(path, "EPSG:3857", 0.5 * (ext[0] + ext[1]), 0.5 * (ext[2] + ext[3])))
         if rotated is not None:
             raise ValueError(f"domain file {path}: its ModelTransformation {rotated} is rotated, sheared or not "
                              "north-up; warp the map to a north-up grid first")
@@ -275,19 +309,58 @@ def _geographic(path, crs: str) -> str:
             "gdalwarp -t_srs EPSG:326NN in.tif out.tif, or ogr2ogr -t_srs EPSG:326NN out.geojson in.geojson)")
 
 
+#: names of Web Mercator (EPSG:3857 and its older codes): projected, but its "metres" are ground metres only at the
+#: equator
+_WEB_MERCATOR = ("3857", "900913", "3785", "102100", "102113")
+
+
+def _is_web_mercator(name: str) -> bool:
+    """Whether a CRS name (``urn:ogc:def:crs:EPSG::3857``, ``EPSG:3857``, ``ESRI:102100``, ...) is Web Mercator."""
+    tail = str(name).upper().replace("::", ":").rsplit(":", 1)[-1].strip()
+    return tail in _WEB_MERCATOR or "PSEUDO-MERCATOR" in str(name).upper()
+
+
+def _web_mercator(path, crs: str, x: float, y: float) -> str:
+    """The one line refusing a Web Mercator map whose centre is (x, y): its scale there and the UTM zone to use."""
+    r = 6378137.0
+    lat = math.degrees(2.0 * math.atan(math.exp(y / r)) - math.pi / 2)
+    lon = math.degrees(x / r)
+    zone = min(60, max(1, int((lon + 180.0) // 6) + 1))
+    epsg = (32600 if lat >= 0 else 32700) + zone
+    tool = (f"gdalwarp -t_srs EPSG:{epsg} in.tif out.tif" if Path(path).suffix.lower() in (".tif", ".tiff") else
+            f"ogr2ogr -t_srs EPSG:{epsg} out.geojson in.geojson")
+    return (f"domain file {path}: its coordinates are Web Mercator ({crs}), whose units are ground metres only at "
+            f"the equator: at this map's latitude {lat:.3g} they are {1 / math.cos(math.radians(lat)):.3g} x too "
+            f"large, so the site, the robots' speed and the length scales would be off by that factor; reproject it "
+            f"to its UTM zone first ({tool})")
+
+
 #: GeoTIFF GeoKeys: GTModelTypeGeoKey (1 projected, 2 geographic, 3 geocentric), GeographicTypeGeoKey,
 #: ProjectedCSTypeGeoKey
 _MODEL_TYPE, _GEOGRAPHIC_TYPE, _PROJECTED_TYPE = 1024, 2048, 3072
 
 
-def _geotiff_geographic(tag) -> str | None:
-    """The geographic CRS a GeoKeyDirectoryTag declares (e.g. "EPSG:4326"), None if projected or unknown."""
+def _geotiff_keys(tag) -> dict:
+    """The GeoKeyDirectoryTag's keys: {key: (location, value)}, empty if absent or unreadable."""
     if tag is None:
-        return None
+        return {}
     try:
         v = [int(x) for x in tag.value]
-        keys = {v[k]: (v[k + 1], v[k + 3]) for k in range(4, 4 + 4 * v[3], 4) if k + 3 < len(v)}
+        return {v[k]: (v[k + 1], v[k + 3]) for k in range(4, 4 + 4 * v[3], 4) if k + 3 < len(v)}
     except (TypeError, ValueError, IndexError):
+        return {}
+
+
+def _geotiff_projected(tag) -> int | None:
+    """The EPSG code of the projected CRS a GeoKeyDirectoryTag declares, None if none is stated in the entry."""
+    loc, code = _geotiff_keys(tag).get(_PROJECTED_TYPE, (None, None))
+    return code if loc == 0 else None
+
+
+def _geotiff_geographic(tag) -> str | None:
+    """The geographic CRS a GeoKeyDirectoryTag declares (e.g. "EPSG:4326"), None if projected or unknown."""
+    keys = _geotiff_keys(tag)
+    if not keys:
         return None
     model = keys.get(_MODEL_TYPE, (None, None))[1]
     geo = keys.get(_GEOGRAPHIC_TYPE)
@@ -374,6 +447,7 @@ def _load_geojson(path: Path, sim_extent):
     if any(name.upper().endswith(g) for g in _GEOGRAPHIC_NAMES):
         raise ValueError(_geographic(path, name))
     objects, vertices = _geojson_objects(doc, path)
+    web_mercator = _is_web_mercator(name) if name else False
     check_vertices(path, vertices)                   # before shapely builds anything
     geoms = []
     for obj in objects:
@@ -394,6 +468,9 @@ def _load_geojson(path: Path, sim_extent):
     notes = (f"domain file {path}: {len(bad)} polygon(s) not valid ({shapely.is_valid_reason(bad[0])}); repaired "
              "with shapely.make_valid: check the free region in the figures",) if bad else ()
     geom = shapely.union_all([shapely.make_valid(p) if not p.is_valid else p for p in parts])
+    if web_mercator:
+        x0, y0, x1, y1 = geom.bounds
+        raise ValueError(_web_mercator(path, name, 0.5 * (x0 + x1), 0.5 * (y0 + y1)))
     if not name and _lonlat_sized(geom.bounds):
         raise ValueError(_geographic(path, "no crs member, so WGS 84 by RFC 7946, and its polygons lie within "
                                            f"{_bounds_text(geom.bounds)}, less than {LONLAT_SPAN:g} across"))
