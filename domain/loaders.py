@@ -420,6 +420,11 @@ def _geojson_objects(doc, path):
             except TypeError:
                 pass                                  # shapely says what is wrong with it
             out.append(obj)
+        elif t in ("LineString", "MultiLineString", "Point", "MultiPoint"):
+            what = "walls drawn as lines" if "Line" in t else "obstacles drawn as points"
+            raise ValueError(f"domain file {path}: geometry type {t} is not a Polygon or MultiPolygon: a domain's "
+                             f"polygons are its free space; {what} have no thickness: subtract them from the floor as "
+                             "thin polygons first (shapely: floor.difference(geometry.buffer(0.05)))")
         else:
             raise ValueError(f"domain file {path}: geometry type {t} is not a Polygon or MultiPolygon")
     return out, vertices

@@ -98,3 +98,17 @@ def test_plan_reference_plans_on_a_site_larger_than_the_papers_gp_grid(tmp_path,
     assert "inducing" not in capsys.readouterr().err
     z = np.load(out)
     assert np.isfinite(z["target"]).all() and z["closed_x"].any()            # the wall, closed
+
+
+def test_walls_drawn_as_lines_in_a_geojson_are_told_how_to_give_them(tmp_path):
+    # a floor polygon with its walls as LineStrings (as drawn in a GIS): "geometry type LineString is not a Polygon
+    # or MultiPolygon", and no word on what to do with the walls
+    pytest.importorskip("shapely")
+    floor = {"type": "Polygon", "coordinates": [[[0, 0], [20, 0], [20, 10], [0, 10], [0, 0]]]}
+    wall = {"type": "LineString", "coordinates": [[10, 0], [10, 8]]}
+    doc = {"type": "FeatureCollection", "features": [{"type": "Feature", "properties": {}, "geometry": g}
+                                                     for g in (floor, wall)]}
+    (tmp_path / "walls.geojson").write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match=r"LineString is not a Polygon or MultiPolygon: .* walls drawn as lines .* "
+                                         r"floor\.difference\(geometry\.buffer\(0\.05\)\)\)$"):
+        load_domain(tmp_path / "walls.geojson")
