@@ -223,13 +223,15 @@ def headline(result) -> list[str]:
     if hit is not None and hit.get("threshold") is not None and hit["threshold"] != thr:
         when += f" (threshold there {hit['threshold']:.4g})"
     rule = make_stop_rule(result.config.sim).describe()
+    unmet = _map_note(result, thr)          # then it, not the steering, says why the RMSE barely moved
     return [f"{PROG}: sup V {first['max_variance']:.4g} -> {last['max_variance']:.4g} "
             f"(threshold {thr:.4g}: {rule}), {when}; stopped at t = {last['t']:.2f} s: "
             f"{STOP_REASONS.get(result.stop_reason, result.stop_reason)}",
             f"{PROG}: mean V {first['mean_variance']:.4g} -> {last['mean_variance']:.4g}; RMSE of the estimate "
             f"{first['rmse']:.4g} at t = 0 -> {last['rmse']:.4g} at t = {last['t']:.2f} s; "
-            f"simulation wall time {result.wall_time:.1f} s"] + (_map_note(result, thr) or _nugget_note(result)) + \
-        (_reach_note(result) or (_rmse_note(result.config, first["rmse"], last["rmse"]) if last["t"] > first["t"] else []))
+            f"simulation wall time {result.wall_time:.1f} s"] + (unmet or _nugget_note(result)) + \
+        (_reach_note(result) or (_rmse_note(result.config, first["rmse"], last["rmse"])
+                                 if last["t"] > first["t"] and not unmet else []))
 
 
 #: A learned nugget above this multiple of the sensor's noise variance gets a line in the headline.
@@ -286,9 +288,19 @@ def _map_note(result, thr) -> list[str]:
     tau2 = float((getattr(result, "kernel", None) or {}).get("nugget") or 0.0)
     if q <= 0 or thr is None or thr > 0 or tau2 <= 0 or result.stop_reason == "threshold":
         return []
-    return [f"{PROG}: the map condition cannot be met: the GP explains a variance of {tau2:.4g} (sd {tau2 ** 0.5:.4g}) "
+    line = (f"{PROG}: the map condition cannot be met: the GP explains a variance of {tau2:.4g} (sd {tau2 ** 0.5:.4g}) "
             f"as variation finer than its inducing grid (the learned nugget), too large a share of the field for an "
-            f"expected RMSE of {q:g} x its sd, so the run kept measuring; a finer gp.inducing_spacing resolves more"]
+            f"expected RMSE of {q:g} x its sd, so the run kept measuring; a finer gp.inducing_spacing resolves more")
+    rows = getattr(result, "rows", None) or [{}]
+    n = int(float(rows[-1].get("n_observations") or 0))
+    x0, x1, y0, y1 = result.config.sim.domain
+    free = getattr(result, "free", None)
+    area = (x1 - x0) * (y1 - y0) * (float(np.mean(free)) if free is not None else 1.0)
+    if n > 0:
+        # a field finer than the data (round 5's l = 0.1 m under measurements 0.4 m apart): no grid resolves it
+        line += (f" only of structure coarser than the measurements' spacing ({n} of them on {area:.4g} m², about "
+                 f"{math.sqrt(area / n):.2g} m apart; more robots or periods make it finer)")
+    return [line]
 
 
 #: The RMSE "barely moves" when it changes by less than this fraction of its start.

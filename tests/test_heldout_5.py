@@ -160,3 +160,20 @@ def test_a_rasters_no_data_area_is_refused_with_what_to_do(tmp_path, marker):
     v[30:, 30:] = -9999.0 + 1.0                              # a value like it, in a field of that magnitude: kept
     save_npz_field(tmp_path / "deep.npz", v - 9990.0, SQUARE)
     make_field(str(tmp_path / "deep.npz"), SQUARE)
+
+
+def test_a_field_finer_than_the_data_is_not_blamed_on_the_steering_or_promised_to_a_finer_grid():
+    # 70 degF + 2 g (l = 0.1 m): the headline said "a finer gp.inducing_spacing resolves more" (not of 0.1 m under
+    # measurements 0.4 m apart) and "the RMSE barely moves: the swarm steers by the GP variance ..., not by the error"
+    from types import SimpleNamespace
+    from swarmfield.cli.simulate_swarm import headline
+    from swarmfield.sim.config import config_from_dict
+    cfg = config_from_dict({"preset": "tuned", "sim": {"field": "bumps", "noise_variance": 0.01}})
+    rows = [{"t": 7.0 * k, "max_variance": v, "mean_variance": v, "rmse": e, "threshold": 0.0, "n_observations": n}
+            for k, (v, e, n) in enumerate(((3.56, 1.993, 100), (0.8, 1.983, 900), (0.3, 1.925, 2500)))]
+    res = SimpleNamespace(rows=rows, config=cfg, time_to_threshold=None, threshold_row=None, stop_reason="max_time",
+                          wall_time=1.0, kernel={"nugget": 3.37, "signal_variance": 0.42}, free=None)
+    lines = headline(res)
+    assert any("the map condition cannot be met" in line and "2500 of them on 400 m², about 0.4 m apart" in line
+               for line in lines), lines
+    assert not any("barely moves" in line for line in lines), lines
