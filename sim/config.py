@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -624,8 +625,27 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
         except (TypeError, ValueError):
             raise ValueError(f"planner.domain must be [x0, x1, y0, y1], got {pl_map['domain']!r}") from None
     planner = dataclass_from_dict(PlannerSettings, pl_map, "planner")
+    _one_speed_limit_note(given, fb.v_max, planner.v_max)
     dom = dataclass_from_dict(DomainSettings, dict(doc.get("domain", {})), "domain")
     return RunConfig(sim=sim, gp=gp, kde=kde, feedback=fb, planner=planner, domain=dom, preset=name)
+
+
+def _one_speed_limit_note(given: dict, feedback_v: float, planner_v: float) -> None:
+    """Warn when a document sets one of the two speed limits and leaves the other to a preset that differs from it:
+    the feedback's robots saturate at ``feedback.v_max``, the plan and the greedy, lawnmower and ergodic baselines' at
+    ``planner.v_max`` (sim.controllers, "Speed limit"), so robots of 1 m/s given as ``[planner] v_max = 1`` alone
+    ran the feedback at the tuned preset's 3 m/s against baselines at 1 m/s."""
+    mine = {t: (given.get(t) or {}).get("v_max") for t in ("planner", "feedback")}
+    if (mine["planner"] is None) == (mine["feedback"] is None) or feedback_v == planner_v:
+        return
+    if mine["planner"] is not None:
+        said = (f"[planner] v_max = {planner_v:g} sets the plan's speed and the greedy, lawnmower and ergodic "
+                f"baselines' limit, but the feedback's robots keep [feedback] v_max = {feedback_v:g}")
+    else:
+        said = (f"[feedback] v_max = {feedback_v:g} limits the feedback's robots, but the plan and the greedy, "
+                f"lawnmower and ergodic baselines keep [planner] v_max = {planner_v:g}")
+    warnings.warn(f"{said}: for robots of one top speed set both, or the feedback drives at {feedback_v:g} m/s and "
+                  f"the baselines at {planner_v:g} m/s", UserWarning, stacklevel=3)
 
 
 #: the paper releases the swarm on [0, 7]^2 of its [0, 20]^2 square: the lower-left 35 % of each side

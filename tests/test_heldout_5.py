@@ -177,3 +177,18 @@ def test_a_field_finer_than_the_data_is_not_blamed_on_the_steering_or_promised_t
     assert any("the map condition cannot be met" in line and "2500 of them on 400 m², about 0.4 m apart" in line
                for line in lines), lines
     assert not any("barely moves" in line for line in lines), lines
+
+
+@pytest.mark.parametrize("table", ["planner", "feedback"])
+def test_one_speed_limit_set_alone_is_warned_about(table):
+    # robots of 1 m/s written as [planner] v_max = 1 (or [feedback] v_max = 1) alone: the feedback saturates at
+    # feedback.v_max, greedy, lawnmower and ergodic at planner.v_max, so a comparison ran one at 3 m/s, the other at 1
+    from swarmfield.sim.config import config_from_dict
+    with pytest.warns(UserWarning, match=rf"\[{table}\] v_max = 1 .*set both, or the feedback drives at "
+                                         rf"{3 if table == 'planner' else 1} m/s and the baselines at "
+                                         rf"{1 if table == 'planner' else 3} m/s"):
+        config_from_dict({"preset": "tuned", table: {"v_max": 1.0}})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        config_from_dict({"preset": "tuned", "planner": {"v_max": 1.0}, "feedback": {"v_max": 1.0}})
+        config_from_dict({"preset": "tuned", table: {"v_max": 3.0}})          # the preset's other is the same
