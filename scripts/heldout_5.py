@@ -25,6 +25,8 @@ Fourier features, scripts/heldout_fields_2.py), with its own seed per case.
                    cell) on a smooth background. --noise-sd 0.5 (a fluxgate).
 ``eggcrate.npz``   a standing wave's surface height in mm on [0, 20]^2, periodic: 40 sin(2 pi x / 4 m) sin(2 pi y /
                    4 m) + 10 g (l = 6 m). Run with 300 robots. --noise-sd 2.
+``slow.toml``      the same eggcrate with 100 robots of 1.5 m/s (``[planner] v_max`` and ``[feedback] v_max``, half
+                   the tuned preset's 3 m/s; the period and everything else as the preset has them).
 
     python scripts/heldout_5.py --check RUNS [RUNS ...]
 
@@ -90,6 +92,8 @@ def main(out: Path) -> None:
                    + 6.0 * np.sin(2 * np.pi * u / 0.5 + 0.7), square)
     save_npz_field(out / "eggcrate.npz", 40.0 * np.sin(2 * np.pi * X / 4) * np.sin(2 * np.pi * Y / 4)
                    + 10.0 * _sample(506, P, 6.0).reshape(X.shape), square)
+
+    (out / "slow.toml").write_text('preset = "tuned"\n[planner]\nv_max = 1.5\n[feedback]\nv_max = 1.5\n')
 
     X, Y, P = lattice(20.0, 20.0, 0.02)                  # 1001^2 nodes: five per length scale
     save_npz_field(out / "fuzz.npz", 70.0 + 2.0 * _sample(503, P, 0.1).reshape(X.shape), square)
