@@ -54,9 +54,23 @@ def make_plan_figure(plan: ReferencePlan, n_snapshots: int = 4, arrows: int = 12
         for ax in axes:
             ax.imshow(np.transpose(rgba, (1, 0, 2)), origin="lower", extent=g.domain, interpolation="nearest",
                       zorder=2)
+    if plan.walls is not None and (np.any(plan.walls[0]) or np.any(plan.walls[1])):
+        # walls thinner than a cell close faces between free cells: drawn as lines, or a plan on a floor of thin
+        # walls shows no wall at all and its arrows seem to cross them
+        from matplotlib.collections import LineCollection
+        cx, cy = (np.asarray(w, bool) for w in plan.walls)
+        xf, yf = np.linspace(x0, x1, g.nx + 1), np.linspace(y0, y1, g.ny + 1)
+        segs = [((xf[i + 1], yf[j]), (xf[i + 1], yf[j + 1])) for i, j in zip(*np.nonzero(cx))]
+        segs += [((xf[i], yf[j + 1]), (xf[i + 1], yf[j + 1])) for i, j in zip(*np.nonzero(cy))]
+        for ax in axes:
+            ax.add_collection(LineCollection(segs, colors=(0.85, 0.85, 0.85), linewidths=1.2, zorder=2.5,
+                                             label="closed faces"))
     ox, oy = map_axis_origin(x0, x1), map_axis_origin(y0, y1)       # a map in UTM: labelled from its corner
     for k, ax in enumerate(axes):
         ax.set_xticks(ticks_x, map_tick_labels(ticks_x, ox)), ax.set_xlabel(map_axis_name("x", ox))
+        # the end labels inside their panel: a wide site's "53.5" and the next panel's "-1.5" ran into "53.5-1.5"
+        labels = ax.get_xticklabels()
+        labels[0].set_horizontalalignment("left"), labels[-1].set_horizontalalignment("right")
         if k == 0:
             ax.set_yticks(ticks_y, map_tick_labels(ticks_y, oy)), ax.set_ylabel(map_axis_name("y", oy))
         else:

@@ -112,3 +112,30 @@ def test_walls_drawn_as_lines_in_a_geojson_are_told_how_to_give_them(tmp_path):
     with pytest.raises(ValueError, match=r"LineString is not a Polygon or MultiPolygon: .* walls drawn as lines .* "
                                          r"floor\.difference\(geometry\.buffer\(0\.05\)\)\)$"):
         load_domain(tmp_path / "walls.geojson")
+
+
+def test_the_plan_figure_draws_walls_thinner_than_a_cell_and_keeps_its_end_labels_apart(tmp_path):
+    # plan-reference --plot on the office corridor (0.1 m walls, 1.4 m cells): no wall drawn at all, so the plan could
+    # not be checked against them, and a wide site's end ticks ran together ("53.5-1.5")
+    pytest.importorskip("matplotlib")
+    from matplotlib.collections import LineCollection
+    from swarmfield.cli.plan_reference import main as plan_main
+    from swarmfield.ocp.figures import make_plan_figure
+    from swarmfield.ocp.plan import ReferencePlan
+    free = np.ones((220, 60), bool)
+    free[109, :45] = False                                     # a one-pixel wall with a door at the north end
+    np.savez(tmp_path / "floor.npz", free=free, extent=np.array([-1.5, 53.5, -1.0, 14.0]))
+    cfg = tmp_path / "floor.toml"
+    cfg.write_text("[sim]\ndomain = [-1.5, 53.5, -1.0, 14.0]\nstart_box = [0.0, 4.0, 0.0, 4.0]\n"
+                   "[planner]\nnx = 10\nny = 4\nn_intervals = 2\nn_modes_x = 2\nn_modes_y = 2\n")
+    assert plan_main(["--config", str(cfg), "--domain", str(tmp_path / "floor.npz"), "--out", str(tmp_path / "p.npz")]) == 0
+    plan = ReferencePlan.load(tmp_path / "p.npz")
+    closed = int(np.sum(plan.walls[0]) + np.sum(plan.walls[1]))
+    assert closed > 0
+    fig = make_plan_figure(plan)
+    panels = [ax for ax in fig.axes if ax.get_title()]
+    for ax in panels:
+        lines = [c for c in ax.collections if isinstance(c, LineCollection) and c.get_label() == "closed faces"]
+        assert len(lines) == 1 and len(lines[0].get_segments()) == closed
+        labels = ax.get_xticklabels()
+        assert labels[0].get_horizontalalignment() == "left" and labels[-1].get_horizontalalignment() == "right"
