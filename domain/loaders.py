@@ -227,7 +227,8 @@ def _load_tif(path: Path, sim_extent):
         with _reading(path, "a GeoTIFF"), rasterio.open(path) as ds:
             check_pixels(path, ds.width, ds.height)
             if ds.crs is not None and ds.crs.is_geographic:
-                raise ValueError(_geographic(path, str(ds.crs)))
+                b = ds.bounds
+                raise ValueError(_geographic(path, str(ds.crs), (0.5 * (b.left + b.right), 0.5 * (b.bottom + b.top))))
             if ds.crs is not None and _is_web_mercator(str(ds.crs)):
                 b = ds.bounds
                 raise ValueError(_web_mercator(path, str(ds.crs), 0.5 * (b.left + b.right), 0.5 * (b.bottom + b.top)))
@@ -303,10 +304,28 @@ def _load_tif(path: Path, sim_extent):
     return dom
 
 
-def _geographic(path, crs: str) -> str:
+def _geographic(path, crs: str, lonlat=None) -> str:
+    """The one line refusing a map in degrees; with ``lonlat`` (its centre) the UTM zone to reproject to."""
+    if lonlat is None or not (-180.0 <= lonlat[0] <= 180.0 and -90.0 <= lonlat[1] <= 90.0):
+        how = ("e.g. its UTM zone: gdalwarp -t_srs EPSG:326NN in.tif out.tif, or ogr2ogr -t_srs EPSG:326NN out.geojson "
+               "in.geojson")
+    else:
+        how = f"its UTM zone: {_reproject_command(path, _utm_epsg(*lonlat))}"
     return (f"domain file {path}: its coordinates are geographic ({crs}: longitude and latitude in degrees), "
-            "but a domain is in metres; reproject the map to a projected CRS first (e.g. its UTM zone: "
-            "gdalwarp -t_srs EPSG:326NN in.tif out.tif, or ogr2ogr -t_srs EPSG:326NN out.geojson in.geojson)")
+            f"but a domain is in metres; reproject the map to a projected CRS first ({how})")
+
+
+def _utm_epsg(lon: float, lat: float) -> int:
+    """The EPSG code of the WGS 84 / UTM zone holding (lon, lat): 326NN north of the equator, 327NN south."""
+    zone = min(60, max(1, int((lon + 180.0) // 6) + 1))
+    return (32600 if lat >= 0 else 32700) + zone
+
+
+def _reproject_command(path, epsg: int) -> str:
+    """GDAL's command that reprojects ``path``'s kind of file to ``EPSG:epsg``."""
+    if Path(path).suffix.lower() in (".tif", ".tiff"):
+        return f"gdalwarp -t_srs EPSG:{epsg} in.tif out.tif"
+    return f"ogr2ogr -t_srs EPSG:{epsg} out.geojson in.geojson"
 
 
 #: names of Web Mercator (EPSG:3857 and its older codes): projected, but its "metres" are ground metres only at the
@@ -325,10 +344,7 @@ def _web_mercator(path, crs: str, x: float, y: float) -> str:
     r = 6378137.0
     lat = math.degrees(2.0 * math.atan(math.exp(y / r)) - math.pi / 2)
     lon = math.degrees(x / r)
-    zone = min(60, max(1, int((lon + 180.0) // 6) + 1))
-    epsg = (32600 if lat >= 0 else 32700) + zone
-    tool = (f"gdalwarp -t_srs EPSG:{epsg} in.tif out.tif" if Path(path).suffix.lower() in (".tif", ".tiff") else
-            f"ogr2ogr -t_srs EPSG:{epsg} out.geojson in.geojson")
+    tool = _reproject_command(path, _utm_epsg(lon, lat))
     return (f"domain file {path}: its coordinates are Web Mercator ({crs}), whose units are ground metres only at "
             f"the equator: at this map's latitude {lat:.3g} they are {1 / math.cos(math.radians(lat)):.3g} x too "
             f"large, so the site, the robots' speed and the length scales would be off by that factor; reproject it "
@@ -478,7 +494,8 @@ def _load_geojson(path: Path, sim_extent):
         raise ValueError(_web_mercator(path, name, 0.5 * (x0 + x1), 0.5 * (y0 + y1)))
     if not name and _lonlat_sized(geom.bounds):
         raise ValueError(_geographic(path, "no crs member, so WGS 84 by RFC 7946, and its polygons lie within "
-                                           f"{_bounds_text(geom.bounds)}, less than {LONLAT_SPAN:g} across"))
+                                           f"{_bounds_text(geom.bounds)}, less than {LONLAT_SPAN:g} across",
+                                     (0.5 * (geom.bounds[0] + geom.bounds[2]), 0.5 * (geom.bounds[1] + geom.bounds[3]))))
     ext = sim_extent
     if isinstance(doc, dict) and doc.get("bbox") is not None and ext is None:
         b = doc["bbox"]

@@ -139,3 +139,19 @@ def test_the_plan_figure_draws_walls_thinner_than_a_cell_and_keeps_its_end_label
         assert len(lines) == 1 and len(lines[0].get_segments()) == closed
         labels = ax.get_xticklabels()
         assert labels[0].get_horizontalalignment() == "left" and labels[-1].get_horizontalalignment() == "right"
+
+
+def test_a_geojson_in_degrees_is_told_its_utm_zone(tmp_path):
+    # the gallery in longitude and latitude (RFC 7946, no crs member) was refused with "EPSG:326NN", the zone left
+    # for the user to look up; its polygons say where it is
+    pytest.importorskip("shapely")
+    lon, lat = 16.37, 48.2
+    ring = [[lon, lat], [lon + 0.0005, lat], [lon + 0.0005, lat + 0.0002], [lon, lat + 0.0002], [lon, lat]]
+    (tmp_path / "g.geojson").write_text(json.dumps({"type": "Polygon", "coordinates": [ring]}))
+    with pytest.raises(ValueError, match=r"geographic .*its UTM zone: ogr2ogr -t_srs EPSG:32633 out\.geojson "
+                                         r"in\.geojson\)$"):
+        load_domain(tmp_path / "g.geojson")
+    ring = [[-70.6 + x, -33.4 + y] for x, y in ((0, 0), (0.0005, 0), (0.0005, 0.0002), (0, 0.0002), (0, 0))]
+    (tmp_path / "s.geojson").write_text(json.dumps({"type": "Polygon", "coordinates": [ring]}))
+    with pytest.raises(ValueError, match=r"EPSG:32719 "):                    # Santiago de Chile: zone 19 south
+        load_domain(tmp_path / "s.geojson")
