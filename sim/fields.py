@@ -584,7 +584,10 @@ def _read_csv(path: Path):
     head = [c.strip().lower() for c in rows[0]]
     if any(_not_number(c) for c in head):
         if sorted(head) != ["value", "x", "y"]:
-            raise ValueError(f"field file {where}: header must name the columns x, y, value, got {rows[0]}")
+            geo = [c for c in head if c in GEOGRAPHIC_COLUMNS]
+            hint = (f" ({', '.join(geo)}: if these are degrees, project them to metres first, e.g. to UTM, and name "
+                    "the columns x, y; the simulator's coordinates are metres)" if geo else "")
+            raise ValueError(f"field file {where}: header must name the columns x, y, value, got {rows[0]}{hint}")
         cols = [head.index("x"), head.index("y"), head.index("value")]
         rows = rows[1:]
     if not rows:
@@ -601,6 +604,10 @@ def _read_csv(path: Path):
         bad = int(np.argmax(~np.all(np.isfinite(data), axis=1)))
         raise ValueError(f"field file {where}: non-finite value in data row {bad + 1}")
     return data
+
+
+#: header names of geographic coordinates in a CSV (a survey exported as longitude and latitude in degrees)
+GEOGRAPHIC_COLUMNS = ("lon", "lat", "long", "lng", "longitude", "latitude")
 
 
 def _not_number(s: str) -> bool:

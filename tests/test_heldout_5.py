@@ -192,3 +192,12 @@ def test_one_speed_limit_set_alone_is_warned_about(table):
         warnings.simplefilter("error")
         config_from_dict({"preset": "tuned", "planner": {"v_max": 1.0}, "feedback": {"v_max": 1.0}})
         config_from_dict({"preset": "tuned", table: {"v_max": 3.0}})          # the preset's other is the same
+
+
+def test_a_csv_with_longitude_and_latitude_columns_is_told_to_project_them(tmp_path):
+    # a survey exported as lon,lat,value: "header must name the columns x, y, value", nothing on the degrees
+    f = tmp_path / "survey.csv"
+    f.write_text("lon,lat,value\n-72.1,41.3,1\n-72.09,41.3,2\n-72.1,41.31,3\n")
+    with pytest.raises(ValueError, match=r"got \['lon', 'lat', 'value'\] \(lon, lat: if these are degrees, project "
+                                         r"them to metres first"):
+        make_field(str(f), SQUARE)
