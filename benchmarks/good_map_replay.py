@@ -169,7 +169,8 @@ def main(argv=None) -> int:
           "feedback's over the better of greedy's and the lawnmower's; its RMSE at 2 T over theirs")
     shared = set()
     for src in a.controllers:
-        if any(np.array_equal(runs[src]["noise"], runs[s]["noise"]) for s in shared):
+        if any(np.allclose(runs[src]["noise"], runs[s]["noise"], rtol=0, atol=1e-9 * np.sqrt(cfg.sim.noise_variance))
+               for s in shared):
             continue                           # the same noise as a run replayed already (one seed's stream)
         shared.add(src)
         curves = {c: curve(c, runs[src]["noise"]) for c in a.controllers}
@@ -181,6 +182,7 @@ def main(argv=None) -> int:
     sd = np.sqrt(cfg.sim.noise_variance)
     shape = runs[a.controllers[0]]["noise"].shape
     R, R2, T, mean = [], [], {c: [] for c in a.controllers}, {c: 0.0 for c in a.controllers}
+    C2 = {c: [] for c in a.controllers}
     for d in range(a.draws):
         noise = sd * rng.standard_normal(shape)
         curves = {c: curve(c, noise) for c in a.controllers}
@@ -189,14 +191,22 @@ def main(argv=None) -> int:
         R2.append(rmse2)
         for c in a.controllers:
             T[c].append(times[c])
+            C2[c].append(curves[c][2 * k])
             mean[c] = mean[c] + curves[c] / a.draws
     if a.draws:
         R, R2 = np.array(R), np.array(R2)
         ok = np.isfinite(R)
         gm = np.exp(np.log(R[ok]).mean()) if ok.any() else float("nan")
-        print(f"over {a.draws} draws: time ratio gm {gm:.3f} [{np.nanmin(R):.2f}-{np.nanmax(R):.2f}], the feedback "
-              f"later on {int(np.sum(R[ok] > 1))} of {int(ok.sum())} ({int(np.sum(~ok))} with a never); RMSE at 2 T gm "
-              f"{np.exp(np.log(R2).mean()):.3f} [{R2.min():.3f}-{R2.max():.3f}]")
+        sd = np.std(np.log(R[ok]), ddof=1) if ok.sum() > 1 else float("nan")
+        print(f"over {a.draws} draws: time ratio gm {gm:.3f} [{np.nanmin(R):.2f}-{np.nanmax(R):.2f}] (sd of its log "
+              f"{sd:.3f}), the feedback later on {int(np.sum(R[ok] > 1))} of {int(ok.sum())} ({int(np.sum(~ok))} with a "
+              f"never); RMSE at 2 T gm {np.exp(np.log(R2).mean()):.3f} [{R2.min():.3f}-{R2.max():.3f}]")
+        quarter = range(k, len(mean["feedback"]), max(1, k // 4))
+        for c in a.controllers:
+            two = np.array(C2[c])
+            print(f"  {c}: mean curve over its final at 1, 1.25, ... T: " +
+                  " ".join(f"{mean[c][i] / mean[c][-1]:.3f}" for i in quarter) +
+                  f"; the RMSE at 2 T over the draws: sd / mean {two.std(ddof=1) / two.mean():.3f}")
         for c in a.controllers:
             hit = [t for t in T[c] if t is not None]
             print(f"  {c}: time over the draws {min(hit) if hit else None}-{max(hit) if hit else None} T "

@@ -73,3 +73,20 @@ def test_a_run_in_two_inputs_is_refused(tmp_path, capsys):
 def test_rmse_cells_keep_three_digits_in_small_units():
     r = _module()._r               # a pressure in Pa mapped to a few mPa read 0.002 for every controller
     assert (r(0.001647), r(0.0023), r(0.233), r(187.4)) == ("0.00165", "0.0023", "0.233", "187.40")
+
+
+def test_the_good_map_can_be_judged_at_another_multiple_of_the_best(tmp_path, capsys):
+    """``--factor``: how much a time ratio hangs on the level (docs/results/map-quality.md, "The time to a good map");
+    a factor not above 1 is one line and exit 2."""
+    m = _module()
+    _write(tmp_path / "a", {
+        ("feedback", "fine", 0, ""): [(0.0, 1.0, 0.1, 1.0), (1.0, 0.2, 0.1, 0.13), (2.0, 0.09, 0.1, 0.126), (3.0, 0.09, 0.1, 0.11)],
+        ("greedy", "fine", 0, ""): [(0.0, 1.0, 0.1, 1.0), (1.0, 0.08, 0.1, 0.14), (2.0, 0.05, 0.1, 0.124), (3.0, 0.04, 0.1, 0.10)]})
+    runs = m.scenario_runs([tmp_path / "a"])
+    assert m.measures(runs)[("fine", 0, "feedback")]["m125"] == 3.0        # 1.25 x 0.10: 0.126 is above it
+    assert m.measures(runs, 1.3)[("fine", 0, "feedback")]["m125"] == 1.0   # 1.3 x 0.10: 0.13 at 1 T
+    assert m.main([str(tmp_path / "a"), "--factor", "1.3"]) == 0
+    assert "time to a 1.3× map / better baseline's" in capsys.readouterr().out
+    assert m.main([str(tmp_path / "a"), "--factor", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--factor wants a number above 1" in err
