@@ -465,8 +465,7 @@ def _load_geojson(path: Path, sim_extent):
     del text
     crs = doc.get("crs") if isinstance(doc, dict) else None
     name = str(((crs or {}).get("properties") or {}).get("name", "")) if isinstance(crs, dict) else ""
-    if any(name.upper().endswith(g) for g in _GEOGRAPHIC_NAMES):
-        raise ValueError(_geographic(path, name))
+    geographic = any(name.upper().endswith(g) for g in _GEOGRAPHIC_NAMES)
     objects, vertices = _geojson_objects(doc, path)
     web_mercator = _is_web_mercator(name) if name else False
     check_vertices(path, vertices)                   # before shapely builds anything
@@ -489,6 +488,9 @@ def _load_geojson(path: Path, sim_extent):
     notes = (f"domain file {path}: {len(bad)} polygon(s) not valid ({shapely.is_valid_reason(bad[0])}); repaired "
              "with shapely.make_valid: check the free region in the figures",) if bad else ()
     geom = shapely.union_all([shapely.make_valid(p) if not p.is_valid else p for p in parts])
+    if geographic:
+        x0, y0, x1, y1 = geom.bounds
+        raise ValueError(_geographic(path, name, (0.5 * (x0 + x1), 0.5 * (y0 + y1))))
     if web_mercator:
         x0, y0, x1, y1 = geom.bounds
         raise ValueError(_web_mercator(path, name, 0.5 * (x0 + x1), 0.5 * (y0 + y1)))

@@ -155,3 +155,15 @@ def test_a_geojson_in_degrees_is_told_its_utm_zone(tmp_path):
     (tmp_path / "s.geojson").write_text(json.dumps({"type": "Polygon", "coordinates": [ring]}))
     with pytest.raises(ValueError, match=r"EPSG:32719 "):                    # Santiago de Chile: zone 19 south
         load_domain(tmp_path / "s.geojson")
+
+
+def test_a_geojson_whose_crs_names_degrees_is_told_its_utm_zone(tmp_path):
+    # the 2008 crs member naming CRS84: refused before its polygons were read, with "EPSG:326NN"
+    pytest.importorskip("shapely")
+    lon, lat = 16.37, 48.2
+    ring = [[lon, lat], [lon + 0.0005, lat], [lon + 0.0005, lat + 0.0002], [lon, lat + 0.0002], [lon, lat]]
+    doc = {"type": "FeatureCollection", "crs": {"type": "name", "properties": {"name": "urn:ogc:def:crs:OGC:1.3:CRS84"}},
+           "features": [{"type": "Feature", "properties": {}, "geometry": {"type": "Polygon", "coordinates": [ring]}}]}
+    (tmp_path / "g.geojson").write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match=r"geographic \(urn:ogc:def:crs:OGC:1\.3:CRS84: .*EPSG:32633 out\.geojson"):
+        load_domain(tmp_path / "g.geojson")
