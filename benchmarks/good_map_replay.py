@@ -19,8 +19,9 @@ Per replay: each controller's time to ``--factor`` times the replay's best final
 replayed, as ``compare-controllers`` judges a sweep), the feedback's over the better of greedy's and the
 lawnmower's, and the feedback's RMSE over the better baseline's at 2 T.  Then over the draws: the geometric mean and
 range of that time ratio and on how many draws the feedback is later, the same for the RMSE at 2 T, each
-controller's range of times, and the draws' mean curves (the expected map of each set of positions): their times
-to the level and the feedback's over the better baseline's at 1, 1.5, 2, 2.5 and 3 T.
+controller's range of times, its own run's RMSE at 2 T against the draws' (over their mean, and in standard
+deviations: whether the run's own noise was kind to it), and the draws' mean curves (the expected map of each set of
+positions): their times to the level and the feedback's over the better baseline's at 1, 1.5, 2, 2.5 and 3 T.
 """
 from __future__ import annotations
 
@@ -204,9 +205,11 @@ def main(argv=None) -> int:
         quarter = range(k, len(mean["feedback"]), max(1, k // 4))
         for c in a.controllers:
             two = np.array(C2[c])
+            own = runs[c]["rmse"][2 * k]
             print(f"  {c}: mean curve over its final at 1, 1.25, ... T: " +
                   " ".join(f"{mean[c][i] / mean[c][-1]:.3f}" for i in quarter) +
-                  f"; the RMSE at 2 T over the draws: sd / mean {two.std(ddof=1) / two.mean():.3f}")
+                  f"; the RMSE at 2 T over the draws: sd / mean {two.std(ddof=1) / two.mean():.3f}; its own run's "
+                  f"over their mean {own / two.mean():.3f} (z {(own - two.mean()) / two.std(ddof=1):+.2f})")
         for c in a.controllers:
             hit = [t for t in T[c] if t is not None]
             print(f"  {c}: time over the draws {min(hit) if hit else None}-{max(hit) if hit else None} T "
