@@ -52,6 +52,11 @@ __all__ = ["FeedbackSettings", "feedback_velocity", "tracking_velocity", "satura
 #: "progress" the same after w's component against v is scaled by 1 - |v| / v_max (:func:`add_within_speed`)
 SPREAD_PRIORITIES = ("sum", "law", "progress")
 
+#: ``feedback.sliver_pull``: what a robot the laws see at a proxy position (it stands in the sliver of a planner cell
+#: a thin wall cuts, :meth:`domain.Domain.on_kept_pieces`) is given on top of the laws' velocity; "off" nothing,
+#: "blocked" the way to its proxy, only while the laws' velocity would carry it into a wall (sim.simulation)
+SLIVER_PULLS = ("off", "blocked")
+
 
 @dataclass(frozen=True)
 class FeedbackSettings:
@@ -84,6 +89,13 @@ class FeedbackSettings:
             along it, the robot follows the law alone; ``"progress"`` also keeps w from slowing the law's progress
             by more than (1 - |v| / v_max) |w| (``keep_progress``).  No preset uses the last two: measured on three
             sites larger than the paper's they helped one and hurt two (docs/results/map-quality.md).
+    sliver_pull : on a map, for a robot the laws see at a proxy position (:meth:`domain.Domain.on_kept_pieces`: it
+            stands in the sliver of a planner cell a thin wall cuts, steered with the velocity of a point in the
+            neighbouring cell on its own side) (:data:`SLIVER_PULLS`): ``"off"`` (default) the laws' velocity alone;
+            ``"blocked"`` adds the straight way to its proxy within the sub-step, only while the laws' velocity
+            would carry it into a wall within the sub-step (its step would be reflected; a robot moving freely
+            keeps its velocity bit for bit; :meth:`sim.simulation.Simulation.move`).  Beyond the paper; measured on
+            eight building maps in docs/results/buildings.md ("Held out, round 5").
     """
 
     alpha: float = 1.0
@@ -96,8 +108,12 @@ class FeedbackSettings:
     transport_rate: float = 0.0
     spread_radius: float = 0.0
     spread_priority: str = "sum"
+    sliver_pull: str = "off"
 
     def __post_init__(self):
+        if self.sliver_pull not in SLIVER_PULLS:
+            raise ValueError(f"feedback.sliver_pull must be one of {', '.join(repr(p) for p in SLIVER_PULLS)}, "
+                             f"got {self.sliver_pull!r}")
         if self.spread_priority not in SPREAD_PRIORITIES:
             raise ValueError(f"feedback.spread_priority must be one of {', '.join(repr(p) for p in SPREAD_PRIORITIES)}, "
                              f"got {self.spread_priority!r}")

@@ -547,6 +547,21 @@ class Domain:
         Y = np.asarray(Y, float)
         return self.reflect_near(X, Y, reflect(Y, self.extent))     # reflect also rejects non-finite steps
 
+    def blocked(self, X, Y) -> np.ndarray:
+        """(n,) bool: the straight step X -> Y (both (n, 2), X free) meets an obstacle's edge or leaves the extent
+        (a wall in the way); steps shorter than their start's clearance are not blocked without a search."""
+        X = np.asarray(X, float).reshape(-1, 2)
+        Y = np.asarray(Y, float).reshape(-1, 2)
+        x0, x1, y0, y1 = self.extent
+        out = ~((Y[:, 0] >= x0) & (Y[:, 0] <= x1) & (Y[:, 1] >= y0) & (Y[:, 1] <= y1))
+        d2 = np.einsum("ij,ij->i", Y - X, Y - X)
+        c = self.clearance(X)
+        k = np.flatnonzero(~out & (d2 >= c * c))
+        if len(k) and len(self.edges):
+            t, _ = self._index.first_hit(X[k], Y[k])
+            out[k] = np.isfinite(t)
+        return out
+
     def reflect_near(self, X, Y, out) -> np.ndarray:
         """The obstacles' part of :meth:`move`: ``out`` holds the steps X -> Y reflected at the walls only;
         the robots whose step reaches an obstacle's clearance are replaced by their reflection at its edges

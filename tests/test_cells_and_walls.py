@@ -466,6 +466,49 @@ def test_the_closed_loop_steers_a_robot_beyond_a_thin_wall_from_the_cell_on_its_
     assert sim.context().X[0, 0] == 11.9
 
 
+@pytest.mark.parametrize("pull", ["off", "blocked"])
+def test_a_robot_in_a_sliver_whose_law_runs_into_the_wall_is_pulled_towards_its_proxy(tmp_path, pull):
+    """feedback.sliver_pull = "blocked": a robot in the sliver 11.7 < x < 12.0 west of the wall whose laws' velocity
+    (its proxy's, in the cell west of x = 11.7) points into the wall gets the way to its proxy added; one in the sliver
+    moving along the wall and one far from it keep their velocities bit for bit ("off": the laws' velocity alone, the
+    robot stays pressed against the wall, as the corridor's start room's did, docs/results/buildings.md)."""
+    from swarmfield.sim.simulation import Simulation
+    d = school_wall_domain()
+    np.savez(tmp_path / "wall.npz", free=d.state == 1, extent=np.array([0.0, 36.0, 0.0, 24.0]))
+    out = {}
+    for mode in ("off", pull):
+        cfg = config_from_dict({"sim": {"domain": [0.0, 36.0, 0.0, 24.0], "robots": 30, "max_periods": 1},
+                                "domain": {"source": str(tmp_path / "wall.npz")},
+                                "feedback": {"sigma": 0.0, "sliver_pull": mode}})
+        sim = Simulation(cfg)
+        sim.start()
+        sim.X[:3] = [[11.95, 5.0], [11.8, 15.0], [5.0, 5.0]]    # into the wall, along it, far from it
+        V = np.zeros_like(sim.X)
+        V[:3] = [[2.0, 0.0], [0.0, 1.0], [1.0, 0.5]]
+        seen = []                                              # the first sub-step's velocity, then rest
+
+        def velocity(t, X, alive):
+            seen.append(X.copy())
+            return V.copy() if len(seen) == 1 else np.zeros_like(V)
+
+        sim.controller.velocity = velocity
+        sim.move()
+        assert seen[0][0, 0] < 11.7 and seen[0][1, 0] < 11.7    # the laws saw both sliver robots at their proxies
+        out[mode] = sim.X.copy()
+    off, on = out["off"], out[pull]
+    assert 11.7 < off[0, 0] < 12.0                             # reflected by the wall at x = 12.0: in the sliver
+    np.testing.assert_array_equal(on[1:], off[1:])             # along the wall and far from it: the same bits
+    if pull == "blocked":
+        assert on[0, 0] < 11.7 and abs(on[0, 1] - 5.0) < 1e-9   # out of the sliver, towards its proxy (11.475, 5)
+    else:
+        np.testing.assert_array_equal(on[0], off[0])
+
+
+def test_feedback_sliver_pull_names_its_choices():
+    with pytest.raises(ValueError, match=r"feedback.sliver_pull must be one of 'off', 'blocked', got 'on'"):
+        config_from_dict({"feedback": {"sliver_pull": "on"}})
+
+
 def test_the_tuned_plans_spread_measurements_through_the_free_space_on_maps_with_thin_walls_only(tmp_path):
     """planner.information_spread = "walls" (the tuned preset's): a sparse spread through the free space where a
     wall thinner than a cell closes faces; the separable spread (None) on a map whose obstacles are whole cells."""
