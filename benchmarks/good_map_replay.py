@@ -3,9 +3,10 @@ package's own GP, with each run's own noise and with common noise draws, at ever
 (docs/results/map-quality.md, "The time to a good map").
 
     python benchmarks/good_map_replay.py FIELD SEED [--controllers feedback greedy lawnmower] [--config FILE.toml]
-        [--domains MAP] [--noise-sd SD] [--max-periods 3] [--draws 16] [--factor 1.25] [--save DIR]
+        [--domains MAP] [--noise-sd SD] [--robots N] [--max-periods 3] [--draws 16] [--factor 1.25] [--save DIR]
 
-Runs each controller (the tuned preset laid under ``--config``, as ``compare-controllers --config``; the stop rule
+Runs each controller (the tuned preset laid under ``--config``, as ``compare-controllers --config``; ``--robots``
+sets ``[sim] robots`` over both, as ``compare-controllers --robots``; the stop rule
 recorded and not stopping) to ``--max-periods`` T with ``SEED``, keeping the positions of every measurement and the
 noise it drew (``--save DIR``: kept in ``DIR/CONTROLLER-SEED.npz`` and read from there when present).  Then the
 tuned GP is fitted to each controller's positions the way a run fits it (each step's data added, the
@@ -111,6 +112,19 @@ def replay_curve(cfg, centers, truth, positions, values, noise):
     return np.array(out)
 
 
+def run_doc(doc, field, max_periods, noise_sd=None, robots=None, domains=None):
+    """The runs' configuration: ``doc`` (``--config``'s) with the command line's field, periods, noise sd, swarm
+    size and obstacle map laid over it, as ``compare-controllers`` lays its options over ``--config``."""
+    doc.setdefault("sim", {}).update(field=field, max_periods=max_periods)
+    if noise_sd is not None:
+        doc["sim"]["noise_variance"] = noise_sd ** 2
+    if robots is not None:
+        doc["sim"]["robots"] = robots
+    if domains:
+        doc.setdefault("domain", {})["source"] = domains
+    return doc
+
+
 def main(argv=None) -> int:
     import tomllib
 
@@ -125,6 +139,7 @@ def main(argv=None) -> int:
     ap.add_argument("--config", default=None)
     ap.add_argument("--domains", default=None)
     ap.add_argument("--noise-sd", type=float, default=None)
+    ap.add_argument("--robots", type=int, default=None, help="the swarm size ([sim] robots), over --config's")
     ap.add_argument("--max-periods", type=int, default=3)
     ap.add_argument("--draws", type=int, default=16)
     ap.add_argument("--factor", type=float, default=1.25)
@@ -134,15 +149,13 @@ def main(argv=None) -> int:
         ap.error("--controllers needs feedback and greedy or lawnmower")
     if a.draws < 0 or a.max_periods < 2 or not a.factor > 1 or (a.noise_sd is not None and not a.noise_sd > 0):
         ap.error("--draws must be >= 0, --max-periods >= 2, --factor > 1 and --noise-sd > 0")
+    if a.robots is not None and a.robots < 1:
+        ap.error(f"--robots must be at least 1, got {a.robots}")
     try:
         doc = tomllib.loads(Path(a.config).read_text()) if a.config else {}
     except (OSError, tomllib.TOMLDecodeError) as e:
         ap.error(f"cannot read --config {a.config}: {e}")
-    doc.setdefault("sim", {}).update(field=a.field, max_periods=a.max_periods)
-    if a.noise_sd is not None:
-        doc["sim"]["noise_variance"] = a.noise_sd ** 2
-    if a.domains:
-        doc.setdefault("domain", {})["source"] = a.domains
+    doc = run_doc(doc, a.field, a.max_periods, a.noise_sd, a.robots, a.domains)
     save = Path(a.save) if a.save else None
     if save is not None:
         save.mkdir(parents=True, exist_ok=True)

@@ -40,3 +40,16 @@ def test_the_time_to_a_good_map_is_judged_against_the_better_baseline():
     assert times == {"feedback": 1.5, "greedy": 2.0, "lawnmower": None}
     assert ratio == pytest.approx(0.75) and rmse2 == pytest.approx(0.12 / 0.10)
     assert m.first_time([1.0, 0.3, 0.4, 0.2], 0.3, 4) == 0.25
+
+
+def test_robots_sets_the_swarm_size_over_the_config_and_a_bad_count_is_refused(tmp_path, capsys):
+    m = load("benchmarks/good_map_replay.py")
+    from swarmfield.sim.config import config_from_dict
+    doc = m.run_doc({"sim": {"robots": 100, "seed": 4}}, "bumps", 3, noise_sd=0.05, robots=30)
+    cfg = config_from_dict(doc, preset="tuned")
+    assert cfg.sim.robots == 30 and cfg.sim.seed == 4 and cfg.sim.noise_variance == pytest.approx(0.0025)
+    assert config_from_dict(m.run_doc({}, "bumps", 3), preset="tuned").sim.robots == 100    # the default kept
+    with pytest.raises(SystemExit) as e:
+        m.main(["bumps", "0", "--robots", "0", "--save", str(tmp_path / "s")])
+    assert e.value.code == 2 and "--robots must be at least 1, got 0" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()                   # refused before any work
