@@ -158,9 +158,12 @@ def stuck(run: Path) -> dict:
     return {"never_left_start_box": int(inbox.all(axis=0).sum()), "path_under_1m_last_period": int((path < 1.0).sum())}
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=Path("heldout_maps_3"))
+def cli(argv, doc: str, default_out: str, makers, report=None) -> None:
+    """The command line of a round's map script: ``--out DIR`` writes the maps (each of ``makers`` called with
+    DIR, then ``report(DIR)`` if given), ``--check RUN ...`` checks simulate-swarm runs' robots against their map
+    (``heldout_maps_2.check_run`` and :func:`stuck`), one JSON line a run."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap.add_argument("--out", type=Path, default=Path(default_out))
     ap.add_argument("--check", type=Path, nargs="*", default=None, metavar="RUN",
                     help="check the robots of these simulate-swarm output folders against their map instead")
     a = ap.parse_args(argv)
@@ -169,10 +172,15 @@ def main(argv=None):
             print(json.dumps({**check_run(run), **stuck(run)}))
         return
     a.out.mkdir(parents=True, exist_ok=True)
-    for make in (warehouse, office, pond):
+    for make in makers:
         make(a.out)
+    if report is not None:
+        report(a.out)
     print(f"wrote the maps to {a.out}")
 
+
+def main(argv=None):
+    cli(argv, __doc__, "heldout_maps_3", (warehouse, office, pond))
 
 if __name__ == "__main__":
     main()

@@ -33,7 +33,6 @@ units, ``<map>_field.npz``; the noise sd each is run with is ``NOISE_SD``, in th
 """
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
@@ -42,8 +41,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from heldout_maps_2 import _field, check_run, utm_geojson  # noqa: E402
-from heldout_maps_3 import stuck  # noqa: E402
+from heldout_maps_2 import _field, utm_geojson  # noqa: E402
+from heldout_maps_3 import cli  # noqa: E402
 
 #: the noise sd each case is run with, in its field's own units
 NOISE_SD = {"gallery": 0.1, "parking": 2.0, "corridor": 0.2, "switchback": 1.0}
@@ -227,24 +226,15 @@ def switchback(out: Path):
            + 4 * np.exp(-((u - 20) ** 2 + (v - 9) ** 2) / 8) + 1.5 * np.sin(u / 2.5) * np.cos(v / 1.8))
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=Path("heldout_maps_5"))
-    ap.add_argument("--check", type=Path, nargs="*", default=None, metavar="RUN",
-                    help="check the robots of these simulate-swarm output folders against their map instead")
-    a = ap.parse_args(argv)
-    if a.check is not None:
-        for run in a.check:
-            print(json.dumps({**check_run(run), **stuck(run)}))
-        return
-    a.out.mkdir(parents=True, exist_ok=True)
-    for make in (gallery, parking, corridor, switchback):
-        make(a.out)
-    for f in sorted(a.out.glob("*_field.npz")):
+def field_report(out: Path) -> None:
+    """One line a field written: its range and sd, and the noise sd its case is run with."""
+    for f in sorted(out.glob("*_field.npz")):
         v = np.load(f)["values"]
         print(f"{f.name}: min {v.min():.4g} max {v.max():.4g} sd {v.std():.4g} (noise sd {NOISE_SD[f.stem[:-6]]:g})")
-    print(f"wrote the maps to {a.out}")
 
+
+def main(argv=None):
+    cli(argv, __doc__, "heldout_maps_5", (gallery, parking, corridor, switchback), report=field_report)
 
 if __name__ == "__main__":
     main()
