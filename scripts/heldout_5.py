@@ -142,9 +142,7 @@ def check(folders) -> None:
         print(f"{folder}: field sd {sd:.4g}")
         for (c, seed, n), rows in sorted(runs.items()):
             rows.sort(key=lambda r: float(r["t"]))
-            hit = next((r for r in rows if r["threshold"] and float(r["max_variance"]) <= float(r["threshold"])), None)
-            at = (f"stop at {float(hit['t_T']):.2f} T, RMSE {float(hit['rmse']) / sd:.3f} sd, coverage "
-                  f"{float(hit['coverage']):.2f}" if hit else "never stopped")
+            at = _load("heldout_fields_2").stop_line(rows, sd)
             end = rows[-1]
             learned = (f"; learned ({float(end['signal_variance']):.4g}, {float(end['length_scale']):.3g})"
                        if end.get("signal_variance") else "")

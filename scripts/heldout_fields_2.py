@@ -113,6 +113,16 @@ def field_sd(path, domain, nx, ny) -> float:
     return float(field_at_cells(path, domain, nx, ny)[1].std())
 
 
+def stop_line(rows, sd: float) -> str:
+    """A run's stop (the first of its ``runs.csv`` rows at or below its threshold), its RMSE there in units of the
+    field's sd ``sd`` and the 95 % band's coverage there; "never stopped" if no row is."""
+    hit = next((r for r in rows if r["threshold"] and float(r["max_variance"]) <= float(r["threshold"])), None)
+    if hit is None:
+        return "never stopped"
+    return (f"stop at {float(hit['t_T']):.2f} T, RMSE {float(hit['rmse']) / sd:.3f} sd, coverage "
+            f"{float(hit['coverage']):.2f}")
+
+
 def check(folders) -> None:
     import csv
     import json
@@ -128,10 +138,7 @@ def check(folders) -> None:
         sd = field_sd(cfg["sim"]["field"], dom, pl["nx"], pl["ny"])
         print(f"{folder}: field sd {sd:.4g}")
         for (c, seed), rows in sorted(runs.items()):
-            hit = next((r for r in rows if r["threshold"] and float(r["max_variance"]) <= float(r["threshold"])), None)
-            at = (f"stop at {float(hit['t_T']):.2f} T, RMSE {float(hit['rmse']) / sd:.3f} sd, coverage "
-                  f"{float(hit['coverage']):.2f}" if hit else "never stopped")
-            print(f"  {c:10s} seed {seed}: {at}; at {float(rows[-1]['t_T']):.2f} T RMSE "
+            print(f"  {c:10s} seed {seed}: {stop_line(rows, sd)}; at {float(rows[-1]['t_T']):.2f} T RMSE "
                   f"{float(rows[-1]['rmse']) / sd:.3f} sd, coverage {float(rows[-1]['coverage']):.2f}")
 
 
