@@ -45,12 +45,18 @@ import numpy as np
 from ..runtime.validation import MAX_MAGNITUDE
 
 __all__ = ["FeedbackSettings", "feedback_velocity", "tracking_velocity", "saturate", "SPREAD_PRIORITIES",
-           "add_within_speed"]
+           "SPREAD_WALLS", "add_within_speed"]
 
 #: ``feedback.spread_priority``: how the spreading velocity w is added to the law's v under the speed limit;
 #: "sum" sat(v + w), "law" v + lambda w with the largest lambda in [0, 1] that keeps |v + lambda w| <= v_max,
 #: "progress" the same after w's component against v is scaled by 1 - |v| / v_max (:func:`add_within_speed`)
 SPREAD_PRIORITIES = ("sum", "law", "progress")
+
+#: ``feedback.spread_walls``: how the spreading's landing points treat the rectangle's walls
+#: (:func:`control.spreading.hole_targets`); "open" the candidates anywhere, also beyond a wall, and a point on the
+#: wall as good as its distance to the measurements; "mirror" only candidates in the rectangle, each scored as if
+#: its own mirror image across the nearest wall were measured (its hole at most twice its distance to the wall)
+SPREAD_WALLS = ("open", "mirror")
 
 #: ``feedback.sliver_pull``: what a robot the laws see at a proxy position (it stands in the sliver of a planner cell
 #: a thin wall cuts, :meth:`domain.Domain.on_kept_pieces`) is given on top of the laws' velocity; "off" nothing,
@@ -89,6 +95,12 @@ class FeedbackSettings:
             along it, the robot follows the law alone; ``"progress"`` also keeps w from slowing the law's progress
             by more than (1 - |v| / v_max) |w| (``keep_progress``).  No preset uses the last two: measured on three
             sites larger than the paper's they helped one and hurt two (docs/results/map-quality.md).
+    spread_walls : how the landing points treat the walls of the domain's bounding rectangle (:data:`SPREAD_WALLS`):
+            ``"open"`` (default) any candidate, also one beyond a wall (farther from every measurement than any
+            inside, so the robot is driven into the wall and the reflection keeps it there); ``"mirror"`` only
+            candidates inside, each one's hole capped at twice its distance to the nearest wall (its own mirror
+            image counts as measured), so that a hole along a wall is filled half its size inside, not on the wall
+            (docs/results/map-quality.md, "Why the robots crowd onto the sides").
     sliver_pull : on a map, for a robot the laws see at a proxy position (:meth:`domain.Domain.on_kept_pieces`: it
             stands in the sliver of a planner cell a thin wall cuts, steered with the velocity of a point in the
             neighbouring cell on its own side) (:data:`SLIVER_PULLS`): ``"off"`` (default) the laws' velocity alone;
@@ -108,12 +120,16 @@ class FeedbackSettings:
     transport_rate: float = 0.0
     spread_radius: float = 0.0
     spread_priority: str = "sum"
+    spread_walls: str = "open"
     sliver_pull: str = "off"
 
     def __post_init__(self):
         if self.sliver_pull not in SLIVER_PULLS:
             raise ValueError(f"feedback.sliver_pull must be one of {', '.join(repr(p) for p in SLIVER_PULLS)}, "
                              f"got {self.sliver_pull!r}")
+        if self.spread_walls not in SPREAD_WALLS:
+            raise ValueError(f"feedback.spread_walls must be one of {', '.join(repr(p) for p in SPREAD_WALLS)}, "
+                             f"got {self.spread_walls!r}")
         if self.spread_priority not in SPREAD_PRIORITIES:
             raise ValueError(f"feedback.spread_priority must be one of {', '.join(repr(p) for p in SPREAD_PRIORITIES)}, "
                              f"got {self.spread_priority!r}")

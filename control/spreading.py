@@ -81,7 +81,7 @@ def candidate_offsets(radius: float, per_radius: int = 4) -> np.ndarray:
 
 
 def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost: float = DETOUR_COST,
-                 offsets=None, field=None, holds=None) -> np.ndarray:
+                 offsets=None, field=None, holds=None, walls=None) -> np.ndarray:
     """Landing points y (m, 2) within ``radius`` of the ``predicted`` ones (m, 2) in the holes of ``measured``.
 
     ``measured`` (k, 2): the positions measured so far (k may be 0).  ``inside``: optional callable
@@ -100,6 +100,11 @@ def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost
     ``holds`` (m, k) bool: robot i knows only the measurements ``measured[holds[i]]`` (robots whose
     knowledge differs, e.g. a decentralized swarm with a relay bound, :mod:`sim.local_spreading`); always
     placed one robot after the other, whatever m.  None: every robot knows all of ``measured``.
+
+    ``walls`` (x0, x1, y0, y1): a rectangle the landing points must lie in (the predicted point itself is always
+    allowed), each candidate's hole capped at twice its distance e to the nearest side -- its own mirror image across
+    that side counts as measured (``feedback.spread_walls = "mirror"``), so that a hole along a side is filled e
+    inside it, not on it.  None: the candidates anywhere (beyond a side too) and the sides as good as the interior.
     """
     P = np.asarray(predicted, dtype=float)
     if P.ndim != 2 or P.shape[1] != 2 or not np.all(np.isfinite(P)):
@@ -121,11 +126,16 @@ def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost
         if field is None:
             field = DistanceRaster.covering(np.concatenate([P, M]), radius, radius / RASTER_PER_RADIUS)
             field.add(M)
-        return _in_blocks(P, field, radius, detour_cost, inside)
+        return _in_blocks(P, field, radius, detour_cost, inside, walls)
     C = P[:, None, :] + S[None, :, :]                                # (m, c, 2) candidates
     ok = np.ones((m, c), bool)
     if inside is not None:
         ok = np.asarray(inside(C.reshape(-1, 2)), dtype=bool).reshape(m, c)
+    cap = None
+    if walls is not None:
+        e = _wall_distance(C, walls)
+        ok &= e >= 0
+        cap = 2.0 * np.maximum(e, 0.0)
     ok[:, 0] = True                                                   # staying is always possible
     if holds is not None:                                            # each robot its own measurements
         dM = np.full((m, c), np.inf)
@@ -140,6 +150,8 @@ def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost
         dM = dM.reshape(m, c)
     else:
         dM = np.full((m, c), np.inf)
+    if cap is not None:
+        dM = np.minimum(dM, cap)
     penalty = detour_cost * np.hypot(S[:, 0], S[:, 1])[None, :]
     # robot j's landing point can only matter to robot i's candidates if it is nearer than d(c, M) <= reach_i
     reach = np.where(ok, dM, 0.0).max(axis=1)
@@ -160,7 +172,13 @@ def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost
     return Y
 
 
-def _in_blocks(P, field, radius, detour_cost, inside):
+def _wall_distance(C, walls) -> np.ndarray:
+    """Signed distance of points ``C`` (..., 2) to the nearest side of the rectangle ``walls`` (negative outside)."""
+    x0, x1, y0, y1 = (float(v) for v in walls)
+    return np.minimum(np.minimum(C[..., 0] - x0, x1 - C[..., 0]), np.minimum(C[..., 1] - y0, y1 - C[..., 1]))
+
+
+def _in_blocks(P, field, radius, detour_cost, inside, walls=None):
     """Large swarms: :data:`BLOCKS` blocks of robots in index order, each robot counting the landing points of
     the earlier blocks (not of its own block's robots) as measured.  The candidates are the raster's nodes
     within ``radius`` of the predicted point (whatever the node, at most ``radius`` away) and the point
@@ -186,6 +204,11 @@ def _in_blocks(P, field, radius, detour_cost, inside):
     pen *= detour_cost
     if inside is not None:
         ok &= field.free(inside).reshape(-1)[K]
+    cap = cap0 = None
+    if walls is not None:
+        ew = _wall_distance(np.stack([P[:, 0, None] + dx, P[:, 1, None] + dy], axis=-1), walls)
+        ok &= ew >= 0
+        cap, cap0 = 2.0 * np.maximum(ew, 0.0), 2.0 * np.maximum(_wall_distance(P, walls), 0.0)
     if ok.all():
         ok = None
     here = field.locate(P)
@@ -195,11 +218,15 @@ def _in_blocks(P, field, radius, detour_cost, inside):
     edges = np.linspace(0, m, BLOCKS + 1).astype(int)
     for s, e in zip(edges[:-1], edges[1:]):
         score = flat[K[s:e]] - pen[s:e]                  # "no point yet" is 1e300, like the exact rule's inf
+        if cap is not None:
+            score = np.minimum(flat[K[s:e]], cap[s:e]) - pen[s:e]
         if ok is not None:
             score[~ok[s:e]] = -np.inf
         j = np.argmax(score, axis=1)
         best = score[np.arange(e - s), j]
         d0 = work.distance(located=(here[0][s:e], here[1][:, s:e], here[2][s:e]))
+        if cap0 is not None:
+            d0 = np.minimum(d0, cap0[s:e])
         stay = np.where(np.isfinite(d0), d0, 1e300) >= best          # the point itself (ties: no detour)
         jj = K[np.arange(s, e), j]
         Y[s:e] = np.where(stay[:, None], P[s:e], field.lo + a * np.column_stack([jj // ny, jj % ny]))

@@ -178,6 +178,7 @@ class FeedbackController(Controller):
             make = getattr(ctx.network, "spreading", None)
             self.spreading = MeasurementSpreading(*args) if make is None else make(*args)
             self.spreading.priority = self.config.feedback.spread_priority     # how w joins the law's v
+            self.spreading.walls = self.config.feedback.spread_walls           # the landing points at the walls
 
     def start_period(self, ctx):
         self.plan, self.estimate = ctx.plan, ctx.estimate

@@ -99,10 +99,12 @@ class ComponentSpreading(MeasurementSpreading):
             sel = np.flatnonzero(lab == c)
             groups = kg.group[rows[sel]]
             if np.all(groups == groups[0]):
-                Y[sel] = hole_targets(P[sel], kg.X[kg.masks[int(groups[0])]], self.radius, inside=self.inside)
+                Y[sel] = hole_targets(P[sel], kg.X[kg.masks[int(groups[0])]], self.radius, inside=self.inside,
+                                     walls=self.wall_box())
             else:
                 holds = np.stack([kg.masks[int(g)] for g in groups])
-                Y[sel] = hole_targets(P[sel], kg.X, self.radius, inside=self.inside, holds=holds)
+                Y[sel] = hole_targets(P[sel], kg.X, self.radius, inside=self.inside, holds=holds,
+                                     walls=self.wall_box())
             m = sel.size
             if m > 1:
                 net.log.broadcast("landing", m * m, CHOICE_BYTES)

@@ -49,6 +49,8 @@ class MeasurementSpreading:
 
     #: "sum", "law" or "progress" (control.feedback.SPREAD_PRIORITIES)
     priority = "sum"
+    #: "open" or "mirror" (control.feedback.SPREAD_WALLS): the landing points against the bounding rectangle's walls
+    walls = "open"
 
     def __init__(self, radius: float, dt: float, h: float, domain, refit=None):
         self.radius, self.dt, self.h = float(radius), float(dt), float(h)
@@ -125,6 +127,13 @@ class MeasurementSpreading:
         """The landing points of the working robots (``alive``) predicted at ``P``: the rule of
         :func:`control.spreading.hole_targets` against every position measured so far and, in index order, the
         earlier robots' landing points (what a communication centre knows)."""
+        walls = self.wall_box()
         if len(P) > SEQUENTIAL_UP_TO:
-            return hole_targets(P, None, self.radius, inside=self.inside, field=self._field(P))
-        return hole_targets(P, self.measured, self.radius, inside=self.inside)
+            return hole_targets(P, None, self.radius, inside=self.inside, field=self._field(P), walls=walls)
+        return hole_targets(P, self.measured, self.radius, inside=self.inside, walls=walls)
+
+    def wall_box(self):
+        """The rectangle (x0, x1, y0, y1) the landing points keep inside with :attr:`walls` "mirror", else None."""
+        if self.walls != "mirror":
+            return None
+        return tuple(float(v) for v in getattr(self.domain, "extent", self.domain))

@@ -322,3 +322,28 @@ def test_keep_progress_lets_the_spreading_slow_the_law_by_at_most_the_speed_it_l
     # at rest the spreading acts whole
     assert np.array_equal(add_within_speed(np.zeros((1, 2)), back, 3.0, keep_progress=True), back)
     assert FeedbackSettings(spread_priority="progress").spread_priority == "progress"
+
+
+def test_mirror_walls_keep_the_landing_points_inside_and_off_the_sides(monkeypatch):
+    # a robot 0.3 m from the left side, its measured neighbours inside: "open" sends it beyond the side (the
+    # reflection would then keep it on the wall); "mirror" (walls) lands it inside, its hole capped at 2 x its
+    # distance to the side, so neither beyond nor on it
+    box = (0.0, 10.0, 0.0, 10.0)
+    P = np.array([[0.3, 5.0], [5.0, 9.8]])
+    M = np.array([[1.2, 5.0], [1.0, 4.2], [1.0, 5.8], [5.0, 9.0], [4.3, 9.2], [5.7, 9.2]])
+    Y_open = hole_targets(P, M, 0.75)
+    assert Y_open[0, 0] < 0.0 and Y_open[1, 1] > 10.0                 # the old rule: beyond the sides
+    Y = hole_targets(P, M, 0.75, walls=box)
+    e = np.minimum.reduce([Y[:, 0] - box[0], box[1] - Y[:, 0], Y[:, 1] - box[2], box[3] - Y[:, 1]])
+    assert np.all(e > 0.05)
+    assert np.array_equal(hole_targets(P, M, 0.75, walls=None), Y_open)  # None: the old rule bit for bit
+    # the large-swarm (block) path honours the walls too
+    import swarmfield.control.spreading as sp
+    monkeypatch.setattr(sp, "SEQUENTIAL_UP_TO", 1)
+    monkeypatch.setattr(sp, "BLOCKS", 2)
+    assert np.any(sp.hole_targets(P, M, 0.75)[:, 0] < 0.0) or np.any(sp.hole_targets(P, M, 0.75)[:, 1] > 10.0)
+    Yb = sp.hole_targets(P, M, 0.75, walls=box)
+    eb = np.minimum.reduce([Yb[:, 0] - box[0], box[1] - Yb[:, 0], Yb[:, 1] - box[2], box[3] - Yb[:, 1]])
+    assert np.all(eb > 0.05)
+    with pytest.raises(ValueError, match="spread_walls"):
+        FeedbackSettings(spread_walls="closed")
