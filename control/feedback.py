@@ -124,19 +124,13 @@ class FeedbackSettings:
     sliver_pull: str = "off"
 
     def __post_init__(self):
-        if self.sliver_pull not in SLIVER_PULLS:
-            raise ValueError(f"feedback.sliver_pull must be one of {', '.join(repr(p) for p in SLIVER_PULLS)}, "
-                             f"got {self.sliver_pull!r}")
-        if self.spread_walls not in SPREAD_WALLS:
-            raise ValueError(f"feedback.spread_walls must be one of {', '.join(repr(p) for p in SPREAD_WALLS)}, "
-                             f"got {self.spread_walls!r}")
-        if self.spread_priority not in SPREAD_PRIORITIES:
-            raise ValueError(f"feedback.spread_priority must be one of {', '.join(repr(p) for p in SPREAD_PRIORITIES)}, "
-                             f"got {self.spread_priority!r}")
         from .stirring import STIR_SHAPES
-        if self.stir_shape not in STIR_SHAPES:
-            raise ValueError(f"feedback.stir_shape must be one of {', '.join(repr(p) for p in STIR_SHAPES)}, "
-                             f"got {self.stir_shape!r}")
+        for name, choices in (("sliver_pull", SLIVER_PULLS), ("spread_walls", SPREAD_WALLS),
+                              ("spread_priority", SPREAD_PRIORITIES), ("stir_shape", STIR_SHAPES)):
+            value = getattr(self, name)
+            if value not in choices:
+                raise ValueError(f"feedback.{name} must be one of {', '.join(repr(c) for c in choices)}, "
+                                 f"got {value!r}")
         k = self.stir_cells
         if isinstance(k, bool) or not isinstance(k, (int, np.integer, float)) or k != int(k) or not 1 <= k <= 64:
             raise ValueError(f"feedback.stir_cells must be an integer in [1, 64], got {k!r}")
