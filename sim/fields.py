@@ -62,7 +62,7 @@ from ..runtime.cliargs import check_path
 from ..runtime.validation import did_you_mean
 
 __all__ = ["Field", "SincField", "PlumesField", "RidgeField", "WavesField", "BumpsField", "FrontField", "GPSampleField", "GridField", "ScatteredField", "FunctionField",
-           "FIELDS", "make_field", "load_field", "save_npz_field"]
+           "FIELDS", "make_field", "load_field", "save_npz_field", "field_notes"]
 
 
 def _points(points) -> np.ndarray:
@@ -468,6 +468,30 @@ class GridField(Field):
 #: is continued by the nearest point's value); uniform samples leave about (8/3) ln(n) / n of a square outside (21 %
 #: for 50 points), a survey of another site all of it
 MAX_OUTSIDE_HULL = 0.5
+
+
+#: a scattered field leaving more than this share of the simulation domain outside its points' convex hull is run
+#: with a warning (more than :data:`MAX_OUTSIDE_HULL`: refused)
+WARN_OUTSIDE_HULL = 0.05
+
+
+def field_notes(field, domain) -> list[str]:
+    """One-line warnings about a field the run goes on with: a raster whose numbers read likelier as an image's
+    rows-first array or with GIS bounds (:meth:`GridField.layout_note`), a scattered survey leaving more than
+    :data:`WARN_OUTSIDE_HULL` of ``domain`` outside its points' hull, where the truth is the nearest sample."""
+    notes = []
+    layout = getattr(field, "layout_note", None)
+    note = layout() if layout is not None else ""
+    if note:
+        notes.append(f"the field {field.source or 'grid field'}: {note}")
+    outside = getattr(field, "outside_hull", None)
+    share = outside(domain) if outside is not None else 0.0
+    if share > WARN_OUTSIDE_HULL:
+        notes.append(f"the field {field.source or 'scattered field'}: {share:.0%} of sim.domain {list(domain)} lies "
+                     f"outside the convex hull of its {len(field.points)} points, where the field (and the RMSE's "
+                     f"truth) is the nearest point's value; [sim] domain = {field.bounding_box()} (the points' "
+                     "bounding box) keeps closer to the data")
+    return notes
 
 
 def _degrees_hint(box) -> str:

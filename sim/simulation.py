@@ -58,7 +58,7 @@ from ..runtime.threads import COMMAND_THREADS, limit_threads
 
 from .config import RunConfig, SimSettings
 from .dynamics import contaminate, euler_maruyama_step, measure, uniform_in_box
-from .fields import make_field
+from .fields import field_notes, make_field
 from .metrics import l2_norm
 from .network import make_network
 from .recorders import MetricsRecorder
@@ -66,10 +66,6 @@ from .result import QUIVER_POINTS, SimulationResult, Snapshot
 from .stopping import make_stop_rule
 
 __all__ = ["Simulation", "LatestEstimate", "check_config", "data_scale_note"]
-
-#: a scattered field leaving more than this share of the domain outside its points' hull is run with a warning (more
-#: than fields.MAX_OUTSIDE_HULL is refused)
-WARN_OUTSIDE_HULL = 0.05
 
 #: the first data's signal (variance less the noise) this many times the prior s_f^2 of a GP in field units gets
 #: a warning (the built-in fields: at most 0.9 of it in the paper's start box; the same fields in ppm: 10^4-10^5)
@@ -200,19 +196,8 @@ class Simulation:
         self.config = config = config or RunConfig.default()
         s = self.settings = config.sim
         self.field = make_field(s.field if field is None else field, s.domain)
-        layout = getattr(self.field, "layout_note", None)
-        note = layout() if layout is not None else ""
-        if note:
-            # an image's rows-first array or GIS bounds: the run goes on, on the field as the file's numbers say
-            warnings.warn(f"the field {self.field.source or 'grid field'}: {note}", UserWarning, stacklevel=2)
-        outside = getattr(self.field, "outside_hull", None)
-        share = outside(s.domain) if outside is not None else 0.0
-        if share > WARN_OUTSIDE_HULL:
-            # a scattered survey that leaves the site's edges out: there the truth is the nearest sample, not data
-            warnings.warn(f"the field {self.field.source or 'scattered field'}: {share:.0%} of sim.domain "
-                          f"{list(s.domain)} lies outside the convex hull of its {len(self.field.points)} points, where "
-                          f"the field (and the RMSE's truth) is the nearest point's value; [sim] domain = "
-                          f"{self.field.bounding_box()} (the points' bounding box) keeps closer to the data", UserWarning, stacklevel=2)
+        for note in field_notes(self.field, s.domain):     # the run goes on, on the field as the file's numbers say
+            warnings.warn(note, UserWarning, stacklevel=2)
         self.controller = make_controller(s.controller, config) if controller is None else controller
         self.stop_rule = make_stop_rule(s) if stop_rule is None else stop_rule
         self.planner_error = ()               # nothing to catch without a planner
