@@ -8,18 +8,11 @@ from swarmfield.cli.simulate_swarm import main
 from swarmfield.sim.config import config_from_dict
 from swarmfield.sim.controllers import CONTROLLERS, Controller, FeedbackController, register
 from swarmfield.sim.loop import run_simulation
+from small_config import SMALL, small_config
 
-SMALL = {"sim": {"robots": 30, "domain": [0.0, 10.0, 0.0, 10.0], "start_box": [0.0, 4.0, 0.0, 4.0], "period": 1.75,
-                 "max_periods": 2, "substeps": 4, "gamma": 0.0},
-         "gp": {"length_scale": 1.5}, "kde": {"bins": [32, 32]},
-         "planner": {"nx": 16, "ny": 16, "n_intervals": 3, "n_modes_x": 3, "n_modes_y": 3}}
 BASELINES = ("diffusion", "coverage", "greedy", "lawnmower", "ergodic")
 
-
-def cfg(**sim):
-    doc = {k: dict(v) for k, v in SMALL.items()}
-    doc["sim"].update(sim)
-    return config_from_dict(doc)
+cfg = small_config
 
 
 @pytest.fixture

@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 from swarmfield.regression import GaussianProcess, GPSettings
-from swarmfield.sim.config import SimSettings, config_from_dict
+from swarmfield.sim.config import SimSettings
 from swarmfield.sim.loop import run_simulation
+from small_config import small_config
 
 SMALL = {"sim": {"domain": [0.0, 10.0, 0.0, 10.0], "start_box": [0.0, 4.0, 0.0, 4.0], "period": 3.5,
                  "max_periods": 2, "substeps": 2, "gamma": 0.0, "controller": "lawnmower"},
@@ -15,9 +16,7 @@ SMALL = {"sim": {"domain": [0.0, 10.0, 0.0, 10.0], "start_box": [0.0, 4.0, 0.0, 
 
 
 def cfg(**sim):
-    doc = {k: dict(v) for k, v in SMALL.items()}
-    doc["sim"].update(sim)
-    return config_from_dict(doc)
+    return small_config(SMALL, **sim)
 
 
 def test_auto_is_the_default_and_the_cadence_is_validated():

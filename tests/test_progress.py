@@ -5,9 +5,9 @@ import io
 import pytest
 
 from swarmfield.ocp.status import explain_status, short_status
-from swarmfield.sim.config import config_from_dict
 from swarmfield.sim.loop import run_simulation
 from swarmfield.sim.progress import progress_lines
+from small_config import small_config
 
 SMALL = {"sim": {"robots": 20, "domain": [0.0, 10.0, 0.0, 10.0], "start_box": [0.0, 4.0, 0.0, 4.0], "period": 1.75,
                  "max_periods": 2, "substeps": 2, "gamma": 0.0},
@@ -16,9 +16,7 @@ SMALL = {"sim": {"robots": 20, "domain": [0.0, 10.0, 0.0, 10.0], "start_box": [0
 
 
 def _cfg(**sim):
-    doc = {k: dict(v) for k, v in SMALL.items()}
-    doc["sim"].update(sim)
-    return config_from_dict(doc)
+    return small_config(SMALL, **sim)
 
 
 def test_ipopt_statuses_in_words():

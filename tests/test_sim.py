@@ -15,6 +15,7 @@ from swarmfield.sim.fields import (FIELDS, GridField, PlumesField, RidgeField, S
 from swarmfield.sim.loop import run_simulation
 from swarmfield.sim.metrics import COLUMNS
 from swarmfield.sim.outputs import output_folder, write_outputs
+from small_config import small_config as shared_small_config
 
 DOMAIN = (0.0, 20.0, 0.0, 20.0)
 
@@ -29,9 +30,7 @@ SMALL = {
 
 
 def small_config(**sim):
-    doc = copy.deepcopy(SMALL)
-    doc["sim"].update(sim)
-    return config_from_dict(doc)
+    return shared_small_config(SMALL, **sim)
 
 
 @pytest.fixture(scope="module")
