@@ -257,7 +257,8 @@ def _load_tif(path: Path, sim_extent):
                 crs = _geotiff_geographic(tags.get(34735))
                 if crs is not None:
                     raise ValueError(_geographic(path, crs))
-                web_mercator = _geotiff_projected(tags.get(34735)) in (3857, 900913, 3785)
+                web_mercator = (str(_geotiff_projected(tags.get(34735))) in _WEB_MERCATOR
+                                or any(map(_is_web_mercator, _geotiff_citations(tags.get(34735), tags.get(34737)))))
                 a = page.asarray()
                 scale = tags.get(33550)
                 tie = tags.get(33922)
@@ -336,7 +337,8 @@ _WEB_MERCATOR = ("3857", "900913", "3785", "102100", "102113")
 def _is_web_mercator(name: str) -> bool:
     """Whether a CRS name (``urn:ogc:def:crs:EPSG::3857``, ``EPSG:3857``, ``ESRI:102100``, ...) is Web Mercator."""
     tail = str(name).upper().replace("::", ":").rsplit(":", 1)[-1].strip()
-    return tail in _WEB_MERCATOR or "PSEUDO-MERCATOR" in str(name).upper()
+    upper = str(name).upper().replace(" ", "_").replace("-", "_")
+    return tail in _WEB_MERCATOR or "PSEUDO_MERCATOR" in upper or "WEB_MERCATOR" in upper
 
 
 def _web_mercator(path, crs: str, x: float, y: float) -> str:
@@ -365,6 +367,21 @@ def _geotiff_keys(tag) -> dict:
         return {v[k]: (v[k + 1], v[k + 3]) for k in range(4, 4 + 4 * v[3], 4) if k + 3 < len(v)}
     except (TypeError, ValueError, IndexError):
         return {}
+
+
+def _geotiff_citations(tag, ascii_tag) -> list[str]:
+    """The GTCitation and PCSCitation GeoKeys' text (GeoAsciiParamsTag), e.g. an ArcGIS export's user-defined
+    "WGS_1984_Web_Mercator_Auxiliary_Sphere"; empty if none."""
+    if tag is None or ascii_tag is None:
+        return []
+    try:
+        v = [int(x) for x in tag.value]
+        text = ascii_tag.value if isinstance(ascii_tag.value, str) else bytes(ascii_tag.value).decode("latin-1")
+        entries = [v[k:k + 4] for k in range(4, 4 + 4 * v[3], 4) if k + 3 < len(v)]
+        return [text[off:off + n].strip("|\x00 ") for key, loc, n, off in entries
+                if key in (1026, 3073) and loc == 34737]
+    except (TypeError, ValueError, IndexError, AttributeError):
+        return []
 
 
 def _geotiff_projected(tag) -> int | None:

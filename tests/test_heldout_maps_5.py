@@ -83,6 +83,21 @@ def test_a_web_mercator_geotiff_is_refused(tmp_path):
         load_domain(tmp_path / "wm.tif")
 
 
+def test_a_geotiff_in_user_defined_web_mercator_is_refused(tmp_path):
+    # an ArcGIS export in "WGS 84 / Web Mercator Auxiliary Sphere" (ESRI:102100, which a GeoKey's 16 bits cannot
+    # hold) declares a user-defined projection (32767) and names it in its citation: it was read as metres, 1.5 x
+    # too large at Vienna's latitude
+    tifffile = pytest.importorskip("tifffile")
+    x0, y1 = _web_mercator(48.2, 16.4, 0.0, 30.0)
+    cite = "WGS_1984_Web_Mercator_Auxiliary_Sphere|"
+    keys = [1, 1, 0, 3, 1024, 0, 1, 1, 3072, 0, 1, 32767, 3073, 34737, len(cite), 0]
+    tifffile.imwrite(tmp_path / "esri.tif", np.full((30, 40), 255, np.uint8),
+                     extratags=[(33550, "d", 3, (1.2, 1.2, 0.0)), (33922, "d", 6, (0, 0, 0, float(x0), float(y1), 0)),
+                                (34735, "H", len(keys), keys), (34737, "s", 0, cite)])
+    with pytest.raises(ValueError, match=r"Web Mercator .* latitude 48\.2 they are 1\.5 x too large"):
+        load_domain(tmp_path / "esri.tif")
+
+
 def test_plan_reference_plans_on_a_site_larger_than_the_papers_gp_grid(tmp_path, capsys):
     # a 47 m x 28 m car park: plan-reference exited 2 ("the inducing grid would have 97 x 59 = 5723 nodes ...; set
     # [gp] length_scale = 1.206 in a configuration file"), advice it cannot take: it passes [gp] over
