@@ -853,11 +853,28 @@ def resolve_domain(config: RunConfig, grid, domain=None):
     if lost.any():
         area = float(lost.sum()) * grid.cell_area
         msg = (f"domain {region.name}: {area:g} m^2 of free space ({int(lost.sum())} planner cells) cannot be reached "
-               f"from the start box {list(s.start_box)}")
+               f"from the start box {list(s.start_box)} ({_where(lost, grid)})")
         if ds.unreachable == "refuse":
             raise ValueError(msg + " (domain.unreachable = \"refuse\")")
         warnings.warn(msg + "; it is excluded from the planner, sup V, RMSE and the target", UserWarning, stacklevel=3)
     return region, reach
+
+
+def _where(cells, grid, most: int = 3) -> str:
+    """Where a mask of planner cells lies, for a one-line message: its connected parts' bounding boxes in
+    metres, the largest first (at most ``most``, then how many more)."""
+    from scipy import ndimage
+    labels, n = ndimage.label(cells)
+    parts = []
+    for k, sl in enumerate(ndimage.find_objects(labels), start=1):
+        size = int((labels[sl] == k).sum())
+        x0, y0 = grid.xf[sl[0].start], grid.yf[sl[1].start]
+        x1, y1 = grid.xf[sl[0].stop], grid.yf[sl[1].stop]
+        parts.append((size, f"x {x0:.4g}-{x1:.4g} m, y {y0:.4g}-{y1:.4g} m"))
+    parts.sort(key=lambda p: -p[0])
+    text = "; ".join(f"{size * grid.cell_area:g} m^2 at {box}" for size, box in parts[:most])
+    more = f"; {n - most} smaller part(s)" if n > most else ""
+    return f"{n} part{'s' if n > 1 else ''}: {text}{more}"
 
 
 def make_planner(settings, free, walls=None):

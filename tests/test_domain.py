@@ -379,7 +379,8 @@ def test_unreachable_free_space_is_excluded_with_a_warning(tmp_path):
     free[28, 28:40] = False                                     # a closed 5.5 m x 5.5 m pocket in a corner
     np.savez(tmp_path / "pocket.npz", free=free, extent=np.array(EXT))
     cfg = _cfg("diffusion", source=str(tmp_path / "pocket.npz"), max_periods=1)
-    with pytest.warns(UserWarning, match=r"30.25 m\^2 of free space \(121 planner cells\) cannot be reached"):
+    with pytest.warns(UserWarning, match=r"30.25 m\^2 of free space \(121 planner cells\) cannot be reached from "
+                                         r"the start box .* \(1 part: 30.25 m\^2 at x 14.5-20 m, y 14.5-20 m\)"):
         res = run_simulation(cfg)
     assert not res.free[30:, 30:].any() and res.free[:20, :20].all()
     assert np.all(res.var[30:, 30:] == 0)
