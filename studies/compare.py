@@ -133,7 +133,8 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
     a ``domain`` label.  ``comm_radii`` (metres; inf = the centralized loop) adds the communication radius
     (``sim.comm_radius``, :mod:`sim.network`) as an axis; each task then has a ``comm_radius`` label.
     ``noise_sd``: the measurement noise's standard deviation in field units (``sim.noise_variance =
-    noise_sd^2``; default the configuration's)."""
+    noise_sd^2``; default the configuration's): one number for every field, or a sequence of one per field of
+    ``fields``, in its order (fields in different units)."""
     from ..sim.config import config_from_dict
     from ..sim.controllers import make_controller
     from ..sim.fields import FIELDS
@@ -179,7 +180,13 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
                 t["comm_radius"] = comm_label(r)
             tasks += sub
         return tasks
-    for field in fields:
+    if isinstance(noise_sd, (list, tuple)):
+        if len(noise_sd) != len(fields):
+            raise ValueError(f"noise_sd: {len(noise_sd)} values for {len(fields)} fields (one per field, or one number)")
+        sds = [None if v is None else float(v) for v in noise_sd]
+    else:
+        sds = [noise_sd] * len(fields)
+    for field, sd in zip(fields, sds):
         fsig, label = field, labels[field]
         if field not in FIELDS:
             path = Path(field).resolve()
@@ -201,8 +208,8 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
                             sim["loss_time"] = float(loss_time)
                         if start_box is not None:
                             sim["start_box"] = list(start_box)
-                        if noise_sd is not None:
-                            sim["noise_variance"] = float(noise_sd) ** 2
+                        if sd is not None:
+                            sim["noise_variance"] = float(sd) ** 2
                         doc = {**base_doc, "sim": sim}
                         cfg = config_from_dict(doc, preset=preset)   # validates every combination up front
                         s = cfg.sim
@@ -590,8 +597,9 @@ def build_parser():
     p.add_argument("--comm-radius", nargs="+", type=float, default=None, metavar="METRES",
                    help="decentralized swarm: communication radii as an axis of the sweep (inf: the paper's "
                         "communication centre); adds comm_radius, density_error, components, comm_bytes to runs.csv")
-    p.add_argument("--noise-sd", type=float, metavar="SD",
-                   help="standard deviation of the measurement noise, in the field's units (default: the "
+    p.add_argument("--noise-sd", type=float, nargs="+", metavar="SD",
+                   help="standard deviation of the measurement noise, in the field's units: one value for every "
+                        "field, or one per --fields entry in its order (fields in different units; default: the "
                         "configuration's sim.noise_variance, the paper's 0.04 = 0.2^2)")
     p.add_argument("--outliers", type=float, nargs=2, metavar=("FRACTION", "SCALE"),
                    help="an outlier-prone sensor in every run: a share FRACTION of the readings has SCALE times the "
@@ -652,8 +660,17 @@ def run(argv=None) -> int:
         if not (math.isfinite(t) and 0 < t <= args.max_periods):
             raise InputError(f"--times {t:g}: every time must lie in (0, --max-periods = {args.max_periods}] "
                              "(multiples of T within the runs)")
-    if args.noise_sd is not None and not (math.isfinite(args.noise_sd) and args.noise_sd > 0):
-        raise InputError(f"--noise-sd must be a positive number in the field's units, got {args.noise_sd:g}")
+    noise_by_field = None
+    if args.noise_sd is not None:
+        for sd in args.noise_sd:
+            if not (math.isfinite(sd) and sd > 0):
+                raise InputError(f"--noise-sd must be positive numbers in the fields' units, got {sd:g}")
+        if len(args.noise_sd) not in (1, len(args.fields)):
+            raise InputError(f"--noise-sd takes one value for every field or one per --fields entry: "
+                             f"{len(args.noise_sd)} values for {len(args.fields)} fields")
+        noise_by_field = {}                 # the first of a repeated field's values, as its first entry is kept
+        for f, sd in zip(args.fields, args.noise_sd * (len(args.fields) if len(args.noise_sd) == 1 else 1)):
+            noise_by_field.setdefault(_field_key(f), sd)
     from ..sim.config import outlier_overrides
     try:
         sensor = outlier_overrides(args.outliers)
@@ -697,7 +714,8 @@ def run(argv=None) -> int:
             tasks = make_tasks(base_doc, args.controllers, args.fields, args.seeds, args.robot_loss, robots,
                                loss_time=args.loss_time, start_box=args.start_box, max_periods=args.max_periods,
                                presets=args.presets, domains=args.domains, comm_radii=args.comm_radius,
-                               noise_sd=args.noise_sd)
+                               noise_sd=None if noise_by_field is None else
+                               [noise_by_field[_field_key(f)] for f in args.fields])
             if args.domains:               # bad domains fail here, in one line, before any run
                 from ..sim.config import config_from_dict
                 from ..sim.simulation import check_config

@@ -304,6 +304,26 @@ def test_noise_sd_reaches_every_task_of_a_radius_sweep(tmp_path, with_map):
     assert [t["config"]["gp"]["noise_variance"] for t in tasks] == [225.0, 225.0]
 
 
+def test_noise_sd_one_per_field(tmp_path, capsys):
+    """--noise-sd with one value per --fields entry: fields in different units each measured with its own sensor
+    (one value served every field, so a sweep over ppm and pascal fields needed two commands)."""
+    from swarmfield.sim.config import read_toml
+    from swarmfield.studies.compare import main, make_tasks
+    cfg = tmp_path / "small.toml"
+    cfg.write_text(SMALL_TOML)
+    tasks = make_tasks(read_toml(cfg), ["lawnmower"], ["bumps", "ridge"], [0, 1], [0.0], [20], max_periods=1,
+                       noise_sd=[15.0, 0.5])
+    assert {(t["field"], t["config"]["sim"]["noise_variance"]) for t in tasks} == {("bumps", 225.0), ("ridge", 0.25)}
+    with pytest.raises(ValueError, match="3 values for 2 fields"):
+        make_tasks(read_toml(cfg), ["lawnmower"], ["bumps", "ridge"], [0], [0.0], [20], noise_sd=[1.0, 2.0, 3.0])
+    out = tmp_path / "x"
+    assert main(["--config", str(cfg), "--fields", "bumps", "ridge", "--noise-sd", "1", "2", "3",
+                 "--out", str(out)]) == 2
+    assert "--noise-sd takes one value for every field or one per --fields entry: 3 values for 2 fields" in \
+        capsys.readouterr().err
+    assert not out.exists()
+
+
 def test_a_warning_of_the_checks_is_said_once_not_once_per_controller(tmp_path, capsys):
     # every task's configuration is checked before the runs; a GP grid coarsened to its budget warned for each
     # controller's; now each distinct warning is printed once
