@@ -37,17 +37,19 @@ class PairedRatio:
     (None without a pair), ``low``/``high`` its 95 % confidence interval (None below two pairs or when the
     ratios are all equal), ``better``/``level``/``worse`` the seeds where the reference's value is smaller /
     equal / larger (never-reached counted as larger than any reached), ``unpaired`` the pairs left out of the
-    mean because a run never reached the value."""
+    mean because a run never reached the value, ``neither`` the seeds where neither run reached it."""
 
-    def __init__(self, mean, low, high, n, better, level, worse, unpaired):
+    def __init__(self, mean, low, high, n, better, level, worse, unpaired, neither=0):
         self.mean, self.low, self.high, self.n = mean, low, high, n
         self.better, self.level, self.worse, self.unpaired = better, level, worse, unpaired
+        self.neither = neither
 
     def cell(self) -> str:
-        """The table's cell: ``0.93 [0.85–1.02] · better on 3/4`` (``—`` without any pair)."""
+        """The table's cell: ``0.93 [0.85–1.02] · better on 3/4`` (``neither reached on 4`` when no run of either
+        reached the value, ``—`` without any pair)."""
         total = self.better + self.level + self.worse
         if total == 0:
-            return "—"
+            return f"neither reached on {self.neither}" if self.neither else "—"
         head = "—" if self.mean is None else f"{self.mean:.3f}"
         if self.low is not None:
             head += f" [{self.low:.3f}–{self.high:.3f}]"
@@ -64,9 +66,10 @@ def paired_ratio(ref, other) -> PairedRatio:
     finite values form ratios, others are left out."""
     if len(ref) != len(other):
         raise ValueError(f"paired values differ in length: {len(ref)} and {len(other)}")
-    logs, better, level, worse, unpaired = [], 0, 0, 0, 0
+    logs, better, level, worse, unpaired, neither = [], 0, 0, 0, 0, 0
     for a, b in zip(ref, other):
         if a is None and b is None:
+            neither += 1
             continue
         if a is None or b is None:               # one never reached it: the other is the better
             unpaired += 1
@@ -90,7 +93,7 @@ def paired_ratio(ref, other) -> PairedRatio:
             from scipy.stats import ttest_1samp
             ci = ttest_1samp(logs, 0.0).confidence_interval(0.95)
             low, high = math.exp(float(ci.low)), math.exp(float(ci.high))
-    return PairedRatio(mean, low, high, len(logs), better, level, worse, unpaired)
+    return PairedRatio(mean, low, high, len(logs), better, level, worse, unpaired, neither)
 
 
 def reference_of(runs, label) -> tuple:

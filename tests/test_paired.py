@@ -31,7 +31,8 @@ def test_a_time_never_reached_is_later_than_any_reached_and_left_out_of_the_mean
     r = paired_ratio([1.5, None, 2.0, None], [None, 1.0, 1.0, None])
     assert (r.better, r.worse, r.unpaired, r.n) == (1, 2, 2, 1) and r.mean == 2.0
     assert r.cell() == "2.000 · better on 1/3 (2 with a never)"
-    assert paired_ratio([None], [None]).cell() == "—"
+    assert paired_ratio([None, None], [None, None]).cell() == "neither reached on 2"    # was "—", as if unpaired
+    assert paired_ratio([], []).cell() == "—"
     with pytest.raises(ValueError, match="differ in length"):
         paired_ratio([1.0], [1.0, 2.0])
 
