@@ -245,7 +245,10 @@ def _adopt_map_extent(args, cfg: dict) -> None:
     default = list(PlannerSettings.domain)
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always")
-        chosen = map_extent_defaults({"domain": default}, given, {}, args.domain)
+        try:
+            chosen = map_extent_defaults({"domain": default}, given, {}, args.domain)
+        except ValueError as exc:           # polygons beyond the default domain: the domain to set, in its table
+            raise InputError(str(exc).replace("[sim] domain", "[planner] domain")) from None
     args.extent_notes = [str(w.message) for w in said]    # printed with the domain's notes, after every check
     if chosen["domain"] != default:
         cfg["domain"] = chosen["domain"]

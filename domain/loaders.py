@@ -198,7 +198,33 @@ def _load_png(path: Path, sim_extent):
     if ext is None:
         raise ValueError(f"domain file {path}: no extent (give {path.with_suffix('.json').name} with "
                          '{"extent": [x0, x1, y0, y1]})')
-    return Domain.from_raster(free, ext, name=path.stem)
+    dom = Domain.from_raster(free, ext, name=path.stem)
+    dom.notes = _inverted_note(path, dom)
+    return dom
+
+
+#: an image whose free (light) share is below the first and whose obstacles are on average more than the second
+#: times as deep as its free space is wide gets a note: light walls on a dark floor, a "dark mode" export
+INVERTED = (0.5, 2.0)
+
+
+def _inverted_note(path, dom: Domain) -> tuple:
+    """The note for an image that looks inverted (:data:`INVERTED`): its free pixels a thin minority (walls drawn
+    light) and its obstacles wide (the floor drawn dark); measured on at most about a million pixels."""
+    from scipy import ndimage
+    free = dom.free_pixels
+    step = max(1, int(math.ceil(math.sqrt(free.size / 1e6))))
+    f = free[::step, ::step]
+    if not (f.mean() < INVERTED[0]) or f.all():
+        return ()
+    px, py = (step * v for v in dom.pixel)
+    wide = ndimage.distance_transform_edt(f, sampling=(px, py))[f].mean()
+    deep = ndimage.distance_transform_edt(~f, sampling=(px, py))[~f].mean()
+    if not deep > INVERTED[1] * wide:
+        return ()
+    return (f"domain file {path}: {100 * f.mean():.2g} % of it is free (light) and thin, {wide:.2g} m from an obstacle "
+            f"on average, while its obstacles (dark) lie {deep:.2g} m deep: is the image inverted (light walls on a dark "
+            "floor)? A pixel is free when it is light; if so, invert it first (PIL.ImageOps.invert)",)
 
 
 def _decode_png(PIL, path: Path) -> np.ndarray:
@@ -302,6 +328,7 @@ def _load_tif(path: Path, sim_extent):
         raise ValueError(f"domain file {path}: no extent in the GeoTIFF and no {path.with_suffix('.json').name}")
     dom = Domain.from_raster(free, ext, name=path.stem)
     dom._pixel_stated = georeferenced          # its georeferencing states the pixel size: no stretch warning
+    dom.notes = _inverted_note(path, dom)
     return dom
 
 
@@ -463,6 +490,20 @@ def _geojson_objects(doc, path):
     return out, vertices
 
 
+def _bbox_extent(path, bbox) -> tuple:
+    """``(x0, x1, y0, y1)`` of a GeoJSON ``bbox`` member: 2n numbers, the n minima then the n maxima (RFC 7946,
+    5.: ``[x0, y0, x1, y1]``, or ``[x0, y0, z0, x1, y1, z1]`` with altitudes); ``ValueError`` (one line) otherwise."""
+    try:
+        b = [float(v) for v in bbox]
+    except (TypeError, ValueError):
+        b = []
+    if len(b) not in (4, 6) or not all(math.isfinite(v) for v in b):
+        raise ValueError(f"domain file {path}: its bbox {bbox!r} is not [x0, y0, x1, y1] (or [x0, y0, z0, x1, y1, z1]) "
+                         "in finite numbers")
+    n = len(b) // 2
+    return (b[0], b[n], b[1], b[n + 1])
+
+
 def _load_geojson(path: Path, sim_extent):
     shapely = _need("shapely", "shapely", "a GeoJSON domain")
     from shapely.geometry import shape
@@ -517,14 +558,64 @@ def _load_geojson(path: Path, sim_extent):
                                      (0.5 * (geom.bounds[0] + geom.bounds[2]), 0.5 * (geom.bounds[1] + geom.bounds[3]))))
     ext = sim_extent
     if isinstance(doc, dict) and doc.get("bbox") is not None and ext is None:
-        b = doc["bbox"]
-        ext = (b[0], b[2], b[1], b[3])
+        ext = _bbox_extent(path, doc["bbox"])
     if ext is None:
         x0, y0, x1, y1 = geom.bounds
         ext = (x0, x1, y0, y1)
     dom = Domain.from_polygons(geom, ext, name=path.stem)
-    dom.notes = notes
+    dom.notes = notes + _shared_edges_note(path, parts) + _cut_off(path, dom, geom)
     return dom
+
+
+#: polygons whose area outside the extent is more than this share of theirs are cut off with a note (and, where no
+#: [sim] domain is given, refused: :func:`swarmfield.sim.config.map_extent_defaults`)
+CUT_OFF_SHARE = 0.005
+
+
+def _cut_off(path, dom: Domain, geom) -> tuple:
+    """The note for polygons that reach beyond ``dom``'s extent by more than :data:`CUT_OFF_SHARE` of their area (a
+    floor of 32 m x 18 m in local metres read on the default [0, 20]^2 loses 44 % of itself without a word); sets
+    ``dom.cut_off = (area outside, the polygons' bounds (x0, x1, y0, y1))`` for the callers that know the extent
+    was not given.  ``()`` when they fit."""
+    import shapely
+    x0, x1, y0, y1 = dom.extent
+    outside = float(geom.area - shapely.intersection(geom, shapely.box(x0, y0, x1, y1)).area)
+    if not outside > CUT_OFF_SHARE * geom.area:
+        return ()
+    gx0, gy0, gx1, gy1 = geom.bounds
+    bounds = tuple(round(float(v), 9) for v in (gx0, gx1, gy0, gy1))
+    dom.cut_off = (outside, bounds)
+    return (f"domain file {path}: {outside:.4g} m^2 of its polygons ({100 * outside / geom.area:.2g} % of their area) "
+            f"lie outside the extent {[round(v, 9) for v in dom.extent]} and are cut off; the polygons span "
+            f"{list(bounds)}: set [sim] domain = {list(bounds)} to keep them",)
+
+
+def _shared_edges_note(path, parts, tol: float = 1e-6) -> tuple:
+    """The note for polygons that touch along an edge without overlapping (rooms drawn side by side, as indoor
+    mapping and CAD exports draw them, their wall a shared edge of no thickness): the union of the polygons is the
+    free space, so no wall is left between them.  ``()`` when no two polygons share more than a point (or they
+    overlap, as a door drawn across a wall does)."""
+    import shapely
+    if len(parts) < 2 or len(parts) > 2000:
+        return ()
+    tree = shapely.STRtree(parts)
+    left, right = tree.query(parts, predicate="touches")
+    pairs = [(i, j) for i, j in zip(left, right) if i < j]
+    total, where = 0.0, None
+    for i, j in pairs:
+        shared = shapely.intersection(parts[i].boundary, parts[j].boundary)
+        length = float(shared.length)
+        if length > tol * math.sqrt(max(parts[i].area, parts[j].area, tol)):
+            total += length
+            if where is None:
+                c = shared.centroid
+                where = (c.x, c.y)
+    if where is None:
+        return ()
+    return (f"domain file {path}: some of its polygons touch along their edges ({total:.4g} m of shared edges, e.g. "
+            f"at ({where[0]:.6g}, {where[1]:.6g})): the free space is their union, so no wall stands there; to have "
+            "one, draw the wall's thickness as a gap between the rooms (shapely: room.buffer(-0.05)) and the doors as "
+            "polygons across it",)
 
 
 #: A ROS ``map_server`` map file (``map.yaml``): the keys its loader requires, and its modes (docs/guide/domains.md)
@@ -731,6 +822,18 @@ def _saver_grey(a: np.ndarray) -> np.ndarray:
 LOADERS = {".npz": _load_npz, ".png": _load_png, ".tif": _load_tif, ".tiff": _load_tif,
            ".geojson": _load_geojson, ".json": _load_geojson, ".yaml": _load_ros_yaml, ".yml": _load_ros_yaml}
 
+_OGR = "convert it to GeoJSON in a projected CRS in metres: ogr2ogr -f GeoJSON -t_srs EPSG:326NN out.geojson in"
+_IMAGE = "save it as PNG, light = free, with a sidecar <name>.json {\"extent\": [x0, x1, y0, y1]}"
+#: what to do with a map file of a kind no loader reads, by its suffix (the polygon formats GDAL's ogr2ogr converts)
+CONVERT = {**{s: f"{_OGR}{s}" for s in (".shp", ".kml", ".kmz", ".gpkg", ".gml", ".gpx", ".dxf", ".tab", ".mif",
+                                         ".fgb", ".topojson", ".osm", ".pbf")},
+           **{s: _IMAGE for s in (".jpg", ".jpeg", ".bmp", ".gif", ".webp")},
+           ".svg": "rasterise it to PNG first (e.g. inkscape --export-type=png), " + _IMAGE[len("save it as PNG, "):],
+           ".pdf": "rasterise it to PNG first (e.g. pdftoppm -png), " + _IMAGE[len("save it as PNG, "):],
+           ".pgm": "a ROS map's image: give the map's .yaml beside it (resolution, origin, thresholds), or save the "
+                   "image as PNG with a sidecar <name>.json {\"extent\": [x0, x1, y0, y1]}",
+           ".asc": "convert it to a GeoTIFF: gdal_translate in.asc out.tif"}
+
 
 def check_source(path) -> None:
     """``ValueError`` (one line) unless ``path`` is a domain file this process can read: missing, a
@@ -756,8 +859,9 @@ def load_domain(path, sim_extent=None) -> Domain:
     check_source(path)
     ext = path.suffix.lower()
     if ext not in LOADERS:
+        how = CONVERT.get(ext)
         raise ValueError(f"domain file {path} is not a mask, image or polygon file, nor a ROS map: use .npz, .png, .tif, "
-                         ".geojson or .yaml")
+                         f".geojson or .yaml" + (f" ({how})" if how else ""))
     try:
         dom = LOADERS[ext](path, None if sim_extent is None else _extent(sim_extent))
     except OSError as exc:

@@ -686,12 +686,19 @@ def map_extent_defaults(sim_map: dict, given_sim: dict, overrides: dict, source)
     try:
         with warnings.catch_warnings():         # a reader's own warnings: the run's loading says them
             warnings.simplefilter("ignore")
-            make_domain(source, default)
-        return sim_map                          # the map fits the default domain (or has no extent of its own)
+            fits = make_domain(source, default)
     except ExtentMismatch as exc:
         dom = exc.domain
     except (ValueError, OSError, ImportError):
         return sim_map                          # the run's own loading says what is wrong, in its words
+    else:
+        cut = getattr(fits, "cut_off", None)
+        if cut is not None:                     # polygons (which state no extent) reaching beyond the default domain
+            area, bounds = cut
+            raise ValueError(f"domain {fits.name}: its polygons span {list(bounds)}, beyond the default simulation "
+                             f"domain {list(default)}: {area:.4g} m^2 of them would be cut off; set [sim] domain = "
+                             f"{list(bounds)} (and a start box in it)")
+        return sim_map                          # the map fits the default domain (or has no extent of its own)
     x0, x1, y0, y1 = (round(float(v), 9) for v in dom.extent)
     sim_map = {**sim_map, "domain": [x0, x1, y0, y1]}
     chosen = f"sim.domain = {sim_map['domain']} (the map's extent)"
