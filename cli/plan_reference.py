@@ -296,8 +296,12 @@ def domain_problem(args, grid, p0, target):
     notes = list(dom.notes)
     lost = classified & ~free
     if lost.any():
+        cut = ""
+        if args.initial is None:
+            from ..sim.simulation import cut_by_cells
+            cut = cut_by_cells(dom, classified, start_box(args), grid, f)
         notes.append(f"domain {dom.name}: {lost.sum() * grid.cell_area:g} m^2 of free space "
-                     f"({int(lost.sum())} cells) cannot be reached from the initial density; it is excluded")
+                     f"({int(lost.sum())} cells) cannot be reached from the initial density; it is excluded{cut}")
     walls = dom.closed_faces(free)
     out = []
     for arr, name in ((p0, "initial density"), (target, "target density")):

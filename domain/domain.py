@@ -349,6 +349,12 @@ class Domain:
         free area is reachable at the map's own resolution (a wall thinner than a cell still closes a room;
         :meth:`reachable_pixels`), and the cell is connected through cell faces to a free cell that overlaps
         the start box (the planner moves mass through faces)."""
+        return self._reachable_cells(free, start_box)[0]
+
+    def _reachable_cells(self, free: np.ndarray, start_box):
+        """``(reachable, cut)``: :meth:`reachable_cells`, and the free cells most of whose free area the robots
+        reach at the map's own resolution but that the cells' open faces do not join to the start box (a passage
+        through a cell the cell cannot hold: module docstring, "Walls"; :meth:`cut_by_cells`)."""
         free = np.asarray(free, bool)
         nx, ny = free.shape
         if not self.is_rectangle:
@@ -358,8 +364,29 @@ class Domain:
             free = free & (reach >= 0.5 * total) & (reach > 0)
             walls = self.closed_faces(free)
             if walls is not None:
-                return connected_to_box(free, self.extent, start_box, *walls)
-        return _connected_to_box(free, self.extent, start_box)
+                out = connected_to_box(free, self.extent, start_box, *walls)
+                return out, free & ~out
+        out = _connected_to_box(free, self.extent, start_box)
+        return out, free & ~out
+
+    def cut_by_cells(self, free: np.ndarray, start_box) -> np.ndarray:
+        """(nx, ny) bool: free cells the robots can reach from ``start_box`` at the map's own resolution (most of their
+        free area) that the planner's cells nevertheless cut off: the passage to them runs through a cell whose kept
+        piece is another room's (a door narrower than a cell in walls that cut the cells obliquely).  Left out as
+        unreachable by :meth:`reachable_cells`; finer cells keep them (:meth:`cell_size_keeping`)."""
+        return self._reachable_cells(free, start_box)[1]
+
+    def cell_size_keeping(self, cell: float, start_box, min_free_fraction: float = 0.5,
+                          factors=(0.8, 0.6, 0.5, 0.4)) -> float | None:
+        """The largest of ``cell`` x ``factors`` (rounded to two significant digits) whose square cells cut off no
+        free space the robots reach at the map's own resolution (:meth:`cut_by_cells`), else None."""
+        x0, x1, y0, y1 = self.extent
+        for f in factors:
+            c = float(f"{cell * f:.2g}")
+            shape = (max(1, int(round((x1 - x0) / c))), max(1, int(round((y1 - y0) / c))))
+            if not self.cut_by_cells(self.free_cells(shape, min_free_fraction), start_box).any():
+                return c
+        return None
 
     def topology_raster(self, nx: int, ny: int):
         """``(fine, bx, by)``: free pixels that decide which planner faces are open, at the geometry's own

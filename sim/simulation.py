@@ -853,11 +853,26 @@ def resolve_domain(config: RunConfig, grid, domain=None):
     if lost.any():
         area = float(lost.sum()) * grid.cell_area
         msg = (f"domain {region.name}: {area:g} m^2 of free space ({int(lost.sum())} planner cells) cannot be reached "
-               f"from the start box {list(s.start_box)} ({_where(lost, grid)})")
+               f"from the start box {list(s.start_box)} ({_where(lost, grid)}){cut_by_cells(region, free, s.start_box, grid, ds.min_free_fraction)}")
         if ds.unreachable == "refuse":
             raise ValueError(msg + " (domain.unreachable = \"refuse\")")
         warnings.warn(msg + "; it is excluded from the planner, sup V, RMSE and the target", UserWarning, stacklevel=3)
     return region, reach
+
+
+def cut_by_cells(region, free, start_box, grid, min_free_fraction: float) -> str:
+    """The clause for the unreachable-space message when some of that space is reachable at the map's own
+    resolution and only the planner's cells cut it off (:meth:`domain.Domain.cut_by_cells`: a door narrower than a
+    cell in walls that cut the cells obliquely): its area and the cell size that keeps it; "" otherwise."""
+    cut = region.cut_by_cells(free, start_box)
+    if not cut.any():
+        return ""
+    cell = math.sqrt(grid.cell_area)
+    finer = region.cell_size_keeping(cell, start_box, min_free_fraction)
+    how = f"--cell-size {finer:g} ([planner] cell_size) keeps it" if finer else "finer cells (--cell-size) keep it"
+    return (f"; of it, {float(cut.sum()) * grid.cell_area:g} m^2 the robots can reach at the map's own resolution, "
+            f"through a passage the planner's {cell:.3g} m cells cannot hold (a door narrower than a cell whose larger "
+            f"piece is another room's): {how}")
 
 
 def _where(cells, grid, most: int = 3) -> str:
@@ -870,7 +885,8 @@ def _where(cells, grid, most: int = 3) -> str:
         size = int((labels[sl] == k).sum())
         x0, y0 = grid.xf[sl[0].start], grid.yf[sl[1].start]
         x1, y1 = grid.xf[sl[0].stop], grid.yf[sl[1].stop]
-        parts.append((size, f"x {x0:.4g}-{x1:.4g} m, y {y0:.4g}-{y1:.4g} m"))
+        m = lambda v: f"{float(v):.2f}".rstrip("0").rstrip(".")      # to the cm: UTM eastings stay readable
+        parts.append((size, f"x {m(x0)}-{m(x1)} m, y {m(y0)}-{m(y1)} m"))
     parts.sort(key=lambda p: -p[0])
     text = "; ".join(f"{size * grid.cell_area:g} m^2 at {box}" for size, box in parts[:most])
     more = f"; {n - most} smaller part(s)" if n > most else ""
