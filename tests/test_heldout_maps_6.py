@@ -144,3 +144,30 @@ def test_an_image_drawn_light_walls_on_dark_is_asked_whether_it_is_inverted(tmp_
     Image.fromarray(255 - a).save(tmp_path / "light.png")  # the same plan drawn the usual way: no note
     (tmp_path / "light.json").write_text(json.dumps({"extent": [0, 40, 0, 20]}))
     assert not any("inverted" in n for n in load_domain(tmp_path / "light.png").notes)
+
+
+def test_the_plan_figures_arrows_stay_within_one_arrow_spacing(tmp_path):
+    # plan-reference --plot on the campus (100 m x 64 m, the mass moving out of a start box in one corner): the
+    # arrows took matplotlib's scale, a share of the panel's width whatever the spacing, so on a 100 m site the fastest
+    # ran 25 m, five arrow spacings, through the school's walls; now the fastest arrow is one arrow spacing long
+    pytest.importorskip("matplotlib")
+    from matplotlib.quiver import Quiver
+    from swarmfield.cli.plan_reference import main as plan_main
+    from swarmfield.ocp.figures import make_plan_figure
+    from swarmfield.ocp.plan import ReferencePlan
+    free = np.ones((200, 128), bool)
+    free[100, :100] = False                                    # a one-pixel wall, a door at its north end
+    np.savez(tmp_path / "site.npz", free=free, extent=np.array([0.0, 100.0, 0.0, 64.0]))
+    cfg = tmp_path / "site.toml"
+    cfg.write_text("[sim]\ndomain = [0.0, 100.0, 0.0, 64.0]\nstart_box = [2.0, 10.0, 2.0, 10.0]\n"
+                   "[planner]\nnx = 20\nny = 13\nn_intervals = 3\nn_modes_x = 3\nn_modes_y = 3\n")
+    assert plan_main(["--config", str(cfg), "--domain", str(tmp_path / "site.npz"), "--out", str(tmp_path / "p.npz")]) == 0
+    fig = make_plan_figure(ReferencePlan.load(tmp_path / "p.npz"))
+    fig.canvas.draw()
+    spacing = 64.0 / 13
+    longest = []
+    for ax in fig.axes:
+        for q in (c for c in ax.collections if isinstance(c, Quiver)):
+            unit = {"xy": 1.0, "x": 1.0, "width": np.ptp(ax.get_xlim())}[q.scale_units or "width"]    # data units
+            longest.append(float(np.max(np.hypot(q.U, q.V))) / q.scale * unit)
+    assert len(longest) == 4 and max(longest) <= spacing * (1 + 1e-9)
