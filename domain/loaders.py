@@ -222,6 +222,7 @@ def _inverted_note(path, dom: Domain) -> tuple:
     deep = ndimage.distance_transform_edt(~f, sampling=(px, py))[~f].mean()
     if not deep > INVERTED[1] * wide:
         return ()
+    dom.looks_inverted = True                    # the start box's error says it too (Domain.check_start_box)
     return (f"domain file {path}: {100 * f.mean():.2g} % of it is free (light) and thin, {wide:.2g} m from an obstacle "
             f"on average, while its obstacles (dark) lie {deep:.2g} m deep: is the image inverted (light walls on a dark "
             "floor)? A pixel is free when it is light; if so, invert it first (PIL.ImageOps.invert)",)

@@ -139,8 +139,10 @@ def test_an_image_drawn_light_walls_on_dark_is_asked_whether_it_is_inverted(tmp_
     a[90:110, 195:205] = 0
     Image.fromarray(a).save(tmp_path / "dark.png")
     (tmp_path / "dark.json").write_text(json.dumps({"extent": [0, 40, 0, 20]}))
-    notes = load_domain(tmp_path / "dark.png").notes
-    assert any("is the image inverted (light walls on a dark floor)?" in n for n in notes)
+    dom = load_domain(tmp_path / "dark.png")
+    assert any("is the image inverted (light walls on a dark floor)?" in n for n in dom.notes)
+    with pytest.raises(ValueError, match=r"is not free .*; the map looks inverted .* invert the image if its walls"):
+        dom.check_start_box((2.0, 6.0, 2.0, 6.0))          # the floor, drawn dark
     Image.fromarray(255 - a).save(tmp_path / "light.png")  # the same plan drawn the usual way: no note
     (tmp_path / "light.json").write_text(json.dumps({"extent": [0, 40, 0, 20]}))
     assert not any("inverted" in n for n in load_domain(tmp_path / "light.png").notes)
