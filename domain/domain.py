@@ -545,7 +545,8 @@ class Domain:
         if not self.box_is_free(box):
             hint = self.start_box_hint(box)
             inverted = ("; the map looks inverted (its free part thin, its obstacles wide): a pixel is free when it is "
-                        "light, invert the image if its walls are drawn light") if getattr(self, "looks_inverted", False) else ""
+                        "light, invert the image if its walls are drawn light"
+                        if getattr(self, "looks_inverted", False) else "")
             raise ValueError(f"domain {self.name}: the start box {list(box)} is not free (it overlaps an obstacle); "
                              "choose sim.start_box inside the free space"
                              + (f", e.g. {list(hint)}" if hint else "") + inverted)

@@ -575,7 +575,7 @@ CUT_OFF_SHARE = 0.005
 
 def _cut_off(path, dom: Domain, geom) -> tuple:
     """The note for polygons that reach beyond ``dom``'s extent by more than :data:`CUT_OFF_SHARE` of their area (a
-    floor of 32 m x 18 m in local metres read on the default [0, 20]^2 loses 44 % of itself without a word); sets
+    floor of 32 m x 18 m in local metres read on the default [0, 20]^2 loses 38 % of itself without a word); sets
     ``dom.cut_off = (area outside, the polygons' bounds (x0, x1, y0, y1))`` for the callers that know the extent
     was not given.  ``()`` when they fit."""
     import shapely

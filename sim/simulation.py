@@ -853,7 +853,8 @@ def resolve_domain(config: RunConfig, grid, domain=None):
     if lost.any():
         area = float(lost.sum()) * grid.cell_area
         msg = (f"domain {region.name}: {area:g} m^2 of free space ({int(lost.sum())} planner cells) cannot be reached "
-               f"from the start box {list(s.start_box)} ({_where(lost, grid)}){cut_by_cells(region, free, s.start_box, grid, ds.min_free_fraction)}")
+               f"from the start box {list(s.start_box)} ({_where(lost, grid)})"
+               + cut_by_cells(region, free, s.start_box, grid, ds.min_free_fraction))
         if ds.unreachable == "refuse":
             raise ValueError(msg + " (domain.unreachable = \"refuse\")")
         warnings.warn(msg + "; it is excluded from the planner, sup V, RMSE and the target", UserWarning, stacklevel=3)
@@ -881,11 +882,11 @@ def _where(cells, grid, most: int = 3) -> str:
     from scipy import ndimage
     labels, n = ndimage.label(cells)
     parts = []
+    m = lambda v: f"{float(v):.2f}".rstrip("0").rstrip(".")      # to the cm: UTM eastings stay readable
     for k, sl in enumerate(ndimage.find_objects(labels), start=1):
         size = int((labels[sl] == k).sum())
         x0, y0 = grid.xf[sl[0].start], grid.yf[sl[1].start]
         x1, y1 = grid.xf[sl[0].stop], grid.yf[sl[1].stop]
-        m = lambda v: f"{float(v):.2f}".rstrip("0").rstrip(".")      # to the cm: UTM eastings stay readable
         parts.append((size, f"x {m(x0)}-{m(x1)} m, y {m(y0)}-{m(y1)} m"))
     parts.sort(key=lambda p: -p[0])
     text = "; ".join(f"{size * grid.cell_area:g} m^2 at {box}" for size, box in parts[:most])
