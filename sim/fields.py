@@ -611,24 +611,40 @@ def _read_csv(path: Path):
             geo = [c for c in head if c in GEOGRAPHIC_COLUMNS]
             hint = (f" ({', '.join(geo)}: if these are degrees, project them to metres first, e.g. to UTM, and name "
                     "the columns x, y; the simulator's coordinates are metres)" if geo else "")
+            timed = [c for c in head if c in TIME_COLUMNS]
+            if timed and not geo:
+                hint = (f" ({timed[0]}: the simulator's fields do not change in time; keep the rows of one time and "
+                        "the columns x, y, value)")
             raise ValueError(f"field file {where}: header must name the columns x, y, value, got {rows[0]}{hint}")
         cols = [head.index("x"), head.index("y"), head.index("value")]
         rows = rows[1:]
     if not rows:
         raise ValueError(f"field file {where} has no data rows")
     data = np.empty((len(rows), 3))
+    empty = []                       # rows without a value (an empty cell, NaN): a survey's missed readings
     for k, r in enumerate(rows):
         if len(r) != 3:
             raise ValueError(f"field file {where}: data row {k + 1} has {len(r)} columns, expected 3 (x, y, value)")
         try:
-            data[k] = [float(r[c]) for c in cols]
+            xy = [float(r[c]) for c in cols[:2]]
+            v = r[cols[2]].strip()
+            data[k] = [*xy, float(v) if v else np.nan]
         except ValueError:
             raise ValueError(f"field file {where}: data row {k + 1} is not numeric: {r}") from None
+        if np.isnan(data[k, 2]) and np.all(np.isfinite(data[k, :2])):
+            empty.append(k + 1)
+    if empty:
+        raise ValueError(f"field file {where}: {len(empty)} data row(s) have a missing or non-finite value (an empty "
+                         f"cell or NaN; the first is row {empty[0]}): delete those rows if the points are scattered "
+                         f"(the field is interpolated between the others); on a lattice, {NO_DATA_HINT}")
     if not np.all(np.isfinite(data)):
         bad = int(np.argmax(~np.all(np.isfinite(data), axis=1)))
         raise ValueError(f"field file {where}: non-finite value in data row {bad + 1}")
     return data
 
+
+#: header names of a time column in a CSV (a moving sensor's log: t, x, y, value)
+TIME_COLUMNS = ("t", "time", "timestamp", "date", "datetime", "time_s", "t_s")
 
 #: header names of geographic coordinates in a CSV (a survey exported as longitude and latitude in degrees)
 GEOGRAPHIC_COLUMNS = ("lon", "lat", "long", "lng", "longitude", "latitude")
@@ -668,7 +684,11 @@ def load_field(path, default_extent=None) -> Field:
         raise ValueError(f"field file {where} is a folder")
     suffix = path.suffix.lower()
     if suffix not in (".npz", ".npy", ".csv"):
-        raise ValueError(f"field file {where}: unsupported type {suffix or '(none)'}; use .npz, .npy or .csv")
+        hint = (" (a raster: save its values, x first (an image's or a GeoTIFF's rows are y, top down: "
+                "np.flipud(a).T), and its extent in metres with numpy, np.savez(\"field.npz\", values=..., "
+                "extent=[x0, x1, y0, y1]); a GeoTIFF or GeoJSON is read as a map by --domain)"
+                if suffix in (".tif", ".tiff", ".asc", ".nc", ".png", ".geojson", ".json") else "")
+        raise ValueError(f"field file {where}: unsupported type {suffix or '(none)'}; use .npz, .npy or .csv{hint}")
     try:
         digest = _sha256(path)
     except OSError as exc:
