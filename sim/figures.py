@@ -139,7 +139,24 @@ def clip_note(values, vmin, vmax):
                                                                                      "neither")
     if extend == "neither":
         return extend, ""
-    return extend, f"\nclipped to [{vmin:.3g}, {vmax:.3g}] (data {v.min():.3g} to {v.max():.3g})"
+    n = span_digits(vmin, vmax)
+    return extend, f"\nclipped to [{vmin:.{n}g}, {vmax:.{n}g}] (data {v.min():.{n}g} to {v.max():.{n}g})"
+
+
+def span_digits(lo, hi, least: int = 3) -> int:
+    """Significant digits that tell ``lo`` from ``hi`` apart: ``least``, and two more than the orders of magnitude
+    between their size and their difference (a temperature of 293.15 +- 0.02 K read "clipped to [293, 293] (data 293
+    to 293)" with three)."""
+    lo, hi = float(lo), float(hi)
+    size, span = max(abs(lo), abs(hi)), abs(hi - lo)
+    if not (span > 0 and math.isfinite(size) and math.isfinite(span)) or size <= span:
+        return least
+    return max(least, min(15, 2 + math.ceil(math.log10(size / span))))
+
+
+def _no_offset():
+    from matplotlib.ticker import ScalarFormatter
+    return ScalarFormatter(useOffset=False)
 
 
 def _few_ticks(n=4):
@@ -155,6 +172,11 @@ def _colorbar(fig, mappable, cax, label, values=None):
     cb = fig.colorbar(mappable, cax=cax, extend=extend)
     cax.xaxis.set_visible(False)         # the short side of a vertical bar: no ticks, nothing to draw
     cb.locator = _few_ticks()
+    # the values as they are, not as an offset ("+2.931e2" above the bar, drawn over the panel beside it, and ticks
+    # of 0.000-0.075 for a temperature of 293.15 K), unless they would need more than 8 digits (a scale about one
+    # value); a multiplier of 10^k for very small or large values stays
+    if span_digits(*mappable.get_clim()) <= 8:
+        cb.formatter = _no_offset()
     cb.update_ticks()
     size = 9 if note else 10
     cb.set_label(_wrapped(label + note, cax, size), fontsize=size)

@@ -13,6 +13,43 @@ from swarmfield.sim.fields import make_field
 SQUARE = (0.0, 20.0, 0.0, 20.0)
 
 
+@pytest.fixture(scope="module")
+def kelvin_run():
+    from swarmfield.sim.loop import run_simulation
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return run_simulation(small_config(max_periods=1, noise_variance=4e-6),
+                              field=lambda P: 293.15 + 0.02 * np.sin(P[:, 0] / 2) * np.cos(P[:, 1] / 3))
+
+
+def test_colour_bars_of_a_field_with_a_large_offset_read_its_values(kelvin_run):
+    # 293.15 +- 0.02 K: the prediction's bar read "clipped to [293, 293] (data 293 to 293)", and every bar's ticks were
+    # 0.000 ... 0.075 under an offset "+2.931e2" drawn over the panel beside it
+    from swarmfield.sim.figures import make_field_error, make_panels
+    over = copy.copy(kelvin_run)
+    over.mean = kelvin_run.f_true[::-1] + 0.5 * np.ptp(kelvin_run.f_true)          # clipped above, errors that vary
+    for fig, f_bar in ((make_field_error(over), 0), (make_panels(kelvin_run), 1)):     # f (f̄) and p̂, f̄, √V, |v|
+        fig.canvas.draw()
+        bars = [a for a in fig.axes if getattr(a, "_colorbar", None) is not None]
+        for bar in bars:
+            formatter = bar.yaxis.get_major_formatter()
+            assert formatter.get_offset() == "", formatter.get_offset()
+        labels = [t.get_text().replace("\u2212", "-") for t in bars[f_bar].get_yticklabels() if t.get_text()]
+        assert labels and all(abs(float(t) - 293.15) < 0.1 for t in labels), labels
+    label = [a for a in make_field_error(over).axes if getattr(a, "_colorbar", None) is not None][1].get_ylabel()
+    m = re.search(r"clipped to \[([-\d.e+]+), ([-\d.e+]+)\] \(data ([-\d.e+]+) to ([-\d.e+]+)\)",
+                  label.replace("\n", " "))
+    assert m and m[1] != m[2] and m[3] != m[4], label
+
+
+def test_span_digits_tell_the_ends_apart():
+    from swarmfield.sim.figures import span_digits
+    assert span_digits(1.6, 8.89) == 3 and span_digits(0.0, 1.0) == 3          # order-1 fields read as before
+    n = span_digits(293.13, 293.17)
+    assert f"{293.13:.{n}g}" != f"{293.17:.{n}g}"
+    assert span_digits(5.0, 5.0) == 3
+
+
 @pytest.mark.parametrize("cell", ["", "NaN", "nan"])
 def test_a_csv_with_missing_readings_says_how_many_and_what_to_do(tmp_path, cell):
     # a survey with missed readings (empty cells or NaN): "data row 8 is not numeric" / "non-finite value in data row 8"
