@@ -50,6 +50,30 @@ def test_span_digits_tell_the_ends_apart():
     assert span_digits(5.0, 5.0) == 3
 
 
+def _headline_result(mean, noise_variance):
+    from swarmfield.sim.config import config_from_dict
+    cfg = config_from_dict({"preset": "tuned", "sim": {"noise_variance": noise_variance}})
+    rows = [{"t": 7.0 * k, "max_variance": v, "mean_variance": v, "rmse": e, "threshold": 1.0, "n_observations": n}
+            for k, (v, e, n) in enumerate(((5e5, 1893.0, 100), (1.4e4, 28.7, 900)))]
+    return SimpleNamespace(rows=rows, config=cfg, time_to_threshold=7.0, threshold_row=rows[-1], stop_reason="threshold",
+                           wall_time=1.0, kernel={}, free=None, mean=mean)
+
+
+def test_a_map_spanning_decades_is_told_to_map_the_logarithm():
+    # a contaminant of 10^(2 + 1.2 g) ug/L (0.01 to 10^4) stopped at 1 T with the map below zero on 11 % of the cells
+    # and a band of +-30 ug/L where the truth was under 10; nothing said a linear GP is the wrong scale for it
+    from swarmfield.cli.simulate_swarm import headline
+    rng = np.random.default_rng(0)
+    conc = 10.0 ** (2.0 + 1.2 * rng.standard_normal((40, 40))) + rng.normal(0, 20, (40, 40))
+    lines = headline(_headline_result(conc, 1.0))
+    said = [line for line in lines if "skewed like a concentration" in line]
+    assert len(said) == 1 and "map log10 of it" in said[0] and "below zero on" in said[0], lines
+    # not for the same field mapped as log10, nor a presence/absence map of 0 and 1, nor an order-1 field
+    presence = (rng.random((40, 40)) > 0.8).astype(float) + rng.normal(0, 0.03, (40, 40))
+    for mean, nv in ((np.log10(np.abs(conc) + 1), 4e-4), (presence, 0.0025), (2 + rng.random((40, 40)), 0.01)):
+        assert not any("skewed" in line for line in headline(_headline_result(mean, nv)))
+
+
 @pytest.mark.parametrize("cell", ["", "NaN", "nan"])
 def test_a_csv_with_missing_readings_says_how_many_and_what_to_do(tmp_path, cell):
     # a survey with missed readings (empty cells or NaN): "data row 8 is not numeric" / "non-finite value in data row 8"
