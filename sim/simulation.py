@@ -199,6 +199,10 @@ class Simulation:
         for note in field_notes(self.field, s.domain):     # the run goes on, on the field as the file's numbers say
             warnings.warn(note, UserWarning, stacklevel=2)
         self.controller = make_controller(s.controller, config) if controller is None else controller
+        from .site_scale import small_site_note
+        note = small_site_note(config, self.controller)
+        if note:
+            warnings.warn(note, UserWarning, stacklevel=2)
         self.stop_rule = make_stop_rule(s) if stop_rule is None else stop_rule
         self.planner_error = ()               # nothing to catch without a planner
         grid = planner.grid if planner is not None else Grid(config.planner.domain, config.planner.nx,

@@ -90,10 +90,11 @@ The run's resolved values are scaled (a run cannot tell a value given from a pre
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 __all__ = ["SITE_SCALE_RULES", "REFERENCE_AREA", "SCALED", "area_ratio", "site_area", "site_factor", "scaled_value",
-           "scale_document", "LENGTH_SCALED", "length_ratio", "length_factor", "length_floor", "scale_lengths", "site_summary", "resolved_site_area", "unscaled_map_note", "SWARM_SCALE_RULES", "REFERENCE_ROBOT_AREA",
+           "scale_document", "LENGTH_SCALED", "length_ratio", "length_factor", "length_floor", "scale_lengths", "site_summary", "resolved_site_area", "unscaled_map_note", "small_site_note", "SWARM_SCALE_RULES", "REFERENCE_ROBOT_AREA",
            "SWARM_SCALED", "spacing_ratio", "spacing_factor", "swarm_summary", "capped_factor", "SpacingCappedByLength"]
 
 #: ``sim.site_scale``: "off" (values as given) or "area" (scaled by s = max(1, sqrt(area / REFERENCE_AREA)))
@@ -297,6 +298,62 @@ def unscaled_map_note(sim, free_area: float) -> str | None:
             f"sim.swarm_scale) scaled its defaults by the rectangle's {rect:.4g} m^2, not the map's free "
             f"{float(free_area):.4g} m^2; to scale by the map, give it as [domain] source (a file or built-in name; "
             f"config_from_dict(..., domain_source=...), the commands' --domain)")
+
+
+#: a plan whose transport takes more than this many explicit substeps an interval gets named (the tuned preset on the
+#: paper's 20 m square: 45; on a 5 m x 3 m bench 181; ocp.settings.PlannerSettings.substeps)
+MAX_PLAN_SUBSTEPS = 450
+
+
+def small_site_note(config, controller) -> str | None:
+    """One line naming the settings, given in metres and m/s for the paper's 20 m square, that a site is too small
+    for: for a run of ``controller`` (:class:`sim.controllers.Controller`) on ``config.sim.domain``, the lengths of
+    the controller's that are longer than the site's shorter side (``kde.bandwidth`` and ``feedback.spread_radius``
+    for the feedback, ``sim.greedy_separation`` for greedy, ``sim.lawnmower_lane`` for the lawnmower), the robots'
+    noise ``sqrt(2 sigma T)`` a period when it is as long (not for the diffusion baseline, whose strategy it is),
+    and a plan whose ``planner.reference_speed`` takes more than :data:`MAX_PLAN_SUBSTEPS` transport substeps an
+    interval on the site's cells (each plan's time grows with them).  On a 0.5 m x 0.3 m tabletop of microrobots at
+    0.05 m/s (docs/results/map-quality.md, "Held-out cases, round 6") the KDE's 1 m bandwidth made the density
+    estimate uniform, the 0.05 m^2/s noise moved each robot 0.84 m a period, and the plans took 17 s each, silently.
+    None when nothing is named (the paper's square, a 5 m bench)."""
+    s = config.sim
+    x0, x1, y0, y1 = s.domain
+    short, long_ = sorted((x1 - x0, y1 - y0))
+    plans = bool(getattr(controller, "needs_plan", False))
+    lengths = []
+    if plans or getattr(controller, "reads_density", False):
+        lengths.append(("kde.bandwidth", config.kde.bandwidth))
+    if plans:
+        lengths.append(("feedback.spread_radius", config.feedback.spread_radius))
+    name = getattr(controller, "name", "")
+    if name == "greedy":
+        lengths.append(("sim.greedy_separation", s.greedy_separation))
+    if name == "lawnmower":
+        lengths.append(("sim.lawnmower_lane", s.lawnmower_lane))
+    said = [f"{k} {v:g} m" for k, v in lengths if v is not None and v > short]
+    parts = []
+    if said:
+        parts.append(f"{' and '.join(said)} {'is' if len(said) == 1 else 'are'} longer than its shorter side "
+                     f"{short:g} m")
+    sigma = float(getattr(controller, "sigma", 0.0) or 0.0)
+    drift = math.sqrt(2.0 * sigma * s.period)
+    if drift >= short and name != "diffusion":          # the diffusion baseline's noise is its strategy
+        parts.append(f"the robots' noise (feedback.sigma {sigma:g} m^2/s) moves each one sqrt(2 sigma T) = "
+                     f"{drift:.3g} m a period")
+    pl = config.planner
+    if plans:
+        speed = pl.reference_speed or pl.v_max
+        sub = dataclasses.replace(pl, v_max=speed, reference_speed=None).substeps
+        if sub > MAX_PLAN_SUBSTEPS:
+            key = "planner.reference_speed" if pl.reference_speed else "planner.v_max"
+            parts.append(f"{key} {speed:g} m/s ({speed / pl.v_max:.3g} x the robots' planner.v_max "
+                         f"{pl.v_max:g} m/s) takes {sub} transport substeps an interval on its cells of "
+                         f"{(x1 - x0) / pl.nx:.3g} m x {(y1 - y0) / pl.ny:.3g} m (45 with the tuned preset on the "
+                         "paper's square), and each plan about as much longer")
+    if not parts:
+        return None
+    return (f"a site of {x1 - x0:g} m x {y1 - y0:g} m is smaller than settings given in metres for the paper's 20 m "
+            f"square: {'; '.join(parts)}; scale them to the site (getting started, \"A smaller site\")")
 
 
 def site_summary(config) -> dict:

@@ -74,6 +74,29 @@ def test_a_map_spanning_decades_is_told_to_map_the_logarithm():
         assert not any("skewed" in line for line in headline(_headline_result(mean, nv)))
 
 
+def test_settings_in_metres_too_large_for_a_tabletop_are_named():
+    # microrobots of 0.05 m/s on a 0.5 m x 0.3 m table with the tuned preset: the KDE's 1 m bandwidth made the density
+    # estimate uniform, the feedback's noise moved each robot 0.84 m a period and the plans took 17 s, silently
+    from swarmfield.sim.config import config_from_dict
+    from swarmfield.sim.controllers import make_controller
+    from swarmfield.sim.site_scale import small_site_note
+    doc = {"preset": "tuned", "sim": {"domain": [0.0, 0.5, 0.0, 0.3], "start_box": [0.0, 0.1, 0.0, 0.1]},
+           "planner": {"v_max": 0.05}, "feedback": {"v_max": 0.05}}
+    cfg = config_from_dict(doc)
+    note = small_site_note(cfg, make_controller("feedback", cfg))
+    assert note and "kde.bandwidth 1 m and feedback.spread_radius 0.75 m are longer than its shorter side 0.3 m" in note
+    assert "sqrt(2 sigma T) = 0.837 m a period" in note and "planner.reference_speed 24 m/s (480 x" in note
+    assert "sim.lawnmower_lane 1 m" in small_site_note(cfg, make_controller("lawnmower", cfg))
+    assert "sim.greedy_separation 2 m" in small_site_note(cfg, make_controller("greedy", cfg))
+    from swarmfield.sim.simulation import Simulation
+    with pytest.warns(UserWarning, match=r"a site of 0\.5 m x 0\.3 m is smaller than settings given in metres"):
+        Simulation(cfg.replace(controller="greedy"), field=lambda P: P[:, 0])
+    for dom in ([0.0, 20.0, 0.0, 20.0], [0.0, 5.0, 0.0, 3.0]):          # the paper's square, the 5 m bench: nothing
+        cfg = config_from_dict({"preset": "tuned", "sim": {"domain": dom, "start_box": [0.0, 1.5, 0.0, 1.5]}})
+        for name in ("feedback", "greedy", "lawnmower", "ergodic", "diffusion"):
+            assert small_site_note(cfg, make_controller(name, cfg)) is None, (dom, name)
+
+
 @pytest.mark.parametrize("cell", ["", "NaN", "nan"])
 def test_a_csv_with_missing_readings_says_how_many_and_what_to_do(tmp_path, cell):
     # a survey with missed readings (empty cells or NaN): "data row 8 is not numeric" / "non-finite value in data row 8"
