@@ -129,3 +129,20 @@ def test_a_raster_field_in_another_format_is_told_how_to_save_it(tmp_path, suffi
     with pytest.raises(ValueError, match=r"unsupported type .*; use \.npz, \.npy or \.csv \(a raster: save its values, x "
                                          r"first .*np\.flipud\(a\)\.T"):
         make_field(str(f), SQUARE)
+
+
+def test_a_field_far_smaller_than_the_paper_gps_prior_is_told_so():
+    # 293.15 +- 0.02 K under the paper preset (s_f^2 = 0.25 K^2): "stopped: sup V at or below the threshold" of 0.1 K^2,
+    # 200 x the field's variance (sup V 0.023 K^2 there, an sd of 0.15 K); only a field dwarfing the prior warned
+    from swarmfield.cli.simulate_swarm import headline
+    from swarmfield.sim.config import config_from_dict
+    rng = np.random.default_rng(1)
+    kelvin = 293.15 + 0.022 * rng.standard_normal((40, 40))
+    res = _headline_result(kelvin, 4e-6)
+    res.config = config_from_dict({"sim": {"noise_variance": 4e-6}})            # the paper preset
+    said = [line for line in headline(res) if "x less (variance" in line]
+    assert len(said) == 1 and "than the GP's s_f^2 = 0.25" in said[0] and "--preset tuned" in said[0], said
+    res.mean = 2.0 + 0.1 * rng.standard_normal((40, 40))                          # the paper's sinc: variance 0.01
+    assert not any("x less" in line for line in headline(res))
+    res.mean, res.config = kelvin, config_from_dict({"preset": "tuned", "sim": {"noise_variance": 4e-6}})
+    assert not any("x less" in line for line in headline(res))
