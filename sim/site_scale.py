@@ -305,11 +305,18 @@ def unscaled_map_note(sim, free_area: float) -> str | None:
 MAX_PLAN_SUBSTEPS = 450
 
 
+#: greedy's goals more than this many measurement steps away (sim.greedy_radius, at most the site's diagonal, over
+#: v_max dt) get named: 1.9 on the paper's square and on a 5 m bench at 3 m/s, 3.8 at 1.5 m/s; 13 on the table below,
+#: where greedy never stopped within 3 T (0.13-0.39 of the field's sd at 3 T) until its radius was scaled with the rest
+MAX_GREEDY_STEPS = 8.0
+
+
 def small_site_note(config, controller) -> str | None:
     """One line naming the settings, given in metres and m/s for the paper's 20 m square, that a site is too small
     for: for a run of ``controller`` (:class:`sim.controllers.Controller`) on ``config.sim.domain``, the lengths of
     the controller's that are longer than the site's shorter side (``kde.bandwidth`` and ``feedback.spread_radius``
-    for the feedback, ``sim.greedy_separation`` for greedy, ``sim.lawnmower_lane`` for the lawnmower), the robots'
+    for the feedback, ``sim.greedy_separation`` for greedy, ``sim.lawnmower_lane`` for the lawnmower), greedy's goals
+    more than :data:`MAX_GREEDY_STEPS` measurement steps away (``sim.greedy_radius`` over v_max dt), the robots'
     noise ``sqrt(2 sigma T)`` a period when it is as long (not for the diffusion baseline, whose strategy it is),
     and a plan whose ``planner.reference_speed`` takes more than :data:`MAX_PLAN_SUBSTEPS` transport substeps an
     interval on the site's cells (each plan's time grows with them).  On a 0.5 m x 0.3 m tabletop of microrobots at
@@ -335,6 +342,12 @@ def small_site_note(config, controller) -> str | None:
     if said:
         parts.append(f"{' and '.join(said)} {'is' if len(said) == 1 else 'are'} longer than its shorter side "
                      f"{short:g} m")
+    if name == "greedy":
+        step = float(getattr(controller, "v_max", config.planner.v_max)) * s.dt
+        reach = min(s.greedy_radius, math.hypot(x1 - x0, y1 - y0))
+        if step > 0 and reach > MAX_GREEDY_STEPS * step:
+            parts.append(f"sim.greedy_radius {s.greedy_radius:g} m puts a robot's goal up to {reach / step:.0f} "
+                         f"measurement steps of {step:.3g} m away, and each robot chooses its goal again every step")
     sigma = float(getattr(controller, "sigma", 0.0) or 0.0)
     drift = math.sqrt(2.0 * sigma * s.period)
     if drift >= short and name != "diffusion":          # the diffusion baseline's noise is its strategy

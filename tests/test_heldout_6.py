@@ -87,7 +87,11 @@ def test_settings_in_metres_too_large_for_a_tabletop_are_named():
     assert note and "kde.bandwidth 1 m and feedback.spread_radius 0.75 m are longer than its shorter side 0.3 m" in note
     assert "sqrt(2 sigma T) = 0.837 m a period" in note and "planner.reference_speed 24 m/s (480 x" in note
     assert "sim.lawnmower_lane 1 m" in small_site_note(cfg, make_controller("lawnmower", cfg))
-    assert "sim.greedy_separation 2 m" in small_site_note(cfg, make_controller("greedy", cfg))
+    greedy = small_site_note(cfg, make_controller("greedy", cfg))
+    assert "sim.greedy_separation 2 m" in greedy and "sim.greedy_radius 5 m puts a robot's goal up to 13" in greedy
+    scaled = config_from_dict({**doc, "sim": {**doc["sim"], "greedy_separation": 0.05, "greedy_radius": 0.125},
+                               "feedback": {"v_max": 0.05, "sigma": 3e-5}})
+    assert small_site_note(scaled, make_controller("greedy", scaled)) is None         # what the note asks for: none
     from swarmfield.sim.simulation import Simulation
     with pytest.warns(UserWarning, match=r"a site of 0\.5 m x 0\.3 m is smaller than settings given in metres"):
         Simulation(cfg.replace(controller="greedy"), field=lambda P: P[:, 0])
