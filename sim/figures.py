@@ -154,6 +154,13 @@ def span_digits(lo, hi, least: int = 3) -> int:
     return max(least, min(15, 2 + math.ceil(math.log10(size / span))))
 
 
+def _tick_room(lo, hi) -> float:
+    """Inches more beside a colour bar whose values need more than three digits (:func:`span_digits`): its ticks
+    and its clipped range are that much longer (a temperature of 293.15 +- 0.05 K: ticks of "293.175", and the
+    label ran off the figure or into the next panel)."""
+    return 0.12 * max(0, min(span_digits(lo, hi), 8) - 3)
+
+
 def _no_offset():
     from matplotlib.ticker import ScalarFormatter
     return ScalarFormatter(useOffset=False)
@@ -294,7 +301,7 @@ def make_panels(result, periods=PANEL_PERIODS):
     fmin, fmax = float(result.f_true.min()), float(result.f_true.max())
     sd_max = float(np.sqrt(max(sn.var.max() for sn in snaps)))
     ncol, size = len(snaps), 2.4
-    left, right, bottom, top, ws, hs = 1.15, 1.6, 0.55, 0.85, 0.3, 0.32
+    left, right, bottom, top, ws, hs = 1.15, 1.6 + _tick_room(fmin, fmax), 0.55, 0.85, 0.3, 0.32
     width = ncol * size + (ncol - 1) * ws
     fig = _figure(left + width + right, top + 4 * size + 3 * hs + bottom)
     axes, cax = _row_axes(fig, 4, left, bottom, top, hs, width, size, panel_height(dom, size))
@@ -418,7 +425,8 @@ def make_field_error(result):
     """True field, final prediction (on the true field's colour scale) and |f - f̄|."""
     dom = result.grid.domain
     f, fb = result.f_true, result.mean
-    W, H, slot, size = 14.9, 4.3, 4.9, 3.0
+    room = _tick_room(f.min(), f.max())
+    W, H, slot, size = 14.9 + 3 * room, 4.3, 4.9 + room, 3.0
     fig = _figure(W, H)
     axes = [fig.add_axes([(0.7 + k * slot) / W, 0.55 / H, size / W, size / H]) for k in range(3)]
     cax = [fig.add_axes([(0.7 + k * slot + size + 0.12) / W, 0.85 / H, 0.12 / W, 0.8 * size / H]) for k in range(3)]

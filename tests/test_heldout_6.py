@@ -19,7 +19,8 @@ def kelvin_run():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return run_simulation(small_config(max_periods=1, noise_variance=4e-6),
-                              field=lambda P: 293.15 + 0.02 * np.sin(P[:, 0] / 2) * np.cos(P[:, 1] / 3))
+                              field=lambda P: 293.0913 + 0.0957 * (0.5 + 0.5 * np.sin(P[:, 0] / 2.3)
+                                                                   * np.cos(P[:, 1] / 3.1)))
 
 
 def test_colour_bars_of_a_field_with_a_large_offset_read_its_values(kelvin_run):
@@ -36,7 +37,20 @@ def test_colour_bars_of_a_field_with_a_large_offset_read_its_values(kelvin_run):
             assert formatter.get_offset() == "", formatter.get_offset()
         labels = [t.get_text().replace("\u2212", "-") for t in bars[f_bar].get_yticklabels() if t.get_text()]
         assert labels and all(abs(float(t) - 293.15) < 0.1 for t in labels), labels
-    label = [a for a in make_field_error(over).axes if getattr(a, "_colorbar", None) is not None][1].get_ylabel()
+    # the longer labels stay inside the figure and beside their own panel (ran off the right edge of panels.png and
+    # into the next panel's "y [m]" in field_error.png)
+    for fig in (make_field_error(over), make_panels(over)):
+        fig.canvas.draw()
+        r = fig.canvas.get_renderer()
+        bars = [a for a in fig.axes if getattr(a, "_colorbar", None) is not None]
+        assert all(b.yaxis.label.get_window_extent(r).x1 <= fig.bbox.x1 for b in bars)
+    fig = make_field_error(over)
+    fig.canvas.draw()
+    r = fig.canvas.get_renderer()
+    third = [a for a in fig.axes if getattr(a, "_colorbar", None) is None][2]
+    bar = [a for a in fig.axes if getattr(a, "_colorbar", None) is not None][1]
+    assert bar.yaxis.label.get_window_extent(r).x1 < third.yaxis.label.get_window_extent(r).x0
+    label = bar.get_ylabel()
     m = re.search(r"clipped to \[([-\d.e+]+), ([-\d.e+]+)\] \(data ([-\d.e+]+) to ([-\d.e+]+)\)",
                   label.replace("\n", " "))
     assert m and m[1] != m[2] and m[3] != m[4], label
