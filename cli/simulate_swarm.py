@@ -239,21 +239,26 @@ def headline(result) -> list[str]:
 DECADES_NOTE = 30.0
 
 
-def _decades_note(result) -> list[str]:
-    """When the final map is skewed like a concentration (its 99th percentile more than :data:`DECADES_NOTE` times its
-    median, over the free cells, the median more than three noise sd above zero): a GP maps on a linear scale, so its
-    band is as wide where the values are small as at the peaks, and its mean may go below zero there.  A contaminant of 10^(2 + 1.2 g) ug/L (0.01 to 10^4
-    over the site; docs/results/map-quality.md, "Held-out cases, round 6") stopped at 1 T with an RMSE of 0.016 of the
-    field's sd, the map below zero on 11 % of the cells and a band of +-30 ug/L where the truth was under 10, silently;
-    mapped as log10, every cell was within a factor of 2."""
+def _map_values(result) -> np.ndarray:
+    """The final map f̄'s finite values on the free cells (none without a map)."""
     mean = getattr(result, "mean", None)
     if mean is None:
-        return []
+        return np.empty(0)
     m = np.asarray(mean, float)
     free = getattr(result, "free", None)
     if free is not None and np.shape(free) == m.shape:
         m = m[np.asarray(free, bool)]
-    m = m[np.isfinite(m)]
+    return m[np.isfinite(m)]
+
+
+def _decades_note(result) -> list[str]:
+    """When the final map is skewed like a concentration (its 99th percentile more than :data:`DECADES_NOTE` times its
+    median, over the free cells, the median more than three noise sd above zero): a GP maps on a linear scale, so its
+    band is as wide where the values are small as at the peaks, and its mean may go below zero there.  A contaminant
+    of 10^(2 + 1.2 g) ug/L (0.01 to 10^4 over the site; docs/results/map-quality.md, "Held-out cases, round 6") stopped
+    at 1 T with an RMSE of 0.016 of the field's sd, the map below zero on 11 % of the cells and a band of +-30 ug/L
+    where the truth was under 10, silently; mapped as log10, every cell was within a factor of 1.05 by 2 T."""
+    m = _map_values(result)
     if m.size == 0:
         return []
     med, q99 = (float(v) for v in np.quantile(m, [0.5, 0.99]))
@@ -276,27 +281,24 @@ SMALL_SIGNAL_NOTE = 100.0
 
 def _small_signal_note(result) -> list[str]:
     """When the GP is set in field units (``gp.signal_scale = "absolute"``, the paper preset's s_f^2 = 0.25 for a field
-    of order 1) and the final map varies more than :data:`SMALL_SIGNAL_NOTE` times less than s_f^2: its band and the
-    threshold are then far wider than the field.  The warning of :func:`sim.simulation.data_scale_note` is for a field
-    that dwarfs the prior; a temperature of 293.15 +- 0.02 K under the paper preset stopped at 2.5 T, "sup V at or
-    below the threshold" of 0.1 K^2 (200 x the field's variance), its sup V 0.023 K^2 (an sd of 0.15 K, seven times
-    the field's), silently (docs/results/map-quality.md, "Held-out cases, round 6")."""
-    config, mean = result.config, getattr(result, "mean", None)
-    if config.gp.signal_scale != "absolute" or mean is None:
+    of order 1) and the final map varies more than :data:`SMALL_SIGNAL_NOTE` times less than s_f^2: the threshold, and
+    the band where the data are sparse, then say little about the field.  The warning of
+    :func:`sim.simulation.data_scale_note` is for a field that dwarfs the prior; a temperature of 293.15 +- 0.02 K under
+    the paper preset stopped at 2.5 T, "sup V at or below the threshold" of 0.1 K^2 (200 x the field's variance), its
+    sup V 0.023 K^2 (an sd of 0.15 K, seven times the field's), silently (docs/results/map-quality.md, "Held-out cases,
+    round 6")."""
+    config = result.config
+    m = _map_values(result)
+    if config.gp.signal_scale != "absolute" or m.size < 2:
         return []
-    m = np.asarray(mean, float)
-    free = getattr(result, "free", None)
-    if free is not None and np.shape(free) == m.shape:
-        m = m[np.asarray(free, bool)]
-    m = m[np.isfinite(m)]
     s2 = float((getattr(result, "kernel", None) or {}).get("signal_variance") or config.gp.signal_variance)
-    var = float(np.var(m)) if m.size > 1 else 0.0
+    var = float(np.var(m))
     if not (var > 0 and s2 > SMALL_SIGNAL_NOTE * var):
         return []
     return [f"{PROG}: the map varies {s2 / var:.3g} x less (variance {var:.4g}) than the GP's s_f^2 = {s2:.4g} "
             "(field units squared): the GP is set for a field of order 1, so the threshold, and its band where the "
-            "data are sparse, say little about this field; use --preset tuned (it standardizes the data: [gp] signal_scale = \"data\") or set [gp] "
-            "signal_variance and sim.gamma in this field's units"]
+            "data are sparse, say little about this field; use --preset tuned (it standardizes the data: [gp] "
+            "signal_scale = \"data\") or set [gp] signal_variance and sim.gamma in this field's units"]
 
 
 #: A learned nugget above this multiple of the sensor's noise variance gets a line in the headline.
