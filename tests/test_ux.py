@@ -261,6 +261,25 @@ def test_panels_figure_content(result):
     assert fig.get_suptitle()
 
 
+def test_the_velocity_panels_share_one_scale_no_arrow_longer_than_a_spacing(result):
+    # each panel scaled its arrows to its own mean speed, a share of the panel's width: on round 6's 100 m campus the
+    # fast arrows ran over two arrow spacings, across walls, and equal arrows meant other speeds in other panels;
+    # now the figure's 95th percentile of speed is one spacing long, faster arrows drawn at that length
+    from swarmfield.sim.figures import make_panels, panel_snapshots
+    fig = make_panels(result)
+    fig.canvas.draw()
+    snaps = [sn for sn in panel_snapshots(result) if sn.velocity is not None]
+    x0, x1, y0, y1 = result.grid.domain
+    m, n = snaps[0].velocity.shape[:2]
+    spacing = min((x1 - x0) / m, (y1 - y0) / n)
+    quivers = [c for a in fig.axes for c in a.collections if type(c).__name__ == "Quiver"]
+    assert len(quivers) == len(snaps) >= 2 and len({q.scale for q in quivers}) == 1 and quivers[0].scale_units == "xy"
+    longest = max(float(np.max(np.hypot(q.U, q.V))) for q in quivers) / quivers[0].scale
+    assert longest == pytest.approx(spacing)                          # the 95th percentile's length, and no longer
+    fastest = max(float(np.hypot(sn.velocity[..., 0], sn.velocity[..., 1]).max()) for sn in snaps)
+    assert max(float(np.max(q.get_array())) for q in quivers) == pytest.approx(fastest)    # colour: the true speed
+
+
 @pytest.mark.parametrize("domain", [(0.0, 20.0, 0.0, 20.0), (5.0, 25.0, -2.0, 3.0), (-1.0, 2.0, 10.0, 16.0)])
 def test_panel_rows_keep_equal_scales_and_their_frames_inside_the_axes(domain):
     """Panels side by side in one Axes (panels.png): whatever the domain's origin and shape, each frame lies in
