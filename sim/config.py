@@ -59,8 +59,8 @@ from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict, g
 from ..regression import GPSettings
 from ..domain import DomainSettings
 from .presets import DEFAULT_PRESET, PRESETS, merge_under_preset
-from .site_scale import (SITE_SCALE_RULES, SWARM_SCALE_RULES, SWARM_SCALED, area_ratio, length_ratio,
-                         resolved_site_area, scale_document, scale_lengths, site_area, spacing_ratio)
+from .site_scale import (SITE_SCALE_RULES, SWARM_RADIUS_RULES, SWARM_SCALE_RULES, SWARM_SCALED, area_ratio,
+                         length_ratio, resolved_site_area, scale_document, scale_lengths, site_area, spacing_ratio)
 from .dynamics import NOISE_MODELS
 from .stopping import STOP_RULES
 
@@ -246,6 +246,11 @@ class SimSettings:
                     but never wider than the field's length scale asks for; c = 1 at the paper's density or denser
                     (:mod:`sim.site_scale`); the tuned preset uses "spacing-capped" (measured with 30 and 50
                     robots over eight seeds: docs, results "A small swarm: eight seeds, paired")
+    swarm_radius    with ``swarm_scale = "spacing-capped"``: ``"capped"`` (default) the spreading radius scaled as the
+                    bandwidth, by max(1, min(c, l / l_0)); ``"spacing"``: by the spacing's c from the first refit on,
+                    whatever the learned length scale (the bandwidth still capped), so that a sparse swarm's landing
+                    points reach the holes between its robots on a field finer than its spacing; no effect with any
+                    other ``swarm_scale`` or at c = 1 (docs, results "Small swarms against greedy")
     """
 
     robots: int = 100
@@ -292,6 +297,7 @@ class SimSettings:
     comm_hops: int | None = None
     site_scale: str = "off"
     swarm_scale: str = "off"
+    swarm_radius: str = "capped"
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -323,6 +329,9 @@ class SimSettings:
         if self.swarm_scale not in SWARM_SCALE_RULES:
             raise ValueError(f"sim.swarm_scale must be one of {', '.join(repr(r) for r in SWARM_SCALE_RULES)}, "
                              f"got {self.swarm_scale!r}")
+        if self.swarm_radius not in SWARM_RADIUS_RULES:
+            raise ValueError(f"sim.swarm_radius must be one of {', '.join(repr(r) for r in SWARM_RADIUS_RULES)}, "
+                             f"got {self.swarm_radius!r}")
         if self.stop_rule not in STOP_RULES:
             raise ValueError(f"sim.stop_rule must be one of {', '.join(sorted(STOP_RULES))}, got {self.stop_rule!r}")
         if self.stop_length_scale is not None:

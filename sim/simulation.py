@@ -326,26 +326,29 @@ class Simulation:
         if cap == 1.0:
             return None
         r = self.config.feedback.spread_radius
-        return SpacingCappedByLength(cap, self.config.kde.bandwidth, r if r > 0 else None)
+        return SpacingCappedByLength(cap, self.config.kde.bandwidth, r if r > 0 else None, s.swarm_radius)
 
     def scale_to_swarm(self) -> None:
         """After a refit: the KDE bandwidth and the spreading radius at the factor of ``sim.swarm_scale =
-        "spacing-capped"`` for the learned length scale (:mod:`sim.site_scale`); nothing when it has not changed."""
+        "spacing-capped"`` for the learned length scale (:mod:`sim.site_scale`); nothing when it has not changed.
+        With ``sim.swarm_radius = "spacing"`` the radius at the spacing's factor c instead, whatever the length scale."""
         rule = self.swarm_scale
         if rule is None:
             return
         gs = self.gp.settings
         ell = gs.length_scale if gs.length_scale_y is None else math.sqrt(gs.length_scale * gs.length_scale_y)
         f = rule.update(ell, self.gp.initial_settings.length_scale)
+        spreading = getattr(self.controller, "spreading", None)
+        if rule.radius_rule == "spacing" and rule.radius is not None and spreading is not None:
+            spreading.radius = rule.radius * rule.cap   # sim.swarm_radius = "spacing": c from the first refit on
         if f is None:
             return
         if rule.bandwidth is not None:
             self.estimate.kde.bandwidth = rule.bandwidth * f
             self.estimate.forget()
             self.estimate_density(fresh=True)          # p̂ at the new bandwidth from now on
-        spreading = getattr(self.controller, "spreading", None)
         if rule.radius is not None and spreading is not None:
-            spreading.radius = rule.radius * f
+            spreading.radius = rule.radius * rule.radius_factor
 
     def attach_barrier(self, gp):
         """``gp`` with its GMRF prior's lattice links through the obstacles cut when ``gp.barrier`` is set

@@ -95,7 +95,7 @@ import math
 
 __all__ = ["SITE_SCALE_RULES", "REFERENCE_AREA", "SCALED", "area_ratio", "site_area", "site_factor", "scaled_value",
            "scale_document", "LENGTH_SCALED", "length_ratio", "length_factor", "length_floor", "scale_lengths", "site_summary", "resolved_site_area", "unscaled_map_note", "small_site_note", "SWARM_SCALE_RULES", "REFERENCE_ROBOT_AREA",
-           "SWARM_SCALED", "spacing_ratio", "spacing_factor", "swarm_summary", "capped_factor", "SpacingCappedByLength"]
+           "SWARM_SCALED", "SWARM_RADIUS_RULES", "spacing_ratio", "spacing_factor", "swarm_summary", "capped_factor", "SpacingCappedByLength"]
 
 #: ``sim.site_scale``: "off" (values as given) or "area" (scaled by s = max(1, sqrt(area / REFERENCE_AREA)))
 SITE_SCALE_RULES = ("off", "area")
@@ -123,6 +123,10 @@ LENGTH_SCALED: tuple[tuple[str, str, int], ...] = (
 #: ``sim.swarm_scale``: "off" (values as given), "spacing" (scaled by c = max(1, q / s) when the configuration is
 #: resolved) or "spacing-capped" (scaled during the run by max(1, min(c, l / l_0)), :class:`SpacingCappedByLength`)
 SWARM_SCALE_RULES = ("off", "spacing", "spacing-capped")
+
+#: ``sim.swarm_radius``: with ``swarm_scale = "spacing-capped"``, the spreading radius's factor: "capped" (default) the
+#: bandwidth's f = max(1, min(c, l / l_0)); "spacing" the spacing's c from the first refit on, whatever l
+SWARM_RADIUS_RULES = ("capped", "spacing")
 
 #: the area per robot [m^2] the tuned preset's values were measured at: 100 robots on the paper's 400 m^2
 REFERENCE_ROBOT_AREA = 4.0
@@ -404,11 +408,22 @@ class SpacingCappedByLength:
     """The run-time side of ``sim.swarm_scale = "spacing-capped"`` (module docstring): ``bandwidth`` and ``radius``
     the run's KDE bandwidth and spreading radius at f = 1 (None: left alone, a Silverman bandwidth or no
     spreading), ``cap`` the spacing factor c (:func:`spacing_factor`).  :meth:`update`
-    returns the new factor f after a refit, or None when it has not changed (nothing to do)."""
+    returns the new factor f after a refit, or None when it has not changed (nothing to do).  ``radius_rule``
+    (``sim.swarm_radius``, :data:`SWARM_RADIUS_RULES`): the spreading radius at f ("capped") or at c ("spacing",
+    :attr:`radius_factor`)."""
 
-    def __init__(self, cap: float, bandwidth: float | None, radius: float | None):
+    def __init__(self, cap: float, bandwidth: float | None, radius: float | None, radius_rule: str = "capped"):
+        if radius_rule not in SWARM_RADIUS_RULES:
+            raise ValueError(f"sim.swarm_radius must be one of {', '.join(repr(r) for r in SWARM_RADIUS_RULES)}, "
+                             f"got {radius_rule!r}")
         self.cap, self.bandwidth, self.radius = float(cap), bandwidth, radius
+        self.radius_rule = radius_rule
         self.factor = 1.0
+
+    @property
+    def radius_factor(self) -> float:
+        """The spreading radius's factor now: f ("capped"), or the spacing's c ("spacing")."""
+        return self.cap if self.radius_rule == "spacing" else self.factor
 
     def update(self, length_scale: float, prior_length_scale: float) -> float | None:
         f = capped_factor(self.cap, length_scale, prior_length_scale)

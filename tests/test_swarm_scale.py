@@ -131,3 +131,50 @@ def test_at_the_papers_density_the_run_time_rule_does_nothing(robots):
     assert Simulation(_tiny(robots, "spacing-capped")).swarm_scale is None
     assert Simulation(_tiny(20, "off")).swarm_scale is None
     assert Simulation(_tiny(20, "spacing")).swarm_scale is None      # scaled when resolved, not during the run
+
+
+def test_the_radius_by_the_spacing_is_opt_in_and_leaves_the_bandwidth_capped():
+    """``sim.swarm_radius = "spacing"``: the spreading radius at the spacing's c from the first refit on, whatever the
+    learned length scale; the KDE bandwidth still at the capped f; the default ("capped") the radius at f."""
+    from swarmfield.sim.simulation import Simulation
+
+    assert config_from_dict({}, preset="tuned").sim.swarm_radius == "capped"
+    assert config_from_dict({}).sim.swarm_radius == "capped"
+    with pytest.raises(ValueError, match="sim.swarm_radius must be one of 'capped', 'spacing'"):
+        config_from_dict({"sim": {"swarm_radius": "far"}}, preset="tuned")
+    with pytest.raises(ValueError, match="sim.swarm_radius"):
+        SpacingCappedByLength(2.0, 1.0, 0.75, "far")
+    rule = SpacingCappedByLength(2.0, 1.0, 0.75, "spacing")
+    assert rule.radius_factor == 2.0 and rule.update(1.3, 1.0) == 1.3 and rule.radius_factor == 2.0
+    assert SpacingCappedByLength(2.0, 1.0, 0.75).radius_factor == 1.0
+
+    c = math.sqrt(400.0 / 80.0)
+    cfg = _tiny(20, "spacing-capped")
+    sim = Simulation(cfg.replace(swarm_radius="spacing"))
+    sim.start()
+    sim.refit_hyperparameters()                                       # the first refit, before the robots move
+    assert sim.controller.spreading.radius == 0.75 * c
+    sim.run()
+    gs = sim.gp.settings
+    f = capped_factor(c, gs.length_scale, sim.gp.initial_settings.length_scale)
+    assert f < c                                                       # the capped rule would give a smaller radius
+    assert sim.controller.spreading.radius == 0.75 * c and sim.estimate.kde.bandwidth == 1.0 * f
+    old = Simulation(_tiny(20, "spacing-capped"))
+    old.run()
+    go = old.gp.settings
+    f_old = capped_factor(c, go.length_scale, old.gp.initial_settings.length_scale)
+    assert old.controller.spreading.radius == 0.75 * f_old            # the default: the radius at its run's f
+    assert not np.array_equal(old.X, sim.X)
+
+
+@pytest.mark.parametrize("robots", [100, 120])
+def test_the_radius_by_the_spacing_changes_nothing_at_the_papers_density(robots):
+    from swarmfield.sim.simulation import Simulation
+
+    cfg = _tiny(robots, "spacing-capped")
+    a = Simulation(cfg)
+    b = Simulation(cfg.replace(swarm_radius="spacing"))
+    assert a.swarm_scale is None and b.swarm_scale is None
+    a.run()
+    b.run()
+    assert np.array_equal(a.X, b.X)
