@@ -87,6 +87,12 @@ paired").
 The run's resolved values are scaled (a run cannot tell a value given from a preset's: keep yours with
 ``swarm_scale = "off"``); summary.json's ``kernel`` block records the last factor (``swarm_factor``).  With c = 1
 (the paper's density or denser) f = 1 at every refit and nothing is touched.
+
+``sim.swarm_radius = "spacing"`` (opt-in; the default ``"capped"`` is the rule above) scales the spreading radius by
+c from the first refit on, whatever l, the bandwidth still by f: the holes between a sparse swarm's measurements are a
+matter of its spacing, not of the field's length scale.  With 30 robots, seeds 0-3, it made the map at 2 T better or
+level on six fields (bumps and a 0.6 m ppm field 7 % better) but at 3 T better on one (bumps, 3.5 %), the same on
+one and 0.03-1.7 % worse on four, so no preset uses it (docs/results/map-quality.md, "Small swarms against greedy").
 """
 from __future__ import annotations
 
