@@ -100,7 +100,7 @@ import dataclasses
 import math
 
 __all__ = ["SITE_SCALE_RULES", "REFERENCE_AREA", "SCALED", "area_ratio", "site_area", "site_factor", "scaled_value",
-           "scale_document", "LENGTH_SCALED", "length_ratio", "length_factor", "length_floor", "scale_lengths", "site_summary", "resolved_site_area", "unscaled_map_note", "small_site_note", "SWARM_SCALE_RULES", "REFERENCE_ROBOT_AREA",
+           "scale_document", "LENGTH_SCALED", "length_ratio", "length_factor", "length_floor", "scale_lengths", "site_summary", "resolved_site_area", "unscaled_map_note", "small_site_note", "SMALL_SITE_WARNING", "SWARM_SCALE_RULES", "REFERENCE_ROBOT_AREA",
            "SWARM_SCALED", "SWARM_RADIUS_RULES", "spacing_ratio", "spacing_factor", "swarm_summary", "capped_factor", "SpacingCappedByLength"]
 
 #: ``sim.site_scale``: "off" (values as given) or "area" (scaled by s = max(1, sqrt(area / REFERENCE_AREA)))
@@ -319,6 +319,11 @@ MAX_PLAN_SUBSTEPS = 450
 #: v_max dt) get named: 1.9 on the paper's square and on a 5 m bench at 3 m/s, 3.8 at 1.5 m/s; 13 on the table below,
 #: where greedy never stopped within 3 T (0.13-0.39 of the field's sd at 3 T) until its radius was scaled with the rest
 MAX_GREEDY_STEPS = 8.0
+
+
+#: a regular expression matching :func:`small_site_note`'s line, for the commands that check every configuration
+#: before its runs and say it once there (compare-controllers)
+SMALL_SITE_WARNING = r"a site of .* is smaller than settings given in metres"
 
 
 def small_site_note(config, controller) -> str | None:

@@ -83,6 +83,7 @@ def run_task(task: dict) -> list[dict]:
     import warnings
 
     from ..regression.gp import GRID_BUDGET_WARNING
+    from ..sim.site_scale import SMALL_SITE_WARNING
     cfg = config_from_dict(task["config"])
     # the configuration's own stop rule, recorded at every measurement; the run itself never stops at it
     with warnings.catch_warnings(record=True) as seen:    # the domain's warnings: said once by make_tasks
@@ -90,8 +91,10 @@ def run_task(task: dict) -> list[dict]:
         warnings.filterwarnings("ignore", message=".*cannot be reached", category=UserWarning)
         # the notes of loading the map (unknown pixels, a repaired polygon, stretched pixels): said once per domain
         warnings.filterwarnings("ignore", message="domain file ", category=UserWarning)
-        # a GP grid coarsened to its budget is a fact of the configuration: said by the checks, not by every run
+        # a GP grid coarsened to its budget, a site smaller than the settings in metres: facts of the configuration,
+        # said by the checks (make_tasks), not by every run
         warnings.filterwarnings("ignore", message=GRID_BUDGET_WARNING, category=UserWarning)
+        warnings.filterwarnings("ignore", message=SMALL_SITE_WARNING, category=UserWarning)
         res = run_simulation(cfg, stop_rule=make_stop_rule(cfg.sim, stops=False))
     for w in seen:                     # e.g. a learned hyperparameter at its bound: one line, naming the run
         print(f"{PROG}: warning: {describe_run(task)}: {w.message}", file=sys.stderr)
@@ -143,6 +146,8 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
 
     from ..sim.fields import make_field
     from ..sim.loop import check_config
+    from ..sim.site_scale import small_site_note
+    import warnings
 
     if presets is None:
         presets = [base_doc.get("preset", DEFAULT_PRESET)]
@@ -220,10 +225,14 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
                         cdoc = cfg.as_dict()
                         ckey = json.dumps({**cdoc, "sim": {k: v for k, v in cdoc["sim"].items() if k != "seed"}},
                                           sort_keys=True, default=str)
+                        controller = make_controller(ctrl, cfg)
                         if ckey not in checked:
                             check_config(cfg)
                             checked.add(ckey)
-                        speed = make_controller(ctrl, cfg).v_max
+                            note = small_site_note(cfg, controller)    # a fact of the configuration: said here,
+                            if note:                                   # once, not by each of its runs
+                                warnings.warn(note, UserWarning, stacklevel=2)
+                        speed = controller.v_max
                         free = _reachable_cells(cfg)
                         tasks.append({"preset": preset, "controller": ctrl, "stop_rule": list(rule),
                                       "field": label, "field_source": fsig,

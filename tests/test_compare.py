@@ -324,6 +324,19 @@ def test_noise_sd_one_per_field(tmp_path, capsys):
     assert not out.exists()
 
 
+def test_a_small_site_is_said_once_per_configuration_not_once_per_run(tmp_path, capsys):
+    # the small-site warning named every run (seed by seed) of a sweep on a 0.5 m x 0.3 m tabletop; it is a fact of
+    # each controller's configuration, said once by the checks before the runs
+    from swarmfield.studies.compare import main
+    cfg = tmp_path / "table.toml"
+    cfg.write_text("[sim]\nrobots = 20\ndomain = [0.0, 0.5, 0.0, 0.3]\nstart_box = [0.0, 0.1, 0.0, 0.1]\n"
+                   "period = 1.75\nsubsteps = 2\n[gp]\nlength_scale = 0.1\n")
+    assert main(["--config", str(cfg), "--controllers", "lawnmower", "--seeds", "0", "1", "--max-periods", "1",
+                 "--workers", "1", "--no-plots", "--out", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("is smaller than settings given in metres") == 1 and "sim.lawnmower_lane 1 m" in err
+
+
 def test_a_warning_of_the_checks_is_said_once_not_once_per_controller(tmp_path, capsys):
     # every task's configuration is checked before the runs; a GP grid coarsened to its budget warned for each
     # controller's; now each distinct warning is printed once
