@@ -59,8 +59,9 @@ from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict, g
 from ..regression import GPSettings
 from ..domain import DomainSettings
 from .presets import DEFAULT_PRESET, PRESETS, merge_under_preset
-from .site_scale import (SITE_SCALE_RULES, SWARM_RADIUS_RULES, SWARM_SCALE_RULES, SWARM_SCALED, area_ratio,
-                         length_ratio, resolved_site_area, scale_document, scale_lengths, site_area, spacing_ratio)
+from .site_scale import (SITE_LENGTH_RULES, SITE_SCALE_RULES, SWARM_RADIUS_RULES, SWARM_SCALE_RULES,
+                         SWARM_SCALED, area_ratio, length_ratio, resolved_site_area, scale_document,
+                         scale_lengths, scale_sides, side_factor, site_area, spacing_ratio)
 from .dynamics import NOISE_MODELS
 from .stopping import STOP_RULES
 
@@ -251,6 +252,12 @@ class SimSettings:
                     whatever the learned length scale (the bandwidth still capped), so that a sparse swarm's landing
                     points reach the holes between its robots on a field finer than its spacing; no effect with any
                     other ``swarm_scale`` or at c = 1 (docs, results "Small swarms against greedy")
+    site_lengths    ``"given"`` (default): every setting as given; ``"scaled"`` (opt-in): on a site whose shorter
+                    side is below the paper's 20 m, the algorithms' lengths of :data:`sim.site_scale.SIDE_SCALED`
+                    that the configuration does not give (kde.bandwidth, feedback.spread_radius, greedy_separation,
+                    greedy_radius, lawnmower_lane, and planner.reference_speed not below planner.v_max) x shorter
+                    side / 20 m; the robots' speed limits and noise sigma are kept (:mod:`sim.site_scale`, "Lengths
+                    that follow a small site")
     """
 
     robots: int = 100
@@ -298,6 +305,7 @@ class SimSettings:
     site_scale: str = "off"
     swarm_scale: str = "off"
     swarm_radius: str = "capped"
+    site_lengths: str = "given"
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -332,6 +340,9 @@ class SimSettings:
         if self.swarm_radius not in SWARM_RADIUS_RULES:
             raise ValueError(f"sim.swarm_radius must be one of {', '.join(repr(r) for r in SWARM_RADIUS_RULES)}, "
                              f"got {self.swarm_radius!r}")
+        if self.site_lengths not in SITE_LENGTH_RULES:
+            raise ValueError(f"sim.site_lengths must be one of {', '.join(repr(r) for r in SITE_LENGTH_RULES)}, "
+                             f"got {self.site_lengths!r}")
         if self.stop_rule not in STOP_RULES:
             raise ValueError(f"sim.stop_rule must be one of {', '.join(sorted(STOP_RULES))}, got {self.stop_rule!r}")
         if self.stop_length_scale is not None:
@@ -618,6 +629,14 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
         free = site_area(sim.domain, source) if area is None else area
         doc, _ = scale_document(doc, given, spacing_ratio(free, sim.robots, sim.swarm_scale, site_ratio), defaults,
                                 SWARM_SCALED)
+    # a site whose shorter side is below the paper's 20 m: the algorithms' lengths x r (sim.site_scale, "Lengths that
+    # follow a small site"); the [sim] overrides (command-line flags) count as given
+    r = side_factor(sim.domain, sim.site_lengths)
+    if r != 1.0:
+        mine_sim = {**(given.get("sim") or {}), **{k: v for k, v in (overrides or {}).items() if v is not None}}
+        doc, new_sim, _ = scale_sides(doc, {**given, "sim": mine_sim}, r, defaults, sim)
+        if new_sim:
+            sim = dataclasses.replace(sim, **new_sim)
     gp_map = dict(doc.get("gp", {}))
     if (overrides or {}).get("noise_variance") is not None:      # e.g. --noise-sd over a run's config.toml
         gp_map.pop("noise_variance", None)

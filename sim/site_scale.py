@@ -93,6 +93,24 @@ c from the first refit on, whatever l, the bandwidth still by f: the holes betwe
 matter of its spacing, not of the field's length scale.  With 30 robots, seeds 0-3, it made the map at 2 T better or
 level on six fields (bumps and a 0.6 m ppm field 7 % better) but at 3 T better on one (bumps, 3.5 %), the same on
 one and 0.03-1.7 % worse on four, so no preset uses it (docs/results/map-quality.md, "Small swarms against greedy").
+
+**Lengths that follow a small site** (``sim.site_lengths``; docs/results/map-quality.md, "Lengths that follow a small
+site").  With ``"scaled"`` (opt-in; ``"given"``, the default, keeps every value as before, bit for bit) a site whose
+shorter side is below the paper's 20 m (:data:`REFERENCE_SIDE`) gets the settings of :data:`SIDE_SCALED` that are the
+algorithms' choices multiplied by
+
+    r = shorter side / 20 m < 1      (:func:`side_factor`),
+
+the KDE's bandwidth ``kde.bandwidth``, the feedback's ``feedback.spread_radius``, greedy's ``sim.greedy_separation``
+and ``sim.greedy_radius``, the lawnmower's ``sim.lawnmower_lane`` and the plan's ``planner.reference_speed`` (by r,
+not below the robots' ``planner.v_max``: the transport's substeps an interval stay those of the paper's square,
+and the plan never runs slower than the robots) -- what a hand-scaled tabletop file did (round 6's
+``table_note.toml``).  Not scaled: the robots' speed limits (``planner.v_max``, ``feedback.v_max``) and their noise
+``feedback.sigma``, which are the user's robots, not a choice of the algorithm.  Only values the user's configuration
+does not give are scaled (as for the rules above; a ``[sim]`` override such as a command-line flag counts as given),
+so every controller of a comparison resolved from the same file gets the same lengths, and a run's own
+``DIR/config.toml`` repeats them.  A site whose shorter side is 20 m or more (the paper's square, every larger one)
+is untouched.
 """
 from __future__ import annotations
 
@@ -101,7 +119,8 @@ import math
 
 __all__ = ["SITE_SCALE_RULES", "REFERENCE_AREA", "SCALED", "area_ratio", "site_area", "site_factor", "scaled_value",
            "scale_document", "LENGTH_SCALED", "length_ratio", "length_factor", "length_floor", "scale_lengths", "site_summary", "resolved_site_area", "unscaled_map_note", "small_site_note", "SMALL_SITE_WARNING", "SWARM_SCALE_RULES", "REFERENCE_ROBOT_AREA",
-           "SWARM_SCALED", "SWARM_RADIUS_RULES", "spacing_ratio", "spacing_factor", "swarm_summary", "capped_factor", "SpacingCappedByLength"]
+           "SWARM_SCALED", "SWARM_RADIUS_RULES", "spacing_ratio", "spacing_factor", "swarm_summary", "capped_factor", "SpacingCappedByLength",
+           "SITE_LENGTH_RULES", "REFERENCE_SIDE", "SIDE_SCALED", "side_factor", "scale_sides"]
 
 #: ``sim.site_scale``: "off" (values as given) or "area" (scaled by s = max(1, sqrt(area / REFERENCE_AREA)))
 SITE_SCALE_RULES = ("off", "area")
@@ -144,6 +163,76 @@ SWARM_SCALED: tuple[tuple[str, str, int], ...] = (
     ("kde", "bandwidth", 1),
     ("feedback", "spread_radius", 1),
 )
+
+
+#: ``sim.site_lengths``: "given" (values as given) or "scaled" (the :data:`SIDE_SCALED` settings x
+#: :func:`side_factor` on a site whose shorter side is below :data:`REFERENCE_SIDE`)
+SITE_LENGTH_RULES = ("given", "scaled")
+
+#: the side [m] of the square the tuned preset's lengths were measured on: the paper's 20 m x 20 m
+REFERENCE_SIDE = 20.0
+
+#: (section, key): the algorithms' lengths (and the plan's reference speed) that ``sim.site_lengths = "scaled"``
+#: multiplies by r = shorter side / :data:`REFERENCE_SIDE`; not the robots' speed limits or noise (the user's robots)
+SIDE_SCALED: tuple[tuple[str, str], ...] = (
+    ("kde", "bandwidth"),
+    ("feedback", "spread_radius"),
+    ("sim", "greedy_separation"),
+    ("sim", "greedy_radius"),
+    ("sim", "lawnmower_lane"),
+    ("planner", "reference_speed"),
+)
+
+
+def side_factor(domain, rule: str = "scaled") -> float:
+    """r = min(1, shorter side / :data:`REFERENCE_SIDE`) of the rectangle ``domain`` = (x0, x1, y0, y1) for ``rule``
+    "scaled", 1.0 for "given" (and for every site whose shorter side is 20 m or more)."""
+    if rule not in SITE_LENGTH_RULES:
+        raise ValueError(f"sim.site_lengths must be one of {', '.join(repr(r) for r in SITE_LENGTH_RULES)}, "
+                         f"got {rule!r}")
+    if rule == "given":
+        return 1.0
+    x0, x1, y0, y1 = (float(v) for v in domain)
+    short = min(x1 - x0, y1 - y0)
+    return short / REFERENCE_SIDE if short < REFERENCE_SIDE else 1.0
+
+
+def scale_sides(doc: dict, given: dict, factor: float, defaults: dict, sim) -> tuple[dict, dict, dict]:
+    """``doc`` with the :data:`SIDE_SCALED` settings that ``given`` (the user's document and ``[sim]`` overrides)
+    does not set multiplied by ``factor`` (:func:`side_factor`); ``sim`` the resolved ``[sim]`` settings (their
+    values of the ``sim`` entries), ``defaults[section]`` the settings class of the others.  The reference speed is
+    not scaled below the robots' ``planner.v_max`` (nor above its own value), and a reference speed of None (the
+    robots' own) is left alone.  Returns (the new document, {key: value} of the new ``[sim]`` values, {"section.key":
+    [before, after]} of the values scaled); a factor of 1 returns ``doc`` itself and nothing scaled."""
+    scaled: dict = {}
+    new_sim: dict = {}
+    if factor == 1.0:
+        return doc, new_sim, scaled
+    out = {k: (dict(v) if isinstance(v, dict) else v) for k, v in doc.items()}
+    for section, key in SIDE_SCALED:
+        mine = given.get(section)
+        if isinstance(mine, dict) and key in mine:
+            continue
+        if section == "sim":
+            value = getattr(sim, key)
+        else:
+            table = out.setdefault(section, {})
+            if not isinstance(table, dict):
+                continue                                  # reported by the settings class
+            value = table.get(key, getattr(defaults[section], key, None))
+        if value is None or isinstance(value, bool) or not isinstance(value, (int, float)):
+            continue
+        new = float(value) * factor
+        if (section, key) == ("planner", "reference_speed"):
+            v_max = out.get("planner", {}).get("v_max", getattr(defaults["planner"], "v_max", None))
+            if isinstance(v_max, (int, float)) and not isinstance(v_max, bool):
+                new = min(float(value), max(new, float(v_max)))
+        if section == "sim":
+            new_sim[key] = new
+        else:
+            out[section][key] = new
+        scaled[f"{section}.{key}"] = [float(value), new]
+    return out, new_sim, scaled
 
 
 def _rectangle_area(domain) -> float:
