@@ -257,7 +257,7 @@ class SimSettings:
                     that the configuration does not give (kde.bandwidth, feedback.spread_radius, greedy_separation,
                     greedy_radius, lawnmower_lane, and planner.reference_speed not below planner.v_max) x shorter
                     side / 20 m; the robots' speed limits and noise sigma are kept (:mod:`sim.site_scale`, "Lengths
-                    that follow a small site")
+                    that follow a small site"); the tuned preset uses "scaled"
     """
 
     robots: int = 100

@@ -94,7 +94,9 @@ def test_settings_in_metres_too_large_for_a_tabletop_are_named():
     from swarmfield.sim.config import config_from_dict
     from swarmfield.sim.controllers import make_controller
     from swarmfield.sim.site_scale import small_site_note
-    doc = {"preset": "tuned", "sim": {"domain": [0.0, 0.5, 0.0, 0.3], "start_box": [0.0, 0.1, 0.0, 0.1]},
+    # the tuned preset's lengths as given (round 6; since then the preset scales them, sim.site_lengths)
+    doc = {"preset": "tuned", "sim": {"domain": [0.0, 0.5, 0.0, 0.3], "start_box": [0.0, 0.1, 0.0, 0.1],
+                                      "site_lengths": "given"},
            "planner": {"v_max": 0.05}, "feedback": {"v_max": 0.05}}
     cfg = config_from_dict(doc)
     note = small_site_note(cfg, make_controller("feedback", cfg))

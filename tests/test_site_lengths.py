@@ -34,15 +34,22 @@ def test_the_factor_is_the_shorter_side_over_20_m_below_it_and_one_otherwise():
 @pytest.mark.parametrize("doc", [{"preset": "tuned"}, {"preset": "tuned", "sim": {"domain": [0.0, 60.0, 0.0, 40.0]}},
                                  TABLE, {"preset": "tuned", "sim": {"domain": [0.0, 5.0, 0.0, 3.0],
                                                                     "start_box": [0.0, 1.5, 0.0, 1.5]}}])
-def test_the_default_changes_nothing(doc):
-    default = config_from_dict(doc).as_dict()
-    given = config_from_dict(_with(doc, site_lengths="given") if "sim" in doc else {**doc, "sim": {"site_lengths": "given"}})
-    assert default["sim"]["site_lengths"] == "given" and given.as_dict() == default
+def test_given_keeps_the_presets_and_the_defaults_values(doc):
+    from swarmfield.sim.config import SimSettings
+    from swarmfield.sim.presets import PRESETS
+    cfg = config_from_dict(_with(doc, site_lengths="given") if "sim" in doc else {**doc, "sim": {"site_lengths": "given"}})
+    tuned = PRESETS["tuned"]
+    assert cfg.kde.bandwidth == tuned["kde"]["bandwidth"] and cfg.feedback.spread_radius == tuned["feedback"]["spread_radius"]
+    assert cfg.planner.reference_speed == tuned["planner"]["reference_speed"]
+    for key in ("greedy_separation", "greedy_radius", "lawnmower_lane"):
+        assert getattr(cfg.sim, key) == SimSettings.__dataclass_fields__[key].default
+    # the settings' default (the paper preset's) is "given"
+    assert SimSettings().site_lengths == "given" and config_from_dict({}).sim.site_lengths == "given"
 
 
 def test_on_the_papers_square_and_larger_sites_the_option_does_not_act():
     for doc in ({"preset": "tuned"}, {"preset": "tuned", "sim": {"domain": [0.0, 60.0, 0.0, 40.0]}}, {}):
-        a = config_from_dict(doc).as_dict()
+        a = config_from_dict({**doc, "sim": {**doc.get("sim", {}), "site_lengths": "given"}}).as_dict()
         b = config_from_dict({**doc, "sim": {**doc.get("sim", {}), "site_lengths": "scaled"}}).as_dict()
         assert b["sim"].pop("site_lengths") == "scaled"
         a["sim"].pop("site_lengths")
@@ -51,8 +58,9 @@ def test_on_the_papers_square_and_larger_sites_the_option_does_not_act():
 
 def test_the_option_scales_exactly_the_named_settings():
     assert list(SIDE_SCALED) == NAMED
-    before = config_from_dict(TABLE)
+    before = config_from_dict(_with(TABLE, site_lengths="given"))
     after = config_from_dict(_with(TABLE, site_lengths="scaled"))
+    assert config_from_dict(TABLE) == after                          # the tuned preset's rule
     a, b = before.as_dict(), after.as_dict()
     for section, key in NAMED:
         old = _get(before, section, key)
