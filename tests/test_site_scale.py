@@ -193,7 +193,9 @@ def test_a_site_smaller_than_the_papers_gets_a_shorter_prior_length_scale_larger
     s = site_summary(table)
     assert s["length_factor"] == pytest.approx(math.sqrt(6.0 / 400.0)) and s["factor"] == 1.0
     assert s["settings"]["gp.length_scale"] == table.gp.length_scale
-    assert table.kde.bandwidth == 1.0 and table.planner.w_v == 0.01     # the other settings as before
+    given = config_from_dict({**TABLE, "sim": {**TABLE["sim"], "site_lengths": "given"}}, preset="tuned")
+    assert given.kde.bandwidth == 1.0 and given.planner.w_v == 0.01     # the other settings as before
+    assert given.gp.length_scale == table.gp.length_scale                # (sim.site_lengths scales the KDE's)
     for side in (20.0, 50.0):
         big = config_from_dict({"sim": {"domain": [0.0, side, 0.0, side]}}, preset="tuned")
         assert big.gp.length_scale == 1.0 and site_summary(big)["length_factor"] == 1.0
