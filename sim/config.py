@@ -629,8 +629,8 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
         free = site_area(sim.domain, source) if area is None else area
         doc, _ = scale_document(doc, given, spacing_ratio(free, sim.robots, sim.swarm_scale, site_ratio), defaults,
                                 SWARM_SCALED)
-    # a site whose shorter side is below the paper's 20 m: the algorithms' lengths x r (sim.site_scale, "Lengths that
-    # follow a small site"); the [sim] overrides (command-line flags) count as given
+    # a site smaller than the paper's square (shorter side < 20 m, area < 400 m^2): the algorithms' lengths x r
+    # (sim.site_scale, "Lengths that follow a small site"); the [sim] overrides (command-line flags) count as given
     r = side_factor(sim.domain, sim.site_lengths)
     if r != 1.0:
         mine_sim = {**(given.get("sim") or {}), **{k: v for k, v in (overrides or {}).items() if v is not None}}

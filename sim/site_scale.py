@@ -96,8 +96,8 @@ one and 0.03-1.7 % worse on four, so no preset uses it (docs/results/map-quality
 
 **Lengths that follow a small site** (``sim.site_lengths``; docs/results/map-quality.md, "Lengths that follow a small
 site").  With ``"scaled"`` (opt-in; ``"given"``, the default, keeps every value as before, bit for bit) a site whose
-shorter side is below the paper's 20 m (:data:`REFERENCE_SIDE`) gets the settings of :data:`SIDE_SCALED` that are the
-algorithms' choices multiplied by
+shorter side is below the paper's 20 m (:data:`REFERENCE_SIDE`) and whose area is below :data:`REFERENCE_AREA` gets
+the settings of :data:`SIDE_SCALED` that are the algorithms' choices multiplied by
 
     r = shorter side / 20 m < 1      (:func:`side_factor`),
 
@@ -110,7 +110,9 @@ and the plan never runs slower than the robots) -- what a hand-scaled tabletop f
 does not give are scaled (as for the rules above; a ``[sim]`` override such as a command-line flag counts as given),
 so every controller of a comparison resolved from the same file gets the same lengths, and a run's own
 ``DIR/config.toml`` repeats them.  A site whose shorter side is 20 m or more (the paper's square, every larger one)
-is untouched.  The tuned preset uses "scaled": on three small sites not from round 6 (a 3 m x 2 m tabletop, a 5 m x 3 m
+is untouched, and so is every site of :data:`REFERENCE_AREA` or more: an elongated site (a 60 m x 10 m canal, a
+150 m x 8 m river reach, a 30 m x 15 m floor) keeps the area and stirring rules measured there, since the rule was
+measured on sites of 4-15 m^2 only.  The tuned preset uses "scaled": on three small sites not from round 6 (a 3 m x 2 m tabletop, a 5 m x 3 m
 bench, the sinc field on a 2 m square) the tuned feedback's RMSE at 2 T and 3 T with the option over without it was
 0.97 / 0.99, 1.00 / 0.98 and 0.84 / 0.80 (geometric means of seeds 0-3), the paper's square unchanged bit for bit;
 the threshold came later on the tabletop and the bench (docs/results/map-quality.md, "Lengths that follow a small
@@ -190,7 +192,10 @@ SIDE_SCALED: tuple[tuple[str, str], ...] = (
 
 def side_factor(domain, rule: str = "scaled") -> float:
     """r = min(1, shorter side / :data:`REFERENCE_SIDE`) of the rectangle ``domain`` = (x0, x1, y0, y1) for ``rule``
-    "scaled", 1.0 for "given" (and for every site whose shorter side is 20 m or more)."""
+    "scaled" on a site smaller than the paper's square (its area below :data:`REFERENCE_AREA`); 1.0 for "given", for
+    every site whose shorter side is 20 m or more, and for every larger site: the rule was measured on sites of
+    4-15 m^2, and an elongated site (a 150 m x 8 m river reach, a 30 m x 15 m floor) has the tuned preset's
+    area and stirring rules instead, measured there."""
     if rule not in SITE_LENGTH_RULES:
         raise ValueError(f"sim.site_lengths must be one of {', '.join(repr(r) for r in SITE_LENGTH_RULES)}, "
                          f"got {rule!r}")
@@ -198,7 +203,9 @@ def side_factor(domain, rule: str = "scaled") -> float:
         return 1.0
     x0, x1, y0, y1 = (float(v) for v in domain)
     short = min(x1 - x0, y1 - y0)
-    return short / REFERENCE_SIDE if short < REFERENCE_SIDE else 1.0
+    if short >= REFERENCE_SIDE or (x1 - x0) * (y1 - y0) >= REFERENCE_AREA:
+        return 1.0
+    return short / REFERENCE_SIDE
 
 
 def scale_sides(doc: dict, given: dict, factor: float, defaults: dict, sim) -> tuple[dict, dict, dict]:

@@ -24,6 +24,9 @@ def test_the_factor_is_the_shorter_side_over_20_m_below_it_and_one_otherwise():
     assert side_factor((0, 3, 0, 2), "scaled") == 0.1
     assert side_factor((0, 20, 0, 20), "scaled") == 1.0
     assert side_factor((0, 60, 0, 40), "scaled") == 1.0
+    # an elongated site of 400 m^2 or more keeps the rules measured there (the rule was measured on 4-15 m^2)
+    assert side_factor((0, 150, 0, 8), "scaled") == 1.0 and side_factor((0, 30, 0, 15), "scaled") == 1.0
+    assert side_factor((0, 25, 0, 15), "scaled") == 0.75                  # 375 m^2
     assert side_factor((0, 0.5, 0, 0.3), "given") == 1.0
     with pytest.raises(ValueError, match="sim.site_lengths must be one of 'given', 'scaled'"):
         side_factor((0, 1, 0, 1), "area")
@@ -47,7 +50,8 @@ def test_given_keeps_the_presets_and_the_defaults_values(doc):
 
 
 def test_on_the_papers_square_and_larger_sites_the_option_does_not_act():
-    for doc in ({"preset": "tuned"}, {"preset": "tuned", "sim": {"domain": [0.0, 60.0, 0.0, 40.0]}}, {}):
+    for doc in ({"preset": "tuned"}, {"preset": "tuned", "sim": {"domain": [0.0, 60.0, 0.0, 40.0]}}, {},
+                {"preset": "tuned", "sim": {"domain": [0.0, 150.0, 0.0, 8.0], "start_box": [0.0, 7.0, 0.0, 7.0]}}):
         a = config_from_dict({**doc, "sim": {**doc.get("sim", {}), "site_lengths": "given"}}).as_dict()
         b = config_from_dict({**doc, "sim": {**doc.get("sim", {}), "site_lengths": "scaled"}}).as_dict()
         assert b["sim"].pop("site_lengths") == "scaled"
