@@ -252,8 +252,8 @@ class SimSettings:
                     whatever the learned length scale (the bandwidth still capped), so that a sparse swarm's landing
                     points reach the holes between its robots on a field finer than its spacing; no effect with any
                     other ``swarm_scale`` or at c = 1 (docs, results "Small swarms against greedy")
-    site_lengths    ``"given"`` (default): every setting as given; ``"scaled"`` (opt-in): on a site whose shorter
-                    side is below the paper's 20 m, the algorithms' lengths of :data:`sim.site_scale.SIDE_SCALED`
+    site_lengths    ``"given"`` (default): every setting as given; ``"scaled"``: on a site whose shorter side is
+                    below the paper's 20 m and whose area is below 400 m^2, the algorithms' lengths of :data:`sim.site_scale.SIDE_SCALED`
                     that the configuration does not give (kde.bandwidth, feedback.spread_radius, greedy_separation,
                     greedy_radius, lawnmower_lane, and planner.reference_speed not below planner.v_max) x shorter
                     side / 20 m; the robots' speed limits and noise sigma are kept (:mod:`sim.site_scale`, "Lengths
