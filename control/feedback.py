@@ -258,6 +258,25 @@ def feedback_velocity(p_hat, grad_p_hat, p_r, grad_p_r, v_r, settings: FeedbackS
     return saturate(v, s.v_max)
 
 
+def _check_parts(plan, est, settings) -> None:
+    """A ``TypeError`` naming the argument of :func:`tracking_velocity` that is not what it evaluates (a user's
+    mistake, not a traceback from inside NumPy)."""
+    from .kde import KernelDensity
+
+    if not (hasattr(plan, "density_and_gradient") and hasattr(plan, "velocity") and hasattr(plan, "domain")):
+        raise TypeError(f"plan must be a ReferencePlan (ReferencePlanner.solve(...) or ReferencePlan.load(path)), "
+                        f"got {type(plan).__name__}")
+    if isinstance(est, KernelDensity):
+        raise TypeError("est must be a density estimate of the robots, got a KernelDensity: pass "
+                        "KernelDensity(...).fit(X)")
+    if not (hasattr(est, "evaluate") and hasattr(est, "domain")):
+        raise TypeError(f"est must be a density estimate of the robots (KernelDensity(...).fit(X)), "
+                        f"got {type(est).__name__}")
+    if not isinstance(settings, FeedbackSettings):
+        raise TypeError(f"settings must be a FeedbackSettings (FeedbackSettings() for the paper's), "
+                        f"got {type(settings).__name__}")
+
+
 def tracking_velocity(X, plan, t: float, est, settings: FeedbackSettings, stir_pattern=None) -> np.ndarray:
     """Feedback velocity for robots at X (n, 2) at time t, from a plan and a density estimate.
 
@@ -283,9 +302,11 @@ def tracking_velocity(X, plan, t: float, est, settings: FeedbackSettings, stir_p
     t = float(t)
     if not math.isfinite(t):
         raise ValueError(f"t must be finite, got {t}")
+    _check_parts(plan, est, settings)
     plan_dom = np.asarray(plan.domain, dtype=float).reshape(-1)
     if plan_dom.shape != (4,) or not np.allclose(plan_dom, est.domain, rtol=1e-12, atol=1e-12):
-        raise ValueError(f"plan domain {tuple(plan_dom)} differs from the density estimate's domain {tuple(est.domain)}")
+        raise ValueError(f"plan domain {tuple(float(v) for v in plan_dom)} differs from the density estimate's "
+                         f"domain {tuple(float(v) for v in np.ravel(est.domain))}")
     n = X.shape[0]
     transport = None
     if settings.transport_rate > 0:       # face fluxes once per call (one Poisson solve), all robots

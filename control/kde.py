@@ -269,7 +269,9 @@ class KernelDensity:
         return out[0], out[1]
 
     def fit(self, X: np.ndarray) -> "DensityEstimate":
-        """Estimate the density of the positions ``X`` (n, 2); returns a :class:`DensityEstimate`."""
+        """Estimate the density of the positions ``X`` (n, 2); returns a :class:`DensityEstimate`.
+
+        With ``bandwidth=None`` (Silverman's rule) at least two robots are needed; else a ``ValueError`` says so."""
         from . import robot_kernel
         prep = None
         if robot_kernel.use_compiled(np.shape(X)[0] if np.ndim(X) == 2 else 0):
@@ -277,6 +279,9 @@ class KernelDensity:
         if prep is None:
             X = _inside(_check_points(X, "X"), self.domain, "X")
             h = self.bandwidth
+            if h is None and X.shape[0] == 1:
+                raise ValueError("KernelDensity(bandwidth=None) takes its bandwidth from the spread of at least 2 "
+                                 "robots (Silverman's rule), got 1; give one, e.g. KernelDensity(domain, bandwidth=1.0)")
             if h is None:
                 h = max(silverman_bandwidth(X), self.min_bandwidth)
         else:

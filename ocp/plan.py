@@ -255,7 +255,10 @@ class ReferencePlan:
         return ci, cj, np.clip(fx - ci, 0.0, 1.0), np.clip(fy - cj, 0.0, 1.0)
 
     def density(self, t: float, points: np.ndarray) -> np.ndarray:
-        """p_r(t, x) at points (n, 2) -> (n,)."""
+        """p_r(t, x) at points (n, 2) -> (n,).
+
+        Outside the planned time window p_r is held at the first (before) or last (after) snapshot; a point
+        outside the domain takes the value at the nearest point of its boundary."""
         return self._bilinear(self.density_grid(t), points, gradient=False)
 
     def density_and_gradient(self, t: float, points: np.ndarray):
@@ -269,7 +272,8 @@ class ReferencePlan:
         return int(np.searchsorted(self.t_intervals, t, side="right") - 1)
 
     def velocity(self, t: float, points: np.ndarray) -> np.ndarray:
-        """v_r(t, x) at points (n, 2) -> (n, 2); zero outside the planned time window."""
+        """v_r(t, x) at points (n, 2) -> (n, 2); zero outside the planned time window [t_0, t_0 + T) (at t_0 + T
+        itself too) and, for the sine basis, at and beyond the domain's walls."""
         pts = points_array(points)
         k = self.interval_index(real_scalar(t, "time t"))
         if k is None:

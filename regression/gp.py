@@ -811,7 +811,7 @@ class GaussianProcess:
         if np.any(outside):
             k = int(np.argmax(outside))
             raise ValueError(f"{name}: {int(outside.sum())} point(s) outside the domain {self._domain}, "
-                             f"e.g. {tuple(X[k])}")
+                             f"e.g. {tuple(float(v) for v in X[k])}")
         return np.column_stack([np.clip(X[:, 0], x0, x1), np.clip(X[:, 1], y0, y1)])
 
     def add(self, X, y) -> None:

@@ -527,9 +527,36 @@ class RunConfig:
         """Preset ``name`` (``"paper"`` or ``"tuned"``, :mod:`sim.presets`) with some ``[sim]`` changes."""
         return config_from_dict({}, sim_changes, preset=name)
 
-    def replace(self, **sim_changes) -> "RunConfig":
-        """A copy with some :class:`SimSettings` fields changed (planner domain/horizon, GP noise follow)."""
-        return config_from_dict(_with_sim(self.as_dict(), sim_changes))
+    def replace(self, **changes) -> "RunConfig":
+        """A copy with some :class:`SimSettings` fields changed (planner domain/horizon, GP noise follow), and those
+        of another section given as a dict under its name: ``replace(robots=50, gp={"length_scale": 2.0})``.
+
+        ``domain`` is [sim]'s rectangle unless a dict (the [domain] section, a map).  A key of another section
+        given bare (``replace(length_scale=2.0)``) is a ``ValueError`` naming the way; a field given as a function
+        goes to ``run_simulation(config, field=f)``, not into the configuration (a ``TypeError`` says so)."""
+        if callable(changes.get("field")):
+            raise TypeError("field: a configuration holds a field's name or file; pass a function of the positions "
+                            "to run_simulation(config, field=f)")
+        # ``domain`` is also [sim]'s rectangle: a dict under it is the [domain] section (the map)
+        sections = {name: changes.pop(name) for name in SECTIONS[1:] if name in changes
+                    and (name != "domain" or isinstance(changes[name], dict))}
+        for name, table in sections.items():
+            if not isinstance(table, dict):
+                raise TypeError(f"replace({name}=...) takes a dict of [{name}] settings, e.g. "
+                                f"replace({name}={{'key': value}}), got {type(table).__name__}")
+        if "sim" in changes:
+            raise TypeError("replace() takes [sim] settings as keywords: replace(robots=50), not replace(sim={...})")
+        sim_names = {f.name for f in dataclasses.fields(SimSettings)}
+        for key in changes:
+            home = [name for name in SECTIONS[1:] if key not in sim_names and key in
+                    {f.name for f in dataclasses.fields(type(getattr(self, name)))}]
+            if home:
+                raise ValueError(f"{key} is a setting of [{home[0]}], not [sim]: "
+                                 f"config.replace({home[0]}={{{key!r}: ...}})")
+        doc = _with_sim(self.as_dict(), changes)
+        for name, table in sections.items():
+            doc[name] = {**doc.get(name, {}), **table}
+        return config_from_dict(doc)
 
     def as_dict(self) -> dict:
         """Plain nested dict of all settings (JSON/TOML friendly), with the ``preset`` name."""

@@ -17,7 +17,7 @@ from .config import RunConfig
 from .fields import Field
 from .recorders import CallbackRecorder
 from .result import QUIVER_POINTS, SimulationResult, Snapshot
-from .simulation import LatestEstimate, Simulation, check_config
+from .simulation import LatestEstimate, Simulation, _check_run_arguments, check_config
 from .stopping import make_stop_rule
 
 __all__ = ["Snapshot", "SimulationResult", "run_simulation", "check_config", "QUIVER_POINTS", "LatestEstimate",
@@ -48,6 +48,7 @@ def run_simulation(config: RunConfig | None = None, *, field: Field | None = Non
     ``OPENBLAS_NUM_THREADS`` set in the environment wins; ``None`` leaves the thread pools alone):
     :meth:`sim.simulation.Simulation.run`.
     """
+    _check_run_arguments(config or RunConfig.default(), controller, stop_rule, recorders)
     if progress is True:
         from ..runtime.lines import write_line
         from .progress import progress_lines, start_line

@@ -173,6 +173,41 @@ def data_scale_note(y, gp, noise_variance: float) -> str | None:
     return None
 
 
+def _check_run_arguments(config, controller, stop_rule=None, recorders=()) -> None:
+    """A ``TypeError`` naming the argument when ``config`` is not a :class:`RunConfig`, ``controller`` not a
+    :class:`sim.controllers.Controller` instance (a dict, a controller's name or its class), ``stop_rule`` not a
+    :class:`sim.stopping.StopRule` instance or ``recorders`` not a sequence of :class:`sim.recorders.Recorder`
+    instances, before any work."""
+    from .controllers import Controller
+    from .recorders import Recorder
+    from .stopping import StopRule
+
+    if stop_rule is not None and not isinstance(stop_rule, StopRule):
+        what = f"the class {stop_rule.__name__}: pass {stop_rule.__name__}(config.sim)" \
+            if isinstance(stop_rule, type) else type(stop_rule).__name__
+        raise TypeError(f"stop_rule must be a StopRule instance, got {what}")
+    if isinstance(recorders, Recorder) or not isinstance(recorders, (list, tuple)):
+        raise TypeError(f"recorders must be a list of Recorder instances, e.g. recorders=[MyRecorder()], "
+                        f"got {type(recorders).__name__}")
+    for r in recorders:
+        if not isinstance(r, Recorder):
+            what = f"the class {r.__name__}: pass {r.__name__}()" if isinstance(r, type) else type(r).__name__
+            raise TypeError(f"recorders must hold Recorder instances, got {what}")
+    if not isinstance(config, RunConfig):
+        raise TypeError(f"config must be a RunConfig (RunConfig.default(), RunConfig.from_preset(name), "
+                        f"load_config(path) or config_from_dict(d)), got {type(config).__name__}")
+    if controller is None or isinstance(controller, Controller):
+        return
+    if isinstance(controller, str):
+        raise TypeError(f"controller must be a Controller instance; a controller's name goes in the "
+                        f"configuration: config.replace(controller={controller!r})")
+    if isinstance(controller, type) and issubclass(controller, Controller):
+        raise TypeError(f"controller must be a Controller instance, got the class {controller.__name__}: "
+                        f"pass {controller.__name__}(config)")
+    raise TypeError(f"controller must be a Controller instance (a subclass of swarmfield.sim.Controller), "
+                    f"got {type(controller).__name__}")
+
+
 class Simulation:
     """One closed-loop run of Algorithm 1.
 
@@ -194,6 +229,7 @@ class Simulation:
 
         self.wall0 = time.perf_counter()
         self.config = config = config or RunConfig.default()
+        _check_run_arguments(config, controller, stop_rule, recorders)
         s = self.settings = config.sim
         self.field = make_field(s.field if field is None else field, s.domain)
         for note in field_notes(self.field, s.domain):     # the run goes on, on the field as the file's numbers say
@@ -757,6 +793,9 @@ class Simulation:
         for i in range(s.substeps):
             P = self._steer_positions(X)
             v = np.asarray(ctrl.velocity(t + i * h, P, alive), dtype=float)
+            if v.shape != X.shape:
+                raise ValueError(f"controller {type(ctrl).__name__}.velocity(t, X, alive) returned shape {v.shape} "
+                                 f"for {X.shape[0]} robots; expected {X.shape} (one (vx, vy) row per robot)")
             if pull and P is not X and v.shape == X.shape:
                 v = self._pull_out_of_sliver(X, P, v, h)
             if fast and v.shape == X.shape and alive.all():
