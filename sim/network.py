@@ -376,7 +376,7 @@ class Decentralized:
         own = sim.own_positions(X)
         graph = disk_graph(full if own is X else self.positions(own)[0], self.radius, alive)
         count, _ = graph.components()
-        self.note_components(count, sim.t)
+        self.note_components(count, sim.t, step=sim.config.sim.dt)      # a sub-step's graph: within the step
         if self.flooded:
             self.remember(full)
         phi = None if self.flooded else self.basis.features(full)
@@ -475,13 +475,16 @@ class Decentralized:
             local = (local[0] * scale, local[1] * scale[:, None], local[2])
         return RobotDensities(self.basis, S, h, index=rows, free=self.sim.free, scale=scale, local=local)
 
-    def note_components(self, count: int, t: float) -> None:
+    def note_components(self, count: int, t: float, step: float | None = None) -> None:
+        """Record the graph's component count at time t, or (``step`` = Δt) at a sub-step of the measurement
+        step from t: the first split names when (metrics.csv counts the components at the measurements only)."""
         self.components = count
         self.max_components = max(self.max_components, count)
         if count > 1 and not self.warned:
             self.warned = True
-            warnings.warn(f"communication: the swarm split into {count} components (r = {self.radius:g} m, t = "
-                          f"{t:g} s); each goes on with its own estimates", UserWarning, stacklevel=2)
+            when = f"t = {t:g} s" if step is None else f"between t = {t:g} s and {t + step:g} s"
+            warnings.warn(f"communication: the swarm split into {count} components (r = {self.radius:g} m, {when}); "
+                          f"each goes on with its own estimates", UserWarning, stacklevel=2)
 
     # ------------------------------------------------------------------ outputs
     def density_error(self, sim) -> float:
