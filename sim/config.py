@@ -374,8 +374,10 @@ class SimSettings:
         if self.comm_radius is not None:
             r = self.comm_radius
             if isinstance(r, bool) or not isinstance(r, (int, float)) or math.isnan(r) or not r > 0:
+                quoted = (" (a string: in TOML write inf without quotes)"
+                          if isinstance(r, str) and r.strip().lower() in ("inf", "+inf", "infinity") else "")
                 raise ValueError(f"sim.comm_radius must be a positive number of metres (inf: the centralized loop), "
-                                 f"got {r!r}")
+                                 f"got {r!r}{quoted}")
             set_("comm_radius", None if math.isinf(r) else _number("comm_radius", r, positive=True))
         set_("comm_loss", _number("comm_loss", self.comm_loss, nonneg=True))
         if not self.comm_loss < 1:

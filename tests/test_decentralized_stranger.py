@@ -34,3 +34,15 @@ def test_split_warning_names_the_step_the_metrics_can_see():
     else:
         a, b = map(float, between.groups())
         assert abs(b - a - cfg.sim.dt) < 1e-9 and first_split >= b - 1e-9, notes[0]
+
+
+def test_quoted_inf_in_a_config_file_says_so(tmp_path, capsys):
+    from swarmfield.cli.simulate_swarm import main
+    cfg = tmp_path / "c.toml"
+    cfg.write_text('[sim]\ncomm_radius = "inf"\n')
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "keep.txt").write_text("mine")
+    assert main(["--config", str(cfg), "--out", str(tmp_path / "run"), "--max-periods", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "comm_radius" in err[0] and "without quotes" in err[0]
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["keep.txt"]
