@@ -2,7 +2,7 @@
 
 Robots talk only to neighbours within the communication radius r (``sim.comm_radius``): the graph of a
 round is the *disk graph* of the working robots (an edge between i and j iff |X_i - X_j| <= r; lost robots
-neither send nor receive).  With ``sim.comm_loss`` = q > 0 every link fails for a round with probability q,
+neither send nor receive; walls and obstacles do not block a link: radio passes through them).  With ``sim.comm_loss`` = q > 0 every link fails for a round with probability q,
 independently, in both directions (an exchange is a handshake: a consensus round needs symmetric weights),
 drawn from the generator the caller passes (the run's own stream of :class:`sim.network.Decentralized`,
 never the motion's).  Connected components of the graph are the groups of robots that can reach each other

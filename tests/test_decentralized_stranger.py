@@ -46,3 +46,20 @@ def test_quoted_inf_in_a_config_file_says_so(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "comm_radius" in err[0] and "without quotes" in err[0]
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["keep.txt"]
+
+
+def test_links_through_walls_are_the_documented_model():
+    """The disk graph ignores walls (radio passes); the design page, the module and --help say so."""
+    from swarmfield.cli.simulate_swarm import build_parser
+    from swarmfield.sim import comm
+    X = np.array([[9.6, 5.0], [10.4, 5.0]])          # either side of the harbour's pier at x = 10
+    assert comm.disk_graph(X, 1.0).edges.tolist() == [[0, 1]]
+    design = (ROOT / "docs" / "design" / "decentralized.md").read_text()
+    assert "Walls do not block radio" in design
+    assert "do not block a link" in comm.__doc__
+    assert "through walls" in " ".join(build_parser().format_help().split())
+
+
+def test_density_error_above_one_is_documented():
+    design = " ".join((ROOT / "docs" / "design" / "decentralized.md").read_text().split())
+    assert "it exceeds 1 where robots are isolated" in design
