@@ -7,7 +7,8 @@ Each ``OUT`` is a ``compare-controllers`` folder (or its runs.csv); their runs a
 the baselines may come from separate commands (the tuned feedback re-run with a release's code against the
 baselines' earlier runs, as in docs/results/map-quality.md).  ``LABEL=OUT`` names every run of ``OUT`` ``LABEL``
 instead of its controller, so that two variants of one controller (a setting on and off, two commits) pair like two
-controllers.  Prints the table of
+controllers; the runs of a ``--comm-radius`` axis are named as in summary.md (``feedback r=4``, ``feedback r=inf``:
+``--reference "feedback r=inf"``).  Prints the table of
 :func:`swarmfield.studies.compare.paired_section`: per scenario, the reference controller (default: feedback)
 against each other on their common seeds -- the geometric mean of the ratios of the RMSE at each time, of the time
 to the threshold and of the time to a 1.25x map, with a 95 % confidence interval, and the seeds won.
@@ -44,6 +45,8 @@ def runs_of(paths, reference):
         for r in read_runs(p):
             if label is not None:
                 r = {**r, "controller": label}
+            if r.get("comm_radius") not in (None, ""):       # a --comm-radius axis: one controller per radius, as
+                r = {**r, "controller": f"{r['controller']} r={r['comm_radius']}"}     # compare-controllers names it
             task = {"preset": r["preset"], "controller": r["controller"], "field": r["field"],
                     "robots": int(r["robots"]), "robot_loss": float(r["robot_loss"]), "seed": int(r["seed"])}
             if r.get("domain"):
@@ -56,7 +59,9 @@ def runs_of(paths, reference):
                               for k in r})
     out = [(dict(key), sorted(rows, key=lambda r: r["t"])) for key, rows in runs.items()]
     if not any(task["controller"] == reference for task, _ in out):
-        raise SystemExit(f"paired_seeds: no run of the reference controller {reference!r}")
+        found = ", ".join(sorted({repr(task["controller"]) for task, _ in out}))
+        raise SystemExit(f"paired_seeds: no run of the reference controller {reference!r} (the runs' controllers: "
+                         f"{found}; --reference NAME)")
     return sorted(out, key=lambda tr: tr[0]["controller"] != reference)
 
 

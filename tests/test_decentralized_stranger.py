@@ -63,3 +63,35 @@ def test_links_through_walls_are_the_documented_model():
 def test_density_error_above_one_is_documented():
     design = " ".join((ROOT / "docs" / "design" / "decentralized.md").read_text().split())
     assert "it exceeds 1 where robots are isolated" in design
+
+
+def test_paired_seeds_pairs_the_radii_of_a_comm_radius_sweep(tmp_path, capsys):
+    """A --comm-radius sweep names its runs 'feedback r=4', 'feedback r=inf'; paired_seeds merged both radii of a
+    seed into one run of 'feedback' and printed nothing."""
+    import csv
+
+    import pytest
+    from file_module import load
+    m = load("benchmarks/paired_seeds.py")
+    cols = ["preset", "controller", "field", "seed", "robot_loss", "robots", "t", "t_T", "max_variance", "threshold",
+            "rmse", "comm_radius", "density_error", "components", "comm_bytes"]
+    rmse = {("inf", 0): (0.5, 0.2, 0.1), ("inf", 1): (0.5, 0.4, 0.2), ("4", 0): (0.5, 0.4, 0.1), ("4", 1): (0.5, 0.4, 0.4)}
+    (tmp_path / "sweep").mkdir()
+    with open(tmp_path / "sweep" / "runs.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, cols)
+        w.writeheader()
+        for (r, seed), values in rmse.items():
+            for k, e in enumerate(values):
+                w.writerow({"preset": "tuned", "controller": "feedback", "field": "soil", "seed": seed,
+                            "robot_loss": 0.0, "robots": 30, "t": 7.0 * (k + 1), "t_T": k + 1, "max_variance": 1.0,
+                            "threshold": 0.1, "rmse": e, "comm_radius": r, "density_error": 0.0, "components": 1,
+                            "comm_bytes": 0})
+    with pytest.raises(SystemExit, match="'feedback r=4', 'feedback r=inf'"):
+        m.runs_of([tmp_path / "sweep"], "feedback")
+    runs = m.runs_of([tmp_path / "sweep"], "feedback r=inf")
+    assert len(runs) == 4 and all(len(rows) == 3 for _, rows in runs)
+    m.main([str(tmp_path / "sweep"), "--reference", "feedback r=inf", "--times", "2", "3"])
+    row = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("| soil"))
+    cells = [c.strip() for c in row.split("|")]
+    assert cells[4:7] == ["feedback r=inf (tuned)", "feedback r=4 (tuned)", "2"]
+    assert cells[7].startswith("0.707 [")          # sqrt(0.2/0.4 * 0.4/0.4)
