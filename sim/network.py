@@ -70,6 +70,9 @@ class Centralized:
     def bind(self, sim) -> None:
         pass
 
+    def forget(self) -> None:
+        """The centre's KDE changed its bandwidth (``sim.swarm_scale``): nothing of its own to drop."""
+
     def start(self, sim) -> None:
         pass
 
@@ -329,6 +332,12 @@ class Decentralized:
         self._used = (X, est)
         return est
 
+    def forget(self) -> None:
+        """The centre's KDE changed its bandwidth (``sim.swarm_scale``, :meth:`sim.simulation.Simulation.scale_to_swarm`):
+        the estimates of the positions already seen were made with the old one; estimate them again at the next call
+        (a complete graph then stays the centre's run bit for bit)."""
+        self._last = None
+
     def current(self, X):
         """The estimates at X, updating the consensus once per new position array."""
         if self._last is not None and X is self._last[0]:
@@ -457,8 +466,8 @@ class Decentralized:
         beyond the radius (below exp(-4.5) = 1 % of a kernel's peak each)."""
         z = self.pi.z if z is None else z
         n_work = int(self.sim.alive.sum())
-        if self.fixed_bandwidth is not None:
-            h = np.full(z.shape[0], float(self.fixed_bandwidth))
+        if self.fixed_bandwidth is not None:          # the centre's, as sim.swarm_scale has scaled it
+            h = np.full(z.shape[0], float(self.sim.estimate.kde.bandwidth))
         else:
             h = self.basis.bandwidth(z, n_work)
         local = None

@@ -382,6 +382,7 @@ class Simulation:
         if rule.bandwidth is not None:
             self.estimate.kde.bandwidth = rule.bandwidth * f
             self.estimate.forget()
+            self.network.forget()                      # a robot's estimates too (sim.network)
             self.estimate_density(fresh=True)          # p̂ at the new bandwidth from now on
         if rule.radius is not None and spreading is not None:
             spreading.radius = rule.radius * rule.radius_factor
