@@ -385,7 +385,7 @@ class Decentralized:
         own = sim.own_positions(X)
         graph = disk_graph(full if own is X else self.positions(own)[0], self.radius, alive)
         count, _ = graph.components()
-        self.note_components(count, sim.t, step=sim.config.sim.dt)      # a sub-step's graph: within the step
+        self.note_components(count, sim.t, step=getattr(sim.settings, "dt", None))  # a sub-step's graph: in the step
         if self.flooded:
             self.remember(full)
         phi = None if self.flooded else self.basis.features(full)
@@ -467,7 +467,8 @@ class Decentralized:
         z = self.pi.z if z is None else z
         n_work = int(self.sim.alive.sum())
         if self.fixed_bandwidth is not None:          # the centre's, as sim.swarm_scale has scaled it
-            h = np.full(z.shape[0], float(self.sim.estimate.kde.bandwidth))
+            kde = getattr(getattr(self.sim, "estimate", None), "kde", None)
+            h = np.full(z.shape[0], float(self.fixed_bandwidth if kde is None else kde.bandwidth))
         else:
             h = self.basis.bandwidth(z, n_work)
         local = None
