@@ -253,7 +253,7 @@ class SimSettings:
                     points reach the holes between its robots on a field finer than its spacing; no effect with any
                     other ``swarm_scale`` or at c = 1 (docs, results "Small swarms against greedy")
     site_lengths    ``"given"`` (default): every setting as given; ``"scaled"``: on a site whose shorter side is
-                    below the paper's 20 m and whose area is below 400 m^2, the algorithms' lengths of :data:`sim.site_scale.SIDE_SCALED`
+                    below 5 m and whose area is below 400 m^2, the algorithms' lengths of :data:`sim.site_scale.SIDE_SCALED`
                     that the configuration does not give (kde.bandwidth, feedback.spread_radius, greedy_separation,
                     greedy_radius, lawnmower_lane, and planner.reference_speed not below planner.v_max) x shorter
                     side / 20 m; the robots' speed limits and noise sigma are kept (:mod:`sim.site_scale`, "Lengths
@@ -658,7 +658,7 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
         free = site_area(sim.domain, source) if area is None else area
         doc, _ = scale_document(doc, given, spacing_ratio(free, sim.robots, sim.swarm_scale, site_ratio), defaults,
                                 SWARM_SCALED)
-    # a site smaller than the paper's square (shorter side < 20 m, area < 400 m^2): the algorithms' lengths x r
+    # a site smaller than the paper's square (shorter side < 5 m, area < 400 m^2): the algorithms' lengths x r
     # (sim.site_scale, "Lengths that follow a small site"); the [sim] overrides (command-line flags) count as given
     r = side_factor(sim.domain, sim.site_lengths)
     if r != 1.0:

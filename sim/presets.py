@@ -255,7 +255,7 @@ PRESETS: dict[str, dict] = {
         # field's map at 2 T 0.92x [0.89-0.95] (better on 8 / 8), bumps and fine level; against greedy now level on
         # all three (1.01 / 0.96 / 1.00x at 2 T, before 1.10x [1.02-1.18] on the pressure field); 50 robots and an
         # 80-robot hostel in docs/results/map-quality.md, "A small swarm: eight seeds"
-        # site_lengths "scaled": on a site below 400 m^2 whose shorter side is below 20 m the algorithms' lengths not
+        # site_lengths "scaled": on a site below 400 m^2 whose shorter side is below 5 m the algorithms' lengths not
         # given (kde.bandwidth, feedback.spread_radius, greedy_separation / greedy_radius, lawnmower_lane, and the plan's
         # reference_speed not below planner.v_max) x shorter side / 20 m, for every controller alike; the robots' speed
         # limits and noise sigma are the user's robots and kept (sim.site_scale, "Lengths that follow a small site").

@@ -26,7 +26,9 @@ def test_the_factor_is_the_shorter_side_over_20_m_below_it_and_one_otherwise():
     assert side_factor((0, 60, 0, 40), "scaled") == 1.0
     # an elongated site of 400 m^2 or more keeps the rules measured there (the rule was measured on 4-15 m^2)
     assert side_factor((0, 150, 0, 8), "scaled") == 1.0 and side_factor((0, 30, 0, 15), "scaled") == 1.0
-    assert side_factor((0, 25, 0, 15), "scaled") == 0.75                  # 375 m^2
+    # nor does a site wider than 5 m: 12-16 m wide building maps below 400 m^2 moved either way, untested by the rule
+    assert side_factor((0, 25, 0, 15), "scaled") == 1.0 and side_factor((0, 17.29, 0, 11.97), "scaled") == 1.0
+    assert side_factor((0, 5, 0, 3), "scaled") == pytest.approx(0.15) and side_factor((0, 2, 0, 1), "scaled") == 0.05
     assert side_factor((0, 0.5, 0, 0.3), "given") == 1.0
     with pytest.raises(ValueError, match="sim.site_lengths must be one of 'given', 'scaled'"):
         side_factor((0, 1, 0, 1), "area")
