@@ -331,18 +331,11 @@ class SimSettings:
         set_("seed", _integer("seed", self.seed, 0))
         set_("substeps", _integer("substeps", self.substeps, 1))
         set_("ergodic_modes", _integer("ergodic_modes", self.ergodic_modes, 1))
-        if self.site_scale not in SITE_SCALE_RULES:
-            raise ValueError(f"sim.site_scale must be one of {', '.join(repr(r) for r in SITE_SCALE_RULES)}, "
-                             f"got {self.site_scale!r}")
-        if self.swarm_scale not in SWARM_SCALE_RULES:
-            raise ValueError(f"sim.swarm_scale must be one of {', '.join(repr(r) for r in SWARM_SCALE_RULES)}, "
-                             f"got {self.swarm_scale!r}")
-        if self.swarm_radius not in SWARM_RADIUS_RULES:
-            raise ValueError(f"sim.swarm_radius must be one of {', '.join(repr(r) for r in SWARM_RADIUS_RULES)}, "
-                             f"got {self.swarm_radius!r}")
-        if self.site_lengths not in SITE_LENGTH_RULES:
-            raise ValueError(f"sim.site_lengths must be one of {', '.join(repr(r) for r in SITE_LENGTH_RULES)}, "
-                             f"got {self.site_lengths!r}")
+        for name, rules in (("site_scale", SITE_SCALE_RULES), ("swarm_scale", SWARM_SCALE_RULES),
+                            ("swarm_radius", SWARM_RADIUS_RULES), ("site_lengths", SITE_LENGTH_RULES)):
+            if getattr(self, name) not in rules:
+                raise ValueError(f"sim.{name} must be one of {', '.join(repr(r) for r in rules)}, "
+                                 f"got {getattr(self, name)!r}")
         if self.stop_rule not in STOP_RULES:
             raise ValueError(f"sim.stop_rule must be one of {', '.join(sorted(STOP_RULES))}, got {self.stop_rule!r}")
         if self.stop_length_scale is not None:

@@ -226,22 +226,17 @@ def scale_sides(doc: dict, given: dict, factor: float, defaults: dict, sim) -> t
         return doc, new_sim, scaled
     out = {k: (dict(v) if isinstance(v, dict) else v) for k, v in doc.items()}
     for section, key in SIDE_SCALED:
-        mine = given.get(section)
-        if isinstance(mine, dict) and key in mine:
-            continue
-        if section == "sim":
-            value = getattr(sim, key)
+        if section == "sim":                              # the resolved [sim] settings hold the value
+            mine = given.get("sim")
+            value = None if isinstance(mine, dict) and key in mine else _number(getattr(sim, key))
         else:
-            table = out.setdefault(section, {})
-            if not isinstance(table, dict):
-                continue                                  # reported by the settings class
-            value = table.get(key, getattr(defaults[section], key, None))
-        if value is None or isinstance(value, bool) or not isinstance(value, (int, float)):
+            value = _unset_number(out, given, section, key, defaults)
+        if value is None:
             continue
         new = float(value) * factor
         if (section, key) == ("planner", "reference_speed"):
-            v_max = out.get("planner", {}).get("v_max", getattr(defaults["planner"], "v_max", None))
-            if isinstance(v_max, (int, float)) and not isinstance(v_max, bool):
+            v_max = _number(out.get("planner", {}).get("v_max", getattr(defaults["planner"], "v_max", None)))
+            if v_max is not None:
                 new = min(float(value), max(new, float(v_max)))
         if section == "sim":
             new_sim[key] = new
@@ -379,19 +374,32 @@ def scale_document(doc: dict, given: dict, ratio: float, defaults: dict, setting
         return doc, scaled
     out = {k: (dict(v) if isinstance(v, dict) else v) for k, v in doc.items()}
     for section, key, power in settings:
-        mine = given.get(section)
-        if isinstance(mine, dict) and key in mine:
-            continue
-        table = out.setdefault(section, {})
-        if not isinstance(table, dict):
-            continue                                  # reported by the settings class
-        value = table.get(key, getattr(defaults[section], key, None))
-        if value is None or isinstance(value, bool) or not isinstance(value, (int, float)):
+        value = _unset_number(out, given, section, key, defaults)
+        if value is None:
             continue
         new = scaled_value(value, ratio, power)
-        table[key] = new
+        out[section][key] = new
         scaled[f"{section}.{key}"] = [float(value), new]
     return out, scaled
+
+
+def _number(value):
+    """``value`` if it is a number (not a bool), else None."""
+    return value if isinstance(value, (int, float)) and not isinstance(value, bool) else None
+
+
+def _unset_number(out: dict, given: dict, section: str, key: str, defaults: dict):
+    """The value of ``section.key`` that the user's own document ``given`` does not set, for a rule to scale: ``out``'s
+    (the document laid over its preset; its ``section`` table made if missing), else the settings class
+    ``defaults[section]``'s default; None when the user sets it, ``out[section]`` is not a table (reported by the
+    settings class) or the value is not a number (e.g. a Silverman bandwidth of None)."""
+    mine = given.get(section)
+    if isinstance(mine, dict) and key in mine:
+        return None
+    table = out.setdefault(section, {})
+    if not isinstance(table, dict):
+        return None
+    return _number(table.get(key, getattr(defaults[section], key, None)))
 
 
 def unscaled_map_note(sim, free_area: float) -> str | None:

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from small_config import small_config
+from test_control import _plan                # a two-snapshot plan on the 20 m square
 from swarmfield import (FeedbackSettings, GaussianProcess, GPSettings, KernelDensity, RunConfig, run_simulation,
                         tracking_velocity)
 from swarmfield.ocp import ReferencePlan
@@ -17,17 +18,6 @@ DOMAIN = (0.0, 20.0, 0.0, 20.0)
 ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
 
 
-def _plan(rng, nx=10, ny=8):
-    xc = (np.arange(nx) + 0.5) * 20 / nx
-    yc = (np.arange(ny) + 0.5) * 20 / ny
-    Xc, Yc = np.meshgrid(xc, yc, indexing="ij")
-    p0 = np.exp(-((Xc - 5) ** 2 + (Yc - 6) ** 2) / 20) + 0.05
-    p1 = np.exp(-((Xc - 14) ** 2 + (Yc - 12) ** 2) / 20) + 0.05
-    cell = (20 / nx) * (20 / ny)
-    p = np.stack([p0 / (p0.sum() * cell), p1 / (p1.sum() * cell)])
-    coef = rng.normal(size=(2, 2, 3, 3)) * 0.3
-    return ReferencePlan(domain=np.array(DOMAIN), t=np.array([0.0, 7.0]), p=p,
-                         t_intervals=np.array([0.0, 3.5, 7.0]), coef=coef, target=p[1])
 
 
 class Still(Controller):
