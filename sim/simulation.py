@@ -180,9 +180,10 @@ def _check_run_arguments(config, controller, stop_rule=None, recorders=()) -> No
     instances, before any work."""
     from .controllers import Controller
     from .recorders import Recorder
-    from .stopping import StopRule
 
-    if stop_rule is not None and not isinstance(stop_rule, StopRule):
+    # a stop rule is taken by its interface (bind, then the rule's checks), as the loop uses it: a class, or an object
+    # without bind, is the user's mistake
+    if stop_rule is not None and (isinstance(stop_rule, type) or not hasattr(stop_rule, "bind")):
         what = f"the class {stop_rule.__name__}: pass {stop_rule.__name__}(config.sim)" \
             if isinstance(stop_rule, type) else type(stop_rule).__name__
         raise TypeError(f"stop_rule must be a StopRule instance, got {what}")
