@@ -128,6 +128,7 @@ def test_replace_takes_other_sections_as_dicts_and_names_the_way():
         config.replace(field=lambda P: P[:, 0])
 
 
+@pytest.mark.checkout                  # reads docs/guide/plan-file.md (not in the source distribution)
 def test_plan_file_in_plain_numpy_as_the_guide_says(tmp_path):
     """docs/guide/plan-file.md's NumPy block gives plan.velocity; outside the window p_r is held, v_r is zero."""
     rng = np.random.default_rng(4)

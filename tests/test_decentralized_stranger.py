@@ -9,6 +9,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -48,6 +49,7 @@ def test_quoted_inf_in_a_config_file_says_so(tmp_path, capsys):
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["keep.txt"]
 
 
+@pytest.mark.checkout                  # reads docs/ (not in the source distribution)
 def test_links_through_walls_are_the_documented_model():
     """The disk graph ignores walls (radio passes); the design page, the module and --help say so."""
     from swarmfield.cli.simulate_swarm import build_parser
@@ -60,6 +62,7 @@ def test_links_through_walls_are_the_documented_model():
     assert "through walls" in " ".join(build_parser().format_help().split())
 
 
+@pytest.mark.checkout                  # reads docs/ (not in the source distribution)
 def test_density_error_above_one_is_documented():
     design = " ".join((ROOT / "docs" / "design" / "decentralized.md").read_text().split())
     assert "it exceeds 1 where robots are isolated" in design
