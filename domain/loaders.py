@@ -547,16 +547,15 @@ def _load_geojson(path: Path, sim_extent):
     notes = (f"domain file {path}: {len(bad)} polygon(s) not valid ({shapely.is_valid_reason(bad[0])}); repaired "
              "with shapely.make_valid: check the free region in the figures",) if bad else ()
     geom = shapely.union_all([shapely.make_valid(p) if not p.is_valid else p for p in parts])
+    bx0, by0, bx1, by1 = geom.bounds
+    centre = (0.5 * (bx0 + bx1), 0.5 * (by0 + by1))     # where a map in degrees or Web Mercator lies
     if geographic:
-        x0, y0, x1, y1 = geom.bounds
-        raise ValueError(_geographic(path, name, (0.5 * (x0 + x1), 0.5 * (y0 + y1))))
+        raise ValueError(_geographic(path, name, centre))
     if web_mercator:
-        x0, y0, x1, y1 = geom.bounds
-        raise ValueError(_web_mercator(path, name, 0.5 * (x0 + x1), 0.5 * (y0 + y1)))
+        raise ValueError(_web_mercator(path, name, *centre))
     if not name and _lonlat_sized(geom.bounds):
         raise ValueError(_geographic(path, "no crs member, so WGS 84 by RFC 7946, and its polygons lie within "
-                                           f"{_bounds_text(geom.bounds)}, less than {LONLAT_SPAN:g} across",
-                                     (0.5 * (geom.bounds[0] + geom.bounds[2]), 0.5 * (geom.bounds[1] + geom.bounds[3]))))
+                                           f"{_bounds_text(geom.bounds)}, less than {LONLAT_SPAN:g} across", centre))
     ext = sim_extent
     if isinstance(doc, dict) and doc.get("bbox") is not None and ext is None:
         ext = _bbox_extent(path, doc["bbox"])

@@ -798,7 +798,7 @@ class Simulation:
             if v.shape != X.shape:
                 raise ValueError(f"controller {type(ctrl).__name__}.velocity(t, X, alive) returned shape {v.shape} "
                                  f"for {X.shape[0]} robots; expected {X.shape} (one (vx, vy) row per robot)")
-            if pull and P is not X and v.shape == X.shape:
+            if pull and P is not X:
                 v = self._pull_out_of_sliver(X, P, v, h)
             if fast and v.shape == X.shape and alive.all():
                 # the same sub-step in one compiled pass (control.robot_kernel.em_step: the same bits)
