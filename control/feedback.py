@@ -45,7 +45,7 @@ import numpy as np
 from ..runtime.validation import MAX_MAGNITUDE
 
 __all__ = ["FeedbackSettings", "feedback_velocity", "tracking_velocity", "saturate", "SPREAD_PRIORITIES",
-           "SPREAD_WALLS", "add_within_speed"]
+           "SPREAD_WALLS", "SPREAD_REACHES", "add_within_speed"]
 
 #: ``feedback.spread_priority``: how the spreading velocity w is added to the law's v under the speed limit;
 #: "sum" sat(v + w), "law" v + lambda w with the largest lambda in [0, 1] that keeps |v + lambda w| <= v_max,
@@ -57,6 +57,11 @@ SPREAD_PRIORITIES = ("sum", "law", "progress")
 #: wall as good as its distance to the measurements; "mirror" only candidates in the rectangle, each scored as if
 #: its own mirror image across the nearest wall were measured (its hole at most twice its distance to the wall)
 SPREAD_WALLS = ("open", "mirror")
+
+#: ``feedback.spread_reach``: how far from its predicted point x̂ a robot's landing point may be
+#: (:func:`control.spreading.budget_reach`); "fixed" the spreading radius r; "budget" the larger of r and the way the
+#: speed limit leaves it over the step, v_max Δt - |x̂ - x| (x where it measured last)
+SPREAD_REACHES = ("fixed", "budget")
 
 #: ``feedback.sliver_pull``: what a robot the laws see at a proxy position (it stands in the sliver of a planner cell
 #: a thin wall cuts, :meth:`domain.Domain.on_kept_pieces`) is given on top of the laws' velocity; "off" nothing,
@@ -101,6 +106,12 @@ class FeedbackSettings:
             candidates inside, each one's hole capped at twice its distance to the nearest wall (its own mirror
             image counts as measured), so that a hole along a wall is filled half its size inside, not on the wall
             (docs/results/map-quality.md, "Why the robots crowd onto the sides").
+    spread_reach : how far from x̂ a landing point may be (:data:`SPREAD_REACHES`): ``"fixed"`` (default) within
+            ``spread_radius``; ``"budget"`` within max(r, v_max Δt - |x̂ - x|), the travel the speed limit leaves each
+            robot beyond the law's own displacement over the step, so that a robot the law moves little can reach a
+            hole as far as it could drive (:func:`control.spreading.budget_reach`; up to
+            :data:`control.spreading.SEQUENTIAL_UP_TO` robots, above it r).  Needs ``spread_radius > 0`` and a finite
+            ``v_max`` (docs/results/map-quality.md, "A reach that follows the travel budget").
     sliver_pull : on a map, for a robot the laws see at a proxy position (:meth:`domain.Domain.on_kept_pieces`: it
             stands in the sliver of a planner cell a thin wall cuts, steered with the velocity of a point in the
             neighbouring cell on its own side) (:data:`SLIVER_PULLS`): ``"off"`` (default) the laws' velocity alone;
@@ -121,12 +132,14 @@ class FeedbackSettings:
     spread_radius: float = 0.0
     spread_priority: str = "sum"
     spread_walls: str = "open"
+    spread_reach: str = "fixed"
     sliver_pull: str = "off"
 
     def __post_init__(self):
         from .stirring import STIR_SHAPES
         for name, choices in (("sliver_pull", SLIVER_PULLS), ("spread_walls", SPREAD_WALLS),
-                              ("spread_priority", SPREAD_PRIORITIES), ("stir_shape", STIR_SHAPES)):
+                              ("spread_reach", SPREAD_REACHES), ("spread_priority", SPREAD_PRIORITIES),
+                              ("stir_shape", STIR_SHAPES)):
             value = getattr(self, name)
             if value not in choices:
                 raise ValueError(f"feedback.{name} must be one of {', '.join(repr(c) for c in choices)}, "
@@ -157,6 +170,9 @@ class FeedbackSettings:
             raise ValueError(f"feedback.spread_radius must be finite and >= 0, got {self.spread_radius}")
         if not (self.v_max > 0) or math.isnan(self.v_max):
             raise ValueError(f"feedback.v_max must be > 0 (inf allowed), got {self.v_max}")
+        if self.spread_reach == "budget" and not (self.spread_radius > 0 and math.isfinite(self.v_max)):
+            raise ValueError("feedback.spread_reach = 'budget' needs feedback.spread_radius > 0 and a finite "
+                             f"feedback.v_max, got spread_radius {self.spread_radius:g}, v_max {self.v_max:g}")
 
 
 def _vector(a, name: str, m: int | None) -> np.ndarray:

@@ -33,6 +33,14 @@ the KDE (eq. "KDE"); with r below h the feedback sees it as an estimation error 
 otherwise: it is a bounded disturbance |w| <= r / Δt of the velocity, like the saturation
 (:mod:`control.feedback`).  r = 0 is the law without it.
 
+The reach (``feedback.spread_reach = "budget"``, :func:`budget_reach`): instead of the same r for every robot, robot
+i's candidates lie within r_i = max(r, v_max Δt - |x̂_i - x_i|) of x̂_i, x_i where it measured last, so that
+|y_i - x_i| <= v_max Δt wherever r_i exceeds r: the landing point is as far from x_i as the speed limit lets the robot
+drive in one step, and a robot the law moves little reaches a hole as far away as greedy's would.  The stencil is
+then that of the largest r_i at a spacing of at most r / 4 (:data:`BUDGET_STENCIL_PER_RADIUS` points per radius at
+most), each robot's candidates cut to its own r_i.  Beyond the paper, and beyond the O(r / h) argument above: a
+landing point may move by more than the KDE's bandwidth, which the law then sees and pulls back over the next steps.
+
 A decentralized swarm applies the rule per connected component, each robot against the measurements it holds
 (``holds``) and its component's earlier choices (:mod:`sim.local_spreading`).
 """
@@ -44,8 +52,8 @@ import numpy as np
 from scipy.ndimage import maximum_filter
 from scipy.spatial import cKDTree
 
-__all__ = ["DETOUR_COST", "SEQUENTIAL_UP_TO", "BLOCKS", "RASTER_PER_RADIUS", "DistanceRaster", "candidate_offsets",
-           "hole_targets", "fill_distances"]
+__all__ = ["DETOUR_COST", "SEQUENTIAL_UP_TO", "BLOCKS", "RASTER_PER_RADIUS", "BUDGET_STENCIL_PER_RADIUS",
+           "DistanceRaster", "candidate_offsets", "budget_reach", "hole_targets", "fill_distances"]
 
 #: swarms up to this many robots are placed one robot after the other (the rule of the module docstring, a
 #: Python loop of ~0.2 ms a robot); larger ones in :data:`BLOCKS` vectorised blocks, a robot counting the landing
@@ -58,6 +66,10 @@ BLOCKS = 16
 RASTER_PER_RADIUS = 4
 
 _FAR = 1e300          # "no point yet" in a raster (finite, so that interpolation stays finite)
+
+#: the budget reach's stencil (``radii`` of :func:`hole_targets`): at most this many candidate rings per largest
+#: reach (so at most ~1,000 candidates a robot), else a spacing of the radius r / 4 as the fixed reach's
+BUDGET_STENCIL_PER_RADIUS = 16
 
 #: lambda: how much nearer to a measurement (in metres) a landing point may be per metre of detour it saves
 DETOUR_COST = 0.2
@@ -80,8 +92,22 @@ def candidate_offsets(radius: float, per_radius: int = 4) -> np.ndarray:
     return P[keep][order]
 
 
+def budget_reach(predicted, start, radius: float, v_max: float, dt: float) -> np.ndarray:
+    """Each robot's reach (m,) under ``feedback.spread_reach = "budget"``: max(r, v_max Δt - |x̂_i - x_i|), the way the
+    speed limit ``v_max`` [m/s] leaves robot i over the step of ``dt`` [s] beyond the law's own displacement from
+    ``start`` x_i (m, 2), where it measured, to ``predicted`` x̂_i (m, 2); never below the spreading radius r."""
+    P = np.asarray(predicted, dtype=float).reshape(-1, 2)
+    X = np.asarray(start, dtype=float).reshape(-1, 2)
+    if P.shape != X.shape:
+        raise ValueError(f"predicted and start must have the same shape, got {P.shape} and {X.shape}")
+    for name, value in (("radius", radius), ("v_max", v_max), ("dt", dt)):
+        if not (math.isfinite(value) and value >= 0):
+            raise ValueError(f"budget_reach: {name} must be finite and >= 0, got {value!r}")
+    return np.maximum(float(radius), float(v_max) * float(dt) - np.hypot(*(P - X).T))
+
+
 def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost: float = DETOUR_COST,
-                 offsets=None, field=None, holds=None, walls=None) -> np.ndarray:
+                 offsets=None, field=None, holds=None, walls=None, radii=None) -> np.ndarray:
     """Landing points y (m, 2) within ``radius`` of the ``predicted`` ones (m, 2) in the holes of ``measured``.
 
     ``measured`` (k, 2): the positions measured so far (k may be 0).  ``inside``: optional callable
@@ -114,8 +140,20 @@ def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost
         raise ValueError("measured contains non-finite values (NaN or inf)")
     if not (math.isfinite(detour_cost) and detour_cost >= 0):
         raise ValueError(f"detour_cost must be finite and >= 0, got {detour_cost!r}")
-    S = candidate_offsets(radius) if offsets is None else np.asarray(offsets, dtype=float).reshape(-1, 2)
-    m, c = P.shape[0], S.shape[0]
+    m = P.shape[0]
+    if radii is not None and not (m > SEQUENTIAL_UP_TO and holds is None) and radius > 0:
+        radii = np.asarray(radii, dtype=float).reshape(-1)
+        if radii.shape != (m,) or not np.all(np.isfinite(radii)) or np.any(radii < radius):
+            raise ValueError(f"radii must be a finite ({m},) array, each at least radius = {radius:g}")
+        top = float(radii.max(initial=radius))
+        rings = min(BUDGET_STENCIL_PER_RADIUS, max(4, math.ceil(4.0 * top / radius - 1e-9)))
+        S = candidate_offsets(top, rings)
+        beyond = np.hypot(S[:, 0], S[:, 1])[None, :] > radii[:, None] * (1 + 1e-12)
+        radius = top
+    else:
+        S = candidate_offsets(radius) if offsets is None else np.asarray(offsets, dtype=float).reshape(-1, 2)
+        beyond = None
+    c = S.shape[0]
     if m == 0 or radius == 0 or c == 1:
         return P.copy()
     if holds is not None:
@@ -131,6 +169,8 @@ def hole_targets(predicted, measured, radius: float, *, inside=None, detour_cost
     ok = np.ones((m, c), bool)
     if inside is not None:
         ok = np.asarray(inside(C.reshape(-1, 2)), dtype=bool).reshape(m, c)
+    if beyond is not None:
+        ok &= ~beyond
     cap = None
     if walls is not None:
         e = _wall_distance(C, walls)

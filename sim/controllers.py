@@ -179,6 +179,7 @@ class FeedbackController(Controller):
             self.spreading = MeasurementSpreading(*args) if make is None else make(*args)
             self.spreading.priority = self.config.feedback.spread_priority     # how w joins the law's v
             self.spreading.walls = self.config.feedback.spread_walls           # the landing points at the walls
+            self.spreading.reach = self.config.feedback.spread_reach           # each robot's reach from x̂
 
     def start_period(self, ctx):
         self.plan, self.estimate = ctx.plan, ctx.estimate

@@ -87,9 +87,10 @@ class ComponentSpreading(MeasurementSpreading):
         np.fill_diagonal(ages, 0)
         return flooded_densities(kde, net.basis, full[None], ages, L >= 0, index=rows, free=sim.free)
 
-    def land(self, P: np.ndarray, alive: np.ndarray) -> np.ndarray:
+    def land(self, P: np.ndarray, alive: np.ndarray, radii=None) -> np.ndarray:
         """The landing points of the working robots predicted at ``P``: the centre's rule per component, on the
-        measurements each robot holds and its component's earlier choices (module docstring)."""
+        measurements each robot holds and its component's earlier choices (module docstring); ``radii`` (m,) each
+        robot's reach (``feedback.spread_reach = "budget"``), None the radius for all."""
         net = self.network
         kg = net.knowledge
         rows = np.flatnonzero(alive)
@@ -100,11 +101,11 @@ class ComponentSpreading(MeasurementSpreading):
             groups = kg.group[rows[sel]]
             if np.all(groups == groups[0]):
                 Y[sel] = hole_targets(P[sel], kg.X[kg.masks[int(groups[0])]], self.radius, inside=self.inside,
-                                     walls=self.wall_box())
+                                     walls=self.wall_box(), radii=None if radii is None else radii[sel])
             else:
                 holds = np.stack([kg.masks[int(g)] for g in groups])
                 Y[sel] = hole_targets(P[sel], kg.X, self.radius, inside=self.inside, holds=holds,
-                                     walls=self.wall_box())
+                                     walls=self.wall_box(), radii=None if radii is None else radii[sel])
             m = sel.size
             if m > 1:
                 net.log.broadcast("landing", m * m, CHOICE_BYTES)

@@ -9,7 +9,8 @@ This module is the controller's side of it.  At the first sub-step after every m
    the loop's sub-steps, the KDE refitted to the predicted positions at every sub-step as the loop
    refits it to the real ones, and with the walls' (and obstacles') reflection;
 3. picks the landing points y (:func:`control.spreading.hole_targets`; with obstacles only candidates in
-   the free space) and holds the velocity w = (y - x̂) / Δt for the step.
+   the free space; with ``feedback.spread_reach = "budget"`` each robot within its own reach,
+   :func:`control.spreading.budget_reach`) and holds the velocity w = (y - x̂) / Δt for the step.
 
 Above :data:`control.spreading.SEQUENTIAL_UP_TO` robots the memory is also kept as a
 :class:`control.spreading.DistanceRaster` over the domain (cell r / 4), lowered by each step's new points
@@ -31,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..control import add_within_speed, saturate
-from ..control.spreading import RASTER_PER_RADIUS, SEQUENTIAL_UP_TO, DistanceRaster, hole_targets
+from ..control.spreading import RASTER_PER_RADIUS, SEQUENTIAL_UP_TO, DistanceRaster, budget_reach, hole_targets
 from .dynamics import euler_maruyama_step
 
 __all__ = ["MeasurementSpreading"]
@@ -51,6 +52,9 @@ class MeasurementSpreading:
     priority = "sum"
     #: "open" or "mirror" (control.feedback.SPREAD_WALLS): the landing points against the bounding rectangle's walls
     walls = "open"
+    #: "fixed" or "budget" (control.feedback.SPREAD_REACHES): every robot within :attr:`radius` of x̂, or within the
+    #: larger of it and the travel the speed limit leaves it (control.spreading.budget_reach)
+    reach = "fixed"
 
     def __init__(self, radius: float, dt: float, h: float, domain, refit=None):
         self.radius, self.dt, self.h = float(radius), float(dt), float(h)
@@ -109,7 +113,8 @@ class MeasurementSpreading:
             w = np.zeros_like(X, dtype=float)
             if len(Xa):
                 P = self.predict(t, Xa, va, law, estimate)
-                w[alive] = (self.land(P, alive) - P) / self.dt
+                radii = budget_reach(P, Xa, self.radius, v_max, self.dt) if self.reach == "budget" else None
+                w[alive] = (self.land(P, alive, radii) - P) / self.dt
             self.w = w
         if self.priority == "sum":
             out = saturate(v + self.w, v_max)
@@ -123,14 +128,16 @@ class MeasurementSpreading:
         if self.field is not None:
             self.field.add(self.memory[-1])
 
-    def land(self, P: np.ndarray, alive: np.ndarray) -> np.ndarray:
+    def land(self, P: np.ndarray, alive: np.ndarray, radii=None) -> np.ndarray:
         """The landing points of the working robots (``alive``) predicted at ``P``: the rule of
         :func:`control.spreading.hole_targets` against every position measured so far and, in index order, the
-        earlier robots' landing points (what a communication centre knows)."""
+        earlier robots' landing points (what a communication centre knows); ``radii`` (m,) each robot's reach
+        (:attr:`reach` "budget"; not used above :data:`control.spreading.SEQUENTIAL_UP_TO` robots), None
+        :attr:`radius` for all."""
         walls = self.wall_box()
         if len(P) > SEQUENTIAL_UP_TO:
             return hole_targets(P, None, self.radius, inside=self.inside, field=self._field(P), walls=walls)
-        return hole_targets(P, self.measured, self.radius, inside=self.inside, walls=walls)
+        return hole_targets(P, self.measured, self.radius, inside=self.inside, walls=walls, radii=radii)
 
     def wall_box(self):
         """The rectangle (x0, x1, y0, y1) the landing points keep inside with :attr:`walls` "mirror", else None."""

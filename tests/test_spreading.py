@@ -347,3 +347,77 @@ def test_mirror_walls_keep_the_landing_points_inside_and_off_the_sides(monkeypat
     assert np.all(eb > 0.05)
     with pytest.raises(ValueError, match="spread_walls"):
         FeedbackSettings(spread_walls="closed")
+
+
+def test_budget_reach_is_the_travel_the_speed_limit_leaves_never_below_the_radius():
+    from swarmfield.control.spreading import budget_reach
+    X = np.array([[1.0, 1.0], [5.0, 5.0], [8.0, 2.0]])
+    P = X + [[0.0, 0.0], [1.2, 0.0], [0.0, 2.5]]            # the law moves them 0, 1.2 and 2.5 m over the step
+    r = budget_reach(P, X, 0.75, v_max=3.0, dt=0.875)       # the budget 2.625 m a step
+    assert np.allclose(r, [2.625, 2.625 - 1.2, 0.75])        # the last at its speed limit keeps the radius
+    assert np.all(budget_reach(P, X, 3.0, 3.0, 0.875) == 3.0)
+    with pytest.raises(ValueError, match="same shape"):
+        budget_reach(P[:2], X, 0.75, 3.0, 0.875)
+    with pytest.raises(ValueError, match="v_max"):
+        budget_reach(P, X, 0.75, np.inf, 0.875)
+
+
+def test_a_robot_the_law_holds_still_reaches_a_hole_beyond_the_radius_with_the_budget():
+    # robot 0 stands (the law does not move it) 1.5 m from the middle of a hole; the fixed reach keeps it within
+    # 0.75 m of where it stands, the budget (v_max dt = 2.4 m) lets it land in the hole, within its reach
+    M = np.array([[x, y] for x in np.arange(0.0, 6.01, 0.5) for y in np.arange(0.0, 6.01, 0.5)
+                  if np.hypot(x - 4.5, y - 3.0) > 1.2])
+    P = np.array([[3.0, 3.0], [1.0, 1.0]])
+    fixed = hole_targets(P, M, 0.75)
+    radii = np.array([2.4, 0.75])
+    Y = hole_targets(P, M, 0.75, radii=radii)
+    assert np.hypot(*(fixed[0] - P[0])) <= 0.75 + 1e-12
+    assert np.hypot(*(Y[0] - [4.5, 3.0])) < 0.3 and np.hypot(*(fixed[0] - [4.5, 3.0])) > 0.7
+    assert np.all(np.hypot(*(Y - P).T) <= radii + 1e-12)      # each within its own reach
+
+
+def test_budget_targets_equal_the_brute_force_rule_on_each_robots_own_disc():
+    from swarmfield.control.spreading import BUDGET_STENCIL_PER_RADIUS
+    rng = np.random.default_rng(4)
+    P = rng.uniform(0, 8, (30, 2))
+    M = rng.uniform(0, 8, (200, 2))
+    radii = rng.uniform(0.6, 2.0, 30)
+    Y = hole_targets(P, M, 0.6, radii=radii)
+    rings = min(BUDGET_STENCIL_PER_RADIUS, int(np.ceil(4 * radii.max() / 0.6)))
+    S = candidate_offsets(radii.max(), rings)
+    out = []
+    for i, p in enumerate(P):
+        keep = np.hypot(*S.T) <= radii[i] * (1 + 1e-12)
+        C = p + S[keep]
+        pts = np.concatenate([M, np.array(out).reshape(-1, 2)])
+        d = cdist(C, pts).min(axis=1) - DETOUR_COST * np.hypot(*S[keep].T)
+        out.append(C[int(np.argmax(d))])
+    assert np.allclose(Y, out, atol=1e-12)
+    # every reach at the radius: the fixed rule bit for bit
+    assert np.array_equal(hole_targets(P, M, 0.6, radii=np.full(30, 0.6)), hole_targets(P, M, 0.6))
+    with pytest.raises(ValueError, match="radii"):
+        hole_targets(P, M, 0.6, radii=np.full(30, 0.5))
+
+
+def test_spread_reach_setting_is_checked_and_the_default_run_is_the_fixed_reach_bit_for_bit():
+    with pytest.raises(ValueError, match="spread_reach must be one of"):
+        FeedbackSettings(spread_radius=0.75, spread_reach="far")
+    with pytest.raises(ValueError, match="spread_radius > 0"):
+        FeedbackSettings(spread_reach="budget")
+    with pytest.raises(ValueError, match="finite"):
+        FeedbackSettings(spread_radius=0.75, spread_reach="budget", v_max=np.inf)
+    assert FeedbackSettings().spread_reach == "fixed"
+
+    def run(reach):
+        doc = {k: dict(v) for k, v in SMALL.items()}
+        if reach is not None:
+            doc["feedback"]["spread_reach"] = reach
+        c = config_from_dict(doc)
+        ctrl = FeedbackController(c)
+        return run_simulation(c, controller=ctrl), ctrl
+    default, ctrl = run(None)
+    fixed, _ = run("fixed")
+    budget, bctrl = run("budget")
+    assert ctrl.spreading.reach == "fixed" and bctrl.spreading.reach == "budget"
+    assert all(np.array_equal(a, b) for a, b in zip(default.positions, fixed.positions))
+    assert not all(np.array_equal(a, b) for a, b in zip(default.positions, budget.positions))
