@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..runtime.validation import MAX_MAGNITUDE
+from ..runtime.validation import MAX_MAGNITUDE, check_number_settings
 
 __all__ = ["FeedbackSettings", "feedback_velocity", "tracking_velocity", "saturate", "SPREAD_PRIORITIES",
            "SPREAD_WALLS", "SPREAD_REACHES", "add_within_speed"]
@@ -136,6 +136,7 @@ class FeedbackSettings:
     sliver_pull: str = "off"
 
     def __post_init__(self):
+        check_number_settings(self, "feedback")
         from .stirring import STIR_SHAPES
         for name, choices in (("sliver_pull", SLIVER_PULLS), ("spread_walls", SPREAD_WALLS),
                               ("spread_reach", SPREAD_REACHES), ("spread_priority", SPREAD_PRIORITIES),

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..runtime.validation import check_number_settings
+
 @dataclass(frozen=True)
 class DomainSettings:
     """The ``[domain]`` table of a configuration.
@@ -21,6 +23,7 @@ class DomainSettings:
     unreachable: str = "exclude"
 
     def __post_init__(self):
+        check_number_settings(self, "domain")
         if not isinstance(self.source, str):
             raise ValueError(f"domain.source must be a built-in name or a file path, got {self.source!r}")
         f = self.min_free_fraction

@@ -11,7 +11,7 @@ import types
 import typing
 from dataclasses import dataclass, field
 
-from ..runtime.validation import did_you_mean
+from ..runtime.validation import check_number_settings, unknown_names
 from .basis import ALL_BASES as BASES
 
 
@@ -87,6 +87,7 @@ class IpoptSettings:
     extra: dict = field(default_factory=dict)
 
     def __post_init__(self):
+        check_number_settings(self, "planner.ipopt")
         _positive(self, "tol", "acceptable_tol", "acceptable_obj_change_tol")
         _positive_int(self, "max_iter", "limited_memory_max_history", "acceptable_iter")
         if self.hessian_approximation not in ("limited-memory", "exact"):
@@ -273,6 +274,7 @@ class PlannerSettings:
     replan_tail: str = "zero"
 
     def __post_init__(self):
+        check_number_settings(self, "planner")
         _check_formulation(self)
         if self.replan_max_iter is not None:
             _positive_int(self, "replan_max_iter")
@@ -557,8 +559,7 @@ def dataclass_from_dict(cls, mapping, where: str = ""):
     fields = {f.name: f for f in dataclasses.fields(cls)}
     unknown = sorted(set(mapping) - set(fields))
     if unknown:
-        raise ValueError(f"unknown setting(s) {', '.join(did_you_mean(f'{where}.{k}' if where else k, k, fields) for k in unknown)}; "
-                         f"known: {', '.join(sorted(fields))}")
+        raise ValueError(unknown_names("setting", unknown, fields, where))
     kwargs = {}
     for key, value in mapping.items():
         name = f"{where}.{key}" if where else key

@@ -9,7 +9,7 @@ import math
 import numbers
 from dataclasses import dataclass
 
-from ..runtime.validation import MAX_MAGNITUDE, did_you_mean
+from ..runtime.validation import MAX_MAGNITUDE, check_number_settings, did_you_mean
 
 #: Numerical limits of the GP (measured: signal_variance 1e100 with noise 0.04 fails its Cholesky
 #: factorisation and overflows the float32 variance snapshots of a run).
@@ -294,6 +294,7 @@ class GPSettings:
     outlier_hold: int = 2
 
     def __post_init__(self):
+        check_number_settings(self, "gp")
         object.__setattr__(self, "signal_variance", _finite_positive("signal_variance", self.signal_variance))
         object.__setattr__(self, "length_scale", _finite_positive("length_scale", self.length_scale))
         object.__setattr__(self, "noise_variance", _finite_positive("noise_variance", self.noise_variance))

@@ -11,9 +11,14 @@ by relaying.
 Every message is accounted for by :class:`MessageLog`: a *message* is one broadcast by one robot (heard by
 all its neighbours at once), its size the payload in bytes (float64 numbers, 8 bytes each; integers 4).
 Robots without a neighbour do not broadcast.
+
+A run with a radius says at its start (:func:`radius_note`) when the radius is below the robots' typical spacing
+sqrt(area / robots) -- the regime where the swarm falls apart and its map is 2-3x the centre's (docs/results/
+decentralized.md, "A stranger's round") -- and, on a map with walls, that links pass through them.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -21,7 +26,7 @@ from scipy import sparse
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
-__all__ = ["CommGraph", "disk_graph", "MessageLog", "FLOAT_BYTES", "INT_BYTES"]
+__all__ = ["CommGraph", "disk_graph", "MessageLog", "FLOAT_BYTES", "INT_BYTES", "radius_note", "RADIUS_WARNING"]
 
 FLOAT_BYTES = 8
 INT_BYTES = 4
@@ -123,3 +128,38 @@ class MessageLog:
     @property
     def total_bytes(self) -> int:
         return sum(self.bytes.values())
+
+
+#: the start of :func:`radius_note`'s line (a ``warnings`` filter: compare-controllers says it once per configuration)
+RADIUS_WARNING = r"communication: r = "
+
+
+def radius_note(config, free_area: float | None = None, walls: bool = False) -> str | None:
+    """The line a decentralized run (``sim.comm_radius``) says at its start, or None: when the radius r is below the
+    robots' typical spacing q = sqrt(area / robots) (``free_area`` the map's free area, default the site's area,
+    :func:`sim.site_scale.site_area`), what to expect -- the swarm splits into components, each mapping only what
+    reaches it, and the map at 2-3 T was 2-3x the centre's (30 robots 9.1 m apart at r = 4 m, level at 12 m: docs/
+    results/decentralized.md, "A stranger's round"); with ``walls`` (a map with obstacles) that the model's radio
+    passes through them."""
+    s = config.sim
+    r = s.comm_radius
+    if r is None or not math.isfinite(r):
+        return None
+    if free_area is None:
+        from .site_scale import site_area
+        free_area = site_area(s.domain, config.domain.source)
+    spacing = math.sqrt(free_area / s.robots) if free_area > 0 else 0.0
+    parts = []
+    if r < spacing:
+        parts.append(f"below the robots' typical spacing sqrt(area / robots) = {spacing:.3g} m ({s.robots} robots on "
+                     f"{free_area:.4g} m^2): expect the swarm to split into many components, each mapping only what "
+                     f"reaches it, and a map 2-3x worse than the centre's by 2-3 T (docs/results/decentralized.md, "
+                     f"\"A stranger's round\": 30 robots 9.1 m apart, at r = 4 m; at 12 m level with the centre); pick "
+                     f"r above {spacing:.3g} m for the centre's map")
+    if walls:
+        parts.append("radio passes through the map's walls in this model (no link is blocked by them): a swarm whose "
+                     "radio the walls block splits sooner than this run")
+    if not parts:
+        return None
+    return f"communication: r = {r:g} m is " + "; ".join(parts) if r < spacing else \
+        f"communication: r = {r:g} m: " + parts[0]

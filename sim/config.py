@@ -47,12 +47,15 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 import warnings
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..runtime.validation import MAX_MAGNITUDE, did_you_mean
+import numpy as np
+
+from ..runtime.validation import MAX_MAGNITUDE, check_number_settings, did_you_mean
 from ..control import FeedbackSettings
 from ..control.kde import OBSTACLE_KERNELS
 from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict, grid_cells
@@ -72,7 +75,7 @@ SECTIONS = ("sim", "gp", "kde", "feedback", "planner", "domain")
 
 
 def _number(name, v, *, positive=False, nonneg=False):
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real):
         raise ValueError(f"sim.{name} must be a number, got {v!r}")
     v = float(v)
     if not (math.isfinite(v) and abs(v) <= MAX_MAGNITUDE):
@@ -85,7 +88,7 @@ def _number(name, v, *, positive=False, nonneg=False):
 
 
 def _integer(name, v, minimum):
-    if isinstance(v, bool) or not isinstance(v, int):
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Integral):
         raise ValueError(f"sim.{name} must be an integer, got {v!r}")
     if v < minimum:
         raise ValueError(f"sim.{name} must be >= {minimum}, got {v}")
@@ -308,6 +311,7 @@ class SimSettings:
     site_lengths: str = "given"
 
     def __post_init__(self):
+        check_number_settings(self, "sim")
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
         set_("robots", _integer("robots", self.robots, 1))
         set_("domain", _rect("domain", self.domain))
@@ -457,6 +461,7 @@ class KDESettings:
     obstacles: str = "renormalise"
 
     def __post_init__(self):
+        check_number_settings(self, "kde")
         if self.bandwidth is not None:
             if isinstance(self.bandwidth, bool) or not isinstance(self.bandwidth, (int, float)) \
                     or not math.isfinite(self.bandwidth) or self.bandwidth <= 0 or self.bandwidth > MAX_MAGNITUDE:

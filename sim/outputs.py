@@ -60,7 +60,7 @@ from ..runtime.publish import OutputFolder
 
 from .config import to_toml
 from .metrics import COLUMNS
-from .site_scale import site_summary, swarm_summary
+from .site_scale import side_summary, site_summary, swarm_summary
 from .network import EXTRA_COLUMNS
 
 __all__ = ["MARKER", "STAGING", "OUTPUT_FILES", "output_folder", "check_output_dir", "write_atomic",
@@ -210,6 +210,8 @@ def summary_dict(result, files=(), extra: dict | None = None) -> dict:
         "config": cfg.as_dict(),
         # the tuned preset's lengths and speeds scaled to the site (sim.site_scale): the factor and resolved values
         "site_scale": site_summary(cfg),
+        # the algorithms' lengths scaled to a small site's shorter side (sim.site_lengths): the factor and lengths used
+        "site_lengths": side_summary(cfg),
         # the KDE bandwidth and the spreading radius scaled to the robots' spacing (sim.swarm_scale)
         "swarm_scale": swarm_summary(cfg),
         "grid": {"nx": result.grid.nx, "ny": result.grid.ny, "domain": list(result.grid.domain)},

@@ -252,6 +252,14 @@ class Simulation:
                 warnings.warn(note, UserWarning, stacklevel=2)
         # walls thinner than a planner cell: faces between free cells they close (domain.Domain.closed_faces)
         self.walls = None if self.region is None else self.region.closed_faces(self.free)
+        if s.comm_radius is not None:           # a radius below the robots' spacing, radio through walls: said now
+            from .comm import radius_note
+            x0, x1, y0, y1 = s.domain
+            walled = self.region is not None and (self.region.free_area < 0.999 * (x1 - x0) * (y1 - y0) or (
+                self.walls is not None and any(bool(np.any(w)) for w in self.walls)))
+            note = radius_note(config, None if self.region is None else self.region.free_area, walled)
+            if note:
+                warnings.warn(note, UserWarning, stacklevel=2)
         if self.controller.needs_plan:
             from ..ocp import PlannerError
             self.planner_error = PlannerError

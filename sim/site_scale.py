@@ -107,8 +107,8 @@ not below the robots' ``planner.v_max``: the transport's substeps an interval st
 and the plan never runs slower than the robots) -- what a hand-scaled tabletop file did (round 6's
 ``table_note.toml``).  Not scaled: the robots' speed limits (``planner.v_max``, ``feedback.v_max``) and their noise
 ``feedback.sigma``, which are the user's robots, not a choice of the algorithm.  Only values the user's configuration
-does not give are scaled (as for the rules above; a ``[sim]`` override such as a command-line flag counts as given),
-so every controller of a comparison resolved from the same file gets the same lengths, and a run's own
+does not give are scaled (as for the rules above; a ``[sim]`` override such as a command-line flag counts as given;
+summary.json's ``site_lengths`` block records r and the lengths the run used, :func:`side_summary`), so every controller of a comparison resolved from the same file gets the same lengths, and a run's own
 ``DIR/config.toml`` repeats them.  A site whose shorter side is 5 m or more is untouched, and so is every site of
 :data:`REFERENCE_AREA` or more: an elongated site (a 60 m x 10 m canal, a 150 m x 8 m river reach, a 30 m x 15 m floor)
 keeps the area and stirring rules measured there, and 12-16 m wide building maps below 400 m^2 keep 0.12.0's runs,
@@ -126,7 +126,7 @@ import math
 __all__ = ["SITE_SCALE_RULES", "REFERENCE_AREA", "SCALED", "area_ratio", "site_area", "site_factor", "scaled_value",
            "scale_document", "LENGTH_SCALED", "length_ratio", "length_factor", "length_floor", "scale_lengths", "site_summary", "resolved_site_area", "unscaled_map_note", "small_site_note", "SMALL_SITE_WARNING", "SWARM_SCALE_RULES", "REFERENCE_ROBOT_AREA",
            "SWARM_SCALED", "SWARM_RADIUS_RULES", "spacing_ratio", "spacing_factor", "swarm_summary", "capped_factor", "SpacingCappedByLength",
-           "SITE_LENGTH_RULES", "REFERENCE_SIDE", "SMALL_SIDE", "SIDE_SCALED", "side_factor", "scale_sides"]
+           "SITE_LENGTH_RULES", "REFERENCE_SIDE", "SMALL_SIDE", "SIDE_SCALED", "side_factor", "scale_sides", "side_summary"]
 
 #: ``sim.site_scale``: "off" (values as given) or "area" (scaled by s = max(1, sqrt(area / REFERENCE_AREA)))
 SITE_SCALE_RULES = ("off", "area")
@@ -507,6 +507,20 @@ def site_summary(config) -> dict:
             "factor": site_factor(s.domain, s.site_scale, area),
             "length_factor": length_factor(s.domain, s.site_scale, area),
             "settings": {f"{sec}.{key}": getattr(getattr(config, sec), key) for sec, key, _ in SCALED + LENGTH_SCALED}}
+
+
+def side_summary(config) -> dict:
+    """summary.json's ``site_lengths`` block: the rule (``sim.site_lengths``), the site's shorter side and area, the
+    limits under which the rule acts (:data:`SMALL_SIDE`, :data:`REFERENCE_AREA`), the factor r = shorter side /
+    :data:`REFERENCE_SIDE` applied (:func:`side_factor`; 1 where the rule does not act) and the resolved values of the
+    settings it scales (:data:`SIDE_SCALED`: the lengths the run used, whether scaled or given in the configuration,
+    which the rule leaves as given)."""
+    s = config.sim
+    x0, x1, y0, y1 = (float(v) for v in s.domain)
+    return {"rule": s.site_lengths, "shorter_side_m": min(x1 - x0, y1 - y0), "area_m2": (x1 - x0) * (y1 - y0),
+            "small_side_m": SMALL_SIDE, "reference_area_m2": REFERENCE_AREA, "reference_side_m": REFERENCE_SIDE,
+            "factor": side_factor(s.domain, s.site_lengths),
+            "settings": {f"{sec}.{key}": getattr(getattr(config, sec), key) for sec, key in SIDE_SCALED}}
 
 
 def swarm_summary(config) -> dict:

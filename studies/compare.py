@@ -83,6 +83,7 @@ def run_task(task: dict) -> list[dict]:
     import warnings
 
     from ..regression.gp import GRID_BUDGET_WARNING
+    from ..sim.comm import RADIUS_WARNING
     from ..sim.site_scale import SMALL_SITE_WARNING
     cfg = config_from_dict(task["config"])
     # the configuration's own stop rule, recorded at every measurement; the run itself never stops at it
@@ -95,6 +96,7 @@ def run_task(task: dict) -> list[dict]:
         # said by the checks (make_tasks), not by every run
         warnings.filterwarnings("ignore", message=GRID_BUDGET_WARNING, category=UserWarning)
         warnings.filterwarnings("ignore", message=SMALL_SITE_WARNING, category=UserWarning)
+        warnings.filterwarnings("ignore", message=RADIUS_WARNING, category=UserWarning)
         res = run_simulation(cfg, stop_rule=make_stop_rule(cfg.sim, stops=False))
     for w in seen:                     # e.g. a learned hyperparameter at its bound: one line, naming the run
         print(f"{PROG}: warning: {describe_run(task)}: {w.message}", file=sys.stderr)
@@ -147,6 +149,7 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
     from ..sim.fields import make_field
     from ..sim.loop import check_config
     from ..sim.site_scale import small_site_note
+    from ..sim.comm import radius_note
     import warnings
 
     if presets is None:
@@ -231,6 +234,9 @@ def make_tasks(base_doc: dict, controllers, fields, seeds, losses, robots, *, lo
                             checked.add(ckey)
                             note = small_site_note(cfg, controller)    # a fact of the configuration: said here,
                             if note:                                   # once, not by each of its runs
+                                warnings.warn(note, UserWarning, stacklevel=2)
+                            note = radius_note(cfg, walls=bool(cfg.domain.source))   # r below the spacing, walls
+                            if note:
                                 warnings.warn(note, UserWarning, stacklevel=2)
                         speed = controller.v_max
                         free = _reachable_cells(cfg)
