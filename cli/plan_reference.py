@@ -107,10 +107,11 @@ def resolve_settings(args) -> PlannerSettings:
             raise InputError(f"config {args.config} is not valid TOML: {exc}") from None
         if "sim" in doc:
             doc = _from_run_config(args, doc)
-        unknown = sorted(set(doc) - {"planner"})
-        if unknown:
-            raise InputError(f"config {args.config}: unknown table(s) {unknown}; expected [planner] (or a "
-                             "simulate-swarm configuration with [sim])")
+        from ..sim.config import unknown_tables
+        problem = unknown_tables({k: v for k, v in doc.items() if k != "preset"}, ("planner",))
+        if problem:
+            raise InputError(f"config {args.config}: {problem} (plan-reference reads [planner], or a simulate-swarm "
+                             "configuration with [sim])")
         cfg = doc.get("planner", {})
         if not isinstance(cfg, dict) or not isinstance(cfg.get("ipopt", {}), dict):
             raise InputError(f"config {args.config}: [planner] and [planner.ipopt] must be tables")
@@ -160,10 +161,10 @@ def _from_run_config(args, doc: dict) -> dict:
     start box unless ``--start-box`` is given (a map in UTM coordinates needs both), and its ``[domain]`` map (source
     and min_free_fraction) unless ``--domain`` is given; the closed loop's other tables ([gp], [kde], [feedback],
     ...) do not concern a single plan and are passed over."""
-    from ..sim.config import SECTIONS
-    unknown = sorted(set(doc) - set(SECTIONS) - {"preset"})
-    if unknown:
-        raise InputError(f"config {args.config}: unknown table(s) {unknown}; known: {sorted(SECTIONS)}")
+    from ..sim.config import unknown_tables
+    problem = unknown_tables({k: v for k, v in doc.items() if k != "preset"})
+    if problem:
+        raise InputError(f"config {args.config}: {problem}")
     sim, planner = doc.get("sim"), doc.get("planner", {})
     if not isinstance(sim, dict) or not isinstance(planner, dict):
         raise InputError(f"config {args.config}: [sim] and [planner] must be tables")

@@ -11,7 +11,9 @@ import types
 import typing
 from dataclasses import dataclass, field
 
-from ..runtime.validation import check_number_settings, unknown_names
+import numpy as np
+
+from ..runtime.validation import check_number_settings, quoted_number_hint, unknown_names
 from .basis import ALL_BASES as BASES
 
 
@@ -34,8 +36,11 @@ MIN_SIDE = 1e-6
 
 
 def check_domain(dom, name: str) -> tuple:
-    """``(x0, x1, y0, y1)`` as floats; ``ValueError`` unless finite, |x| <= 1e9, sides >= 1e-6."""
+    """``(x0, x1, y0, y1)`` as floats; ``ValueError`` unless four real numbers (not strings or booleans: ``[0, "20",
+    0, 20]`` was read as 20 m), finite, |x| <= 1e9, sides >= 1e-6."""
     try:
+        if any(isinstance(v, (str, bytes, bool, np.bool_)) or not isinstance(v, numbers.Real) for v in dom):
+            raise TypeError
         dom = tuple(float(v) for v in dom)
     except (TypeError, ValueError, OverflowError):
         raise ValueError(f"{name} must be four numbers [x0, x1, y0, y1], got {dom!r}") from None
@@ -583,13 +588,13 @@ def _coerce(value, hint, name):
         if value is None and type(None) in typing.get_args(hint):
             return None
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ValueError(f"{name} must be a number, got {value!r}")
+            raise ValueError(f"{name} must be a number, got {value!r}{quoted_number_hint(value)}")
         return float(value)
     if hint is int or (origin in (typing.Union, types.UnionType) and set(typing.get_args(hint)) == {int, type(None)}):
         if value is None and type(None) in typing.get_args(hint):
             return None
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ValueError(f"{name} must be an integer, got {value!r}")
+            raise ValueError(f"{name} must be an integer, got {value!r}{quoted_number_hint(value)}")
         return value
     if hint is bool:
         if not isinstance(value, bool):

@@ -19,7 +19,7 @@ import typing
 import numpy as np
 
 __all__ = ["MAX_MAGNITUDE", "real_array", "real_scalar", "points_array", "did_you_mean", "nearest_names",
-           "unknown_names", "check_number_settings"]
+           "unknown_names", "check_number_settings", "quoted_number_hint"]
 
 #: Upper bound of physical settings (variances, gains, bandwidths): far beyond any meaningful
 #: value, low enough that their squares and products stay finite in float64 (a noise variance of
@@ -124,6 +124,17 @@ def _numeric_fields(cls) -> tuple:
     return tuple(out)
 
 
+def quoted_number_hint(value) -> str:
+    """``": write 2 without quotes"`` for a string that reads as a number (``"2"``, ``" 1e-3"``), else ``""``."""
+    if not isinstance(value, str):
+        return ""
+    try:
+        float(value)
+    except ValueError:
+        return ""
+    return f": write {value.strip()} without quotes"
+
+
 def check_number_settings(obj, where: str) -> None:
     """``ValueError`` naming the first setting of the settings dataclass ``obj`` typed as a number (``float``,
     ``int``, optionally ``None``) that holds anything but a real number: a string (``GPSettings(length_scale="2")``,
@@ -135,11 +146,5 @@ def check_number_settings(obj, where: str) -> None:
             continue
         if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
             what = "None" if value is None else f"{value!r} ({type(value).__name__})"
-            hint = ""
-            if isinstance(value, str):
-                try:
-                    float(value)
-                    hint = f": write {value.strip()} without quotes"
-                except ValueError:
-                    pass
+            hint = quoted_number_hint(value)
             raise ValueError(f"{where}.{name} must be a number{' or None' if optional else ''}, got {what}{hint}")

@@ -55,7 +55,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..runtime.validation import MAX_MAGNITUDE, check_number_settings, did_you_mean
+from ..runtime.validation import MAX_MAGNITUDE, check_number_settings, nearest_names
 from ..control import FeedbackSettings
 from ..control.kde import OBSTACLE_KERNELS
 from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict, grid_cells
@@ -600,6 +600,28 @@ def _counts_of_cell_size(doc: dict, planner: dict) -> dict:
                                                   f"{planner.get('ny')})"))
 
 
+def unknown_tables(doc: dict, known=SECTIONS) -> str | None:
+    """The one line for the entries of the document ``doc`` (``preset`` removed) that are not among the tables
+    ``known``, or None: a key above every table header (``robots = 10``) names the table it belongs to; an unknown
+    table its nearest known one (``[simulation]``: ``[sim]``)."""
+    unknown = sorted(set(doc) - set(known))
+    for key in unknown:
+        if not isinstance(doc[key], dict):       # ``robots = 10`` above every table header, not an unknown table
+            home = [s for s in SECTIONS if key in {f.name for f in dataclasses.fields(_SECTION_CLASSES[s])}]
+            where = (f"it is a setting of [{home[0]}]: write it under [{home[0]}]" if home else
+                     f"the only key outside a table is preset; settings go under {', '.join(f'[{s}]' for s in known)}")
+            return (f"{key} = {doc[key]!r} is outside every table (a key belongs to the table whose header precedes "
+                    f"it): {where}")
+    if not unknown:
+        return None
+
+    def named(u):
+        near = nearest_names(u, known, n=1)
+        return f"[{u}]" + (f" (did you mean [{near[0]}]?)" if near else "")
+    return (f"unknown table{'s' * (len(unknown) > 1)} {', '.join(named(u) for u in unknown)}; "
+            f"known: {', '.join('[' + s + ']' for s in known)} and the key preset")
+
+
 def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | None = None,
                      cell_size: float | None = None, domain_source: str | None = None) -> RunConfig:
     """Build a :class:`RunConfig` from a TOML-like mapping; ``overrides`` replace ``[sim]`` entries;
@@ -622,10 +644,9 @@ def config_from_dict(doc: dict, overrides: dict | None = None, preset: str | Non
         name = preset
     if not isinstance(name, str) or name not in PRESETS:
         raise ValueError(f"unknown preset {name!r}; known: {', '.join(PRESETS)}")
-    unknown = sorted(set(doc) - set(SECTIONS))
-    if unknown:
-        raise ValueError(f"unknown table(s) {', '.join(did_you_mean(f'[{u}]', f'[{u}]', [f'[{s}]' for s in SECTIONS]) for u in unknown)}; "
-                         f"known: {', '.join('[' + s + ']' for s in SECTIONS)} and the key preset")
+    problem = unknown_tables(doc)
+    if problem:
+        raise ValueError(problem)
     for section in SECTIONS:
         if section in doc and not isinstance(doc[section], dict):
             raise ValueError(f"[{section}] must be a table")
@@ -771,12 +792,15 @@ def map_extent_defaults(sim_map: dict, given_sim: dict, overrides: dict, source)
     return sim_map
 
 
+#: the settings class of each table
+_SECTION_CLASSES = {"sim": SimSettings, "gp": GPSettings, "kde": KDESettings, "feedback": FeedbackSettings,
+                    "planner": PlannerSettings, "domain": DomainSettings}
+
+
 def _check_tables(doc: dict) -> None:
     """``ValueError`` for a setting written in the wrong table (``[sim] length_scale``): it names the table
     the setting belongs to.  Unknown keys of no table are left to :func:`dataclass_from_dict`."""
-    classes = {"sim": SimSettings, "gp": GPSettings, "kde": KDESettings, "feedback": FeedbackSettings,
-               "planner": PlannerSettings, "domain": DomainSettings}
-    names = {section: {f.name for f in dataclasses.fields(cls)} for section, cls in classes.items()}
+    names = {section: {f.name for f in dataclasses.fields(cls)} for section, cls in _SECTION_CLASSES.items()}
     for section, table in doc.items():
         if section not in names:
             continue
@@ -823,13 +847,39 @@ def read_toml(path) -> dict:
     return doc
 
 
+#: the first line of a run's own DIR/config.toml (:func:`to_toml`)
+RESOLVED_HEADER = "# simulate-swarm: resolved configuration of a run"
+
+
+def check_presets_over_file(path, doc: dict, presets) -> None:
+    """``ValueError`` when ``path`` is a run's own DIR/config.toml (first line :data:`RESOLVED_HEADER`) and one of
+    ``presets`` (the commands' ``--preset`` / ``--presets``) is not the preset it records: every value of that file
+    is spelled out, so the other preset laid under it would change only its unset (None) values -- the paper run's
+    ``kde.bandwidth`` became the tuned preset's 1 m -- while the run was recorded as the other preset's."""
+    try:
+        with open(path, "rb") as fh:
+            first = fh.readline().decode("utf-8", "replace")
+    except OSError:
+        return
+    own = doc.get("preset", DEFAULT_PRESET)
+    if not first.startswith(RESOLVED_HEADER):
+        return
+    for name in presets or ():
+        if name is not None and name != own:
+            raise ValueError(f"config file {path} is a {own} run's resolved configuration (every value spelled out): "
+                             f"under the {name} preset it would run the {own} run's values, recorded as {name}; drop "
+                             f"--preset to repeat the run, or give a file with only your own settings")
+
+
 def load_config(path, overrides: dict | None = None, preset: str | None = None,
                 cell_size: float | None = None, domain_source: str | None = None) -> RunConfig:
     """Read a TOML file (see module docstring); ``ValueError`` with the file name on any problem.
 
-    ``preset`` (if given) replaces the file's own top-level ``preset`` key; ``cell_size`` and ``domain_source`` as
-    in :func:`config_from_dict`."""
+    ``preset`` (if given) replaces the file's own top-level ``preset`` key (refused over a run's own config.toml of
+    another preset, :func:`check_presets_over_file`); ``cell_size`` and ``domain_source`` as in
+    :func:`config_from_dict`."""
     doc = read_toml(path)
+    check_presets_over_file(path, doc, [preset])
     try:
         return config_from_dict(doc, overrides, preset, cell_size, domain_source)
     except ValueError as exc:
@@ -880,7 +930,7 @@ def _toml_table(name: str, d: dict, lines: list):
 
 def to_toml(config: RunConfig) -> str:
     """The resolved configuration as TOML text (round-trips through :func:`load_config`)."""
-    lines = ["# simulate-swarm: resolved configuration of a run (repeat it with --config this-file)",
+    lines = [f"{RESOLVED_HEADER} (repeat it with --config this-file)",
              "# every value is spelled out, so later changes to the preset do not change this run", "",
              f"preset = {_toml_value(config.preset)}", ""]
     d = config.as_dict()

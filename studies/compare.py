@@ -651,7 +651,7 @@ def _domain_key(domain: str):
 
 def run(argv=None) -> int:
     args = build_parser().parse_args(argv)
-    from ..sim.config import load_config, read_toml
+    from ..sim.config import check_presets_over_file, load_config, read_toml
     from ..sim.controllers import CONTROLLERS
     from .runner import SchedulerError, connect_scheduler, quiet_dask_logs, unique_values
 
@@ -718,6 +718,8 @@ def run(argv=None) -> int:
             # learned hyperparameters); each task's own preset is checked in make_tasks
             base = load_config(args.config, preset=args.presets[0] if args.presets else None) if args.config else None
             base_doc = read_toml(args.config) if args.config else {}
+            if args.config is not None:          # a run's own config.toml under another preset: its values, mislabelled
+                check_presets_over_file(args.config, base_doc, args.presets)
             if sensor:                           # --outliers beats the file's sensor
                 base_doc = {**base_doc, "sim": {**base_doc.get("sim", {}), **sensor}}
             if args.cell_size is not None:       # the flag beats the file's cell size and cell counts
@@ -824,8 +826,9 @@ def _sweep_and_publish(args, argv, tasks, gamma, times, folder, client=None) -> 
         write_csv([r for rows in results for r in rows], stage / "runs.csv")
         write_atomic(stage / "summary.md", f"Command: `{cmd}`\n\nγ is each configuration's own stopping threshold "
                      f"(sim.gamma = {gamma:g}, or sim.gamma_relative × the GP's current s_f² with "
-                     f"sim.stop_rule = relative, tightened by the variance at the prior length scale with "
-                     f"robust; sim.stopping), in field units squared; runs.csv records it per row (threshold).  "
+                     f"sim.stop_rule = relative, tightened by the variance at the prior length scale and the map's "
+                     f"expected RMSE (sim.map_rmse_relative) with robust; sim.stopping), in field units squared; "
+                     f"runs.csv records it per row (threshold).  RMSEs are in the field's units.  "
                      f"Judged by the map: \"RMSE ≤ k× best\" is the first time the RMSE falls below k times the best "
                      f"final RMSE of any run of the scenario, every seed of this sweep (its own column, with the run "
                      f"that made it: one run's final map, so the level falls as seeds are added), "

@@ -123,3 +123,100 @@ def test_the_run_warns_once_at_its_start():
         Simulation(cfg)
     said = [str(w.message) for w in seen if str(w.message).startswith("communication: r = ")]
     assert len(said) == 1 and "below the robots' typical spacing" in said[0]
+
+
+# ------------------------------------------------------------------- Part B: the commands, tried by a stranger
+SMALL_RUN = ["--robots", "20", "--max-periods", "1", "--controller", "diffusion", "--no-figures", "--quiet"]
+
+
+def test_a_key_above_every_table_names_the_table_it_belongs_to():
+    # `robots = 10` before any [sim] header was "unknown table(s) [robots]"
+    with pytest.raises(ValueError, match=r"^robots = 10 is outside every table .*: it is a setting of \[sim\]: write "
+                                         r"it under \[sim\]$"):
+        config_from_dict({"robots": 10})
+    with pytest.raises(ValueError, match=r"the only key outside a table is preset"):
+        config_from_dict({"colour": "red"})
+
+
+def test_a_misspelt_table_names_the_nearest_table():
+    # `[simulation]` got no guess (the old cutoff), only the list
+    with pytest.raises(ValueError, match=r"unknown table \[simulation\] \(did you mean \[sim\]\?\)"):
+        config_from_dict({"simulation": {"robots": 10}})
+
+
+def test_plan_reference_names_a_key_above_every_table_and_a_misspelt_table(tmp_path, capsys):
+    from swarmfield.cli.plan_reference import main
+    for text, said in (("nx = 10\n", "nx = 10 is outside every table"),
+                       ("[planer]\nnx = 10\n", "unknown table [planer] (did you mean [planner]?)")):
+        (tmp_path / "p.toml").write_text(text)
+        assert main(["--config", str(tmp_path / "p.toml"), "--out", str(tmp_path / "plan.npz")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and said in err[0], err
+        assert not (tmp_path / "plan.npz").exists()
+
+
+def test_a_quoted_number_in_a_file_says_to_write_it_without_quotes():
+    with pytest.raises(ValueError, match=r"sim\.robots must be an integer, got '10': write 10 without quotes$"):
+        config_from_dict({"sim": {"robots": "10"}})
+    with pytest.raises(ValueError, match=r"gp\.length_scale must be a number, got '2': write 2 without quotes$"):
+        config_from_dict({"gp": {"length_scale": "2"}})
+
+
+@pytest.mark.parametrize("box", [[0, "20", 0, 20], [0, True, 0, 20]])
+def test_a_domain_with_a_string_or_a_bool_is_refused(box):
+    # [0, "20", 0, 20] was read as a 20 m side
+    with pytest.raises(ValueError, match=r"sim\.domain must be four numbers"):
+        SimSettings(domain=box)
+
+
+def test_another_preset_over_a_runs_own_config_toml_is_refused_before_any_work(tmp_path, capsys):
+    # the paper run's config.toml spells out every value: --preset tuned changed only kde.bandwidth (None there) and
+    # recorded the run as tuned
+    from swarmfield.cli.simulate_swarm import main as simulate
+    from swarmfield.studies.compare import main as compare
+    run = tmp_path / "run"
+    assert simulate(SMALL_RUN + ["--out", str(run)]) == 0
+    capsys.readouterr()
+    again = tmp_path / "again"
+    assert simulate(["--config", str(run / "config.toml"), "--preset", "tuned", "--out", str(again)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "is a paper run's resolved configuration" in err[0] and "drop --preset" in err[0]
+    assert not again.exists()
+    assert compare(["--config", str(run / "config.toml"), "--presets", "paper", "tuned", "--out", str(again)]) == 2
+    assert "resolved configuration" in capsys.readouterr().err and not again.exists()
+    # its own preset, or no flag, repeats the run
+    assert simulate(["--config", str(run / "config.toml"), "--preset", "paper", "--out", str(again), "--quiet",
+                     "--no-figures"]) == 0
+    assert (again / "metrics.csv").read_text() == (run / "metrics.csv").read_text()
+
+
+def test_the_headline_says_the_threshold_in_field_units_and_what_it_is_relative_to_in_numbers():
+    from swarmfield.cli.simulate_swarm import _rule_in_numbers
+    from swarmfield.sim.stopping import make_stop_rule
+    tuned = RunConfig.from_preset("tuned")
+    said = _rule_in_numbers(tuned.sim, make_stop_rule(tuned.sim).describe(), {"signal_variance": 0.2334})
+    assert said.startswith("in field units squared, 0.4 x the GP's current signal variance s_f^2 (at the end "
+                           "0.4 x 0.2334 = 0.09336), lowered where")
+    paper = RunConfig.default()
+    assert _rule_in_numbers(paper.sim, make_stop_rule(paper.sim).describe(), {"signal_variance": 0.25}) == \
+        "sim.gamma = 0.1, in field units squared"
+
+
+def test_summary_json_gives_the_threshold_setting_the_rule_used_and_null_for_the_other():
+    from swarmfield.sim.loop import run_simulation
+    from swarmfield.sim.outputs import summary_dict
+    from small_config import small_config
+    rel = summary_dict(run_simulation(small_config(max_periods=1, controller="diffusion", stop_rule="relative",
+                                                   gamma=0.1)))
+    assert rel["gamma"] is None and rel["gamma_relative"] == 0.4
+    ab = summary_dict(run_simulation(small_config(max_periods=1, controller="diffusion", gamma=0.1)))
+    assert ab["gamma"] == 0.1 and ab["gamma_relative"] is None
+
+
+def test_compare_summary_says_the_rmse_is_in_the_fields_units(tmp_path, capsys):
+    from swarmfield.studies.compare import main as compare
+    out = tmp_path / "cmp"
+    assert compare(["--controllers", "diffusion", "--fields", "sinc", "--seeds", "0", "--robots", "20",
+                    "--max-periods", "1", "--workers", "1", "--no-plots", "--quiet", "--out", str(out)]) == 0
+    text = (out / "summary.md").read_text()
+    assert "RMSEs are in the field's units" in text and "sim.map_rmse_relative" in text
