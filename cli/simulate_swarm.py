@@ -222,7 +222,7 @@ def headline(result) -> list[str]:
     when = (f"at or below it from t = {ttt:.2f} s ({ttt / T:.2f} T)" if ttt is not None else "never at or below it")
     if hit is not None and hit.get("threshold") is not None and hit["threshold"] != thr:
         when += f" (threshold there {hit['threshold']:.4g})"
-    rule = make_stop_rule(result.config.sim).describe()
+    rule = _rule_in_numbers(result.config.sim, make_stop_rule(result.config.sim).describe(), last)
     unmet = _map_note(result, thr)          # then it, not the steering, says why the RMSE barely moved
     return [f"{PROG}: sup V {first['max_variance']:.4g} -> {last['max_variance']:.4g} "
             f"(threshold {thr:.4g}: {rule}), {when}; stopped at t = {last['t']:.2f} s: "
@@ -233,6 +233,20 @@ def headline(result) -> list[str]:
         _decades_note(result) + _small_signal_note(result) + \
         (_reach_note(result) or (_rmse_note(result.config, first["rmse"], last["rmse"])
                                  if last["t"] > first["t"] and not unmet else []))
+
+
+def _rule_in_numbers(settings, rule: str, last: dict) -> str:
+    """The stop rule's words (:meth:`sim.stopping.StopRule.describe`) with, for a rule relative to the GP's s_f^2, the
+    threshold's units and what it is relative to in numbers at the end of the run: "0.4 x the GP's current signal
+    variance s_f^2" said nothing of s_f^2 = 0.2334 K^2 nor of the threshold 0.002 K^2 lowered from 0.4 x that (a
+    temperature field under the tuned preset's robust rule)."""
+    sv = last.get("signal_variance")
+    words = "the GP's current signal variance s_f^2"
+    if settings.stop_rule == "absolute" or words not in rule or sv is None or not math.isfinite(float(sv)):
+        return rule
+    g = float(settings.gamma_relative)
+    return ("in field units squared, " + rule.replace(
+        words, f"{words} (at the end {g:g} x {float(sv):.4g} = {g * float(sv):.4g})", 1))
 
 
 #: A map whose 99th percentile is more than this multiple of its median gets a line on mapping the logarithm.

@@ -15,7 +15,9 @@
                         ``time_to_threshold`` (null if never reached), ``periods_to_threshold``,
                         the threshold actually applied in field units squared (``threshold`` at the end,
                         ``threshold_at_reach`` where sup V first reached it) and what it is relative to
-                        (``threshold_rule``),
+                        (``threshold_rule``; ``gamma`` under the absolute rule, else ``gamma_relative``),
+                        the settings scaled to the site and the swarm with their factors (``site_scale``,
+                        ``site_lengths``, ``swarm_scale``),
                         final figures, planner statistics, timings (the simulation's phases and
                         ``output_timings_s``: the writing of each figure), wall time, package versions,
                         the BLAS/OpenMP thread pools (``threads``, :mod:`runtime.threads`)
@@ -178,7 +180,11 @@ def summary_dict(result, files=(), extra: dict | None = None) -> dict:
         "threshold_reached": result.time_to_threshold is not None,
         "time_to_threshold": result.time_to_threshold,
         "periods_to_threshold": result.periods_to_threshold,
-        "gamma": s.gamma,
+        # the configured threshold the rule uses: sim.gamma (field units squared) for the paper's absolute rule, else
+        # sim.gamma_relative (a multiple of s_f^2); the other is null, not a value that did not apply (a field in
+        # kelvin under the robust rule read "gamma": 0.1 next to a threshold of 0.002)
+        "gamma": s.gamma if s.stop_rule == "absolute" else None,
+        "gamma_relative": None if s.stop_rule == "absolute" else s.gamma_relative,
         # the threshold actually applied, in field units squared: at the end, and where sup V first reached it
         "threshold": final.get("threshold"),
         "threshold_at_reach": None if result.threshold_row is None else result.threshold_row.get("threshold"),
