@@ -10,7 +10,7 @@ import pytest
 from swarmfield.control import KernelDensity
 from swarmfield.control.consensus import CosineMoments
 from swarmfield.control.flooded import FloodedDensities, flooded_densities, table_ages
-from swarmfield.sim.comm import disk_graph
+from swarmfield.sim.comm import RADIUS_WARNING, disk_graph
 
 DOMAIN = (0.0, 20.0, 0.0, 20.0)
 
@@ -206,6 +206,7 @@ def test_flooded_run_on_a_thin_wall_map_is_the_centralized_run():
     assert (dom.on_kept_pieces(start, 16, 16) != start).any()         # robots in the sliver from the start
     with warnings.catch_warnings():
         warnings.simplefilter("error")                # no split
+        warnings.filterwarnings("ignore", message=RADIUS_WARNING)   # the start's note (r, walls)
         flooded = run_simulation(base.replace(comm_radius=6.0, comm_rounds=16, comm_density="flooded"), domain=dom)
     _assert_the_centres_run(flooded, central)
 
