@@ -161,5 +161,4 @@ def radius_note(config, free_area: float | None = None, walls: bool = False) -> 
                      "radio the walls block splits sooner than this run")
     if not parts:
         return None
-    return f"communication: r = {r:g} m is " + "; ".join(parts) if r < spacing else \
-        f"communication: r = {r:g} m: " + parts[0]
+    return f"communication: r = {r:g} m{' is ' if r < spacing else ': '}" + "; ".join(parts)

@@ -253,13 +253,7 @@ class Simulation:
         # walls thinner than a planner cell: faces between free cells they close (domain.Domain.closed_faces)
         self.walls = None if self.region is None else self.region.closed_faces(self.free)
         if s.comm_radius is not None:           # a radius below the robots' spacing, radio through walls: said now
-            from .comm import radius_note
-            x0, x1, y0, y1 = s.domain
-            walled = self.region is not None and (self.region.free_area < 0.999 * (x1 - x0) * (y1 - y0) or (
-                self.walls is not None and any(bool(np.any(w)) for w in self.walls)))
-            note = radius_note(config, None if self.region is None else self.region.free_area, walled)
-            if note:
-                warnings.warn(note, UserWarning, stacklevel=2)
+            self._note_radius()
         if self.controller.needs_plan:
             from ..ocp import PlannerError
             self.planner_error = PlannerError
@@ -343,6 +337,17 @@ class Simulation:
         self.interrupted = False
         self._spread = (None, None)       # (length scales, the plan's spread through the free space at them)
         self.finished = False
+
+    def _note_radius(self) -> None:
+        """Warn at the start of a decentralized run whose radius is below the robots' spacing, or whose map has
+        walls the model's radio passes through (:func:`sim.comm.radius_note`)."""
+        from .comm import radius_note
+        x0, x1, y0, y1 = self.config.sim.domain
+        walled = self.region is not None and (self.region.free_area < 0.999 * (x1 - x0) * (y1 - y0) or (
+            self.walls is not None and any(bool(np.any(w)) for w in self.walls)))
+        note = radius_note(self.config, None if self.region is None else self.region.free_area, walled)
+        if note:
+            warnings.warn(note, UserWarning, stacklevel=3)
 
     def _on_kept_pieces(self, X):
         """:attr:`law_positions` on a map: :meth:`domain.Domain.on_kept_pieces` on the planner's cells, remembering
