@@ -54,6 +54,7 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -615,6 +616,18 @@ def _read_csv(path: Path):
             if timed and not geo:
                 hint = (f" ({timed[0]}: the simulator's fields do not change in time; keep the rows of one time and "
                         "the columns x, y, value)")
+            named = [c for c in head if c]
+            bare = sorted(re.split(r"[\s\[(/,;]", c, maxsplit=1)[0] for c in head)
+            if bare == ["value", "x", "y"]:     # "x [m]", "value (degC)": the units spelled into the names
+                hint = (" (units in the column names: name them x, y, value alone; the coordinates are metres and "
+                        "the values, and --noise-sd, in the field's own units)")
+            elif not geo and not timed and sorted(named) == ["value", "x", "y"]:
+                if head[0] == "":   # pandas' DataFrame.to_csv writes its index as a first, unnamed column
+                    hint = (" (an unnamed first column: a row index, as pandas writes one; write the file with "
+                            "to_csv(..., index=False), or delete that column)")
+                else:               # a spreadsheet's export keeps columns that were once used, now empty
+                    hint = (f" ({len(head) - 3} unnamed column(s) besides x, y, value, as a spreadsheet exports "
+                            "columns it once used: delete them, or copy the three columns to a new sheet)")
             raise ValueError(f"field file {where}: header must name the columns x, y, value, got {rows[0]}{hint}")
         cols = [head.index("x"), head.index("y"), head.index("value")]
         rows = rows[1:]
@@ -630,7 +643,11 @@ def _read_csv(path: Path):
             v = r[cols[2]].strip()
             data[k] = [*xy, float(v) if v else np.nan]
         except ValueError:
-            raise ValueError(f"field file {where}: data row {k + 1} is not numeric: {r}") from None
+            hint = ""
+            if k == 0 and any(c.strip() for c in r) and all(_not_number(c) for c in r):   # under the header
+                hint = (" (a second header row, of units? delete it: the values are read as numbers in the field's "
+                        "own units, and --noise-sd is in the same units)")
+            raise ValueError(f"field file {where}: data row {k + 1} is not numeric: {r}{hint}") from None
         if np.isnan(data[k, 2]) and np.all(np.isfinite(data[k, :2])):
             empty.append(k + 1)
     if empty:
@@ -648,6 +665,13 @@ TIME_COLUMNS = ("t", "time", "timestamp", "date", "datetime", "time_s", "t_s")
 
 #: header names of geographic coordinates in a CSV (a survey exported as longitude and latitude in degrees)
 GEOGRAPHIC_COLUMNS = ("lon", "lat", "long", "lng", "longitude", "latitude")
+
+
+#: suffixes of a spreadsheet's own files (a user's survey kept in Excel or LibreOffice)
+SPREADSHEETS = (".xlsx", ".xls", ".xlsm", ".ods", ".numbers")
+
+#: suffixes of delimited text other than .csv (tab- or space-separated exports)
+DELIMITED_TEXT = (".tsv", ".tab", ".txt", ".dat", ".xyz")
 
 
 def _not_number(s: str) -> bool:
@@ -688,6 +712,12 @@ def load_field(path, default_extent=None) -> Field:
                 "np.flipud(a).T), and its extent in metres with numpy, np.savez(\"field.npz\", values=..., "
                 "extent=[x0, x1, y0, y1]); a GeoTIFF or GeoJSON is read as a map by --domain)"
                 if suffix in (".tif", ".tiff", ".asc", ".nc", ".png", ".geojson", ".json") else "")
+        if suffix in SPREADSHEETS:
+            hint = (" (a spreadsheet: save the sheet as CSV, comma-separated with decimal points (Excel: 'CSV (Comma "
+                    "delimited)'), its first row the header x,y,value)")
+        elif suffix in DELIMITED_TEXT:
+            hint = (" (delimited text: write it comma-separated with decimal points, the header x,y,value, and name "
+                    "it .csv)")
         raise ValueError(f"field file {where}: unsupported type {suffix or '(none)'}; use .npz, .npy or .csv{hint}")
     try:
         digest = _sha256(path)

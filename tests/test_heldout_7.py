@@ -1,0 +1,80 @@
+"""What a seventh round of held-out cases found (docs/results/map-quality.md, "Held-out cases, round 7")."""
+import numpy as np
+import pytest
+
+from swarmfield.sim.fields import load_field
+
+ROWS = ["0.0,0.0,91.8", "20.0,0.0,91.2", "0.0,20.0,88.0", "20.0,20.0,100.0", "7.5,11.2,95.1"]
+
+
+def _refusal(path):
+    with pytest.raises(ValueError) as err:
+        load_field(path)
+    msg = str(err.value)
+    assert "\n" not in msg and str(path) in msg
+    return msg
+
+
+@pytest.mark.parametrize("suffix", [".xlsx", ".ods"])
+def test_a_spreadsheet_is_told_how_to_save_it(tmp_path, suffix):
+    # an .xlsx of x, y, value was refused as "unsupported type .xlsx; use .npz, .npy or .csv", no more
+    path = tmp_path / f"survey{suffix}"
+    path.write_bytes(b"PK\x03\x04")
+    msg = _refusal(path)
+    assert "spreadsheet" in msg and "CSV" in msg and "x,y,value" in msg
+
+
+@pytest.mark.parametrize("suffix,sep", [(".tsv", "\t"), (".txt", " ")])
+def test_tab_or_space_separated_text_is_told_to_be_a_csv(tmp_path, suffix, sep):
+    path = tmp_path / f"survey{suffix}"
+    path.write_text("\n".join(r.replace(",", sep) for r in ROWS) + "\n")
+    msg = _refusal(path)
+    assert "comma-separated" in msg and ".csv" in msg
+
+
+def test_a_second_header_row_of_units_is_named(tmp_path):
+    # "data row 1 is not numeric: ['m', 'm', '%RH']" said what, not why
+    path = tmp_path / "units.csv"
+    path.write_text("x,y,value\nm,m,%RH\n" + "\n".join(ROWS) + "\n")
+    msg = _refusal(path)
+    assert "data row 1" in msg and "units" in msg and "delete it" in msg
+    path.write_text("x,y,value\n" + "\n".join(ROWS) + "\n1.0,abc,3\n")    # a word in a later row: no such guess
+    assert "of units" not in _refusal(path)
+
+
+def test_units_in_the_column_names_are_named(tmp_path):
+    path = tmp_path / "named.csv"
+    path.write_text("x [m],y [m],value (%RH)\n" + "\n".join(ROWS) + "\n")
+    msg = _refusal(path)
+    assert "units in the column names" in msg and "x, y, value alone" in msg
+
+
+def test_a_pandas_index_column_is_named(tmp_path):
+    # DataFrame.to_csv writes its index first, under an empty name: header ['', 'x', 'y', 'value']
+    path = tmp_path / "pandas.csv"
+    path.write_text(",x,y,value\n" + "\n".join(f"{k},{r}" for k, r in enumerate(ROWS)) + "\n")
+    msg = _refusal(path)
+    assert "index=False" in msg
+
+
+def test_empty_columns_of_a_spreadsheet_export_are_named(tmp_path):
+    path = tmp_path / "excel.csv"
+    path.write_text("x,y,value,,\n" + "\n".join(r + ",," for r in ROWS) + "\n")
+    msg = _refusal(path)
+    assert "2 unnamed column(s)" in msg and "delete them" in msg
+
+
+def test_what_a_spreadsheet_exports_and_reads_as_it_is(tmp_path):
+    # a byte-order mark, CRLF line ends, quoted cells, '#' comment lines and blank lines are read as the plain file
+    plain = tmp_path / "plain.csv"
+    plain.write_text("x,y,value\n" + "\n".join(ROWS) + "\n")
+    variants = {"bom.csv": ("\ufeffx,y,value\r\n" + "\r\n".join(ROWS) + "\r\n", "utf-8"),
+                "quoted.csv": ('"x","y","value"\n' + "\n".join(",".join(f'"{c}"' for c in r.split(",")) for r in ROWS)
+                               + "\n", "utf-8"),
+                "comment.csv": ("# exported by HygroLog 2.1\n# site: pond meadow\nx,y,value\n" + "\n".join(ROWS[:2])
+                                + "\n\n" + "\n".join(ROWS[2:]) + "\n", "utf-8")}
+    P = np.array([[3.0, 4.0], [12.0, 9.5]])
+    want = load_field(plain)(P)
+    for name, (text, enc) in variants.items():
+        (tmp_path / name).write_bytes(text.encode(enc if name != "bom.csv" else "utf-8"))
+        assert np.array_equal(load_field(tmp_path / name)(P), want), name
