@@ -485,6 +485,9 @@ def field_notes(field, domain) -> list[str]:
     note = layout() if layout is not None else ""
     if note:
         notes.append(f"the field {field.source or 'grid field'}: {note}")
+    note = angle_note(field, domain)
+    if note:
+        notes.append(note)
     outside = getattr(field, "outside_hull", None)
     share = outside(domain) if outside is not None else 0.0
     if share > WARN_OUTSIDE_HULL:
@@ -493,6 +496,44 @@ def field_notes(field, domain) -> list[str]:
                      f"truth) is the nearest point's value; [sim] domain = {field.bounding_box()} (the points' "
                      "bounding box) keeps closer to the data")
     return notes
+
+
+#: A field whose values span at least this many degrees of a circle ([0, 360] or [-180, 180]) and jump by more than
+#: a quarter turn between neighbouring points is read as a direction that wraps (:func:`angle_note`).
+ANGLE_SPAN = 300.0
+
+
+def angle_note(field, domain, n: int = 201) -> str:
+    """One line when ``field`` looks like a direction in degrees that wraps: on an n x n lattice over ``domain`` its
+    values lie within [0, 360] or [-180, 180], span at least :data:`ANGLE_SPAN` and jump by more than 90 between
+    neighbouring nodes (a smooth field 0.1 m apart on the paper's square cannot; a wrap between two of the file's
+    nodes, interpolated, is two jumps of about 180 on a finer lattice).  A GP maps such a field as a
+    number, so 359 and 1 are 358 apart and every wrap is a cliff: a current's direction (350 + 60 g) mod 360 with
+    l = 5 m learned l of 0.8-1.0 m and ended 33-37 degrees off in RMSE, every controller, silently
+    (docs/results/map-quality.md, "Held-out cases, round 7").  "" otherwise, and for a field that is not a file's
+    (:class:`GridField`, :class:`ScatteredField`): a function may be slow to evaluate on the lattice (the built-in
+    GP sample: 6 s)."""
+    if not isinstance(field, (GridField, ScatteredField)):
+        return ""
+    x0, x1, y0, y1 = (float(v) for v in domain)
+    try:
+        v = np.asarray(field.on_grid(np.linspace(x0, x1, n), np.linspace(y0, y1, n)), float)
+    except Exception:       # a field that cannot be evaluated here fails later, with its own message
+        return ""
+    if v.size == 0 or not np.all(np.isfinite(v)):
+        return ""
+    lo, hi = float(v.min()), float(v.max())
+    if not (hi - lo >= ANGLE_SPAN and ((lo >= 0.0 and hi <= 360.0) or (lo >= -180.0 and hi <= 180.0))):
+        return ""
+    jumps = int((np.abs(np.diff(v, axis=0)) > 90.0).sum() + (np.abs(np.diff(v, axis=1)) > 90.0).sum())
+    if jumps == 0:
+        return ""
+    return (f"the field {getattr(field, 'source', None) or 'given'} looks like a direction in degrees: its values lie "
+            f"in [{lo:.4g}, {hi:.4g}] and jump by more than a quarter turn between neighbouring points ({jumps} times on a "
+            f"{n} x {n} lattice); the GP maps it as a number, so 359 and 1 are 358 apart and every wrap is a cliff "
+            "that it smooths over (a learned length scale far below the field's, a map off by tens of degrees); map "
+            "its east and north components, sin and cos of the angle, as two fields (--noise-sd the sensor's sd in "
+            "radians) and recombine them with atan2")
 
 
 def _degrees_hint(box) -> str:
