@@ -22,6 +22,9 @@ writes the field files into OUTDIR. None of them was used to choose any setting.
                  to the centre: a curved trend (a bowl of 60 degF) with bumps 1/20 of the field's spread that a linear
                  mean (gp.mean = "auto") cannot take; --noise-sd 0.2. ``bowl_degc.npz``: the same in degC,
                  (F - 32) 5 / 9, --noise-sd 0.1111: issue 35's affine invariance on a field nobody tuned on.
+``twoscale.npz``  a soil moisture in % whose length scale changes across the site: 25 + 3 ((1 - w) g1 + w g2), g1 with
+                 l = 6 m on a meadow (x < 10), g2 with l = 1 m on scree (x > 10), w = 1 / (1 + exp(-(x - 10) / 1 m)):
+                 one stationary kernel for two regimes; --noise-sd 0.2.
 
     python scripts/heldout_7.py --files OUTDIR
 
@@ -57,7 +60,7 @@ def _heldout_6():
 
 #: the noise sd each case is run with, in its field's own units
 NOISE_SD = {"rh": 1.5, "heading": 5.0, "heading_east": 0.0873, "heading_north": 0.0873, "traps": 2.0, "bowl": 0.2,
-            "bowl_degc": 0.2 * 5.0 / 9.0}
+            "bowl_degc": 0.2 * 5.0 / 9.0, "twoscale": 0.2}
 SQUARE = (0.0, 20.0, 0.0, 20.0)
 
 
@@ -77,6 +80,9 @@ def main(out: Path) -> None:
     save_npz_field(out / "bowl.npz", 58.0 + 30.0 * (r / 10.0) ** 2 + 0.6 * sample(704, P, 2.0).reshape(X.shape),
                    SQUARE)
     save_npz_field(out / "bowl_degc.npz", (load_field(out / "bowl.npz").values - 32.0) * 5.0 / 9.0, SQUARE)
+    w = 1.0 / (1.0 + np.exp(-(X - 10.0) / 1.0))        # 0 on the meadow (x < 10), 1 on the scree (x > 10)
+    save_npz_field(out / "twoscale.npz", 25.0 + 3.0 * ((1.0 - w) * sample(705, P, 6.0).reshape(X.shape)
+                                                       + w * sample(706, P, 1.0).reshape(X.shape)), SQUARE)
     for f in sorted(out.glob("*.npz")):
         v = load_field(f).on_grid(np.linspace(0, 20, 201), np.linspace(0, 20, 201))
         print(f"{f.name}: min {v.min():.6g} max {v.max():.6g} mean {v.mean():.6g} sd {v.std():.4g} "

@@ -63,7 +63,7 @@ from ..runtime.cliargs import check_path
 from ..runtime.validation import did_you_mean
 
 __all__ = ["Field", "SincField", "PlumesField", "RidgeField", "WavesField", "BumpsField", "FrontField", "GPSampleField", "GridField", "ScatteredField", "FunctionField",
-           "FIELDS", "make_field", "load_field", "save_npz_field", "field_notes"]
+           "FIELDS", "make_field", "load_field", "save_npz_field", "field_notes", "angle_note"]
 
 
 def _points(points) -> np.ndarray:

@@ -113,3 +113,14 @@ def test_fields_that_are_not_wrapping_directions_get_no_such_line(field):
     assert angle_note(grid, (0.0, 10.0, 0.0, 10.0)) == ""
     wrapped = GridField(_heading(np.c_[X.ravel(), Y.ravel()]).reshape(X.shape), (0.0, 10.0, 0.0, 10.0))
     assert angle_note(wrapped, (0.0, 10.0, 0.0, 10.0)) != ""
+
+
+@pytest.mark.checkout                  # reads docs/ (not in the source distribution)
+def test_getting_started_says_how_to_map_a_direction_and_counts():
+    from pathlib import Path
+    text = (Path(__file__).resolve().parents[1] / "docs" / "getting-started.md").read_text()
+    assert "### A direction" in text
+    section = text.split("### A direction", 1)[1].split("\n## ", 1)[0]
+    assert "sin and cos" in section and "atan2" in section
+    assert "square root of the counts" in text
+    assert "no row of units" in text and "`.xlsx`" in text
