@@ -399,7 +399,7 @@ def test_budget_targets_equal_the_brute_force_rule_on_each_robots_own_disc():
         hole_targets(P, M, 0.6, radii=np.full(30, 0.5))
 
 
-def test_spread_reach_setting_is_checked_and_the_default_run_is_the_fixed_reach_bit_for_bit():
+def test_spread_reach_setting_is_checked_and_the_default_run_is_the_fixed_reach_bit_for_bit(monkeypatch):
     with pytest.raises(ValueError, match="spread_reach must be one of"):
         FeedbackSettings(spread_radius=0.75, spread_reach="far")
     with pytest.raises(ValueError, match="spread_radius > 0"):
@@ -408,16 +408,28 @@ def test_spread_reach_setting_is_checked_and_the_default_run_is_the_fixed_reach_
         FeedbackSettings(spread_radius=0.75, spread_reach="budget", v_max=np.inf)
     assert FeedbackSettings().spread_reach == "fixed"
 
+    import swarmfield.sim.spreading as ssp
+    given = []
+
+    def spy(*args, **kw):
+        given.append(kw.get("radii"))
+        return hole_targets(*args, **kw)
+    monkeypatch.setattr(ssp, "hole_targets", spy)
+
     def run(reach):
+        given.clear()
         doc = {k: dict(v) for k, v in SMALL.items()}
         if reach is not None:
             doc["feedback"]["spread_reach"] = reach
         c = config_from_dict(doc)
         ctrl = FeedbackController(c)
-        return run_simulation(c, controller=ctrl), ctrl
-    default, ctrl = run(None)
-    fixed, _ = run("fixed")
-    budget, bctrl = run("budget")
+        return run_simulation(c, controller=ctrl), ctrl, list(given)
+    default, ctrl, radii = run(None)
+    assert radii and all(r is None for r in radii)          # the default never builds a reach: the old rule's path
+    fixed, _, _ = run("fixed")
+    budget, bctrl, radii = run("budget")
+    assert radii and all(r is not None and np.all(r >= 0.6) for r in radii)
+    assert max(float(r.max()) for r in radii) > 0.6            # some robot's law left it travel to spare
     assert ctrl.spreading.reach == "fixed" and bctrl.spreading.reach == "budget"
     assert all(np.array_equal(a, b) for a, b in zip(default.positions, fixed.positions))
     assert not all(np.array_equal(a, b) for a, b in zip(default.positions, budget.positions))
