@@ -21,7 +21,7 @@ writes the field files into OUTDIR. None of them was used to choose any setting.
 ``bowl.npz``     a greenhouse heated in its middle, in degF: 58 + 30 (r / 10 m)^2 + 0.6 g (l = 2 m), r the distance
                  to the centre: a curved trend (a bowl of 60 degF) with bumps 1/20 of the field's spread that a linear
                  mean (gp.mean = "auto") cannot take; --noise-sd 0.2. ``bowl_degc.npz``: the same in degC,
-                 (F - 32) 5 / 9, --noise-sd 0.1111: issue 35's affine invariance on a field nobody tuned on.
+                 (F - 32) 5 / 9, --noise-sd 0.1111: the affine invariance of the tuned preset on a field nobody tuned on.
 ``twoscale.npz``  a soil moisture in % whose length scale changes across the site: 25 + 3 ((1 - w) g1 + w g2), g1 with
                  l = 6 m on a meadow (x < 10), g2 with l = 1 m on scree (x > 10), w = 1 / (1 + exp(-(x - 10) / 1 m)):
                  one stationary kernel for two regimes; --noise-sd 0.2.
