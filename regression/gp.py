@@ -489,6 +489,12 @@ class GaussianProcess:
         self._y0 = 0.0
         self._sum_y = 0.0
         self._sum_y2 = 0.0
+        #: the same two sums about a second shift, the first batch's median of y - _y0: with ``signal_scale =
+        #: "absolute"`` (_y0 = 0) the square sums above of a field of 1e5 +- 0.01 lose their digits when the mean is
+        #: taken off (r^T r of the likelihood, the data's variance); these keep them (:meth:`_square_sum`)
+        self._c0 = 0.0
+        self._sum_c = 0.0
+        self._sum_c2 = 0.0
         self._version = 0
         #: ``kernel_angle = "auto"``: the data (x, y batches) kept until the angle is chosen (:meth:`set_kernel_angle`)
         self._raw: list | None = [] if settings.kernel_angle == "auto" else None
@@ -798,7 +804,41 @@ class GaussianProcess:
     def _centred_square_sum(self) -> float:
         """r^T r = sum (y_i - m)^2 over the data, m the :attr:`prior_mean` in use, from the running sums."""
         m = self.prior_mean - self._y0                 # the sums are of y - y0
-        return self._sum_y2 - 2.0 * m * self._sum_y + self._n * m * m
+        d = m - self._c0
+        return self._square_sum(self._sum_y2 - 2.0 * m * self._sum_y + self._n * m * m,
+                                self._sum_c2 - 2.0 * d * self._sum_c + self._n * d * d)
+
+    def _sample_variance(self) -> float:
+        """The data's sample variance (1/n), >= 0, from the running sums (:meth:`_square_sum`)."""
+        n = self._n
+        mean, mc = self._sum_y / n, self._sum_c / n
+        return max(self._square_sum(self._sum_y2 / n - mean * mean, self._sum_c2 / n - mc * mc), 0.0)
+
+    def _trend_square_sum(self, naive: float, beta: np.ndarray, hty: np.ndarray, hth: np.ndarray | None) -> float:
+        """|y - H beta|^2 of the trend's GLS (``hth`` given: ``yy - 2 beta.hty + beta.hth.beta``) or least-squares
+        residual (``hth`` None: ``yy - beta.hty``), ``naive`` that value from the trend's sums (:class:`TrendSums`),
+        ``hty`` and ``hth`` restricted to the columns of ``beta`` (the constant first): :meth:`_square_sum` with the
+        same residual about the shift c0 (y - c0 = H (beta - c0 e_0) + r, H's first column the ones)."""
+        c = self._c0
+        if not c:
+            return naive
+        bc = np.array(beta, dtype=float)
+        bc[0] -= c
+        t = self._trend_sums()
+        htyc = hty - c * t.hth[0, :bc.size] if hth is None else hty - c * hth[:, 0]
+        if hth is None:
+            return self._square_sum(naive, self._sum_c2 - float(bc @ htyc))
+        return self._square_sum(naive, self._sum_c2 - 2.0 * float(bc @ htyc) + float(bc @ hth @ bc))
+
+    def _square_sum(self, naive: float, shifted: float) -> float:
+        """A centred square sum (or mean square) from the running sums: ``naive`` from the sums of y - y0 where it
+        agrees with ``shifted``, the same from the sums about the first batch's median (``_c0``), to 1e-9 relative
+        (a field of order its spread: ~1e-14, and the same bits as before the shifted sums); ``shifted`` where taking
+        the mean off the sums of y^2 has cancelled more digits than that (a field of 1e5 +- 0.01 under
+        ``signal_scale = "absolute"``: the log marginal likelihood 72 nats off, the data's variance 8 %)."""
+        if not self._c0 or abs(naive - shifted) <= 1e-9 * abs(shifted):
+            return naive
+        return shifted
 
     # ------------------------------------------------------------------ data
     def _points(self, X, name: str) -> np.ndarray:
@@ -837,9 +877,14 @@ class GaussianProcess:
         U = self._frame.to_frame(X)             # the lattice's frame (X itself without a rotation)
         for k in range(0, n, _ADD_CHUNK):       # bounded work arrays (~1 KB per point) for huge batches
             self._accumulate(U[k:k + _ADD_CHUNK], y[k:k + _ADD_CHUNK])
+        if self._n == 0:
+            self._c0 = float(np.median(y))
+        d = y - self._c0 if self._c0 else y
         self._n += n
         self._sum_y += float(y.sum())
         self._sum_y2 += float(y @ y)
+        self._sum_c += float(d.sum())
+        self._sum_c2 += float(d @ d)
         self._version += 1
         if self._raw is not None:               # kernel_angle "auto": kept until the angle is chosen
             self._raw.append((X, np.array(raw_y, dtype=float)))
@@ -1794,6 +1839,7 @@ class GaussianProcess:
         t._mom[...] = self._mom
         t._momy[...] = self._momy
         t._n, t._sum_y, t._sum_y2, t._y0 = self._n, self._sum_y, self._sum_y2, self._y0
+        t._c0, t._sum_c, t._sum_c2 = self._c0, self._sum_c, self._sum_c2
         if self._cut is not None and settings.kernel in GMRF_KERNELS:     # the cut basis and its per-piece sums
             t._barrier, t._cuts, t._cut, t.barrier_on = self._barrier, self._cuts, self._cut, self.barrier_on
             t._vmom, t._vmomy = self._vmom.copy(), self._vmomy.copy()
@@ -1970,7 +2016,7 @@ class GaussianProcess:
         chol = np.linalg.cholesky(gi)                                       # LinAlgError: the refit rejects the point
         beta = np.linalg.solve(gi, rhs)
         sbr, vr = sby - sbh @ beta, vy - vh @ beta                         # of the residual y - H beta
-        rr = t.yy - 2.0 * float(beta @ hty) + float(beta @ hth @ beta)
+        rr = self._trend_square_sum(t.yy - 2.0 * float(beta @ hty) + float(beta @ hth @ beta), beta, hty, hth)
         n, p = self._n, cols.size
         lml = -0.5 * (rr / sn2 - s2 * float(sbr @ vr) + logdet + n * math.log(2.0 * math.pi * sn2))
         if columns is not None:

@@ -148,6 +148,7 @@ def coarsened(gp, factor: int, length_scale: float | None = None, prior_truncati
     coarse._momy[...] = np.einsum("IoJpkl,oak,pbl->IJab", my, Ty, Ty, optimize=True).reshape(NX * NY, _N_POW_Y,
                                                                                              _N_POW_Y)
     coarse._n, coarse._sum_y, coarse._sum_y2, coarse._y0 = gp._n, gp._sum_y, gp._sum_y2, gp._y0
+    coarse._c0, coarse._sum_c, coarse._sum_c2 = gp._c0, gp._sum_c, gp._sum_c2
     coarse._version += 1
     coarse._pending, coarse._pending_n = None, 0
     if gp.log_amplitude is not None:                # a local signal variance: the same g on the coarse nodes

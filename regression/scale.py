@@ -54,7 +54,7 @@ def detrended_variance(gp, var: float) -> float:
     if trend_columns(t.hth).size < 3:
         return var
     beta = np.linalg.solve(t.hth, t.hty)
-    rss = t.yy - float(beta @ t.hty)
+    rss = gp._trend_square_sum(t.yy - float(beta @ t.hty), beta, t.hty, None)
     return max(rss / (t.n_points - 3), 0.0)
 
 
@@ -65,8 +65,7 @@ def running_variance(gp) -> float:
     n = gp.n_observations
     if n < 2:
         return sn2
-    mean = gp._sum_y / n                  # of y - y0 (the GP's offset): the variance is the same, without cancellation
-    var = max(gp._sum_y2 / n - mean * mean, 0.0)
+    var = gp._sample_variance()           # of y - y0 (the GP's offset), about a shift: without cancellation
     if gp.settings.mean == "linear" and n > 3:
         var = detrended_variance(gp, var)
     if not math.isfinite(var):         # pragma: no cover - sums overflow only beyond MAX_MAGNITUDE data
