@@ -140,7 +140,7 @@ def log_amplitude_gradient(gp, s2: float, key) -> tuple[float, np.ndarray]:
     lml = gp._lml(s2, key, a, b)                             # mean "linear": the restricted likelihood
     _, mu, band, _ = gp._get_posterior()                     # u = Sigma' b', Sigma''s band
     extra = 0.0
-    if gp.settings.mean == "linear":                         # b' of the GLS residual, and the REML's own term
+    if gp.settings.gls_mean:                                 # b' of the GLS residual, and the REML's own term
         _, cols, beta, z, ginv = gp._trend
         bmat = gp._trend_rhs(gp._trend_sums(), cols, gp.settings.residual_variance)     # [D b_y, D B_H]
         b = bmat[:, 0] - bmat[:, 1:] @ beta                  # mu = Sigma' b' already (regression.gp._linear_posterior)

@@ -793,6 +793,11 @@ class GaussianProcess:
         self._trend_stats = (self._version, t)
         return t
 
+    def _trend_columns(self, t: TrendSums) -> np.ndarray:
+        """The columns of the trend's H in use: the constant alone with ``mean = "ordinary"``, else those the data
+        determine (:func:`regression.trend.trend_columns`)."""
+        return np.arange(1) if self._settings.mean == "ordinary" else trend_columns(t.hth)
+
     def _trend_rhs(self, t: TrendSums, cols: np.ndarray, sn2: float) -> np.ndarray:
         """[b, B_H] = [Phi^T y, Phi^T H[:, cols]] / s^2 (M, 1 + len(cols)) of the trend's sums ``t``, in the
         coefficients the posterior is of: with a local signal variance (``amplitude = "local"``) those of the primed
@@ -1292,7 +1297,7 @@ class GaussianProcess:
         cov = self._cov
         if cov is None or cov.hyper != hyper or cov.version != self._version:
             cov = self._update_covariance(hyper)
-        if s.mean == "linear":
+        if s.gls_mean:
             return self._linear_posterior(cov, hyper)
         key = (self._version, hyper, mean)
         if self._mu is None or self._mu[0] != key:
@@ -1322,11 +1327,11 @@ class GaussianProcess:
         and mu_y = Sigma b from one product with four columns, the GLS beta = (H^T C^-1 H)^-1 H^T C^-1 y,
         mu = mu_y - Z beta; (key, columns, beta, Z, G = (H^T C^-1 H)^-1) kept for :meth:`predict`.  The mean returned
         is the data's offset y_0 (the trend's part is added per point)."""
-        key = (self._version, hyper, "linear")
+        key = (self._version, hyper, self._settings.mean)
         if self._trend is None or self._trend[0] != key or self._mu is None or self._mu[0] != key:
             t = self._trend_sums()
             sn2 = hyper[2]
-            cols = trend_columns(t.hth)
+            cols = self._trend_columns(t)
             while True:
                 bmat = self._trend_rhs(t, cols, sn2)
                 sb = self._sigma_apply(cov, bmat)
@@ -1681,7 +1686,7 @@ class GaussianProcess:
         if self._cut_active:
             return self._predict_cut(pts)
         mean, mu, band, prior = self._get_posterior()
-        trend = self._trend if s.mean == "linear" else None
+        trend = self._trend if s.gls_mean else None
         if self._band_offsets is None:
             # node pair (p, q), (r, s) of a cell with first node (i, j): band entry [i + p, j + q, r - p + 3, s - q + 3]
             p_, q_, r_, s_ = np.meshgrid(*(np.arange(4),) * 4, indexing="ij")
@@ -1848,7 +1853,7 @@ class GaussianProcess:
         return t
 
     def _lml(self, s2: float, ell: float, a: np.ndarray, b: np.ndarray) -> float:
-        if self._settings.mean == "linear":             # the restricted likelihood (b is formed from the sums)
+        if self._settings.gls_mean:             # the restricted likelihood (b is formed from the sums)
             return self._reml_and_gradient(s2, ell, a, None)[0]
         return self._lml_parts(s2, ell, a, b)[0]
 
@@ -1974,7 +1979,7 @@ class GaussianProcess:
         (the four entries sum to 1/2 (r^T C^{-1} r - n): scaling every variance scales C)."""
         if isinstance(ell, tuple) and ell[0] in GMRF_KERNELS:
             return self._gmrf_lml_and_gradient(s2, ell, a, b, tied=tied, noise=noise)
-        if self._settings.mean == "linear":             # the restricted likelihood (b is formed from the sums)
+        if self._settings.gls_mean:             # the restricted likelihood (b is formed from the sums)
             return self._reml_and_gradient(s2, ell, a, noise)
         got = self._lml_through_data(s2, ell, a, b, noise) if self._settings.low_rank_updates else None
         if got is not None:
@@ -2001,7 +2006,7 @@ class GaussianProcess:
         ``columns`` columns (:meth:`profile_log_likelihood`)."""
         sn2 = self._settings.residual_variance if noise is None else float(noise)
         t = self._trend_sums()
-        cols = trend_columns(t.hth) if columns is None else np.arange(columns)
+        cols = self._trend_columns(t) if columns is None else np.arange(columns)
         bmat = self._trend_rhs(t, cols, sn2)
         got = self._lml_through_data(s2, ell, a, bmat, noise) if self._settings.low_rank_updates else None
         if got is None:

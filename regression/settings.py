@@ -29,7 +29,7 @@ GRID_BUDGETS = ("error", "coarsen")
 #: choices of :attr:`GPSettings.amplitude`
 AMPLITUDES = ("stationary", "local")
 #: choices of :attr:`GPSettings.mean`
-MEANS = ("constant", "linear", "auto")
+MEANS = ("constant", "linear", "auto", "ordinary")
 
 
 def _finite_positive(name: str, value) -> float:
@@ -65,7 +65,9 @@ class GPSettings:
         :meth:`GaussianProcess.fit_hyperparameters`.
     prior_mean
         Constant prior mean m of the field, or ``None`` for the running mean of all data added
-        so far (0 before any data).
+        so far (0 before any data): the data's arithmetic mean, plugged in (as scikit-learn's ``normalize_y``), not
+        estimated by the GP (its uncertainty is not in V, which far from the data returns to s_f^2 itself, and on
+        clustered data it leans towards the cluster's values); ``mean = "ordinary"`` estimates it (ordinary kriging).
     mean
         The mean function of the GP.  ``"constant"`` (the default, the paper's): the constant ``prior_mean``.
         ``"linear"``: universal kriging, m(x) = beta_0 + beta_1 x + beta_2 y with beta estimated by generalized least
@@ -81,7 +83,11 @@ class GPSettings:
         unset and a separable kernel (not the GMRF ones); with ``amplitude = "local"`` the trend's GLS estimate and
         its variance use the amplitude-scaled covariance and the amplitude is fitted by the same restricted likelihood
         (:mod:`regression.amplitude`).  ``"auto"`` is the constant mean where the trend is not available
-        (:attr:`trend_available`) and without the refits.
+        (:attr:`trend_available`) and without the refits.  ``"ordinary"``: ordinary kriging, the constant mean beta_0
+        estimated by generalized least squares with its uncertainty in V (far from the data V returns to s_f^2 plus
+        the mean's variance; the kriging mean weighs clustered data as the covariance says, where the arithmetic mean
+        of ``prior_mean = None`` weighs every point alike) and the refits on the restricted likelihood: ``"linear"``
+        with the constant column of H alone (:mod:`regression.trend`); it needs what ``"linear"`` needs.
     inducing_spacing
         Requested spacing h of the cubic-B-spline inducing grid (``None``: ``length_scale / 2``).
         Each axis of length L gets ``ceil(L / h)`` cells of equal width <= h. The kernel
@@ -406,7 +412,7 @@ class GPSettings:
         if self.mean not in MEANS:
             raise ValueError(did_you_mean(f"mean must be one of {', '.join(repr(m) for m in MEANS)}, got {self.mean!r}",
                                           self.mean, MEANS))
-        if self.mean == "linear":
+        if self.gls_mean:
             if self.prior_mean is not None:
                 raise ValueError(f"mean = \"{self.mean}\" estimates the mean from the data: leave prior_mean unset (got "
                                  f"{self.prior_mean!r})")
@@ -438,6 +444,12 @@ class GPSettings:
             x0, x1, y0, y1 = domain
             h = min(h, max(x1 - x0, y1 - y0) / self.grid_cells)
         return h
+
+    @property
+    def gls_mean(self) -> bool:
+        """Whether the mean is estimated by generalized least squares (``mean = "linear"`` or ``"ordinary"``,
+        :mod:`regression.trend`): the restricted likelihood, and the estimate's variance in V."""
+        return self.mean in ("linear", "ordinary")
 
     @property
     def trend_available(self) -> bool:

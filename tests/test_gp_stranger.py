@@ -81,3 +81,71 @@ def test_restricted_likelihood_with_a_trend_ignores_an_offset():
         gp.add(X, y + offset)
         out.append(gp.log_marginal_likelihood())
     assert out[1] == pytest.approx(out[0], abs=1e-3)
+
+
+# ---------------------------------------------------------------------- ordinary kriging
+def _clustered(seed=2):
+    """200 points in a hot corner, 30 over the site: the arithmetic mean leans towards the corner's values."""
+    rng = np.random.default_rng(seed)
+    X = np.vstack([rng.uniform(0, 3, (200, 2)), rng.uniform(0, 20, (30, 2))])
+    y = 2.0 * np.exp(-((X[:, 0] - 1.5) ** 2 + (X[:, 1] - 1.5) ** 2) / 8.0) + 0.1 * rng.standard_normal(len(X))
+    Q = np.vstack([[[19.9, 19.9], [12.0, 15.0], [1.5, 1.5]], rng.uniform(0, 20, (100, 2))])
+    return X, y, Q
+
+
+@pytest.mark.parametrize("offset, scale", [(0.0, "absolute"), (1e5, "absolute"), (1e5, "data")])
+def test_ordinary_kriging_matches_the_dense_formulas(offset, scale):
+    """``mean = "ordinary"``: the GLS constant m_hat = 1^T C^-1 y / 1^T C^-1 1, the kriging mean and variance
+    V = k(x, x) - k^T C^-1 k + (1 - 1^T C^-1 k)^2 / 1^T C^-1 1 and the restricted likelihood (up to its stated
+    constant, 1/2 log n - 1/2 log s_n^2: regression.trend) against the dense formulas with scikit-learn's kernel.
+    The arithmetic mean (``prior_mean = None``) is 1.45 here, the GLS mean 0.13, the field far from the corner 0."""
+    pytest.importorskip("sklearn")
+    from sklearn.gaussian_process.kernels import RBF
+    X, y, Q = _clustered()
+    y = y + offset
+    s2, ell, sn2 = 0.5, 2.0, 0.01
+    K = s2 * RBF(ell)(X) + sn2 * np.eye(len(X))
+    Ki = np.linalg.inv(K)
+    one = np.ones(len(X))
+    g = 1.0 / (one @ Ki @ one)
+    m_hat = g * (one @ Ki @ y)
+    ks = s2 * RBF(ell)(Q, X)
+    r = 1.0 - ks @ Ki @ one
+    mean = m_hat + ks @ Ki @ (y - m_hat)
+    var = s2 - np.einsum("ij,jk,ik->i", ks, Ki, ks) + r * r * g
+    res, n = y - m_hat, len(y)
+    reml = (-0.5 * res @ Ki @ res - 0.5 * np.linalg.slogdet(K)[1] - 0.5 * math.log(one @ Ki @ one)
+            - 0.5 * (n - 1) * math.log(2 * math.pi))
+    gp = GaussianProcess(GPSettings(signal_variance=s2, length_scale=ell, noise_variance=sn2, mean="ordinary",
+                                    inducing_spacing=0.4, prior_truncation=0.0, signal_scale=scale), (0, 20, 0, 20))
+    gp.add(X, y)
+    gp.set_hyperparameters(s2, ell)
+    m, v = gp.predict(Q)
+    assert gp.trend[0] == pytest.approx(m_hat, abs=1e-3)
+    assert gp.trend[1] == gp.trend[2] == 0.0
+    assert np.max(np.abs(m - mean)) < 1e-3 and np.max(np.abs(v - var)) < 1e-4
+    assert v[0] > s2                                       # far from the data: s_f^2 plus the mean's variance
+    assert gp.log_marginal_likelihood() == pytest.approx(reml + 0.5 * math.log(n) - 0.5 * math.log(sn2), abs=0.01)
+
+
+def test_ordinary_kriging_is_the_linear_mean_on_a_transect():
+    """On a transect (data on one line) universal kriging keeps the constant column alone (the slope across the line
+    is not identified): the same numbers as ordinary kriging."""
+    rng = np.random.default_rng(4)
+    X = np.column_stack([rng.uniform(0, 20, 100), np.full(100, 5.0)])
+    y = np.sin(X[:, 0] / 3.0) + 0.1 * rng.standard_normal(100)
+    Q = rng.uniform(0, 20, (50, 2))
+    out = []
+    for mean in ("ordinary", "linear"):
+        gp = GaussianProcess(GPSettings(signal_variance=0.5, length_scale=2.0, noise_variance=0.01, mean=mean),
+                             (0, 20, 0, 20))
+        gp.add(X, y)
+        out.append(gp.predict(Q) + (gp.log_marginal_likelihood(),))
+    assert np.array_equal(out[0][0], out[1][0]) and np.array_equal(out[0][1], out[1][1]) and out[0][2] == out[1][2]
+
+
+def test_ordinary_kriging_needs_an_unset_prior_mean():
+    with pytest.raises(ValueError, match="prior_mean"):
+        GPSettings(mean="ordinary", prior_mean=1.0)
+    with pytest.raises(ValueError, match="separable"):
+        GPSettings(mean="ordinary", kernel="gmrf2")

@@ -58,7 +58,7 @@ def _data(rng, n=60, box=(4.0, 3.0)):
 
 def test_settings_mean_choices_and_refusals():
     assert GPSettings().mean == "constant"
-    with pytest.raises(ValueError, match=r"mean must be one of 'constant', 'linear', 'auto', got 'linaer' \(did you mean linear\?\)"):
+    with pytest.raises(ValueError, match=r"mean must be one of 'constant', 'linear', 'auto', 'ordinary', got 'linaer' \(did you mean linear\?\)"):
         GPSettings(mean="linaer")
     with pytest.raises(ValueError, match="leave prior_mean unset"):
         GPSettings(mean="linear", prior_mean=1.0)
