@@ -2259,5 +2259,14 @@ class GaussianProcess:
         new = dataclasses.replace(s, signal_variance=float(math.exp(theta[0])),
                                   length_scale=float(max(math.exp(theta[1]), lo_l)),
                                   inducing_spacing=self._spacing)
+        # a value at a bound is the bound's, not the data's: say so (3 points of a smooth field gave s_f^2 at its lower
+        # bound, 1e-4 x the data's variance, and nothing said that the ML fit had not found an interior maximum)
+        for name, t, (lo, hi) in (("signal_variance", theta[0], bounds[0]), ("length_scale", theta[1], bounds[1])):
+            for side, bound in (("lower", lo), ("upper", hi)):
+                if abs(t - bound) < 1e-3:
+                    warnings.warn(f"fit_hyperparameters: {name} {math.exp(t):.4g} sits at its {side} bound "
+                                  f"{math.exp(bound):.4g} ({n} observations): the likelihood has no maximum inside the "
+                                  f"bounds, the value is the bound's (too few data, or {name}_bounds to widen)",
+                                  UserWarning, stacklevel=2)
         self._settings = new               # the posterior is recomputed (from scratch) at the next predict
         return new

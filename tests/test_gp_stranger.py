@@ -149,3 +149,21 @@ def test_ordinary_kriging_needs_an_unset_prior_mean():
         GPSettings(mean="ordinary", prior_mean=1.0)
     with pytest.raises(ValueError, match="separable"):
         GPSettings(mean="ordinary", kernel="gmrf2")
+
+
+# ---------------------------------------------------------------------- a handful of points
+def test_fit_hyperparameters_on_three_points_says_the_value_is_a_bound():
+    """ML on 3 points that differ by less than the noise has no interior maximum: s_f^2 went to its lower bound
+    (1e-4 x the data's variance) silently; a fit inside the bounds (300 points) says nothing."""
+    X, y, _ = _data()
+    s = GPSettings(signal_variance=1.0, length_scale=2.0, noise_variance=0.04)
+    gp = GaussianProcess(s, DOMAIN)
+    gp.add(X[:3], np.array([1.0, 1.01, 0.99]))
+    with pytest.warns(UserWarning, match="signal_variance .* sits at its lower bound .*3 observations"):
+        gp.fit_hyperparameters()
+    gp = GaussianProcess(s, DOMAIN)
+    gp.add(X, y)
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        gp.fit_hyperparameters()
