@@ -1750,6 +1750,69 @@ class GaussianProcess:
         tau2 = self._settings.nugget
         return var + tau2 if tau2 else var
 
+    #: :meth:`posterior_covariance` refuses more points than this (its result and work arrays are m x m and M x m)
+    MAX_JOINT_POINTS = 10000
+
+    def posterior_covariance(self, points) -> np.ndarray:
+        """The joint posterior covariance of the latent field at ``points`` (m, 2): an (m, m) matrix whose diagonal is
+        :meth:`predict`'s V (conditional simulation, block kriging, the variance of an average over an area).
+
+        Entry (i, j) is phi_i^T Sigma phi_j / sqrt(p_i p_j), p the spline prior's variance at the points in units of
+        s_f^2 (the normalisation of :meth:`predict`'s V), plus r_i^T G r_j with a GLS mean (``mean = "linear"`` /
+        ``"ordinary"``, :mod:`regression.trend`).  Sigma phi for the m points costs O(M m r) through the kept
+        factor, whatever the number of observations; at most :data:`MAX_JOINT_POINTS` points.  Before any data: the
+        prior, s_f^2 times the kernel (:func:`regression.kernels.product_kernel`, in the kernel's frame).  Not for
+        the GMRF kernels (their posterior is kept as a band only)."""
+        pts = self._frame.to_frame(self._points(points, "points"))
+        s = self._settings
+        m = pts.shape[0]
+        if m > self.MAX_JOINT_POINTS:
+            raise ValueError(f"posterior_covariance: {m} points, more than MAX_JOINT_POINTS = {self.MAX_JOINT_POINTS} "
+                             "(an m x m result): ask for fewer points, or for predict's variances alone")
+        if s.kernel in GMRF_KERNELS:
+            raise ValueError(f"posterior_covariance needs a separable kernel (squared-exponential, matern52, matern32), "
+                             f"not kernel {s.kernel!r}")
+        if self._n == 0:
+            from .kernels import product_kernel
+            ly = s.length_scale if s.length_scale_y is None else s.length_scale_y
+            return product_kernel(pts, pts, s.signal_variance, (s.length_scale, ly), s.kernel)
+        _, _, _, prior = self._get_posterior()
+        cov = self._cov
+        nx_, ny_, wx, wy, node, phi = self._basis(pts)
+        if self._amp is not None:                # a local signal variance: D phi (the normalisation below: phi)
+            phi_a = phi * self._amp[node]
+        else:
+            phi_a = phi
+        design = sparse.csc_matrix((phi_a.reshape(-1), (node.reshape(-1), np.repeat(np.arange(m), 16))),
+                                   shape=(self._n_nodes, m))
+        out = np.asarray(design.T @ self._sigma_apply(cov, design.toarray()))
+        kcx, kcy = prior
+        p = (np.einsum("ij,ijk,ik->i", wx, kcx[nx_[:, :, None], nx_[:, None, :]], wx)
+             * np.einsum("ij,ijk,ik->i", wy, kcy[ny_[:, :, None], ny_[:, None, :]], wy))
+        d = 1.0 / np.sqrt(p)
+        out *= d[:, None] * d[None, :]
+        if s.gls_mean:
+            _, cols, _, z, ginv = self._trend
+            hq = trend_design(pts, *self._trend_frame())[:, cols]
+            r = hq - np.einsum("ij,ijk->ik", phi_a, z[node])
+            out += r @ ginv @ r.T
+        return 0.5 * (out + out.T)
+
+    def sample(self, points, n_samples: int = 1, seed=None) -> np.ndarray:
+        """``n_samples`` draws of the latent field at ``points`` (m, 2) from its posterior (conditional simulation):
+        an (n_samples, m) array, f̄ (:meth:`predict`) plus N(0, :meth:`posterior_covariance`) draws (by its
+        eigen-decomposition, so that a covariance that is semi-definite to round-off -- points closer than the grid
+        resolves -- is sampled as it is).  ``seed``: for :func:`numpy.random.default_rng`.  Without noise or nugget:
+        add N(0, s_n^2 + tau^2) per point for simulated measurements."""
+        if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)) or n_samples < 1:
+            raise ValueError(f"n_samples must be an integer >= 1, got {n_samples!r}")
+        mean, _ = self.predict(points)
+        c = self.posterior_covariance(points)
+        w, u = np.linalg.eigh(c)
+        root = u * np.sqrt(np.clip(w, 0.0, None))
+        z = np.random.default_rng(seed).standard_normal((int(n_samples), mean.shape[0]))
+        return mean + z @ root.T
+
     def _predict_cut(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`predict` on the cut basis (:mod:`regression.cut_basis`): each point's 16 extended nodes (the
         pieces it lies in), Sigma and the prior covariance between them from their block bands."""

@@ -167,3 +167,63 @@ def test_fit_hyperparameters_on_three_points_says_the_value_is_a_bound():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         gp.fit_hyperparameters()
+
+
+# ---------------------------------------------------------------------- joint covariance and conditional simulation
+@pytest.mark.parametrize("low_rank", [False, True])
+def test_posterior_covariance_matches_sklearn(low_rank):
+    """The joint posterior covariance at 150 points, after a factorisation and a Woodbury update of 50 points, against
+    ``GaussianProcessRegressor.predict(return_cov=True)`` (the same SE kernel, fixed): its diagonal is predict's V."""
+    sk = pytest.importorskip("sklearn.gaussian_process")
+    from sklearn.gaussian_process.kernels import RBF, ConstantKernel
+    X, y, Q = _data()
+    Q = Q[:150]
+    gp = GaussianProcess(GPSettings(signal_variance=0.5, length_scale=1.5, noise_variance=0.04, prior_mean=0.0,
+                                    prior_truncation=0.0, inducing_spacing=0.25, low_rank_updates=low_rank), DOMAIN)
+    gp.add(X[:250], y[:250])
+    gp.predict(Q)
+    gp.add(X[250:], y[250:])
+    c = gp.posterior_covariance(Q)
+    _, v = gp.predict(Q)
+    assert gp.n_woodbury_updates >= 1
+    ref = sk.GaussianProcessRegressor(ConstantKernel(0.5, "fixed") * RBF(1.5, "fixed"), alpha=0.04,
+                                      optimizer=None).fit(X, y)
+    _, rc = ref.predict(Q, return_cov=True)
+    assert np.max(np.abs(c - rc)) < 1e-5
+    np.testing.assert_allclose(np.diag(c), v, rtol=0, atol=1e-14)
+    prior = GaussianProcess(GPSettings(signal_variance=0.5, length_scale=1.5, noise_variance=0.04), DOMAIN)
+    np.testing.assert_allclose(prior.posterior_covariance(Q), 0.5 * RBF(1.5)(Q), rtol=0, atol=1e-14)
+
+
+def test_ordinary_kriging_joint_covariance_and_samples():
+    """With ``mean = "ordinary"`` the joint covariance carries the mean's variance (r_i g r_j) as the dense formula
+    does; 4000 conditional simulations have predict's mean and that covariance (to their sampling error)."""
+    pytest.importorskip("sklearn")
+    from sklearn.gaussian_process.kernels import RBF
+    X, y, Q = _clustered()
+    Q = Q[:60]
+    s2, ell, sn2 = 0.5, 2.0, 0.01
+    K = s2 * RBF(ell)(X) + sn2 * np.eye(len(X))
+    Ki = np.linalg.inv(K)
+    one = np.ones(len(X))
+    g = 1.0 / (one @ Ki @ one)
+    ks = s2 * RBF(ell)(Q, X)
+    r = 1.0 - ks @ Ki @ one
+    dense = s2 * RBF(ell)(Q) - ks @ Ki @ ks.T + g * np.outer(r, r)
+    gp = GaussianProcess(GPSettings(signal_variance=s2, length_scale=ell, noise_variance=sn2, mean="ordinary",
+                                    inducing_spacing=0.4, prior_truncation=0.0), (0, 20, 0, 20))
+    gp.add(X, y)
+    c = gp.posterior_covariance(Q)
+    assert np.max(np.abs(c - dense)) < 1e-4
+    draws = gp.sample(Q, 4000, seed=0)
+    m, v = gp.predict(Q)
+    assert draws.shape == (4000, 60)
+    assert np.max(np.abs(draws.mean(axis=0) - m) / np.sqrt(v)) < 0.1          # 4000 draws: sd of the mean 0.016 sd
+    assert np.max(np.abs(np.cov(draws.T) - c)) < 0.1 * np.max(np.diag(c))
+    np.testing.assert_array_equal(gp.sample(Q, 3, seed=5), gp.sample(Q, 3, seed=5))
+    with pytest.raises(ValueError, match="n_samples"):
+        gp.sample(Q, 0)
+    with pytest.raises(ValueError, match="separable kernel"):
+        g2 = GaussianProcess(GPSettings(kernel="gmrf2"), (0, 20, 0, 20))
+        g2.add(X, y)
+        g2.posterior_covariance(Q)
