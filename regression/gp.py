@@ -2263,9 +2263,10 @@ class GaussianProcess:
 
     def fit_hyperparameters(self, signal_variance_bounds=None, length_scale_bounds=None,
                             maxiter: int = 50, prior=None) -> GPSettings:
-        """Maximum-likelihood ``signal_variance`` and ``length_scale`` (noise fixed).
+        """Maximum-likelihood ``signal_variance`` and ``length_scale`` (and ``length_scale_y`` of an anisotropic kernel,
+        within the same bounds; noise fixed).
 
-        Maximises :meth:`log_marginal_likelihood` over (log s_f^2, log l) with L-BFGS-B and
+        Maximises :meth:`log_marginal_likelihood` over (log s_f^2, log l[, log l_y]) with L-BFGS-B and
         the analytic gradient (:meth:`_lml_and_gradient`), starting from the current settings; each evaluation costs
         one M x M Cholesky factorisation, whatever the number of observations. The inducing grid
         is kept, so the length scale is bounded below by 1.5 x its spacing (default bounds:
@@ -2275,7 +2276,7 @@ class GaussianProcess:
         so that a new GP built from them uses the same grid.
 
         ``prior = (s_f^2_0, l_0, sd)`` adds independent normal priors N(log s_f^2_0, sd^2) and
-        N(log l_0, sd^2) on the log hyperparameters (maximum a posteriori instead of ML).
+        N(log l_0, sd^2) on the log hyperparameters (on log l_y too; maximum a posteriori instead of ML).
         """
         if self._n < 2:
             raise ValueError("fit_hyperparameters needs at least two observations")
@@ -2300,14 +2301,19 @@ class GaussianProcess:
         a, b = self._assemble(self.prior_mean)
         n = self._n
 
+        # an anisotropic kernel: l_x and l_y both (a tied fit stored l with the old l_y, a likelihood lower than
+        # before the fit)
+        ard = self._settings.length_scale_y is not None
+        if ard:
+            bounds.append(bounds[1])
         if prior is not None:
-            c = np.array([math.log(float(prior[0])), math.log(float(prior[1]))])
+            c = np.array([math.log(float(prior[0]))] + [math.log(float(prior[1]))] * (2 if ard else 1))
             psd = float(prior[2])
 
         def objective(theta):
-            lml, g = self._lml_and_gradient(math.exp(theta[0]), kernel_key(self._settings, math.exp(theta[1])), a, b,
-                                            tied=True)
-            val, grad = -lml, -np.array([g[0], g[1] + g[2]])
+            key = kernel_key(self._settings, math.exp(theta[1]), math.exp(theta[2]) if ard else None)
+            lml, g = self._lml_and_gradient(math.exp(theta[0]), key, a, b, tied=not ard)
+            val, grad = -lml, -(np.array(g[:3]) if ard else np.array([g[0], g[1] + g[2]]))
             if prior is not None:
                 val += 0.5 * float(np.sum(((theta - c) / psd) ** 2))
                 grad += (theta - c) / psd ** 2
@@ -2315,21 +2321,25 @@ class GaussianProcess:
 
         s = self._settings
         theta0 = np.array([np.clip(math.log(s.signal_variance), *bounds[0]),
-                           np.clip(math.log(s.length_scale), *bounds[1])])
+                           np.clip(math.log(s.length_scale), *bounds[1])]
+                          + ([np.clip(math.log(s.length_scale_y), *bounds[1])] if ard else []))
         res = minimize(objective, theta0, method="L-BFGS-B", jac=True, bounds=bounds,
                        options={"maxiter": int(maxiter)})
         theta = res.x if np.all(np.isfinite(res.x)) and res.fun <= objective(theta0)[0] else theta0
         new = dataclasses.replace(s, signal_variance=float(math.exp(theta[0])),
                                   length_scale=float(max(math.exp(theta[1]), lo_l)),
+                                  length_scale_y=float(max(math.exp(theta[2]), lo_l)) if ard else None,
                                   inducing_spacing=self._spacing)
         # a value at a bound is the bound's, not the data's: say so (3 points of a smooth field gave s_f^2 at its lower
         # bound, 1e-4 x the data's variance, and nothing said that the ML fit had not found an interior maximum)
-        for name, t, (lo, hi) in (("signal_variance", theta[0], bounds[0]), ("length_scale", theta[1], bounds[1])):
+        names = ("signal_variance", "length_scale", "length_scale_y")
+        for name, t, (lo, hi) in zip(names, theta, bounds):
+            arg = "signal_variance_bounds" if name == "signal_variance" else "length_scale_bounds"
             for side, bound in (("lower", lo), ("upper", hi)):
                 if abs(t - bound) < 1e-3:
                     warnings.warn(f"fit_hyperparameters: {name} {math.exp(t):.4g} sits at its {side} bound "
                                   f"{math.exp(bound):.4g} ({n} observations): the likelihood has no maximum inside the "
-                                  f"bounds, the value is the bound's (too few data, or {name}_bounds to widen)",
+                                  f"bounds, the value is the bound's (too few data, or {arg} to widen)",
                                   UserWarning, stacklevel=2)
         self._settings = new               # the posterior is recomputed (from scratch) at the next predict
         return new

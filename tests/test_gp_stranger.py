@@ -227,3 +227,25 @@ def test_ordinary_kriging_joint_covariance_and_samples():
         g2 = GaussianProcess(GPSettings(kernel="gmrf2"), (0, 20, 0, 20))
         g2.add(X, y)
         g2.posterior_covariance(Q)
+
+
+def test_fit_hyperparameters_of_an_anisotropic_kernel_fits_both_length_scales():
+    """A GP sample with (s_f^2, l_x, l_y) = (1, 3, 1.2): ``fit_hyperparameters`` on an ARD GP fitted one tied length
+    scale and stored it with the old l_y (1.344, 1.5: a likelihood 24 nats lower than before the fit); now it fits
+    both, as scikit-learn's ML fit of RBF([l_x, l_y]) does (there: 0.99, 3.06, 1.21)."""
+    sk = pytest.importorskip("sklearn.gaussian_process")
+    from sklearn.gaussian_process.kernels import RBF, ConstantKernel
+    rng = np.random.default_rng(5)
+    X = np.column_stack([rng.uniform(0, 20, 800), rng.uniform(0, 16, 800)])
+    K = RBF([3.0, 1.2])(X) + 1e-8 * np.eye(800)
+    y = np.linalg.cholesky(K) @ rng.standard_normal(800) + 0.2 * rng.standard_normal(800)
+    gp = GaussianProcess(GPSettings(signal_variance=1.0, length_scale=1.5, length_scale_y=1.5, noise_variance=0.04),
+                         (0, 20, 0, 16))
+    gp.add(X, y)
+    before = gp.log_marginal_likelihood()
+    fit = gp.fit_hyperparameters()
+    assert gp.log_marginal_likelihood() > before
+    ref = sk.GaussianProcessRegressor(ConstantKernel(1.0, (1e-3, 1e3)) * RBF([1.0, 1.0], (0.1, 50)), alpha=0.04)
+    k = ref.fit(X, y - y.mean()).kernel_
+    assert fit.signal_variance == pytest.approx(k.k1.constant_value, rel=0.05)
+    assert (fit.length_scale, fit.length_scale_y) == pytest.approx(tuple(k.k2.length_scale), rel=0.03)
