@@ -725,7 +725,8 @@ class GaussianProcess:
 
     @property
     def prior_mean(self) -> float:
-        """The constant mean m in use: the setting, or the running data mean (0 without data)."""
+        """The constant mean m of ``mean = "constant"``: the setting, or the data's running arithmetic mean (0 without
+        data).  With a GLS mean (``mean = "linear"`` / ``"ordinary"``) the mean in use is :attr:`trend`'s."""
         if self._settings.prior_mean is not None:
             return self._settings.prior_mean
         return self._y0 + self._sum_y / self._n if self._n else 0.0
@@ -1842,8 +1843,11 @@ class GaussianProcess:
             log p = -1/2 [ r^T r / s_n^2 - s_f^2 (S b)^T B^{-1} (S b) + log det B + n log(2 pi s_n^2) ]
 
         where B = I + s_f^2 S A S; computed from the sufficient statistics in O(M^3), for any n.
-        Defaults to the current settings; the length scale must be >= 1.5 x inducing spacing.  With
-        ``mean = "linear"`` the restricted (REML) likelihood of :mod:`regression.trend` (r the GLS residual).
+        Defaults to the current settings; the length scale must be >= 1.5 x inducing spacing (``length_scale`` is
+        l_x alone of an anisotropic kernel).  With ``mean = "linear"`` / ``"ordinary"`` the restricted (REML)
+        likelihood of :mod:`regression.trend` (r the GLS residual), in that module's normalisation: the textbook REML
+        (e.g. Rasmussen & Williams eq. 2.45's restricted form) plus the constant 1/2 log det(H^T H) - p/2 log s_n^2,
+        which cancels in differences and likelihood ratios but not in a comparison of values with other software.
         """
         if self._n == 0:
             raise ValueError("log_marginal_likelihood needs at least one observation")

@@ -93,7 +93,10 @@ class GPSettings:
         Each axis of length L gets ``ceil(L / h)`` cells of equal width <= h. The kernel
         approximation error per axis is about 7e-4 * signal_variance at h = l/2 and 3e-3 at
         h = l/1.5 (in 2-D: 1.4e-3 and 5.5e-3);
-        the spacing must therefore be <= length_scale / 1.5.
+        the spacing must therefore be <= length_scale / 1.5.  The Matérn kernels, rougher at zero distance, need a
+        finer grid for the same accuracy: against the exact separable Matérn GP at the default h = l/2 the mean is off
+        by ~4e-2 (5/2) and ~9e-2 (3/2) of a field of amplitude 1 and the log marginal likelihood by 0.2-3 nats, at
+        h = l/6 by 4e-4 and 6e-3 (docs/design/regression.md, "The GP, tried by a geostatistician").
     grid_cells
         With ``inducing_spacing`` unset: at least this many inducing-grid cells along the domain's longer side,
         i.e. the spacing is min(l / 2, longer side / grid_cells) (``None``: l / 2 alone, the paper's).  The
