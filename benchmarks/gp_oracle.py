@@ -1,4 +1,4 @@
-"""The GP as a library on a geostatistician's data, against scikit-learn's exact GP (issue 35).
+"""The GP as a library on a geostatistician's data, against scikit-learn's exact GP.
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/gp_oracle.py
 

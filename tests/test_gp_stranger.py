@@ -1,4 +1,4 @@
-"""The GP used as a library on a geostatistician's data (issue 35; docs/design/regression.md, "The GP, tried by a
+"""The GP used as a library on a geostatistician's data (docs/design/regression.md, "The GP, tried by a
 geostatistician"), with scikit-learn's GaussianProcessRegressor as the oracle where it applies."""
 import math
 
