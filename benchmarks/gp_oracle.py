@@ -83,6 +83,9 @@ def fixed_hyperparameters():
                     row(tag + ", vs the dense separable Matérn", a, dense(X, y, Q, sep, SN2))
                     iso = ConstantKernel(S2) * Matern([lx, ly], nu=NU[kernel])
                     row(tag + ", vs sklearn's Matérn (of the scaled distance)", a, dense(X, y, Q, iso, SN2))
+    for kernel, nu in (("gmrf", 1.0), ("gmrf2", 2.0)):         # lattice Matérn priors (isotropic), h = l/2
+        row(f"{kernel}, l = {ELL:g}, h = l/2 (default), vs sklearn's Matérn nu = {nu:g}", ours(X, y, Q, kernel=kernel),
+            dense(X, y, Q, ConstantKernel(S2) * Matern(ELL, nu=nu), SN2))
     h = ELL / 6
     rng = np.random.default_rng(7)
     rbf = ConstantKernel(S2) * RBF(ELL)
