@@ -12,6 +12,7 @@ Modules, one concept each:
 ``builtin``   the built-in maps (``harbour``, ``floor``, ``lake``)
 ``loaders``   domain files (.npz, .png, .tif, .geojson, ROS .yaml) and :func:`make_domain`
 ``limits``    how large a domain file may be (pixels, vertices, nesting) before it is refused
+``units``     the units of a map's coordinate system: the EPSG projected CRSs not in metres (feet), refused
 ``settings``  the ``[domain]`` table of a configuration (:class:`DomainSettings`)
 
 The package imports only :mod:`runtime` (and NumPy, SciPy, optionally shapely, Pillow, tifffile); the

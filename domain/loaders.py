@@ -16,6 +16,8 @@ from .builtin import BUILTIN_DOMAINS
 from .common import MissingExtra, _extent, _need
 from .domain import Domain
 from .limits import MAX_NESTING, check_pixels, check_vertices
+from .units import crs_unit, geotiff_unit
+from .units import refusal as _units_refusal
 
 #: what a damaged archive raises while it is read (a truncated .npz: BadZipFile, zlib.error, EOFError)
 _ARCHIVE_ERRORS = (OSError, EOFError, ValueError, zipfile.BadZipFile, zlib.error, KeyError)
@@ -56,9 +58,11 @@ def _sidecar_extent(path: Path):
         raise ValueError(f"domain file {path}: cannot read the extent from {side.name} ({exc})") from None
 
 
-def _image_to_free(a: np.ndarray, nodata=None, what="image") -> np.ndarray:
-    """Image array (rows, cols[, bands]), first row = largest y -> free (nx, ny) x first.
-    Light = free, dark / transparent / nodata = obstacle."""
+def _image_pixels(a: np.ndarray, nodata=None, what="image", valid=None):
+    """Image array (rows, cols[, bands]), first row = largest y -> ``(free, drawn)``, both (nx, ny) x first.
+    Light = free, dark / transparent / nodata = obstacle; so is a pixel outside ``valid`` (rows, cols), a GeoTIFF's
+    mask (GDAL's per-dataset mask).  Drawn pixels are opaque, not nodata and inside ``valid``: a turned site's
+    transparent or masked outside is an obstacle but not drawn, so no wall for :func:`_inverted_note`."""
     a = np.asarray(a)
     if a.ndim == 3 and a.shape[0] in (1, 2, 3, 4) and a.shape[-1] not in (1, 2, 3, 4):
         a = np.moveaxis(a, 0, -1)             # band-first GeoTIFF -> band-last
@@ -93,15 +97,18 @@ def _image_to_free(a: np.ndarray, nodata=None, what="image") -> np.ndarray:
         alpha = af[:, :, -1] if bands in (2, 4) else None
     free = np.nan_to_num(val, nan=-1.0) >= LIGHT * full
     free &= ~_thin_lines(val / full)
+    drawn = ~nod
     if alpha is not None:
-        free &= alpha >= LIGHT * full
-    free &= ~nod
+        drawn &= alpha >= LIGHT * full
+    if valid is not None:
+        drawn &= np.asarray(valid, bool)
+    free &= drawn
     if not free.any():
         finite = val[np.isfinite(val)]
         seen = f"its pixels range from {finite.min():g} to {finite.max():g}" if finite.size else "no finite pixel"
         raise ValueError(f"{what}: no free cell: a pixel is free when its colour is at least {LIGHT * full:g} "
                          f"(half of the full scale {full:g} of {a.dtype}) and it is opaque and not nodata; {seen}")
-    return free[::-1, :].T.copy()
+    return free[::-1, :].T.copy(), drawn[::-1, :].T.copy()
 
 
 def _thin_lines(shade: np.ndarray) -> np.ndarray:
@@ -193,13 +200,13 @@ def _load_png(path: Path, sim_extent):
         PIL.MAX_IMAGE_PIXELS = bomb
     if a.dtype == np.int32 and a.max() <= 65535:
         a = a.astype(np.uint16)
-    free = _image_to_free(a, what=f"domain file {path}")
+    free, drawn = _image_pixels(a, what=f"domain file {path}")
     ext = _sidecar_extent(path) or sim_extent
     if ext is None:
         raise ValueError(f"domain file {path}: no extent (give {path.with_suffix('.json').name} with "
                          '{"extent": [x0, x1, y0, y1]})')
     dom = Domain.from_raster(free, ext, name=path.stem)
-    dom.notes = _inverted_note(path, dom)
+    dom.notes = _inverted_note(path, dom, drawn)
     return dom
 
 
@@ -208,22 +215,25 @@ def _load_png(path: Path, sim_extent):
 INVERTED = (0.5, 2.0)
 
 
-def _inverted_note(path, dom: Domain) -> tuple:
+def _inverted_note(path, dom: Domain, drawn=None) -> tuple:
     """The note for an image that looks inverted (:data:`INVERTED`): its free pixels a thin minority (walls drawn
-    light) and its obstacles wide (the floor drawn dark); measured on at most about a million pixels."""
+    light) and its obstacles wide (the floor drawn dark); measured on at most about a million pixels, over the
+    pixels ``drawn`` (x first; None: all): a transparent, nodata or masked outside (a turned site warped north-up)
+    is no obstacle drawn dark and counts in neither the share nor the depth."""
     from scipy import ndimage
     free = dom.free_pixels
     step = max(1, int(math.ceil(math.sqrt(free.size / 1e6))))
     f = free[::step, ::step]
-    if not (f.mean() < INVERTED[0]) or f.all():
+    seen = np.ones_like(f) if drawn is None else np.asarray(drawn, bool)[::step, ::step]
+    if not seen.any() or not (f.sum() < INVERTED[0] * seen.sum()) or f[seen].all():
         return ()
     px, py = (step * v for v in dom.pixel)
     wide = ndimage.distance_transform_edt(f, sampling=(px, py))[f].mean()
-    deep = ndimage.distance_transform_edt(~f, sampling=(px, py))[~f].mean()
+    deep = ndimage.distance_transform_edt(~f, sampling=(px, py))[~f & seen].mean()
     if not deep > INVERTED[1] * wide:
         return ()
     dom.looks_inverted = True                    # the start box's error says it too (Domain.check_start_box)
-    return (f"domain file {path}: {100 * f.mean():.2g} % of it is free (light) and thin, {wide:.2g} m from an obstacle "
+    return (f"domain file {path}: {100 * f.sum() / seen.sum():.2g} % of it is free (light) and thin, {wide:.2g} m from an obstacle "
             f"on average, while its obstacles (dark) lie {deep:.2g} m deep: is the image inverted (light walls on a dark "
             "floor)? A pixel is free when it is light; if so, invert it first (PIL.ImageOps.invert)",)
 
@@ -259,12 +269,18 @@ def _load_tif(path: Path, sim_extent):
             if ds.crs is not None and _is_web_mercator(str(ds.crs)):
                 b = ds.bounds
                 raise ValueError(_web_mercator(path, str(ds.crs), 0.5 * (b.left + b.right), 0.5 * (b.bottom + b.top)))
+            if ds.crs is not None and ds.crs.is_projected:
+                unit, factor = ds.crs.linear_units_factor
+                if abs(float(factor) - 1.0) > 1e-3:
+                    raise ValueError(_units_refusal(path, str(ds.crs), (unit, float(factor))))
             t = ds.transform
             if not t.is_identity and (t.b != 0.0 or t.d != 0.0 or not (t.a > 0.0 and t.e < 0.0)):
                 raise ValueError(f"domain file {path}: its transform {[t.a, t.b, t.d, t.e]} is rotated, sheared or "
                                  "not north-up; warp the map to a north-up grid first")
             a = ds.read()
             nodata = ds.nodata
+            flags = {f for band in ds.mask_flag_enums for f in band}
+            valid = ds.dataset_mask() > 0 if any(f.name == "per_dataset" for f in flags) else None
             b = ds.bounds
             ext = None if t.is_identity else (b.left, b.right, b.bottom, b.top)
     else:
@@ -286,7 +302,14 @@ def _load_tif(path: Path, sim_extent):
                     raise ValueError(_geographic(path, crs))
                 web_mercator = (str(_geotiff_projected(tags.get(34735))) in _WEB_MERCATOR
                                 or any(map(_is_web_mercator, _geotiff_citations(tags.get(34735), tags.get(34737)))))
+                unit = None if web_mercator else geotiff_unit(_geotiff_unit_keys(tags))
+                if unit is not None:
+                    code = _geotiff_projected(tags.get(34735))
+                    names = _geotiff_citations(tags.get(34735), tags.get(34737))
+                    crs = f"EPSG:{code}" if code and code != 32767 else (names[0] if names else "its GeoKeys")
+                    raise ValueError(_units_refusal(path, crs, unit))
                 a = page.asarray()
+                valid = _geotiff_mask(tf, page, path)
                 scale = tags.get(33550)
                 tie = tags.get(33922)
                 nd = tags.get(42113)
@@ -322,14 +345,14 @@ def _load_tif(path: Path, sim_extent):
                              "north-up; warp the map to a north-up grid first")
     if nodata is not None and np.issubdtype(np.asarray(a).dtype, np.integer) and float(nodata).is_integer():
         nodata = int(nodata)
-    free = _image_to_free(a, nodata=nodata, what=f"domain file {path}")
+    free, drawn = _image_pixels(a, nodata=nodata, what=f"domain file {path}", valid=valid)
     georeferenced = ext is not None
     ext = ext or _sidecar_extent(path) or sim_extent
     if ext is None:
         raise ValueError(f"domain file {path}: no extent in the GeoTIFF and no {path.with_suffix('.json').name}")
     dom = Domain.from_raster(free, ext, name=path.stem)
     dom._pixel_stated = georeferenced          # its georeferencing states the pixel size: no stretch warning
-    dom.notes = _inverted_note(path, dom)
+    dom.notes = _inverted_note(path, dom, drawn)
     return dom
 
 
@@ -395,6 +418,41 @@ def _geotiff_keys(tag) -> dict:
         return {v[k]: (v[k + 1], v[k + 3]) for k in range(4, 4 + 4 * v[3], 4) if k + 3 < len(v)}
     except (TypeError, ValueError, IndexError):
         return {}
+
+
+def _geotiff_unit_keys(tags) -> dict:
+    """The GeoKeys (:func:`_geotiff_keys`) with ProjLinearUnitSizeGeoKey (3077) read from the GeoDoubleParamsTag
+    (34736) into location 0, for :func:`units.geotiff_unit`."""
+    keys = _geotiff_keys(tags.get(34735))
+    loc, off = keys.get(3077, (None, None))
+    if loc == 34736 and tags.get(34736) is not None:
+        try:
+            keys[3077] = (0, float(tags.get(34736).value[off]))
+        except (TypeError, ValueError, IndexError):
+            keys.pop(3077)
+    return keys
+
+
+def _geotiff_mask(tf, page, path: Path):
+    """Where a GeoTIFF's mask marks its pixels valid, (rows, cols); None without one.  GDAL's per-dataset mask is a
+    page of NewSubfileType 4 ("transparency mask") of the image's size, or the first page of ``<name>.tif.msk``
+    beside the file; GDAL writes it for a masked area (``gdalwarp`` of a turned map, ``GDAL_TIFF_INTERNAL_MASK``, a
+    JPEG-compressed RGB image that cannot hold alpha), and the pixels under it hold any colour, white as often as
+    not."""
+    rows, cols = int(page.imagelength), int(page.imagewidth)
+    for other in tf.pages[1:]:
+        if int(getattr(other, "subfiletype", 0)) == 4 and tuple(other.shape[:2]) == (rows, cols):
+            return np.asarray(other.asarray()) > 0
+    msk = Path(str(path) + ".msk")
+    if msk.is_file():
+        import tifffile
+        with _reading(msk, "a GeoTIFF mask (.msk)"), tifffile.TiffFile(msk) as mf:
+            m = np.asarray(mf.pages[0].asarray())
+        if tuple(m.shape[:2]) != (rows, cols):
+            raise ValueError(f"domain file {path}: its mask {msk.name} is {m.shape[1]} x {m.shape[0]} pixels, the image "
+                             f"{cols} x {rows}")
+        return (m > 0) if m.ndim == 2 else (m > 0).all(axis=2)
+    return None
 
 
 def _geotiff_citations(tag, ascii_tag) -> list[str]:
@@ -527,6 +585,9 @@ def _load_geojson(path: Path, sim_extent):
     geographic = any(name.upper().endswith(g) for g in _GEOGRAPHIC_NAMES)
     objects, vertices = _geojson_objects(doc, path)
     web_mercator = _is_web_mercator(name) if name else False
+    unit = crs_unit(name) if name and not geographic and not web_mercator else None
+    if unit is not None:                             # a State Plane zone in feet, say: refused before any work
+        raise ValueError(_units_refusal(path, name, unit))
     check_vertices(path, vertices)                   # before shapely builds anything
     geoms = []
     for obj in objects:
@@ -563,7 +624,7 @@ def _load_geojson(path: Path, sim_extent):
         x0, y0, x1, y1 = geom.bounds
         ext = (x0, x1, y0, y1)
     dom = Domain.from_polygons(geom, ext, name=path.stem)
-    dom.notes = notes + _shared_edges_note(path, parts) + _cut_off(path, dom, geom)
+    dom.notes = notes + _shared_edges_note(path, parts) + _inside_note(path, parts) + _cut_off(path, dom, geom)
     return dom
 
 
@@ -588,6 +649,28 @@ def _cut_off(path, dom: Domain, geom) -> tuple:
     return (f"domain file {path}: {outside:.4g} m^2 of its polygons ({100 * outside / geom.area:.2g} % of their area) "
             f"lie outside the extent {[round(v, 9) for v in dom.extent]} and are cut off; the polygons span "
             f"{list(bounds)}: set [sim] domain = {list(bounds)} to keep them",)
+
+
+def _inside_note(path, parts) -> tuple:
+    """The note for polygons that lie wholly inside another (pillars, an island or rooms drawn as polygons of their
+    own on a floor drawn whole): the free space is the polygons' union, so they add nothing, and the obstacles they
+    were drawn for are not there.  ``()`` when none does (a door drawn across a wall overlaps two rooms but lies in
+    neither; a pond in an island, a polygon in another's hole, is not inside it).  Uses shapely's ``covered_by``."""
+    import shapely
+    if len(parts) < 2 or len(parts) > 2000:
+        return ()
+    tree = shapely.STRtree(parts)
+    inner, outer = tree.query(parts, predicate="covered_by")
+    inside = sorted({int(i) for i, j in zip(inner, outer) if i != j})
+    if not inside:
+        return ()
+    first = parts[inside[0]]
+    c = first.representative_point()
+    area = sum(float(parts[i].area) for i in inside)
+    return (f"domain file {path}: {len(inside)} of its polygons {'lies' if len(inside) == 1 else 'lie'} inside another ({area:.4g} m^2, e.g. one of "
+            f"{float(first.area):.4g} m^2 at ({c.x:.6g}, {c.y:.6g})): the free space is the polygons' union, so they add "
+            "nothing and no obstacle stands there; to cut an obstacle out, make it a hole in the polygon round it "
+            "(shapely: floor.difference(pillar))",)
 
 
 def _shared_edges_note(path, parts, tol: float = 1e-6) -> tuple:

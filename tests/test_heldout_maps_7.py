@@ -1,0 +1,203 @@
+"""What a seventh round of held-out maps found (docs/results/buildings.md, "Held out, round 7";
+scripts/heldout_maps_7.py writes the maps): maps in feet, GeoTIFF masks, a turned site's transparent outside, and
+polygons drawn inside others."""
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from swarmfield.domain import load_domain
+
+pytest.importorskip("shapely")
+
+
+def _feature_collection(geoms, crs=None):
+    from shapely.geometry import mapping
+    doc = {"type": "FeatureCollection",
+           "features": [{"type": "Feature", "properties": {}, "geometry": mapping(g)} for g in geoms]}
+    if crs:
+        doc["crs"] = {"type": "name", "properties": {"name": crs}}
+    return doc
+
+
+def test_a_geojson_in_us_survey_feet_is_refused_before_any_work(tmp_path, capsys):
+    # a State Plane export (NAD83 / New York Long Island (ftUS), EPSG:2263, as ogr2ogr names it) of a 100 ft x 60 ft
+    # workshop was read as a 100 m x 60 m site (3.28 x too large, 10.8 x the area), run and written without a word
+    from shapely.geometry import box
+    from swarmfield.cli.simulate_swarm import main
+    x0, y0 = 987040.0, 211520.0
+    (tmp_path / "plan.geojson").write_text(json.dumps(_feature_collection([box(x0, y0, x0 + 100, y0 + 60)],
+                                                                          "urn:ogc:def:crs:EPSG::2263")))
+    (tmp_path / "plan.toml").write_text(f"[sim]\ndomain = {[x0, x0 + 100, y0, y0 + 60]}\n"
+                                        f"start_box = {[x0 + 5, x0 + 25, y0 + 5, y0 + 25]}\n")
+    out = tmp_path / "run"
+    assert main(["--preset", "tuned", "--domain", str(tmp_path / "plan.geojson"), "--config", str(tmp_path / "plan.toml"),
+                 "--out", str(out), "--max-periods", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and not out.exists()
+    assert ("its coordinates are in US survey feet (urn:ogc:def:crs:EPSG::2263: 1 unit = 0.3048006 m), but a domain "
+            "is in metres" in err[0]) and "off by 3.28 x" in err[0] and "ogr2ogr -t_srs EPSG:NNNN" in err[0]
+
+
+@pytest.mark.parametrize("name, unit", [("EPSG:2263", "US survey feet"), ("urn:ogc:def:crs:EPSG:6.3:2236", "US survey feet"),
+                                        ("EPSG:2222", "feet"),
+                                        ("NAD_1983_StatePlane_New_York_Long_Island_FIPS_3104_Feet", "feet"),
+                                        ("NAD83 / Texas Central (ftUS)", "US survey feet")])
+def test_feet_are_read_from_the_crs_code_or_its_name(tmp_path, name, unit):
+    from shapely.geometry import box
+    (tmp_path / "p.geojson").write_text(json.dumps(_feature_collection([box(1000, 2000, 1030, 2020)], name)))
+    with pytest.raises(ValueError, match=f"its coordinates are in {unit} "):
+        load_domain(tmp_path / "p.geojson", sim_extent=(1000, 1030, 2000, 2020))
+
+
+def test_metres_and_a_geotiff_in_metres_stay_read(tmp_path):
+    from shapely.geometry import box
+    for crs in ("urn:ogc:def:crs:EPSG::32618", "urn:ogc:def:crs:EPSG::32118", "EPSG:25832"):
+        (tmp_path / "m.geojson").write_text(json.dumps(_feature_collection([box(1000, 2000, 1030, 2020)], crs)))
+        assert load_domain(tmp_path / "m.geojson", sim_extent=(1000, 1030, 2000, 2020)).free_area == pytest.approx(600)
+
+
+def _tif_in_feet(path, keys, cite=""):
+    tifffile = pytest.importorskip("tifffile")
+    img = np.full((60, 100), 255, np.uint8)
+    extra = [(33550, "d", 3, (1.0, 1.0, 0.0)), (33922, "d", 6, (0.0, 0.0, 0.0, 1500.0, 800.0, 0.0)),
+             (34735, "H", len(keys), keys)]
+    if cite:
+        extra.append((34737, "s", 0, cite))
+    tifffile.imwrite(path, img, extratags=extra)
+
+
+def test_a_geotiff_in_feet_is_refused(tmp_path):
+    # ProjLinearUnitsGeoKey = 9002 (international foot) of a CAD site grid, and a State Plane GeoTIFF (ProjectedCSType
+    # 2263 alone): each read as metres, 3.28 x too large
+    cite = "Workshop site grid (international feet)|"
+    _tif_in_feet(tmp_path / "ft.tif", [1, 1, 0, 4, 1024, 0, 1, 1, 3072, 0, 1, 32767, 3073, 34737, len(cite), 0,
+                                       3076, 0, 1, 9002], cite)
+    with pytest.raises(ValueError, match=r"its coordinates are in feet \(Workshop site grid \(international feet\): "
+                                         r"1 unit = 0\.3048 m\).*gdalwarp -t_srs EPSG:NNNN in\.tif out\.tif\)$"):
+        load_domain(tmp_path / "ft.tif")
+    _tif_in_feet(tmp_path / "sp.tif", [1, 1, 0, 2, 1024, 0, 1, 1, 3072, 0, 1, 2263])
+    with pytest.raises(ValueError, match=r"in US survey feet \(EPSG:2263"):
+        load_domain(tmp_path / "sp.tif")
+    _tif_in_feet(tmp_path / "m.tif", [1, 1, 0, 3, 1024, 0, 1, 1, 3072, 0, 1, 32618, 3076, 0, 1, 9001])
+    assert load_domain(tmp_path / "m.tif").free_area == pytest.approx(6000)
+
+
+def test_rasterio_alone_refuses_a_geotiff_in_feet(tmp_path, monkeypatch):
+    rasterio = pytest.importorskip("rasterio")
+    from rasterio.transform import from_origin
+    monkeypatch.setitem(__import__("sys").modules, "tifffile", None)
+    with rasterio.open(tmp_path / "sp.tif", "w", driver="GTiff", width=40, height=30, count=1, dtype="uint8",
+                       crs="EPSG:2263", transform=from_origin(987000.0, 211030.0, 0.5, 0.5)) as ds:
+        ds.write(np.full((1, 30, 40), 255, np.uint8))
+    with pytest.raises(ValueError, match=r"in US survey feet .*1 unit = 0\.3048006 m"):
+        load_domain(tmp_path / "sp.tif")
+
+
+def test_the_table_of_crs_in_feet_is_proj_db_s():
+    rasterio = pytest.importorskip("rasterio")
+    from swarmfield.domain import units
+    db = Path(rasterio.__file__).parent / "proj_data" / "proj.db"
+    if not db.is_file():
+        pytest.skip("no proj.db in this rasterio")
+    got = units.table_from_proj_db(db)
+    assert set(got) == set(units.NON_METRE_CRS)
+    for unit, (name, factor, ranges) in got.items():     # a newer EPSG may add codes; none listed may change unit
+        old = units.NON_METRE_CRS[unit]
+        assert old[:2] == (name, factor) and set(_codes(old[2])) <= set(_codes(ranges))
+
+
+def _codes(ranges):
+    out = []
+    for r in ranges.split():
+        a, _, b = r.partition("-")
+        out += range(int(a), int(b or a) + 1)
+    return out
+
+
+def _turned_site(rgb_outside=255):
+    """A 20 m x 12 m site turned 25 degrees in a north-up 0.1 m raster (rows, cols): (inside, rgb)."""
+    from shapely import affinity, contains_xy
+    from shapely.geometry import box
+    site = affinity.rotate(box(4, 6, 24, 18), 25, origin=(14, 12))
+    W, H = 280, 240
+    X, Y = np.meshgrid((np.arange(W) + 0.5) * 0.1, 24 - (np.arange(H) + 0.5) * 0.1)
+    inside = contains_xy(site, X, Y)
+    grey = np.where(contains_xy(box(10, 10, 14, 13), X, Y), 50, 225)
+    rgb = np.where(inside, grey, rgb_outside).astype(np.uint8)
+    return inside, np.stack([rgb] * 3)
+
+
+def test_a_geotiff_s_internal_mask_blocks_the_outside(tmp_path):
+    # gdalwarp of a turned site, or GDAL_TIFF_INTERNAL_MASK: the outside white under GDAL's per-dataset mask was read
+    # as free (the site 231 m^2 of the raster's 672 m^2, read as 657)
+    rasterio = pytest.importorskip("rasterio")
+    from rasterio.transform import from_origin
+    inside, rgb = _turned_site()
+    kw = dict(driver="GTiff", width=280, height=240, count=3, dtype="uint8", crs="EPSG:32632",
+              transform=from_origin(500000.0, 5400024.0, 0.1, 0.1), photometric="RGB")
+    for name, internal in (("internal", True), ("external", False)):
+        with rasterio.Env(GDAL_TIFF_INTERNAL_MASK=internal):
+            with rasterio.open(tmp_path / f"{name}.tif", "w", **kw) as ds:
+                ds.write(rgb)
+                ds.write_mask(np.where(inside, 255, 0).astype(np.uint8))
+        dom = load_domain(tmp_path / f"{name}.tif")
+        assert dom.free_area == pytest.approx(inside.sum() * 0.01 - 12.0, abs=1.0), name
+        assert not dom.contains([[500000.5, 5400000.5]])[0] and dom.contains([[500014.0, 5400016.0]])[0]
+        assert not any("inverted" in n for n in dom.notes)
+
+
+def test_a_turned_site_s_transparent_outside_is_no_sign_of_an_inverted_image(tmp_path):
+    # an RGBA GeoTIFF (gdalwarp -dstalpha) and an RGBA PNG whose outside is transparent: the outside counted as wide
+    # dark obstacles and the image was asked whether it is inverted (46 % free, "its obstacles lie 4.1 m deep")
+    rasterio = pytest.importorskip("rasterio")
+    from PIL import Image
+    from rasterio.transform import from_origin
+    inside, rgb = _turned_site()
+    alpha = np.where(inside, 255, 0).astype(np.uint8)[None]
+    with rasterio.open(tmp_path / "rgba.tif", "w", driver="GTiff", width=280, height=240, count=4, dtype="uint8",
+                       crs="EPSG:32632", transform=from_origin(500000.0, 5400024.0, 0.1, 0.1), photometric="RGB",
+                       alpha="YES") as ds:
+        ds.write(np.concatenate([rgb, alpha]))
+    Image.fromarray(np.concatenate([rgb, alpha]).transpose(1, 2, 0), mode="RGBA").save(tmp_path / "rgba.png")
+    (tmp_path / "rgba.json").write_text(json.dumps({"extent": [0, 28, 0, 24]}))
+    for name in ("rgba.tif", "rgba.png"):
+        dom = load_domain(tmp_path / name)
+        assert dom.free_area == pytest.approx(inside.sum() * 0.01 - 12.0, abs=1.0)
+        assert not any("inverted" in n for n in dom.notes), name
+    # drawn white on black, the same site is still asked (round 6's halls_inverted)
+    inv = np.where(inside, 255 - rgb[0], 0).astype(np.uint8)
+    Image.fromarray(inv).save(tmp_path / "inv.png")
+    (tmp_path / "inv.json").write_text(json.dumps({"extent": [0, 28, 0, 24]}))
+    assert any("is the image inverted" in n for n in load_domain(tmp_path / "inv.png").notes)
+
+
+def test_pillars_or_an_island_drawn_as_polygons_of_their_own_are_named(tmp_path):
+    # a parking deck's 35 pillars (0.5 m) drawn as polygons on the deck's, and a lake's island drawn as a polygon on
+    # the lake's: the free space is the union, so they vanished without a word
+    from shapely.geometry import Point, box
+    pillars = [Point(2 + 2.5 * i, 2 + 2.5 * j).buffer(0.25) for i in range(7) for j in range(5)]
+    (tmp_path / "deck.geojson").write_text(json.dumps(_feature_collection([box(0, 0, 20, 16)] + pillars)))
+    notes = load_domain(tmp_path / "deck.geojson", sim_extent=(0, 20, 0, 20)).notes
+    assert any("35 of its polygons lie inside another" in n and "no obstacle stands there" in n
+               and "floor.difference(pillar)" in n for n in notes)
+    (tmp_path / "lake.geojson").write_text(json.dumps(_feature_collection([Point(10, 8).buffer(7.5),
+                                                                           Point(10, 8).buffer(3.0)])))
+    notes = load_domain(tmp_path / "lake.geojson", sim_extent=(0, 20, 0, 20)).notes
+    assert any("1 of its polygons lies inside another" in n for n in notes)
+
+
+def test_a_pond_in_an_island_s_hole_and_doors_across_walls_are_not_named(tmp_path):
+    # the right drawings: the island a hole of the lake, the pond a polygon in that hole (a MultiPolygon's second
+    # part); rooms with a door drawn across the wall between them
+    from shapely.geometry import MultiPolygon, Point, box
+    lake = Point(10, 8).buffer(7.5).difference(Point(10, 8).buffer(3.0))
+    doc = _feature_collection([MultiPolygon([lake, Point(10, 8).buffer(1.0)])])
+    (tmp_path / "lake.geojson").write_text(json.dumps(doc))
+    dom = load_domain(tmp_path / "lake.geojson", sim_extent=(0, 20, 0, 20))
+    assert not any("inside another" in n for n in dom.notes)
+    assert dom.contains([[10.0, 8.0]])[0] and not dom.contains([[12.5, 8.0]])[0]
+    rooms = [box(0, 0, 9.9, 10), box(10.1, 0, 20, 10), box(9.8, 4, 10.2, 5)]
+    (tmp_path / "rooms.geojson").write_text(json.dumps(_feature_collection(rooms)))
+    assert not any("inside another" in n for n in load_domain(tmp_path / "rooms.geojson", (0, 20, 0, 20)).notes)
