@@ -547,9 +547,11 @@ class Domain:
             inverted = ("; the map looks inverted (its free part thin, its obstacles wide): a pixel is free when it is "
                         "light, invert the image if its walls are drawn light"
                         if getattr(self, "looks_inverted", False) else "")
+            repaired = getattr(self, "repaired", "")
+            repaired = f"; the map's {repaired}" if repaired else ""
             raise ValueError(f"domain {self.name}: the start box {list(box)} is not free (it overlaps an obstacle); "
                              "choose sim.start_box inside the free space"
-                             + (f", e.g. {list(hint)}" if hint else "") + inverted)
+                             + (f", e.g. {list(hint)}" if hint else "") + inverted + repaired)
 
     # -- robots
     def sample(self, n: int, box, rng: np.random.Generator, max_rounds: int = 1000) -> np.ndarray:

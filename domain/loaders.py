@@ -605,9 +605,9 @@ def _load_geojson(path: Path, sim_extent):
     # whole MultiPolygon would cut the overlaps out (even-odd) and close those doors.
     parts = [p for g in geoms for p in shapely.get_parts(g)]
     bad = [p for p in parts if not p.is_valid]
-    notes = (f"domain file {path}: {len(bad)} polygon(s) not valid ({shapely.is_valid_reason(bad[0])}); repaired "
-             "with shapely.make_valid: check the free region in the figures",) if bad else ()
     geom = shapely.union_all([shapely.make_valid(p) if not p.is_valid else p for p in parts])
+    repaired = _repaired(bad, geom) if bad else ""
+    notes = (f"domain file {path}: {repaired}: check the free region in the figures",) if bad else ()
     bx0, by0, bx1, by1 = geom.bounds
     centre = (0.5 * (bx0 + bx1), 0.5 * (by0 + by1))     # where a map in degrees or Web Mercator lies
     if geographic:
@@ -624,8 +624,27 @@ def _load_geojson(path: Path, sim_extent):
         x0, y0, x1, y1 = geom.bounds
         ext = (x0, x1, y0, y1)
     dom = Domain.from_polygons(geom, ext, name=path.stem)
+    dom.repaired = repaired                          # the start box's error says it too (Domain.check_start_box)
     dom.notes = notes + _shared_edges_note(path, parts) + _inside_note(path, parts) + _cut_off(path, dom, geom)
     return dom
+
+
+def _repaired(bad, geom) -> str:
+    """What shapely's ``make_valid`` did to the polygons ``bad`` that were not valid, ``geom`` the free region after:
+    the first one's reason with its place, and the pieces the region falls into.  A self-intersecting ("bow-tie")
+    outline, two vertices swapped, becomes two triangles that touch at a point, which no robot passes."""
+    import re
+    import shapely
+    reason = shapely.is_valid_reason(bad[0])
+    m = re.match(r"\s*([^\[]*)\[([-+0-9.eE]+) ([-+0-9.eE]+)\]", reason)
+    if m:
+        reason = f"{m.group(1).strip()} at ({float(m.group(2)):.6g}, {float(m.group(3)):.6g})"
+    if "self-intersection" in reason.lower():
+        reason += ": an outline crosses or touches itself"
+    pieces = len(shapely.get_parts(geom))
+    return (f"{len(bad)} polygon{'s' if len(bad) > 1 else ''} not valid ({reason}) repaired with shapely.make_valid: "
+            f"the free region is {pieces} piece{'s' if pieces > 1 else ''}, {float(geom.area):.4g} m^2 in all (pieces "
+            "touching at a point are not joined)")
 
 
 #: polygons whose area outside the extent is more than this share of theirs are cut off with a note (and, where no

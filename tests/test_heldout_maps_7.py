@@ -201,3 +201,20 @@ def test_a_pond_in_an_island_s_hole_and_doors_across_walls_are_not_named(tmp_pat
     rooms = [box(0, 0, 9.9, 10), box(10.1, 0, 20, 10), box(9.8, 4, 10.2, 5)]
     (tmp_path / "rooms.geojson").write_text(json.dumps(_feature_collection(rooms)))
     assert not any("inside another" in n for n in load_domain(tmp_path / "rooms.geojson", (0, 20, 0, 20)).notes)
+
+
+def test_a_start_box_error_on_a_repaired_bow_tie_says_the_floor_was_repaired(tmp_path, capsys):
+    # a 20 m x 16 m floor with two vertices swapped (a bow-tie): make_valid keeps two triangles touching at a point;
+    # with the default start box the one line said only that the box is not free, suggesting one in the lower
+    # triangle, and the warning that the outline had been repaired was never shown
+    from swarmfield.cli.simulate_swarm import main
+    doc = {"type": "Polygon", "coordinates": [[[0, 0], [20, 0], [0, 16], [20, 16], [0, 0]]]}
+    (tmp_path / "bowtie.geojson").write_text(json.dumps(doc))
+    out = tmp_path / "run"
+    assert main(["--preset", "tuned", "--domain", str(tmp_path / "bowtie.geojson"), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and not out.exists()
+    assert "the start box [0.0, 7.0, 0.0, 7.0] is not free" in err[0]
+    assert err[0].endswith("; the map's 1 polygon not valid (Self-intersection at (10, 8): an outline crosses or "
+                           "touches itself) repaired with shapely.make_valid: the free region is 2 pieces, 160 m^2 in "
+                           "all (pieces touching at a point are not joined)")
