@@ -233,8 +233,8 @@ def _inverted_note(path, dom: Domain, drawn=None) -> tuple:
     if not deep > INVERTED[1] * wide:
         return ()
     dom.looks_inverted = True                    # the start box's error says it too (Domain.check_start_box)
-    return (f"domain file {path}: {100 * f.sum() / seen.sum():.2g} % of it is free (light) and thin, {wide:.2g} m from an obstacle "
-            f"on average, while its obstacles (dark) lie {deep:.2g} m deep: is the image inverted (light walls on a dark "
+    return (f"domain file {path}: {100 * f.sum() / seen.sum():.2g} % of it is free (light) and thin, {wide:.2g} m from "
+            f"an obstacle on average, while its obstacles (dark) lie {deep:.2g} m deep: is the image inverted (light walls on a dark "
             "floor)? A pixel is free when it is light; if so, invert it first (PIL.ImageOps.invert)",)
 
 
@@ -269,10 +269,12 @@ def _load_tif(path: Path, sim_extent):
             if ds.crs is not None and _is_web_mercator(str(ds.crs)):
                 b = ds.bounds
                 raise ValueError(_web_mercator(path, str(ds.crs), 0.5 * (b.left + b.right), 0.5 * (b.bottom + b.top)))
-            if ds.crs is not None and ds.crs.is_projected:
-                unit, factor = ds.crs.linear_units_factor
-                if abs(float(factor) - 1.0) > 1e-3:
-                    raise ValueError(_units_refusal(path, str(ds.crs), (unit, float(factor))))
+            try:
+                unit, factor = ds.crs.linear_units_factor if ds.crs is not None and ds.crs.is_projected else ("", 1.0)
+            except Exception:  # noqa: BLE001 -- rasterio's CRSError for a CRS without linear units
+                unit, factor = "", 1.0
+            if abs(float(factor) - 1.0) > 1e-3:
+                raise ValueError(_units_refusal(path, str(ds.crs), (unit, float(factor))))
             t = ds.transform
             if not t.is_identity and (t.b != 0.0 or t.d != 0.0 or not (t.a > 0.0 and t.e < 0.0)):
                 raise ValueError(f"domain file {path}: its transform {[t.a, t.b, t.d, t.e]} is rotated, sheared or "
@@ -605,7 +607,8 @@ def _load_geojson(path: Path, sim_extent):
     # whole MultiPolygon would cut the overlaps out (even-odd) and close those doors.
     parts = [p for g in geoms for p in shapely.get_parts(g)]
     bad = [p for p in parts if not p.is_valid]
-    geom = shapely.union_all([shapely.make_valid(p) if not p.is_valid else p for p in parts])
+    valid = [shapely.make_valid(p) if not p.is_valid else p for p in parts]
+    geom = shapely.union_all(valid)
     repaired = _repaired(bad, geom) if bad else ""
     notes = (f"domain file {path}: {repaired}: check the free region in the figures",) if bad else ()
     bx0, by0, bx1, by1 = geom.bounds
@@ -625,7 +628,7 @@ def _load_geojson(path: Path, sim_extent):
         ext = (x0, x1, y0, y1)
     dom = Domain.from_polygons(geom, ext, name=path.stem)
     dom.repaired = repaired                          # the start box's error says it too (Domain.check_start_box)
-    dom.notes = notes + _shared_edges_note(path, parts) + _inside_note(path, parts) + _cut_off(path, dom, geom)
+    dom.notes = notes + _shared_edges_note(path, parts) + _inside_note(path, valid) + _cut_off(path, dom, geom)
     return dom
 
 
@@ -686,7 +689,8 @@ def _inside_note(path, parts) -> tuple:
     first = parts[inside[0]]
     c = first.representative_point()
     area = sum(float(parts[i].area) for i in inside)
-    return (f"domain file {path}: {len(inside)} of its polygons {'lies' if len(inside) == 1 else 'lie'} inside another ({area:.4g} m^2, e.g. one of "
+    verb = "lies" if len(inside) == 1 else "lie"
+    return (f"domain file {path}: {len(inside)} of its polygons {verb} inside another ({area:.4g} m^2, e.g. one of "
             f"{float(first.area):.4g} m^2 at ({c.x:.6g}, {c.y:.6g})): the free space is the polygons' union, so they add "
             "nothing and no obstacle stands there; to cut an obstacle out, make it a hole in the polygon round it "
             "(shapely: floor.difference(pillar))",)

@@ -148,6 +148,21 @@ def test_a_geotiff_s_internal_mask_blocks_the_outside(tmp_path):
         assert not any("inverted" in n for n in dom.notes)
 
 
+def test_rasterio_alone_reads_the_mask_too(tmp_path, monkeypatch):
+    rasterio = pytest.importorskip("rasterio")
+    from rasterio.transform import from_origin
+    inside, rgb = _turned_site()
+    with rasterio.Env(GDAL_TIFF_INTERNAL_MASK=True):
+        with rasterio.open(tmp_path / "m.tif", "w", driver="GTiff", width=280, height=240, count=3, dtype="uint8",
+                           crs="EPSG:32632", transform=from_origin(500000.0, 5400024.0, 0.1, 0.1),
+                           photometric="RGB") as ds:
+            ds.write(rgb)
+            ds.write_mask(np.where(inside, 255, 0).astype(np.uint8))
+    monkeypatch.setitem(__import__("sys").modules, "tifffile", None)
+    dom = load_domain(tmp_path / "m.tif")
+    assert dom.free_area == pytest.approx(inside.sum() * 0.01 - 12.0, abs=1.0)
+
+
 def test_a_turned_site_s_transparent_outside_is_no_sign_of_an_inverted_image(tmp_path):
     # an RGBA GeoTIFF (gdalwarp -dstalpha) and an RGBA PNG whose outside is transparent: the outside counted as wide
     # dark obstacles and the image was asked whether it is inverted (46 % free, "its obstacles lie 4.1 m deep")
@@ -218,3 +233,16 @@ def test_a_start_box_error_on_a_repaired_bow_tie_says_the_floor_was_repaired(tmp
     assert err[0].endswith("; the map's 1 polygon not valid (Self-intersection at (10, 8): an outline crosses or "
                            "touches itself) repaired with shapely.make_valid: the free region is 2 pieces, 160 m^2 in "
                            "all (pieces touching at a point are not joined)")
+
+
+def test_a_bow_tie_among_other_polygons_is_repaired_before_the_checks_between_polygons(tmp_path):
+    from shapely.geometry import Point, box, mapping
+    doc = {"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {}, "geometry": g} for g in (
+            {"type": "Polygon", "coordinates": [[[0, 0], [20, 0], [0, 16], [20, 16], [0, 0]]]},
+            mapping(Point(10, 3).buffer(0.3)), mapping(box(0, 0, 20, 16)))]}
+    (tmp_path / "mix.geojson").write_text(json.dumps(doc))
+    dom = load_domain(tmp_path / "mix.geojson", sim_extent=(0, 20, 0, 20))
+    assert dom.free_area == pytest.approx(320.0)
+    assert any("repaired with shapely.make_valid" in n for n in dom.notes)
+    assert any("2 of its polygons lie inside another" in n for n in dom.notes)     # the bow-tie and the pillar
