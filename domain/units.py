@@ -91,20 +91,23 @@ def _codes() -> dict:
 
 
 #: names that spell a unit of feet (EPSG's " (ftUS)", " (ft)"; ESRI's "_Feet", "_Feet_Intl"; WKT's "US survey foot")
-_FEET_WORDS = re.compile(r"\(ft(US|In|Cla|GC|Se|Br)?\)|feet|foot", re.IGNORECASE)
+_FEET_WORDS = re.compile(r"\(ft(US|In|Cla|GC|Se|Br)?\)|(?<![a-z])(feet|foot)(?![a-z])", re.IGNORECASE)
 
 
 def crs_unit(name: str):
     """``(unit name, metres per unit)`` of a coordinate system named ``name``, or None where it is in metres or
     unknown: the EPSG code at its end (``urn:ogc:def:crs:EPSG::2263``, ``EPSG:2263``) looked up in
-    :data:`NON_METRE_CRS`, else a name that spells feet (US survey feet where it says US)."""
+    :data:`NON_METRE_CRS` (also OGC's ``http://www.opengis.net/def/crs/EPSG/0/2263``), else a name that spells feet
+    (US survey feet where it says ftUS, US or survey, and for ESRI's ``_Feet``; ESRI's ``_Feet_Intl`` and EPSG's
+    ``(ft)`` are international feet)."""
     text = str(name or "")
-    m = re.search(r"EPSG:(?:[\d.]*:)?(\d+)\s*$", text.upper())
+    m = re.search(r"EPSG(?::|/)(?:[\d.]*(?::|/))?(\d+)\s*$", text.upper())
     if m:
         unit = _codes().get(int(m.group(1)))
         return None if unit is None else UNITS[unit]
     if _FEET_WORDS.search(text):
-        return UNITS[9003] if re.search(r"US|survey", text) else UNITS[9002]
+        us = re.search(r"ftUS|survey|\bUS\b|_Feet(?!_Intl)", text, re.IGNORECASE)   # ESRI: _Feet is ftUS
+        return UNITS[9003] if us else UNITS[9002]
     return None
 
 
