@@ -16,7 +16,7 @@ from .builtin import BUILTIN_DOMAINS
 from .common import MissingExtra, _extent, _need
 from .domain import Domain
 from .limits import MAX_NESTING, check_pixels, check_vertices
-from .units import crs_unit, geotiff_unit
+from .units import crs_unit, epsg_code, geotiff_unit
 from .units import refusal as _units_refusal
 
 #: what a damaged archive raises while it is read (a truncated .npz: BadZipFile, zlib.error, EOFError)
@@ -491,8 +491,10 @@ def _geotiff_geographic(tag) -> str | None:
     return None
 
 
-#: GeoJSON "crs" names of geographic coordinate systems (the 2008 GeoJSON form; RFC 7946 drops the member)
-_GEOGRAPHIC_NAMES = ("CRS84", "EPSG::4326", "EPSG:4326", "EPSG::4258", "EPSG:4258", "EPSG::4269", "EPSG:4269")
+#: GeoJSON "crs" names of geographic coordinate systems (the 2008 GeoJSON form; RFC 7946 drops the member): OGC's
+#: CRS84 by its name's end, and the EPSG codes of WGS 84, ETRS89 and NAD83 (read by :func:`units.epsg_code`)
+_GEOGRAPHIC_NAMES = ("CRS84",)
+_GEOGRAPHIC_EPSG = (4326, 4258, 4269)
 
 
 #: a GeoJSON without a ``crs`` member whose polygons lie within longitude and latitude bounds and span less than
@@ -584,9 +586,10 @@ def _load_geojson(path: Path, sim_extent):
     del text
     crs = doc.get("crs") if isinstance(doc, dict) else None
     name = str(((crs or {}).get("properties") or {}).get("name", "")) if isinstance(crs, dict) else ""
-    geographic = any(name.upper().endswith(g) for g in _GEOGRAPHIC_NAMES)
+    code = epsg_code(name)
+    geographic = any(name.upper().endswith(g) for g in _GEOGRAPHIC_NAMES) or code in _GEOGRAPHIC_EPSG
     objects, vertices = _geojson_objects(doc, path)
-    web_mercator = _is_web_mercator(name) if name else False
+    web_mercator = (_is_web_mercator(name) or str(code) in _WEB_MERCATOR) if name else False
     unit = crs_unit(name) if name and not geographic and not web_mercator else None
     if unit is not None:                             # a State Plane zone in feet, say: refused before any work
         raise ValueError(_units_refusal(path, name, unit))

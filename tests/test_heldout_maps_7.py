@@ -249,3 +249,16 @@ def test_a_bow_tie_among_other_polygons_is_repaired_before_the_checks_between_po
     assert dom.free_area == pytest.approx(320.0)
     assert any("repaired with shapely.make_valid" in n for n in dom.notes)
     assert any("2 of its polygons lie inside another" in n for n in dom.notes)     # the bow-tie and the pillar
+
+
+@pytest.mark.parametrize("crs, says", [("http://www.opengis.net/def/crs/EPSG/0/4326", "its coordinates are geographic"),
+                                       ("urn:ogc:def:crs:EPSG:6.6:4326", "its coordinates are geographic"),
+                                       ("http://www.opengis.net/def/crs/EPSG/0/3857", "its coordinates are Web Mercator")])
+def test_ogc_s_url_form_of_a_crs_is_read_as_its_epsg_code(tmp_path, crs, says):
+    # OGC's URL form (OGC API services write it) of EPSG:4326 and EPSG:3857 was not recognised: a park in degrees read
+    # as a site of 2e-7 m^2 (the CLI then asked to set [sim] domain = the degrees), a Web Mercator floor 1.5 x too large
+    from shapely.geometry import box
+    g = box(13.364, 52.5098, 13.3646, 52.5101) if crs.endswith("4326") else box(1822000, 6141000, 1822036, 6141024)
+    (tmp_path / "u.geojson").write_text(json.dumps(_feature_collection([g], crs)))
+    with pytest.raises(ValueError, match=says):
+        load_domain(tmp_path / "u.geojson")
