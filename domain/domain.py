@@ -551,7 +551,23 @@ class Domain:
             repaired = f"; the map's {repaired}" if repaired else ""
             raise ValueError(f"domain {self.name}: the start box {list(box)} is not free (it overlaps an obstacle); "
                              "choose sim.start_box inside the free space"
-                             + (f", e.g. {list(hint)}" if hint else "") + inverted + repaired)
+                             + (f", e.g. {list(hint)}" if hint else "") + inverted + repaired + self._outside_note(box))
+
+    def _outside_note(self, box) -> str:
+        """The start box's error's clause for a polygon map the box lies wholly outside of: the polygons are the free
+        space, and a user who drew the obstacles (buildings, pillars) as polygons is offered a box inside one."""
+        if self.geometry is None:
+            return ""
+        import shapely
+        x0, x1, y0, y1 = (float(v) for v in box)
+        ex0, ex1, ey0, ey1 = self.extent
+        if not (ex0 <= x0 and x1 <= ex1 and ey0 <= y0 and y1 <= ey1):
+            return ""                                       # a box off the map: not a question of what was drawn
+        if shapely.intersection(self.geometry, shapely.box(x0, y0, x1, y1)).area > 0.0:
+            return ""
+        return ("; the box lies outside every polygon: a GeoJSON's polygons are the free space, not the obstacles; if "
+                "they are buildings or other obstacles, cut them out of the site first (shapely: site.difference("
+                "obstacles))")
 
     # -- robots
     def sample(self, n: int, box, rng: np.random.Generator, max_rounds: int = 1000) -> np.ndarray:

@@ -262,3 +262,27 @@ def test_ogc_s_url_form_of_a_crs_is_read_as_its_epsg_code(tmp_path, crs, says):
     (tmp_path / "u.geojson").write_text(json.dumps(_feature_collection([g], crs)))
     with pytest.raises(ValueError, match=says):
         load_domain(tmp_path / "u.geojson")
+
+
+def test_a_start_box_outside_every_polygon_says_the_polygons_are_the_free_space(tmp_path, capsys):
+    # a site's buildings drawn as polygons (an OSM export), the start box in the open yard: the one line offered a
+    # start box inside a building, [4.063, 6.562, 4.063, 6.562], and no word that the polygons are the free space
+    from shapely.geometry import box
+    from swarmfield.cli.simulate_swarm import main
+    (tmp_path / "b.geojson").write_text(json.dumps(_feature_collection([box(4, 4, 10, 9), box(14, 3, 18, 12),
+                                                                        box(5, 13, 12, 17)])))
+    (tmp_path / "b.toml").write_text("[sim]\ndomain = [0.0, 20.0, 0.0, 20.0]\nstart_box = [0.5, 3.0, 0.5, 3.0]\n")
+    assert main(["--preset", "tuned", "--domain", str(tmp_path / "b.geojson"), "--config", str(tmp_path / "b.toml"),
+                 "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].endswith("; the box lies outside every polygon: a GeoJSON's polygons are the free "
+                                             "space, not the obstacles; if they are buildings or other obstacles, cut "
+                                             "them out of the site first (shapely: site.difference(obstacles))")
+    # a box that overlaps the free space (on a pillar of a deck drawn right) gets no such clause
+    from shapely.geometry import Point
+    deck = box(0, 0, 20, 16).difference(Point(2, 2).buffer(0.25))
+    (tmp_path / "deck.geojson").write_text(json.dumps(_feature_collection([deck])))
+    dom = load_domain(tmp_path / "deck.geojson", sim_extent=(0, 20, 0, 20))
+    with pytest.raises(ValueError) as exc:
+        dom.check_start_box((0.0, 7.0, 0.0, 7.0))
+    assert "outside every polygon" not in str(exc.value)
