@@ -24,7 +24,9 @@ units, ``<map>_field.npz``; the noise sd each is run with is ``NOISE_SD``, in th
 * ``defects/``: GeoJSON on a 20 m x 16 m floor in local metres with a user's small defects: a self-intersecting
   ("bow-tie") outline, a ring left unclosed, duplicated vertices, a FeatureCollection mixing walls drawn as
   LineStrings with the floor's Polygon, a parking deck whose 35 pillars (0.5 m) are polygons of their own on the
-  deck's polygon (and the same deck with them as holes), and a lake whose island is a polygon of its own.
+  deck's polygon (and the same deck with them as holes), a lake whose island is a polygon of its own, a site's
+  buildings drawn as its polygons (an OpenStreetMap export; run with ``--start-box 0.5 3 0.5 3`` in the yard), and a
+  park in degrees whose ``crs`` is OGC's URL form of EPSG:4326.
 
 ``--check RUN ...`` checks a simulate-swarm run's robots against its map (``heldout_maps_2.check_run`` and
 ``heldout_maps_3.stuck``).  The commands and the numbers are in docs/results/buildings.md, "Held out, round 7".
@@ -288,6 +290,10 @@ def defects(out: Path):
     write("deck_pillars_as_holes.geojson", fc([deck]))
     island = Point(10, 8).buffer(3.0, quad_segs=16)
     write("lake_island_as_polygon.geojson", fc([Point(10, 8).buffer(7.5, quad_segs=32), island]))
+    write("buildings_as_polygons.geojson", fc([box(4, 4, 10, 9), box(14, 3, 18, 12), box(5, 13, 12, 17)]))
+    park = {**fc([box(13.364, 52.5098, 13.3646, 52.5101)]),
+            "crs": {"type": "name", "properties": {"name": "http://www.opengis.net/def/crs/EPSG/0/4326"}}}
+    write("park_ogc_url.geojson", park)
 
 
 def field_report(out: Path) -> None:
