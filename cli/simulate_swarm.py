@@ -71,7 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--comm-radius", type=float, metavar="METRES",
                    help="decentralized swarm: robots talk only to neighbours within this radius and estimate the "
                         "density from the positions flooded to them (default: none, the paper's communication "
-                        "centre; inf: the same); links pass through walls")
+                        "centre; inf: the same); links pass through walls unless [sim] comm_walls = \"block\"")
     p.add_argument("--max-periods", type=int, help="stop after this many re-planning periods T (default 20)")
     p.add_argument("--noise-sd", type=float, metavar="SD",
                    help="standard deviation of the measurement noise, in the field's units (sim.noise_variance = SD^2; "

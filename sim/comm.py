@@ -2,7 +2,12 @@
 
 Robots talk only to neighbours within the communication radius r (``sim.comm_radius``): the graph of a
 round is the *disk graph* of the working robots (an edge between i and j iff |X_i - X_j| <= r; lost robots
-neither send nor receive; walls and obstacles do not block a link: radio passes through them).  With ``sim.comm_loss`` = q > 0 every link fails for a round with probability q,
+neither send nor receive).  By default (``sim.comm_walls = "pass"``) walls and obstacles do not block a link:
+radio passes through them.  With ``sim.comm_walls = "block"`` a link also needs line of sight (:class:`LineOfSight`):
+the straight segment X_i X_j must cross no boundary edge of the run's map (:class:`domain.Domain`: pixel faces
+between a free and a blocked pixel, polygon edges), so a wall of any thickness, a closed door, a pier cuts it and an
+open door lets it through.  Without a map (the rectangle) there is nothing to block and "block" is the "pass" run
+bit for bit; so is a run whose graph no wall cuts.  With ``sim.comm_loss`` = q > 0 every link fails for a round with probability q,
 independently, in both directions (an exchange is a handshake: a consensus round needs symmetric weights),
 drawn from the generator the caller passes (the run's own stream of :class:`sim.network.Decentralized`,
 never the motion's).  Connected components of the graph are the groups of robots that can reach each other
@@ -14,7 +19,8 @@ Robots without a neighbour do not broadcast.
 
 A run with a radius says at its start (:func:`radius_note`) when the radius is below the robots' typical spacing
 sqrt(area / robots) -- the regime where the swarm falls apart and its map is 2-3x the centre's (docs/results/
-decentralized.md, "A stranger's round") -- and, on a map with walls, that links pass through them.
+decentralized.md, "A stranger's round") -- and, on a map with walls and ``comm_walls = "pass"``, that links pass
+through them.
 """
 from __future__ import annotations
 
@@ -26,10 +32,13 @@ from scipy import sparse
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
-__all__ = ["CommGraph", "disk_graph", "MessageLog", "FLOAT_BYTES", "INT_BYTES", "radius_note", "RADIUS_WARNING"]
+__all__ = ["CommGraph", "disk_graph", "LineOfSight", "COMM_WALLS", "MessageLog", "FLOAT_BYTES", "INT_BYTES", "radius_note", "RADIUS_WARNING"]
 
 FLOAT_BYTES = 8
 INT_BYTES = 4
+
+#: the values of ``sim.comm_walls``: radio through walls (default), or links only in line of sight
+COMM_WALLS = ("pass", "block")
 
 
 @dataclass
@@ -88,8 +97,50 @@ class CommGraph:
         return CommGraph(self.n, self.edges[keep], self.active)
 
 
-def disk_graph(X: np.ndarray, radius: float, active: np.ndarray | None = None) -> CommGraph:
-    """The disk graph of radius ``radius`` between the ``active`` robots (default all) at positions X (n, 2)."""
+class LineOfSight:
+    """Which straight segments between robots cross no wall of a map (``sim.comm_walls = "block"``).
+
+    The test is the map's own boundary edges (:attr:`domain.Domain.edges`: merged pixel faces between a free and a
+    blocked pixel of a raster, the rings of polygons), less the extent's sides (a segment between two points of the
+    rectangle never leaves it; a robot reflected onto a side would otherwise lose its links), bucketed by the index
+    the robots' reflection uses (:class:`domain.edges._EdgeIndex`): a segment is blocked iff it meets an edge at a
+    parameter t in (0, 1].  A pair shorter than the clearance of its first robot (a lower bound on the distance to
+    the nearest obstacle, :meth:`domain.Domain.clearance`) is in sight without a search.  Vectorised numpy over the
+    candidate (segment, edge) pairs; its cost on 100-1000 robots is in docs/results/decentralized.md ("Walls that
+    block the radio")."""
+
+    def __init__(self, domain):
+        from ..domain.edges import _EdgeIndex
+        self.domain = domain
+        x0, x1, y0, y1 = domain.extent
+        E = np.asarray(domain.edges, float).reshape(-1, 4)
+        tol = 1e-9 * max(x1 - x0, y1 - y0)
+        side = np.zeros(len(E), bool)
+        for c, v in ((0, x0), (0, x1), (1, y0), (1, y1)):
+            side |= (np.abs(E[:, c] - v) <= tol) & (np.abs(E[:, c + 2] - v) <= tol)
+        self.edges = E[~side]
+        self.index = _EdgeIndex(self.edges, domain.extent) if len(self.edges) else None
+
+    def visible(self, P: np.ndarray, Q: np.ndarray) -> np.ndarray:
+        """(m,) bool: the segment P[k] -> Q[k] (both (m, 2), in the free space) crosses no wall."""
+        P = np.asarray(P, float).reshape(-1, 2)
+        Q = np.asarray(Q, float).reshape(-1, 2)
+        out = np.ones(len(P), bool)
+        if self.index is None or not len(P):
+            return out
+        d2 = np.einsum("ij,ij->i", Q - P, Q - P)
+        c = self.domain.clearance(P)
+        k = np.flatnonzero(d2 >= c * c)
+        if len(k):
+            t, _ = self.index.first_hit(P[k], Q[k])
+            out[k] = ~np.isfinite(t)
+        return out
+
+
+def disk_graph(X: np.ndarray, radius: float, active: np.ndarray | None = None,
+               sight: LineOfSight | None = None) -> CommGraph:
+    """The disk graph of radius ``radius`` between the ``active`` robots (default all) at positions X (n, 2); with
+    ``sight`` (``sim.comm_walls = "block"``) only its links in line of sight (:class:`LineOfSight`)."""
     X = np.asarray(X, dtype=float)
     n = X.shape[0]
     active = np.ones(n, bool) if active is None else np.asarray(active, bool)
@@ -103,6 +154,8 @@ def disk_graph(X: np.ndarray, radius: float, active: np.ndarray | None = None) -
         pairs = cKDTree(X[idx]).query_pairs(float(radius), output_type="ndarray")
     edges = idx[pairs] if len(pairs) else np.zeros((0, 2), dtype=np.intp)
     edges = np.sort(edges, axis=1)
+    if sight is not None and len(edges):
+        edges = edges[sight.visible(X[edges[:, 0]], X[edges[:, 1]])]
     return CommGraph(n, edges.astype(np.intp), active)
 
 
@@ -139,8 +192,9 @@ def radius_note(config, free_area: float | None = None, walls: bool = False) -> 
     robots' typical spacing q = sqrt(area / robots) (``free_area`` the map's free area, default the site's area,
     :func:`sim.site_scale.site_area`), what to expect -- the swarm splits into components, each mapping only what
     reaches it, and the map at 2-3 T was 2-3x the centre's (30 robots 9.1 m apart at r = 4 m, level at 12 m: docs/
-    results/decentralized.md, "A stranger's round"); with ``walls`` (a map with obstacles) that the model's radio
-    passes through them."""
+    results/decentralized.md, "A stranger's round"); with ``walls`` (a map with obstacles) and ``sim.comm_walls =
+    "pass"`` (the default) that the model's radio passes through them (with "block" the walls cut the links: nothing
+    to say)."""
     s = config.sim
     r = s.comm_radius
     if r is None or not math.isfinite(r):
@@ -156,9 +210,9 @@ def radius_note(config, free_area: float | None = None, walls: bool = False) -> 
                      f"reaches it, and a map 2-3x worse than the centre's by 2-3 T (docs/results/decentralized.md, "
                      f"\"A stranger's round\": 30 robots 9.1 m apart, at r = 4 m; at 12 m level with the centre); pick "
                      f"r above {spacing:.3g} m for the centre's map")
-    if walls:
+    if walls and s.comm_walls != "block":
         parts.append("radio passes through the map's walls in this model (no link is blocked by them): a swarm whose "
-                     "radio the walls block splits sooner than this run")
+                     "radio the walls block splits sooner than this run (sim.comm_walls = \"block\")")
     if not parts:
         return None
     return f"communication: r = {r:g} m{' is ' if r < spacing else ': '}" + "; ".join(parts)

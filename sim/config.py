@@ -235,6 +235,11 @@ class SimSettings:
                     the end of their last plan and keep no map)
     comm_hops       relay bound: a measurement travels at most this many hops per measurement step (None,
                     default: through the whole connected component within the step)
+    comm_walls      "pass" (default): radio passes through the map's walls (a link is any pair within
+                    comm_radius); "block": a link also needs line of sight, the straight segment between the two
+                    robots crossing no wall or obstacle edge of the run's map (sim.comm.LineOfSight).  Without a
+                    map (the rectangle) nothing blocks and "block" is the "pass" run; without comm_radius (the
+                    centre) it is unused
     site_scale      ``"off"`` (default): every setting as given; ``"area"`` (the tuned preset's): the settings of
                     :data:`sim.site_scale.SCALED` that the configuration does not give (the KDE bandwidth x s, the
                     planner's energy weight w_v / s^2) scaled with s = max(1, sqrt(the site's area / 400 m^2)),
@@ -305,6 +310,7 @@ class SimSettings:
     comm_density: str = "flooded"
     comm_fragments: bool = True
     comm_hops: int | None = None
+    comm_walls: str = "pass"
     site_scale: str = "off"
     swarm_scale: str = "off"
     swarm_radius: str = "capped"
@@ -389,6 +395,9 @@ class SimSettings:
             raise ValueError(f"sim.comm_fragments must be true or false, got {self.comm_fragments!r}")
         if self.comm_hops is not None:
             set_("comm_hops", _integer("comm_hops", self.comm_hops, 1))
+        if self.comm_walls not in ("pass", "block"):
+            raise ValueError(f"sim.comm_walls must be 'pass' (radio through walls) or 'block' (links only in line of "
+                             f"sight), got {self.comm_walls!r}")
         if self.comm_modes > 256:
             raise ValueError(f"sim.comm_modes must be at most 256, got {self.comm_modes}")
         if self.target not in ("variance", "reachable"):

@@ -458,13 +458,17 @@ def plot_field_error(result, path):
 def make_communication(result):
     """The communication graph over the density (a decentralized run, ``sim.comm_radius``): at the first, a
     middle and the last re-planning time, the robots over the swarm's density p̂, an edge between every two
-    working robots within the radius, robots coloured by connected component."""
+    working robots within the radius (in line of sight with ``sim.comm_walls = "block"``), robots coloured by
+    connected component."""
     from matplotlib.collections import LineCollection
 
-    from .comm import disk_graph
+    from .comm import LineOfSight, disk_graph
 
     dom = result.grid.domain
     r = result.config.sim.comm_radius
+    region = result.region          # sim.comm_walls = "block": the links in line of sight, as the run's graph
+    sight = (LineOfSight(region) if result.config.sim.comm_walls == "block" and region is not None
+             and not region.is_rectangle else None)
     snaps = result.snapshots
     pick = sorted({0, len(snaps) // 2, len(snaps) - 1})
     ncol = len(pick)
@@ -479,7 +483,7 @@ def make_communication(result):
         im = _image(ax, snap.p_hat, dom, cmap="Greys")
         _colorbar(fig, im, cax, "p̂ [1/m²]")
         live = alive if k == len(snaps) - 1 else np.ones(len(snap.X), bool)
-        g = disk_graph(snap.X, r, live)
+        g = disk_graph(snap.X, r, live, sight)
         count, labels = g.components()
         seg = snap.X[g.edges]
         ax.add_collection(LineCollection(seg, colors="tab:blue", linewidths=0.5, alpha=0.6))

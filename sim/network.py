@@ -5,7 +5,8 @@ regresses and plans, and sends p̂ and the plan back.  :class:`Centralized` is t
 ``sim.comm_radius`` unset): it changes nothing in :class:`sim.simulation.Simulation`.
 
 :class:`Decentralized` (``sim.comm_radius = r``) replaces the centre's density estimate by the robots' own:
-robots hear only neighbours within r (:mod:`sim.comm`), and every robot keeps its own estimate of p̂ and ∇p̂.
+robots hear only neighbours within r (:mod:`sim.comm`; with ``sim.comm_walls = "block"`` only those in line of
+sight on the run's map), and every robot keeps its own estimate of p̂ and ∇p̂.
 By default (``sim.comm_density = "flooded"``) every robot floods its position ``sim.comm_rounds`` hops per
 Euler sub-step, and its estimate is the centre's KDE of the positions that reached it (:mod:`control.flooded`;
 far robots' entries are a few sub-steps old); or (``"consensus"``) by proportional-integral dynamic average
@@ -156,6 +157,11 @@ class Decentralized:
     # ------------------------------------------------------------------ strategy hooks
     def bind(self, sim) -> None:
         self.sim = sim
+        # sim.comm_walls = "block": links need line of sight on the run's map (sim.comm); no map, nothing blocks
+        self.sight = None
+        if sim.config.sim.comm_walls == "block" and sim.region is not None and not sim.region.is_rectangle:
+            from .comm import LineOfSight
+            self.sight = LineOfSight(sim.region)
         if sim.free is not None:      # mass of every series over the free cells (renormalised estimates)
             g = sim.grid
             x0, _, y0, _ = g.domain
@@ -195,7 +201,7 @@ class Decentralized:
         floods sup V and the stop decision through its component."""
         alive = sim.alive
         rows = np.flatnonzero(alive)
-        graph = disk_graph(sim.X, self.radius, alive).drop(self.loss, self.rng)
+        graph = disk_graph(sim.X, self.radius, alive, self.sight).drop(self.loss, self.rng)
         count, labels = graph.components()
         self.note_components(count, sim.t)
         self.labels = (count, labels)
@@ -383,7 +389,7 @@ class Decentralized:
         alive = sim.alive
         # the graph of the robots where they stand (X may hold the laws' proxies of robots beyond a thin wall)
         own = sim.own_positions(X)
-        graph = disk_graph(full if own is X else self.positions(own)[0], self.radius, alive)
+        graph = disk_graph(full if own is X else self.positions(own)[0], self.radius, alive, self.sight)
         count, _ = graph.components()
         self.note_components(count, sim.t, step=getattr(sim.settings, "dt", None))  # a sub-step's graph: in the step
         if self.flooded:
@@ -526,7 +532,8 @@ class Decentralized:
         steps = max(sim.step_index, 1)
         robots = max(int(sim.alive.sum()), 1)
         rows = [r for r in sim.result.rows if math.isfinite(r.get("density_error", math.nan))]
-        return {"comm_radius_m": self.radius, "message_loss": self.loss, "rounds_per_substep": self.rounds,
+        return {"comm_radius_m": self.radius, "walls": sim.config.sim.comm_walls,
+                "message_loss": self.loss, "rounds_per_substep": self.rounds,
                 "relay_hops": self.hops,
                 "modes": self.basis.modes, "bytes_per_robot_per_step": self.log.total_bytes / (robots * steps),
                 "messages": self.log.total_messages, "bytes": self.log.total_bytes,
