@@ -152,6 +152,7 @@ class Decentralized:
         self.var_of = np.full(s.robots, -1)                      # the newest of them each robot heard
         self.labels = (1, np.zeros(s.robots, dtype=np.intp))     # components at the last measurement
         self.hops = s.comm_hops                                  # relay bound per measurement step
+        self.comm_walls = getattr(s, "comm_walls", "pass")      # "pass" or "block" (sim.comm)
         self.fragments = FragmentMaps() if s.comm_fragments else None   # maps of the other components
 
     # ------------------------------------------------------------------ strategy hooks
@@ -159,9 +160,10 @@ class Decentralized:
         self.sim = sim
         # sim.comm_walls = "block": links need line of sight on the run's map (sim.comm); no map, nothing blocks
         self.sight = None
-        if sim.config.sim.comm_walls == "block" and sim.region is not None and not sim.region.is_rectangle:
+        region = getattr(sim, "region", None)
+        if self.comm_walls == "block" and region is not None and not region.is_rectangle:
             from .comm import LineOfSight
-            self.sight = LineOfSight(sim.region)
+            self.sight = LineOfSight(region)
         if sim.free is not None:      # mass of every series over the free cells (renormalised estimates)
             g = sim.grid
             x0, _, y0, _ = g.domain
@@ -532,7 +534,7 @@ class Decentralized:
         steps = max(sim.step_index, 1)
         robots = max(int(sim.alive.sum()), 1)
         rows = [r for r in sim.result.rows if math.isfinite(r.get("density_error", math.nan))]
-        return {"comm_radius_m": self.radius, "walls": sim.config.sim.comm_walls,
+        return {"comm_radius_m": self.radius, "walls": self.comm_walls,
                 "message_loss": self.loss, "rounds_per_substep": self.rounds,
                 "relay_hops": self.hops,
                 "modes": self.basis.modes, "bytes_per_robot_per_step": self.log.total_bytes / (robots * steps),
