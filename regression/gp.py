@@ -513,6 +513,9 @@ class GaussianProcess:
         self._log_amp = None
         self._amp = None            # exp(g / 2) at the lattice nodes (M,), None: the stationary model
         self._amp_band = None       # a(node) a(node') on A's band (gx, 7, gy, 7)
+        #: ``refit_inputs = "canonical"``: the refit's shadow (:class:`regression.canonical.Shadow`), made at the first
+        #: data; None otherwise
+        self._shadow = None
         self._build_lattice(frame)
 
     def _build_lattice(self, frame: Frame | None, axes: tuple[SplineAxis, SplineAxis] | None = None) -> None:
@@ -591,6 +594,8 @@ class GaussianProcess:
                 self._make_cut()
         for f in self._followers:
             f.set_barrier(blocked, step)
+        if self._shadow is not None:
+            self._shadow.gp.set_barrier(blocked, step)
 
     def _make_cut(self) -> None:
         """The :class:`regression.cut_basis.CutBasis` of the barrier on this lattice and empty per-piece power sums."""
@@ -879,6 +884,10 @@ class GaussianProcess:
         if self._n == 0 and self._settings.signal_scale == "data":
             self._standardize(y, X)
             self._y0 = float(np.median(y))
+            s0 = self._initial_settings
+            if s0.refit_inputs == "canonical" and s0.learn_hyperparameters:
+                from .canonical import make_shadow
+                self._shadow = make_shadow(self)
         raw_y, y = y, (y - self._y0 if self._y0 else y)
         U = self._frame.to_frame(X)             # the lattice's frame (X itself without a rotation)
         for k in range(0, n, _ADD_CHUNK):       # bounded work arrays (~1 KB per point) for huge batches
@@ -896,6 +905,8 @@ class GaussianProcess:
             self._raw.append((X, np.array(raw_y, dtype=float)))
         for f in self._followers:             # same data at other hyperparameters (:meth:`follower`)
             f.add(X, raw_y)
+        if self._shadow is not None:          # the refit's standardized, rounded copy (regression.canonical)
+            self._shadow.add(X, raw_y)
         if self._pending is not None:
             if self._pending_n + n <= self.max_update_rank:
                 self._pending.append(U)          # a fresh array (from _points, or rotated)
@@ -1861,6 +1872,12 @@ class GaussianProcess:
                              f"{1.5 * self._spacing:g}, got {length_scale!r}")
         key = dataclasses.replace(s, length_scale=ell, inducing_spacing=self._spacing).kernel_key
         return self._lml(s2, key, *self._assemble(self.prior_mean))
+
+    @property
+    def refit_shadow(self):
+        """``refit_inputs = "canonical"``: the :class:`regression.canonical.Shadow` the online refit works on (from the
+        first data on); None otherwise."""
+        return self._shadow
 
     @property
     def initial_settings(self) -> GPSettings:

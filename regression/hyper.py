@@ -474,8 +474,21 @@ def refit_online(gp: GaussianProcess):
     was fitted on gets a one-line ``UserWarning`` (once per GP and bound).  With ``amplitude = "local"`` the
     signal variance's spatial factor exp(g) is then fitted at the new values on the same coarse grid
     (:func:`regression.amplitude.fit_log_amplitude`).  With ``mean = "auto"`` the other mean function is fitted too and
-    the one of the larger BIC kept (:func:`_choose_mean`).  Updates gp's settings (the posterior is recomputed at the
-    next ``predict``) and returns them."""
+    the one of the larger BIC kept (:func:`_choose_mean`).  With ``refit_inputs = "canonical"`` all of this runs on
+    gp's shadow of standardized, rounded data (:mod:`regression.canonical`, :func:`_refit_canonical`), whose result
+    is the same bits in any units.  Updates gp's settings (the posterior is recomputed at the next ``predict``) and
+    returns them."""
+    s0 = gp.initial_settings
+    shadow = gp.refit_shadow
+    if shadow is not None:                     # refit_inputs "canonical": the refit of the shadow's data, x v_y
+        return _refit_canonical(gp, shadow)
+    s2, ell, ell_y, tau2, lo, hi = _refit_values(gp)
+    return _finish_refit(gp, s2, ell, ell_y, tau2, lo, hi)
+
+
+def _refit_values(gp: GaussianProcess):
+    """The values of :func:`refit_online` on gp (the angle's choice, the multi-resolution fit, the mean's choice):
+    (s_f^2, l, l_y or None, tau^2, and l's bounds on the grid of the fit); gp's settings are those of the last fit."""
     s0 = gp.initial_settings
     if gp._raw is not None:                    # kernel_angle "auto": the first refit chooses the angle
         choose_kernel_angle(gp)
@@ -486,7 +499,40 @@ def refit_online(gp: GaussianProcess):
     s2, ell, ell_y, lo, hi = _fit(gp, _prior(gp), c, previous, out)
     if s0.mean == "auto" and s0.trend_available:
         s2, ell, ell_y, lo, hi = _choose_mean(gp, c, previous + [cur.nugget], (s2, ell, ell_y, lo, hi), out)
-    tau2 = out["nugget"]
+    return s2, ell, ell_y, out["nugget"], lo, hi
+
+
+def _refit_canonical(gp: GaussianProcess, shadow):
+    """``refit_inputs = "canonical"`` (:mod:`regression.canonical`): the values of :func:`refit_online` fitted on the
+    shadow's standardized, rounded data (the same bits in any units), set on the shadow (its next warm start) and
+    given to gp with s_f^2 and tau^2 x v_y; the unit-free choices (the kernel's angle, the mean, the barrier, a local
+    amplitude) follow the shadow's.  The bound warnings are gp's, in field units."""
+    sg = shadow.gp
+    s0 = gp.initial_settings
+    s2, ell, ell_y, tau2, lo, hi = _refit_values(sg)
+    new = sg.set_hyperparameters(s2, ell, ell_y, nugget=tau2)
+    if gp._raw is not None and sg._raw is None:          # the angle the shadow chose
+        gp.set_kernel_angle(sg.settings.kernel_angle)
+    if sg.settings.mean != gp.settings.mean:
+        gp.set_mean(sg.settings.mean)
+    gp.mean_choices[:] = sg.mean_choices
+    if gp._barrier is not None:
+        gp.use_barrier(sg.barrier_on)
+        gp.barrier_choices[:] = sg.barrier_choices
+    if s0.amplitude == "local":
+        from .amplitude import fit_log_amplitude
+        c = coarsening_factor(sg, s0.hyper_coarsening)
+        fit_log_amplitude(sg, coarsened(sg, c, prior_truncation=min(new.prior_truncation, REFIT_TRUNCATION)))
+        gp.set_log_amplitude(sg.log_amplitude)
+    v = shadow.variance
+    return _finish_refit(gp, s2 * v, ell, ell_y, tau2 * v, lo, hi, amplitude=False)
+
+
+def _finish_refit(gp: GaussianProcess, s2, ell, ell_y, tau2, lo, hi, amplitude: bool = True):
+    """The end of :func:`refit_online`: a one-line warning for a value at a bound, the values set on gp, and with
+    ``amplitude = "local"`` (and ``amplitude``) the local signal variance fitted at them."""
+    s0 = gp.initial_settings
+    c = coarsening_factor(gp, s0.hyper_coarsening)
     sv_lo, sv_hi = signal_variance_bounds(gp)
     warned = gp.__dict__.setdefault("_bound_warnings", set())
     short, long_ = min(ell, ell_y or ell), max(ell, ell_y or ell)
@@ -532,7 +578,7 @@ def refit_online(gp: GaussianProcess):
                       "is micro-scale variation the GP does not resolve (the map's band is wide; a finer grid, "
                       "gp.length_scale, may resolve more)", UserWarning, stacklevel=2)
     new = gp.set_hyperparameters(s2, ell, ell_y, nugget=tau2)
-    if s0.amplitude == "local":                     # then g at these values (regression.amplitude), on the coarse grid
+    if s0.amplitude == "local" and amplitude:       # then g at these values (regression.amplitude), on the coarse grid
         from .amplitude import fit_log_amplitude
         fit_log_amplitude(gp, coarsened(gp, c, prior_truncation=min(new.prior_truncation, REFIT_TRUNCATION)))
     return new

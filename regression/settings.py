@@ -24,6 +24,8 @@ def signal_variance_limits(noise_variance: float) -> tuple[float, float]:
 
 #: choices of :attr:`GPSettings.signal_scale`
 SIGNAL_SCALES = ("absolute", "data")
+#: choices of :attr:`GPSettings.refit_inputs`
+REFIT_INPUTS = ("field", "canonical")
 #: choices of :attr:`GPSettings.grid_budget`
 GRID_BUDGETS = ("error", "coarsen")
 #: choices of :attr:`GPSettings.amplitude`
@@ -266,6 +268,16 @@ class GPSettings:
         instead of ~1.2 s, and the first period's factorisations a few per cent of theirs.  The tuned preset's (its
         hyperparameters change every period, so that Sigma is refactorised anyway); the paper preset keeps the dense
         path (its results bit for bit).
+    refit_inputs
+        ``"field"`` (the default): the online refit (:func:`regression.hyper.refit_online`) works on the GP's power
+        sums of the data as measured.  ``"canonical"`` (needs ``signal_scale = "data"``): it works on a shadow GP
+        (:mod:`regression.canonical`) holding the data standardized by the first batch, (y - its median) / sqrt(v_y),
+        rounded to multiples of 2^-20, at positions rounded to 2^-20 of the inducing spacing, with the noise variance
+        in the same unit (its mantissa rounded to 20 bits): every input of the refit -- the power sums, the data's
+        variance its priors and bounds follow, the noise variance, the warm start, the trend's sums -- is then the
+        same bits in any units (f -> a f + b with a > 0 and the noise sd x a), and so is its result, which the GP
+        takes x v_y.  With ``"field"`` the refit's L-BFGS-B stops where round-off of the data puts it on a flat
+        s_f^2-l ridge (docs/results/map-quality.md, "The same run in any units: a refit of unit-free inputs").
     """
 
     signal_variance: float = 0.25
@@ -301,6 +313,7 @@ class GPSettings:
     outlier_threshold: float = 3.0
     outlier_radius: float | None = None
     outlier_hold: int = 2
+    refit_inputs: str = "field"
 
     def __post_init__(self):
         check_number_settings(self, "gp")
@@ -425,6 +438,9 @@ class GPSettings:
         for name in ("hyper_step_sd", "hyper_prior_sd_signal"):
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, _finite_positive(name, getattr(self, name)))
+        if self.refit_inputs not in REFIT_INPUTS:
+            raise ValueError(did_you_mean(f"refit_inputs must be one of {', '.join(repr(r) for r in REFIT_INPUTS)}, "
+                                          f"got {self.refit_inputs!r}", self.refit_inputs, REFIT_INPUTS))
         from .outliers import OUTLIER_RULES
         if self.outliers not in OUTLIER_RULES:
             raise ValueError(did_you_mean(f"outliers must be one of {', '.join(repr(r) for r in OUTLIER_RULES)}, "

@@ -520,6 +520,9 @@ class RunConfig:
             raise ValueError(f"sim.gamma ({s.gamma:g}) must be below the GP prior variance gp.signal_variance "
                              f"({self.gp.signal_variance:g}): sup V starts there, so Algorithm 1 would stop before "
                              "the robots move")
+        if self.gp.refit_inputs == "canonical" and self.gp.signal_scale != "data":
+            raise ValueError("gp.refit_inputs = \"canonical\" standardizes the data by their first batch: it needs "
+                             f"gp.signal_scale = \"data\" (the tuned preset's), got {self.gp.signal_scale!r}")
         if self.gp.kernel_angle == "auto" and not self.gp.learn_hyperparameters:
             raise ValueError("gp.kernel_angle = \"auto\" is chosen at the first hyperparameter refit: it needs "
                              "gp.learn_hyperparameters = true (the tuned preset's), or give the angle in degrees")

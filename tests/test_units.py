@@ -104,3 +104,90 @@ def test_tuned_feedback_plans_the_same_in_other_units():
     rm1 = np.array([r["rmse"] for r in r1.rows])
     rm2 = np.array([r["rmse"] for r in r2.rows])
     assert np.allclose(rm2, 1000 * rm1, rtol=1e-6)
+
+
+class Bowl(Field):
+    """A heated greenhouse's bowl on the 10 m square (°F): a curved trend 20 x its bumps (scripts/heldout_7.py's
+    bowl, smaller)."""
+    name = "bowl"
+
+    def _evaluate(self, pts):
+        p = np.asarray(pts, dtype=float)
+        r2 = ((p[:, 0] - 5.0) ** 2 + (p[:, 1] - 5.0) ** 2) / 25.0
+        return 58.0 + 30.0 * r2 + 0.6 * np.sin(1.3 * p[:, 0]) * np.cos(1.1 * p[:, 1])
+
+
+def _bowl_run(a, b, refit_inputs):
+    from swarmfield.sim.stopping import make_stop_rule
+    cfg = config_from_dict({"sim": {"noise_variance": (0.2 * a) ** 2, "controller": "feedback", "max_periods": 2,
+                                    "robots": 30, "domain": [0, 10, 0, 10], "start_box": [0, 4, 0, 4]},
+                            "planner": {"nx": 12, "ny": 12},
+                            "gp": {"length_scale": 1.0, "refit_inputs": refit_inputs}}, preset="tuned")
+    # measured on after the threshold (compare-controllers' runs): the refit at 1 T decides the second period
+    return run_simulation(cfg, field=Affine(Bowl(), a, b), stop_rule=make_stop_rule(cfg.sim, stops=False))
+
+
+def test_tuned_feedback_is_the_same_in_degf_and_degc_with_canonical_refit_inputs():
+    """gp.refit_inputs = "canonical" (regression.canonical): the refit's inputs are the same bits in °F and °C, so the
+    tuned feedback's robots are at the same positions at every snapshot.  With the default ("field") the refit at 1 T
+    stops at another point of the flat s_f^2-l ridge in each unit, and the robots are 6.2 m apart at 2 T (measured
+    2026-11-28; not asserted: where round-off puts it is not a property to pin)."""
+    r1, r2 = _bowl_run(1.0, 0.0, "canonical"), _bowl_run(5.0 / 9.0, -160.0 / 9.0, "canonical")
+    assert len(r1.snapshots) == len(r2.snapshots) > 2
+    for s1, s2 in zip(r1.snapshots, r2.snapshots):
+        assert np.allclose(s1.X, s2.X, rtol=0, atol=1e-9)
+    assert r1.time_to_threshold == r2.time_to_threshold
+    rm1 = np.array([r["rmse"] for r in r1.rows])
+    rm2 = np.array([r["rmse"] for r in r2.rows])
+    assert np.allclose(rm2, 5.0 / 9.0 * rm1, rtol=1e-6)
+    assert r2.kernel["length_scale"] == r1.kernel["length_scale"]
+    assert r2.kernel["signal_variance"] == pytest.approx(25.0 / 81.0 * r1.kernel["signal_variance"], rel=1e-12)
+
+
+def test_canonical_refit_inputs_are_the_same_bits_in_any_units():
+    """The shadow of a GP (regression.canonical) holds the same power sums, noise variance and data variance, bit for
+    bit, for y and 5/9 y - 160/9 (noise sd x 5/9), and the refit gives the same l and s_f^2 x 25/81; the quantization
+    rounds to multiples of 2^-20 (values) and a power of two (positions)."""
+    from swarmfield.regression.canonical import (position_quantum, quantize_positions, quantize_values,
+                                                 round_mantissa)
+    from swarmfield.regression.hyper import refit_online
+    q = quantize_values(np.array([1.0, 1.0 + 2.0 ** -22, -3.3]), 0.5, 2.0)
+    assert np.all(q * 2 ** 20 == np.rint(q * 2 ** 20)) and q[0] == q[1] == 0.25
+    assert round_mantissa(1.0 + 2.0 ** -30) == 1.0 and round_mantissa(0.0) == 0.0
+    h = position_quantum(0.5)
+    assert h == 2.0 ** -21 and np.all(quantize_positions(np.array([[0.1, 9.99999999]]), h, (0, 10, 0, 10)) / h % 1 == 0)
+    rng = np.random.default_rng(5)
+    X = rng.uniform(0, 10, size=(300, 2))
+    y = Bowl()(X) + 0.2 * rng.standard_normal(300)
+    gps = []
+    for a, b in ((1.0, 0.0), (5.0 / 9.0, -160.0 / 9.0)):
+        gp = GaussianProcess(GPSettings(signal_variance=1.0, noise_variance=(0.2 * a) ** 2, signal_scale="data",
+                                        kernel="matern52", learn_hyperparameters=True, learn_nugget=True, mean="auto",
+                                        hyper_maxiter=8, hyper_step_sd=1.0, hyper_prior_sd=0.5,
+                                        refit_inputs="canonical"), (0, 10, 0, 10))
+        gp.add(X[:100], a * y[:100] + b)
+        refit_online(gp)
+        gp.add(X[100:], a * y[100:] + b)
+        refit_online(gp)
+        gps.append(gp)
+    (g1, g2), (s1, s2) = gps, (gps[0].refit_shadow.gp, gps[1].refit_shadow.gp)
+    assert np.array_equal(s1._momy, s2._momy) and np.array_equal(s1._mom, s2._mom)
+    assert s1.settings == s2.settings and s1.data_variance == s2.data_variance
+    assert g1.settings.length_scale == g2.settings.length_scale and g1.settings.mean == g2.settings.mean
+    assert g2.settings.signal_variance == pytest.approx(25.0 / 81.0 * g1.settings.signal_variance, rel=1e-12)
+    assert g2.settings.nugget == pytest.approx(25.0 / 81.0 * g1.settings.nugget, rel=1e-12, abs=1e-300)
+
+
+def test_refit_inputs_default_is_the_field_s():
+    """The default keeps the refit on the GP's own sums (no shadow), in the paper and the tuned preset; "canonical"
+    needs the data's scale (one clear error otherwise)."""
+    assert GPSettings().refit_inputs == "field"
+    for preset in ("paper", "tuned"):
+        assert config_from_dict({}, preset=preset).gp.refit_inputs == "field"
+    gp = GaussianProcess(GPSettings(signal_scale="data", learn_hyperparameters=True), (0, 10, 0, 10))
+    gp.add(np.array([[1.0, 1.0], [2.0, 2.0]]), np.array([1.0, 2.0]))
+    assert gp.refit_shadow is None
+    with pytest.raises(ValueError, match="refit_inputs"):
+        GPSettings(refit_inputs="units")
+    with pytest.raises(ValueError, match="signal_scale"):
+        config_from_dict({"gp": {"refit_inputs": "canonical"}}, preset="paper")
