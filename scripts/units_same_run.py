@@ -1,4 +1,4 @@
-"""The tuned feedback on one field in two units, seed by seed: the same run? (issue 35 item 1;
+"""The tuned feedback on one field in two units, seed by seed: the same run? (the same robot paths in any units;
 docs/results/map-quality.md, "The same run in any units: a refit of unit-free inputs")
 
     python scripts/units_same_run.py f/bowl.npz 0.2 f/bowl_degc.npz 0.11111111111111112 --scale 0.5555555555555556 \
