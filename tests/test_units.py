@@ -191,3 +191,32 @@ def test_refit_inputs_default_is_the_field_s():
         GPSettings(refit_inputs="units")
     with pytest.raises(ValueError, match="signal_scale"):
         config_from_dict({"gp": {"refit_inputs": "canonical"}}, preset="paper")
+
+
+@pytest.mark.parametrize("extra", [{"kernel_angle": "auto"}, {"amplitude": "local"},
+                                   {"kernel": "gmrf", "barrier": "auto"}])
+def test_canonical_refit_carries_the_unit_free_choices(extra):
+    """With refit_inputs = "canonical" the kernel's angle, a local amplitude and the barrier's choice are made on the
+    shadow and given to the GP: the same in any units, s_f^2 x a^2."""
+    import warnings
+    from swarmfield.regression.hyper import refit_online
+    rng = np.random.default_rng(5)
+    X = rng.uniform(0, 10, size=(300, 2))
+    y = np.sin(X[:, 0] + 0.5 * X[:, 1]) + 0.1 * rng.standard_normal(300)
+    out = []
+    for a, b in ((1.0, 0.0), (5.0 / 9.0, -160.0 / 9.0)):
+        gp = GaussianProcess(GPSettings(signal_variance=1.0, noise_variance=(0.1 * a) ** 2, signal_scale="data",
+                                        learn_hyperparameters=True, refit_inputs="canonical", **extra), (0, 10, 0, 10))
+        if extra.get("barrier"):
+            gp.set_barrier(lambda P: (np.abs(P[:, 0] - 5) < 0.2) & (P[:, 1] < 6), 0.1)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            gp.add(X[:150], a * y[:150] + b)
+            refit_online(gp)
+            gp.add(X[150:], a * y[150:] + b)
+            refit_online(gp)
+        s, g = gp.settings, gp.log_amplitude
+        out.append((s.signal_variance / (a * a), s.length_scale, s.length_scale_y, s.kernel_angle, gp.barrier_on,
+                    None if g is None else float(np.asarray(g(np.array([[2.0, 3.0]]))).ravel()[0])))
+    assert out[0][1:] == out[1][1:]
+    assert out[1][0] == pytest.approx(out[0][0], rel=1e-12)
