@@ -79,8 +79,9 @@ _BARRIER_NEEDS_DOMAIN = ("gp.barrier = true needs a domain with obstacles (domai
 
 def check_config(config: RunConfig) -> None:
     """Fail early (``ValueError``) on settings that the components would reject only mid-run:
-    a GP inducing grid above ``max_inducing_points``, a fixed KDE bandwidth needing too many bins,
-    an unknown stop rule, a bad domain (:func:`resolve_domain`), ``gp.barrier`` without one.  The checks' warnings
+    a bad domain (:func:`resolve_domain`; first, so that a map in feet is refused for its units, not for the inducing
+    grid its site read as metres would need), a GP inducing grid above ``max_inducing_points``, a fixed KDE
+    bandwidth needing too many bins, an unknown stop rule, ``gp.barrier`` without a domain.  The checks' warnings
     (the tuned preset's coarser inducing grid on a large site) are given only when every check passes: a refused
     input is one line."""
     with warnings.catch_warnings(record=True) as said:
@@ -92,16 +93,16 @@ def check_config(config: RunConfig) -> None:
 
 def _check_config(config: RunConfig) -> None:
     s = config.sim
-    GaussianProcess(config.gp, domain=s.domain)
-    make_stop_rule(s)
-    if config.gp.barrier is True and not config.domain.source:          # "auto" without obstacles: the plain GP
-        raise ValueError(_BARRIER_NEEDS_DOMAIN)
     free = None
     if config.domain.source:           # a bad domain fails here, in one line (warnings come with the run)
         from ..ocp import Grid
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             free = resolve_domain(config, Grid(config.planner.domain, config.planner.nx, config.planner.ny))[1]
+    GaussianProcess(config.gp, domain=s.domain)
+    make_stop_rule(s)
+    if config.gp.barrier is True and not config.domain.source:          # "auto" without obstacles: the plain GP
+        raise ValueError(_BARRIER_NEEDS_DOMAIN)
     from .controllers import CONTROLLERS
     if s.controller in CONTROLLERS and CONTROLLERS[s.controller].needs_plan:
         # what the planner would refuse only when it is built (inside a sweep's runs)

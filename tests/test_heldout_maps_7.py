@@ -286,3 +286,22 @@ def test_a_start_box_outside_every_polygon_says_the_polygons_are_the_free_space(
     with pytest.raises(ValueError) as exc:
         dom.check_start_box((0.0, 7.0, 0.0, 7.0))
     assert "outside every polygon" not in str(exc.value)
+
+
+def test_a_map_in_feet_is_refused_for_its_units_before_the_gp_grid_under_the_paper_preset(tmp_path, capsys):
+    # without --preset tuned the workshop in feet (100 x 60 units, read as metres) was refused by the inducing grid's
+    # budget ("the inducing grid would have 203 x 123 = 24969 nodes ..."): the user was sent to gp.length_scale
+    from shapely.geometry import box
+    from swarmfield.cli.simulate_swarm import main
+    x0, y0 = 987040.0, 211520.0
+    (tmp_path / "plan.geojson").write_text(json.dumps(_feature_collection([box(x0, y0, x0 + 100, y0 + 60)],
+                                                                          "EPSG:2263")))
+    (tmp_path / "plan.toml").write_text(f"[sim]\ndomain = {[x0, x0 + 100, y0, y0 + 60]}\n"
+                                        f"start_box = {[x0 + 5, x0 + 25, y0 + 5, y0 + 25]}\n")
+    out = tmp_path / "run"
+    assert main(["--domain", str(tmp_path / "plan.geojson"), "--config", str(tmp_path / "plan.toml"),
+                 "--out", str(out), "--max-periods", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and not out.exists()
+    assert "its coordinates are in US survey feet (EPSG:2263: 1 unit = 0.3048006 m)" in err[0], err[0]
+    assert "inducing grid" not in err[0]
