@@ -282,7 +282,7 @@ def domain_problem(args, grid, p0, target):
                 suggestion = f" (e.g. --start-box {' '.join(f'{v:g}' for v in hint)})" if hint else ""
                 raise ValueError(f"domain {dom.name}: the default initial density (uniform on the start box "
                                  f"{[round(v, 9) for v in box]}) overlaps an obstacle; choose a free --start-box"
-                                 f"{suggestion}, or give one on the free space with --initial")
+                                 f"{suggestion}, or give one on the free space with --initial" + dom.notes_clause())
             free = dom.reachable_cells(classified, box)
         else:
             from ..domain.cells import face_components

@@ -551,7 +551,16 @@ class Domain:
             repaired = f"; the map's {repaired}" if repaired else ""
             raise ValueError(f"domain {self.name}: the start box {list(box)} is not free (it overlaps an obstacle); "
                              "choose sim.start_box inside the free space"
-                             + (f", e.g. {list(hint)}" if hint else "") + inverted + repaired + self._outside_note(box))
+                             + (f", e.g. {list(hint)}" if hint else "") + inverted + repaired + self._outside_note(box)
+                             + self.notes_clause(getattr(self, "noted_in_errors", ())))
+
+    def notes_clause(self, said=()) -> str:
+        """An error's clause for what loading the map warned (:attr:`notes`), but for the notes ``said`` (those the
+        error says in its own words: the start box's error says the repair and the inverted image): a refused run
+        shows no warning, so a polygon drawn inside another, say, went unsaid when the start box was not free
+        (round 7); "" when there is nothing else to say."""
+        rest = [n for n in self.notes if n not in said]
+        return "; loading the map warned: " + "; ".join(rest) if rest else ""
 
     def _outside_note(self, box) -> str:
         """The start box's error's clause for a polygon map the box lies wholly outside of: the polygons are the free

@@ -233,9 +233,11 @@ def _inverted_note(path, dom: Domain, drawn=None) -> tuple:
     if not deep > INVERTED[1] * wide:
         return ()
     dom.looks_inverted = True                    # the start box's error says it too (Domain.check_start_box)
-    return (f"domain file {path}: {100 * f.sum() / seen.sum():.2g} % of it is free (light) and thin, {wide:.2g} m from "
-            f"an obstacle on average, while its obstacles (dark) lie {deep:.2g} m deep: is the image inverted (light walls on a dark "
-            "floor)? A pixel is free when it is light; if so, invert it first (PIL.ImageOps.invert)",)
+    note = (f"domain file {path}: {100 * f.sum() / seen.sum():.2g} % of it is free (light) and thin, {wide:.2g} m from "
+            f"an obstacle on average, while its obstacles (dark) lie {deep:.2g} m deep: is the image inverted (light walls "
+            "on a dark floor)? A pixel is free when it is light; if so, invert it first (PIL.ImageOps.invert)")
+    dom.noted_in_errors = (note,)                # ... in its own clause, so not again as the note
+    return (note,)
 
 
 def _decode_png(PIL, path: Path) -> np.ndarray:
@@ -631,6 +633,7 @@ def _load_geojson(path: Path, sim_extent):
         ext = (x0, x1, y0, y1)
     dom = Domain.from_polygons(geom, ext, name=path.stem)
     dom.repaired = repaired                          # the start box's error says it too (Domain.check_start_box)
+    dom.noted_in_errors = notes                      # ... in its own clause, so not again as the note
     dom.notes = notes + _shared_edges_note(path, parts) + _inside_note(path, valid) + _cut_off(path, dom, geom)
     return dom
 

@@ -910,7 +910,8 @@ def resolve_domain(config: RunConfig, grid, domain=None):
                          f"(domain.min_free_fraction = {ds.min_free_fraction:g})")
     reach = region.reachable_cells(free, s.start_box)
     if not reach.any():
-        raise ValueError(f"domain {region.name}: the start box {list(s.start_box)} overlaps no free planner cell")
+        raise ValueError(f"domain {region.name}: the start box {list(s.start_box)} overlaps no free planner cell"
+                         + region.notes_clause())
     lost = free & ~reach
     if lost.any():
         area = float(lost.sum()) * grid.cell_area

@@ -305,3 +305,32 @@ def test_a_map_in_feet_is_refused_for_its_units_before_the_gp_grid_under_the_pap
     assert len(err) == 1 and not out.exists()
     assert "its coordinates are in US survey feet (EPSG:2263: 1 unit = 0.3048006 m)" in err[0], err[0]
     assert "inducing grid" not in err[0]
+
+
+def test_a_start_box_error_keeps_what_loading_the_map_warned(tmp_path, capsys):
+    # a lake whose island is a polygon of its own, with the default start box: the one line said the box is not free
+    # and no more; the warning that the island adds nothing (a polygon inside another) was dropped
+    from shapely.geometry import Point, box
+    from swarmfield.cli.simulate_swarm import main
+    (tmp_path / "lake.geojson").write_text(json.dumps(_feature_collection([Point(10, 8).buffer(7.5),
+                                                                           Point(10, 8).buffer(3.0)])))
+    out = tmp_path / "run"
+    assert main(["--preset", "tuned", "--domain", str(tmp_path / "lake.geojson"), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and not out.exists()
+    assert "the start box [0.0, 7.0, 0.0, 7.0] is not free" in err[0]
+    assert "; loading the map warned: domain file " in err[0] and "1 of its polygons lies inside another" in err[0]
+    # the clauses that already say a note (the repair) do not repeat it; a run that goes ahead warns once
+    dom_doc = [{"type": "Polygon", "coordinates": [[[0, 0], [20, 0], [0, 16], [20, 16], [0, 0]]]}]
+    (tmp_path / "bowtie.geojson").write_text(json.dumps({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {}, "geometry": g} for g in dom_doc]}))
+    dom = load_domain(tmp_path / "bowtie.geojson", sim_extent=(0, 20, 0, 20))
+    with pytest.raises(ValueError) as exc:
+        dom.check_start_box((0.0, 7.0, 0.0, 7.0))
+    assert str(exc.value).count("repaired with shapely.make_valid") == 1 and "loading the map warned" not in str(exc.value)
+    deck = [box(0, 0, 20, 16), Point(12, 12).buffer(0.25)]
+    (tmp_path / "deck.geojson").write_text(json.dumps(_feature_collection(deck)))
+    assert main(["--domain", str(tmp_path / "deck.geojson"), "--controller", "diffusion", "--max-periods", "1",
+                 "--no-figures", "--quiet", "--out", str(tmp_path / "deck")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("lies inside another") == 1, err
