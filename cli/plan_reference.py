@@ -297,11 +297,13 @@ def domain_problem(args, grid, p0, target):
     notes = list(dom.notes)
     lost = classified & ~free
     if lost.any():
-        cut = ""
-        if args.initial is None:
-            from ..sim.simulation import cut_by_cells
-            cut = cut_by_cells(dom, classified, start_box(args), grid, f)
-        notes.append(f"domain {dom.name}: {lost.sum() * grid.cell_area:g} m^2 of free space "
+        from ..sim.simulation import cut_by_cells, free_area, lost_space
+        if args.initial is None:      # the free space of the pieces out of reach (a pond), not the cells' whole area
+            box = start_box(args)
+            area, cut = lost_space(dom, classified, lost, box, grid)[0], cut_by_cells(dom, classified, box, grid, f)
+        else:                         # what the initial density's cells do not join: their free area
+            area, cut = free_area(dom, lost, grid), ""
+        notes.append(f"domain {dom.name}: {area:g} m^2 of free space "
                      f"({int(lost.sum())} cells) cannot be reached from the initial density; it is excluded{cut}")
     walls = dom.closed_faces(free)
     out = []

@@ -344,6 +344,52 @@ class Domain:
             out[i, j] = shapely.intersects_xy(region, x0 + (i + 0.5) * px, y0 + (j + 0.5) * py)
         return out
 
+    def unreachable_area(self, start_box, parts: np.ndarray) -> np.ndarray:
+        """(n,) the free area (m^2) the robots cannot reach from ``start_box`` at the map's own resolution
+        (:meth:`reachable_pixels`) held by each of the n parts of a grid's cells, ``parts`` (nx, ny) their labels
+        1..n (0: none): each unreachable piece -- a part of the polygons that does not overlap the box, shapely's area
+        of it, or a raster's free pixels joined to each other but not to it -- counts whole, for the part whose cells
+        hold most of it; a piece in none of the parts' cells (a speck in a blocked cell) counts for none."""
+        parts = np.asarray(parts)
+        nx, ny = parts.shape
+        n = int(parts.max(initial=0))
+        out = np.zeros(n)
+        if n == 0:
+            return out
+        x0, x1, y0, y1 = self.extent
+        if self.geometry is not None:
+            import shapely
+            bx0, bx1, by0, by1 = (float(v) for v in start_box)
+            sb = shapely.box(bx0, by0, bx1, by1)
+            away = [p for p in shapely.get_parts(self.geometry) if not shapely.intersection(p, sb).area > 0]
+            if not away:
+                return out
+            xs, ys = np.linspace(x0, x1, nx + 1), np.linspace(y0, y1, ny + 1)
+            held = []
+            for k in range(1, n + 1):
+                i, j = np.nonzero(parts == k)
+                held.append(shapely.union_all(shapely.box(xs[i], ys[j], xs[i + 1], ys[j + 1])))
+            for p in away:
+                overlap = shapely.area(shapely.intersection(p, np.array(held, dtype=object)))
+                if overlap.max() > 0:
+                    out[int(np.argmax(overlap))] += float(p.area)
+            return out
+        from scipy import ndimage
+        fine = self.free_pixels
+        away, m = ndimage.label(fine & ~self._reachable(fine, start_box))
+        if m == 0:
+            return out
+        bx, by = self._pixel_bounds(nx, ny)
+        i, j = np.nonzero(away)
+        piece = away[i, j] - 1
+        part = parts[np.searchsorted(bx, i, side="right") - 1, np.searchsorted(by, j, side="right") - 1]
+        hits = np.bincount(piece * (n + 1) + part, minlength=m * (n + 1)).reshape(m, n + 1)[:, 1:]
+        size = np.bincount(piece, minlength=m)
+        px, py = self.pixel
+        for c in np.nonzero(hits.max(axis=1) > 0)[0]:
+            out[int(np.argmax(hits[c]))] += size[c] * px * py
+        return out
+
     def reachable_cells(self, free: np.ndarray, start_box) -> np.ndarray:
         """Free cells (of the (nx, ny) mask ``free``) the swarm can reach from ``start_box``: most of the cell's
         free area is reachable at the map's own resolution (a wall thinner than a cell still closes a room;

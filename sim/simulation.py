@@ -914,9 +914,9 @@ def resolve_domain(config: RunConfig, grid, domain=None):
                          + region.notes_clause())
     lost = free & ~reach
     if lost.any():
-        area = float(lost.sum()) * grid.cell_area
+        area, where = lost_space(region, free, lost, s.start_box, grid)
         msg = (f"domain {region.name}: {area:g} m^2 of free space ({int(lost.sum())} planner cells) cannot be reached "
-               f"from the start box {list(s.start_box)} ({_where(lost, grid)})"
+               f"from the start box {list(s.start_box)} ({where})"
                + cut_by_cells(region, free, s.start_box, grid, ds.min_free_fraction))
         if ds.unreachable == "refuse":
             raise ValueError(msg + " (domain.unreachable = \"refuse\")")
@@ -934,25 +934,43 @@ def cut_by_cells(region, free, start_box, grid, min_free_fraction: float) -> str
     cell = math.sqrt(grid.cell_area)
     finer = region.cell_size_keeping(cell, start_box, min_free_fraction)
     how = f"--cell-size {finer:g} ([planner] cell_size) keeps it" if finer else "finer cells (--cell-size) keep it"
-    return (f"; of it, {float(cut.sum()) * grid.cell_area:g} m^2 the robots can reach at the map's own resolution, "
+    return (f"; of it, {free_area(region, cut, grid):g} m^2 the robots can reach at the map's own resolution, "
             f"through a passage the planner's {cell:.3g} m cells cannot hold (a door narrower than a cell whose larger "
             f"piece is another room's): {how}")
 
 
-def _where(cells, grid, most: int = 3) -> str:
-    """Where a mask of planner cells lies, for a one-line message: its connected parts' bounding boxes in
-    metres, the largest first (at most ``most``, then how many more)."""
+def free_area(region, cells, grid) -> float:
+    """The free area (m^2) in a mask of planner cells at the map's own resolution: each cell's free fraction
+    (:meth:`domain.Domain.cell_free_fraction`) times its area, not the cells' whole area."""
+    frac = region.cell_free_fraction(grid.nx, grid.ny)
+    return float(frac[np.asarray(cells, bool)].sum()) * grid.cell_area
+
+
+def lost_space(region, free, lost, start_box, grid) -> tuple:
+    """``(area, where)`` for the unreachable-space message: the free area at the map's own resolution of what the
+    planner cells ``lost`` (of the free cells ``free``) leave out -- each piece of free space the robots cannot reach
+    from the start box that those cells hold, whole (:meth:`domain.Domain.unreachable_area`: the lake's pond of
+    15.2 m^2 on an island, not the 20.6 m^2 of the 8 cells it mostly lies in), and the free area of the cells only
+    the planner's cells cut off (:func:`cut_by_cells`) -- and where it lies (its parts' bounding boxes of cells)."""
     from scipy import ndimage
-    labels, n = ndimage.label(cells)
-    parts = []
+    lost = np.asarray(lost, bool)
+    labels, n = ndimage.label(lost)
+    cut = region.cut_by_cells(free, start_box) & lost
+    frac = region.cell_free_fraction(grid.nx, grid.ny) * grid.cell_area
+    areas = region.unreachable_area(start_box, labels) + ndimage.sum(np.where(cut, frac, 0.0), labels,
+                                                                    np.arange(1, n + 1))
+    boxes = [(grid.xf[sl[0].start], grid.xf[sl[0].stop], grid.yf[sl[1].start], grid.yf[sl[1].stop])
+             for sl in ndimage.find_objects(labels)]
+    return float(np.sum(areas)), _where(boxes, [float(a) for a in areas])
+
+
+def _where(boxes, areas, most: int = 3) -> str:
+    """Where the parts of a region lie, for a one-line message: their areas and bounding boxes (x0, x1, y0, y1) in
+    metres, the largest first (at most ``most``, then how many more)."""
     m = lambda v: f"{float(v):.2f}".rstrip("0").rstrip(".")      # to the cm: UTM eastings stay readable
-    for k, sl in enumerate(ndimage.find_objects(labels), start=1):
-        size = int((labels[sl] == k).sum())
-        x0, y0 = grid.xf[sl[0].start], grid.yf[sl[1].start]
-        x1, y1 = grid.xf[sl[0].stop], grid.yf[sl[1].stop]
-        parts.append((size, f"x {m(x0)}-{m(x1)} m, y {m(y0)}-{m(y1)} m"))
-    parts.sort(key=lambda p: -p[0])
-    text = "; ".join(f"{size * grid.cell_area:g} m^2 at {box}" for size, box in parts[:most])
+    parts = sorted(zip(areas, boxes), key=lambda p: -p[0])
+    n = len(parts)
+    text = "; ".join(f"{area:g} m^2 at x {m(b[0])}-{m(b[1])} m, y {m(b[2])}-{m(b[3])} m" for area, b in parts[:most])
     more = f"; {n - most} smaller part(s)" if n > most else ""
     return f"{n} part{'s' if n > 1 else ''}: {text}{more}"
 

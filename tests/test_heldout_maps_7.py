@@ -288,6 +288,34 @@ def test_a_start_box_outside_every_polygon_says_the_polygons_are_the_free_space(
     assert "outside every polygon" not in str(exc.value)
 
 
+@pytest.mark.parametrize("kind", ["geojson", "npz"])
+def test_the_unreachable_space_warning_gives_the_free_area_not_the_cells(tmp_path, kind):
+    # the lake's pond (15.2 m^2 on an island) was "20.6452 m^2 of free space (8 planner cells) cannot be reached": the
+    # cells' whole area; a 4 m x 4 m pond half a cell off the 1 m cells' lines is 21 cells (its corners' are a quarter
+    # free), 21 m^2, of which 15 m^2 free; the pond is 16 m^2, all of it out of reach
+    from shapely.geometry import MultiPolygon, box
+    from swarmfield.ocp.grid import Grid
+    from swarmfield.sim.config import config_from_dict
+    from swarmfield.sim.simulation import resolve_domain
+    if kind == "geojson":
+        water = box(0, 0, 20, 20).difference(box(6, 6, 16, 16))
+        doc = _feature_collection([MultiPolygon([water, box(8.5, 8.5, 12.5, 12.5)])])
+        (tmp_path / "pond.geojson").write_text(json.dumps(doc))
+    else:                                                   # 0.25 m pixels, x first
+        free = np.ones((80, 80), bool)
+        free[24:64, 24:64] = False
+        free[34:50, 34:50] = True
+        np.savez(tmp_path / "pond.npz", free=free, extent=np.array([0.0, 20.0, 0.0, 20.0]))
+    cfg = config_from_dict({"sim": {"domain": [0.0, 20.0, 0.0, 20.0], "start_box": [0.5, 3.0, 0.5, 3.0]},
+                            "domain": {"source": str(tmp_path / f"pond.{kind}")}})
+    with pytest.warns(UserWarning) as said:
+        resolve_domain(cfg, Grid((0.0, 20.0, 0.0, 20.0), 20, 20))
+    msg = [str(w.message) for w in said if "cannot be reached" in str(w.message)]
+    assert len(msg) == 1
+    assert "16 m^2 of free space (21 planner cells) cannot be reached" in msg[0], msg[0]
+    assert "(1 part: 16 m^2 at x 8-13 m, y 8-13 m)" in msg[0]
+
+
 def test_a_map_in_feet_is_refused_for_its_units_before_the_gp_grid_under_the_paper_preset(tmp_path, capsys):
     # without --preset tuned the workshop in feet (100 x 60 units, read as metres) was refused by the inducing grid's
     # budget ("the inducing grid would have 203 x 123 = 24969 nodes ..."): the user was sent to gp.length_scale
