@@ -1,3 +1,3 @@
 """The swarmfield version: the one place it is written (``pyproject.toml`` reads it from here)."""
 
-__version__ = "0.13.0"
+__version__ = "0.14.0"
