@@ -21,16 +21,20 @@ def _feature_collection(geoms, crs=None):
     return doc
 
 
+def _workshop_in_feet(tmp_path, crs: str) -> None:
+    """plan.geojson (a 100 x 60 unit workshop in NAD83 / New York Long Island (ftUS), ``crs`` naming EPSG:2263) and
+    plan.toml (its domain and a start box) in ``tmp_path``."""
+    from shapely.geometry import box
+    x0, y0 = 987040.0, 211520.0
+    (tmp_path / "plan.geojson").write_text(json.dumps(_feature_collection([box(x0, y0, x0 + 100, y0 + 60)], crs)))
+    (tmp_path / "plan.toml").write_text(f"[sim]\ndomain = {[x0, x0 + 100, y0, y0 + 60]}\n"
+                                        f"start_box = {[x0 + 5, x0 + 25, y0 + 5, y0 + 25]}\n")
+
 def test_a_geojson_in_us_survey_feet_is_refused_before_any_work(tmp_path, capsys):
     # a State Plane export (NAD83 / New York Long Island (ftUS), EPSG:2263, as ogr2ogr names it) of a 100 ft x 60 ft
     # workshop was read as a 100 m x 60 m site (3.28 x too large, 10.8 x the area), run and written without a word
-    from shapely.geometry import box
     from swarmfield.cli.simulate_swarm import main
-    x0, y0 = 987040.0, 211520.0
-    (tmp_path / "plan.geojson").write_text(json.dumps(_feature_collection([box(x0, y0, x0 + 100, y0 + 60)],
-                                                                          "urn:ogc:def:crs:EPSG::2263")))
-    (tmp_path / "plan.toml").write_text(f"[sim]\ndomain = {[x0, x0 + 100, y0, y0 + 60]}\n"
-                                        f"start_box = {[x0 + 5, x0 + 25, y0 + 5, y0 + 25]}\n")
+    _workshop_in_feet(tmp_path, "urn:ogc:def:crs:EPSG::2263")
     out = tmp_path / "run"
     assert main(["--preset", "tuned", "--domain", str(tmp_path / "plan.geojson"), "--config", str(tmp_path / "plan.toml"),
                  "--out", str(out), "--max-periods", "1"]) == 2
@@ -319,13 +323,8 @@ def test_the_unreachable_space_warning_gives_the_free_area_not_the_cells(tmp_pat
 def test_a_map_in_feet_is_refused_for_its_units_before_the_gp_grid_under_the_paper_preset(tmp_path, capsys):
     # without --preset tuned the workshop in feet (100 x 60 units, read as metres) was refused by the inducing grid's
     # budget ("the inducing grid would have 203 x 123 = 24969 nodes ..."): the user was sent to gp.length_scale
-    from shapely.geometry import box
     from swarmfield.cli.simulate_swarm import main
-    x0, y0 = 987040.0, 211520.0
-    (tmp_path / "plan.geojson").write_text(json.dumps(_feature_collection([box(x0, y0, x0 + 100, y0 + 60)],
-                                                                          "EPSG:2263")))
-    (tmp_path / "plan.toml").write_text(f"[sim]\ndomain = {[x0, x0 + 100, y0, y0 + 60]}\n"
-                                        f"start_box = {[x0 + 5, x0 + 25, y0 + 5, y0 + 25]}\n")
+    _workshop_in_feet(tmp_path, "EPSG:2263")
     out = tmp_path / "run"
     assert main(["--domain", str(tmp_path / "plan.geojson"), "--config", str(tmp_path / "plan.toml"),
                  "--out", str(out), "--max-periods", "1"]) == 2
