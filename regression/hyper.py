@@ -478,7 +478,6 @@ def refit_online(gp: GaussianProcess):
     gp's shadow of standardized, rounded data (:mod:`regression.canonical`, :func:`_refit_canonical`), whose result
     is the same bits in any units.  Updates gp's settings (the posterior is recomputed at the next ``predict``) and
     returns them."""
-    s0 = gp.initial_settings
     shadow = gp.refit_shadow
     if shadow is not None:                     # refit_inputs "canonical": the refit of the shadow's data, x v_y
         return _refit_canonical(gp, shadow)
