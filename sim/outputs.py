@@ -249,10 +249,17 @@ def _obstacle_summary(result):
     ms = result.config.domain.min_free_fraction
     classified = region.free_cells(result.grid, ms)
     walls = region.closed_faces(free)
+    lost = classified & ~free
+    unreached = 0.0
+    if lost.any():           # the free space in them at the map's own resolution, as the run's warning says it
+        from .simulation import lost_space
+        unreached = lost_space(region, classified, lost, result.config.sim.start_box, result.grid)[0]
     return {"name": region.name, "extent": list(region.extent), "raster": list(region.shape),
             "free_area_m2": region.free_area, "free_cells": int(free.sum()), "cells": int(free.size),
-            "unreachable_cells": int((classified & ~free).sum()),
-            "unreachable_area_m2": float((classified & ~free).sum()) * result.grid.cell_area,
+            "unreachable_cells": int(lost.sum()),
+            # the planner cells' whole area, and the free space the robots cannot reach (the warning's number)
+            "unreachable_area_m2": float(lost.sum()) * result.grid.cell_area,
+            "unreachable_free_area_m2": unreached,
             "closed_faces": 0 if walls is None else int(sum(int(w.sum()) for w in walls)),
             "rule": f"a planner cell is free iff its free-area fraction >= {ms:g} (or a door needs it); a face between "
                     "free cells is closed where the map's free space does not cross it"}

@@ -318,6 +318,15 @@ def test_the_unreachable_space_warning_gives_the_free_area_not_the_cells(tmp_pat
     assert len(msg) == 1
     assert "16 m^2 of free space (21 planner cells) cannot be reached" in msg[0], msg[0]
     assert "(1 part: 16 m^2 at x 8-13 m, y 8-13 m)" in msg[0]
+    # summary.json's domain block gives the warning's number beside the cells' whole area (it had the latter alone)
+    from types import SimpleNamespace
+    from swarmfield.sim.outputs import _obstacle_summary
+    grid = Grid((0.0, 20.0, 0.0, 20.0), 20, 20)
+    with pytest.warns(UserWarning):
+        region, reach = resolve_domain(cfg, grid)
+    block = _obstacle_summary(SimpleNamespace(region=region, free=reach, config=cfg, grid=grid))
+    assert block["unreachable_cells"] == 21 and block["unreachable_area_m2"] == pytest.approx(21.0)
+    assert block["unreachable_free_area_m2"] == pytest.approx(16.0)
 
 
 def test_a_map_in_feet_is_refused_for_its_units_before_the_gp_grid_under_the_paper_preset(tmp_path, capsys):
