@@ -14,7 +14,10 @@ power of two at most 2^-QUANTUM_BITS of the inducing spacing, with the noise var
 rounded to QUANTUM_BITS bits).  Its power sums, the data's variance the priors and bounds follow, the trend's sums
 and its own warm start are then the same bits whatever the units, and so is its refit; the GP in field units takes
 the result x v_y (s_f^2 and the nugget; l, the mean's choice, the kernel's angle, the barrier's and the local
-amplitude's are unit-free).  A negative a (the field's mirror image) is not covered: z changes sign.
+amplitude's are unit-free).  From the first refit on the GP's predictive variance is the shadow's x v_y as well
+(:meth:`regression.GaussianProcess.predict`): with a GLS mean the GP's own carries the trend's share, a difference of
+large terms whose round-off (~1e-8 of sup V) moved the planner's rounded inputs with the units.  A negative a (the
+field's mirror image) is not covered: z changes sign.
 """
 from __future__ import annotations
 

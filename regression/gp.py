@@ -516,6 +516,9 @@ class GaussianProcess:
         #: ``refit_inputs = "canonical"``: the refit's shadow (:class:`regression.canonical.Shadow`), made at the first
         #: data; None otherwise
         self._shadow = None
+        #: the settings the last canonical refit left (:func:`regression.hyper._refit_canonical`): while they are the
+        #: GP's, :meth:`predict`'s V is the shadow's x v_y (the same bits in any units)
+        self._shadow_settings = None
         self._build_lattice(frame)
 
     def _build_lattice(self, frame: Frame | None, axes: tuple[SplineAxis, SplineAxis] | None = None) -> None:
@@ -1689,7 +1692,22 @@ class GaussianProcess:
         updates the M x M posterior: a Woodbury update of rank k = number of new points, O(k M^2),
         if k <= ``max_update_rank``, else a factorisation, O(M^3) (module docstring); both are
         independent of the number of observations. Later calls cost O(256) per point.
+
+        With ``refit_inputs = "canonical"``, from the first refit on (while the GP keeps the settings it left), V is
+        the shadow's (:mod:`regression.canonical`: the same data standardized and rounded, the refit's values in
+        those units) times v_y: the same bits in any units, where the GP's own V with a GLS mean carries the trend's
+        share H^T C^-1 H = H^T H / s_n^2 - B_H^T Sigma B_H, a difference of large terms whose round-off (~1e-8 of
+        sup V) moved the planner's rounded inputs (:mod:`sim.canonical`) with the units.  It differs from the GP's
+        own V by the rounding of the shadow's inputs (~1e-6 relative).  The mean is the GP's own.
         """
+        mean, var = self._predict(points)
+        sh = self._shadow
+        if sh is not None and self._shadow_settings is self._settings and not self._cut_active:
+            var = sh.gp.predict(points)[1] * sh.variance
+        return mean, var
+
+    def _predict(self, points) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`predict` on the GP's own posterior."""
         pts = self._frame.to_frame(self._points(points, "points"))
         s = self._settings
         npts = pts.shape[0]

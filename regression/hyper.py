@@ -524,7 +524,9 @@ def _refit_canonical(gp: GaussianProcess, shadow):
         fit_log_amplitude(sg, coarsened(sg, c, prior_truncation=min(new.prior_truncation, REFIT_TRUNCATION)))
         gp.set_log_amplitude(sg.log_amplitude)
     v = shadow.variance
-    return _finish_refit(gp, s2 * v, ell, ell_y, tau2 * v, lo, hi, amplitude=False)
+    out = _finish_refit(gp, s2 * v, ell, ell_y, tau2 * v, lo, hi, amplitude=False)
+    gp._shadow_settings = gp.settings        # predict's V: the shadow's x v_y while gp keeps these settings
+    return out
 
 
 def _finish_refit(gp: GaussianProcess, s2, ell, ell_y, tau2, lo, hi, amplitude: bool = True):

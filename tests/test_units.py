@@ -220,3 +220,34 @@ def test_canonical_refit_carries_the_unit_free_choices(extra):
                     None if g is None else float(np.asarray(g(np.array([[2.0, 3.0]]))).ravel()[0])))
     assert out[0][1:] == out[1][1:]
     assert out[1][0] == pytest.approx(out[0][0], rel=1e-12)
+
+
+def test_canonical_variance_with_a_linear_mean_is_the_same_bits_in_degf_and_degc():
+    """refit_inputs = "canonical" with a linear mean (the tuned [gp]): V's trend share from the GP's own sums
+    (H^T C^-1 H = H^T H / s_n^2 - B_H^T Sigma B_H, a difference of large terms) differed between °F and °C by ~1e-8
+    of sup V, and some of the planner's V, rounded to 2^-20 of its maximum (sim.canonical), came out another way (3
+    cells of 1600 here before V came from the shadow); V from the shadow is the same bits up to v_y's round-off."""
+    import dataclasses
+    from swarmfield.regression.hyper import refit_online
+    from swarmfield.sim.canonical import _unit_round
+    base = config_from_dict({"gp": {"length_scale": 1.0, "refit_inputs": "canonical", "mean": "linear"}},
+                            preset="tuned").gp
+    rng = np.random.default_rng(3)
+    X = rng.uniform(0, 4, size=(100, 2))
+    f = Bowl()
+    y = f(X) + 0.2 * rng.standard_normal(100)
+    X2 = rng.uniform(0, 10, size=(30, 2))
+    y2 = f(X2) + 0.2 * rng.standard_normal(30)
+    g = np.linspace(0.125, 9.875, 40)
+    Q = np.column_stack([a.ravel() for a in np.meshgrid(g, g, indexing="ij")])
+    out = []
+    for a, b in ((1.0, 0.0), (5.0 / 9.0, -160.0 / 9.0)):
+        gp = GaussianProcess(dataclasses.replace(base, noise_variance=(0.2 * a) ** 2), (0, 10, 0, 10))
+        gp.add(X, a * y + b)
+        refit_online(gp)
+        assert gp.settings.mean == "linear"
+        v1 = gp.predict(Q)[1]
+        gp.add(X2, a * y2 + b)                   # a low-rank update after the refit
+        v2 = gp.predict(Q)[1]
+        out.append([_unit_round(v / v.max()) for v in (v1, v2)])
+    assert np.array_equal(out[0][0], out[1][0]) and np.array_equal(out[0][1], out[1][1])
