@@ -74,7 +74,8 @@ NON_METRE_CRS = {
           "3167"),
 }
 
-#: EPSG unit codes of lengths (a GeoTIFF's ProjLinearUnitsGeoKey): code -> (name, metres per unit)
+#: the EPSG codes of units of length that a GeoTIFF's ProjLinearUnitsGeoKey names, each mapped to (name,
+#: metres per unit)
 UNITS = {9001: ("metre", 1.0), 9031: ("German legal metre", 1.0000135965), 9036: ("kilometre", 1000.0),
          **{code: (name, f) for code, (name, f, _) in NON_METRE_CRS.items()}}
 
