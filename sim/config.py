@@ -61,6 +61,7 @@ from ..control.kde import OBSTACLE_KERNELS
 from ..ocp.settings import PlannerSettings, check_domain, dataclass_from_dict, grid_cells
 from ..regression import GPSettings
 from ..domain import DomainSettings
+from .comm import COMM_WALLS
 from .presets import DEFAULT_PRESET, PRESETS, merge_under_preset
 from .site_scale import (SITE_LENGTH_RULES, SITE_SCALE_RULES, SWARM_RADIUS_RULES, SWARM_SCALE_RULES,
                          SWARM_SCALED, area_ratio, length_ratio, resolved_site_area, scale_document,
@@ -395,7 +396,7 @@ class SimSettings:
             raise ValueError(f"sim.comm_fragments must be true or false, got {self.comm_fragments!r}")
         if self.comm_hops is not None:
             set_("comm_hops", _integer("comm_hops", self.comm_hops, 1))
-        if self.comm_walls not in ("pass", "block"):
+        if self.comm_walls not in COMM_WALLS:
             raise ValueError(f"sim.comm_walls must be 'pass' (radio through walls) or 'block' (links only in line of "
                              f"sight), got {self.comm_walls!r}")
         if self.comm_modes > 256:
