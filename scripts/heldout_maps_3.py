@@ -158,6 +158,17 @@ def stuck(run: Path) -> dict:
     return {"never_left_start_box": int(inbox.all(axis=0).sum()), "path_under_1m_last_period": int((path < 1.0).sum())}
 
 
+
+def noise_report(noise_sd: dict):
+    """A ``report`` for :func:`cli`: one line a field written (``<map>_field.npz``), its range and sd, and the noise
+    sd its case is run with (``noise_sd`` by map name, the round's ``NOISE_SD``)."""
+    def report(out: Path) -> None:
+        for f in sorted(out.glob("*_field.npz")):
+            v = np.load(f)["values"]
+            sd = noise_sd[f.stem[:-6]]
+            print(f"{f.name}: min {v.min():.4g} max {v.max():.4g} sd {v.std():.4g} (noise sd {sd:g})")
+    return report
+
 def cli(argv, doc: str, default_out: str, makers, report=None) -> None:
     """The command line of a round's map script: ``--out DIR`` writes the maps (each of ``makers`` called with
     DIR, then ``report(DIR)`` if given), ``--check RUN ...`` checks simulate-swarm runs' robots against their map

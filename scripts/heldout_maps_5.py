@@ -42,7 +42,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from heldout_maps_2 import _field, utm_geojson  # noqa: E402
-from heldout_maps_3 import cli  # noqa: E402
+from heldout_maps_3 import cli, noise_report  # noqa: E402
 
 #: the noise sd each case is run with, in its field's own units
 NOISE_SD = {"gallery": 0.1, "parking": 2.0, "corridor": 0.2, "switchback": 1.0}
@@ -226,15 +226,8 @@ def switchback(out: Path):
            + 4 * np.exp(-((u - 20) ** 2 + (v - 9) ** 2) / 8) + 1.5 * np.sin(u / 2.5) * np.cos(v / 1.8))
 
 
-def field_report(out: Path) -> None:
-    """One line a field written: its range and sd, and the noise sd its case is run with."""
-    for f in sorted(out.glob("*_field.npz")):
-        v = np.load(f)["values"]
-        print(f"{f.name}: min {v.min():.4g} max {v.max():.4g} sd {v.std():.4g} (noise sd {NOISE_SD[f.stem[:-6]]:g})")
-
-
 def main(argv=None):
-    cli(argv, __doc__, "heldout_maps_5", (gallery, parking, corridor, switchback), report=field_report)
+    cli(argv, __doc__, "heldout_maps_5", (gallery, parking, corridor, switchback), report=noise_report(NOISE_SD))
 
 if __name__ == "__main__":
     main()

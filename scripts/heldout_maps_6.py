@@ -37,7 +37,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from heldout_maps_2 import _field, utm_geojson  # noqa: E402
-from heldout_maps_3 import cli  # noqa: E402
+from heldout_maps_3 import cli, noise_report  # noqa: E402
 
 #: the noise sd each case is run with, in its field's own units
 NOISE_SD = {"campus": 1.0, "halls": 0.2}
@@ -168,15 +168,8 @@ def others(out: Path):
     (out / "map.pgm").write_bytes(b"P5\n200 100\n255\n" + bytes([254]) * 20000)
 
 
-def field_report(out: Path) -> None:
-    """One line a field written: its range and sd, and the noise sd its case is run with."""
-    for f in sorted(out.glob("*_field.npz")):
-        v = np.load(f)["values"]
-        print(f"{f.name}: min {v.min():.4g} max {v.max():.4g} sd {v.std():.4g} (noise sd {NOISE_SD[f.stem[:-6]]:g})")
-
-
 def main(argv=None):
-    cli(argv, __doc__, "heldout_maps_6", (campus, halls, flat_cad, scan, others), report=field_report)
+    cli(argv, __doc__, "heldout_maps_6", (campus, halls, flat_cad, scan, others), report=noise_report(NOISE_SD))
 
 
 if __name__ == "__main__":

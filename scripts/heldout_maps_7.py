@@ -41,7 +41,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from heldout_maps_2 import _field, utm_geojson  # noqa: E402
-from heldout_maps_3 import cli  # noqa: E402
+from heldout_maps_3 import cli, noise_report  # noqa: E402
 
 #: the noise sd each case is run with, in its field's own units
 NOISE_SD = {"lake": 0.1, "maze": 1.0, "yard_rgba": 2.0}
@@ -296,15 +296,8 @@ def defects(out: Path):
     write("park_ogc_url.geojson", park)
 
 
-def field_report(out: Path) -> None:
-    """One line a field written: its range and sd, and the noise sd its case is run with."""
-    for f in sorted(out.glob("*_field.npz")):
-        v = np.load(f)["values"]
-        print(f"{f.name}: min {v.min():.4g} max {v.max():.4g} sd {v.std():.4g} (noise sd {NOISE_SD[f.stem[:-6]]:g})")
-
-
 def main(argv=None):
-    cli(argv, __doc__, "heldout_maps_7", (lake, maze, feet, yard, defects), report=field_report)
+    cli(argv, __doc__, "heldout_maps_7", (lake, maze, feet, yard, defects), report=noise_report(NOISE_SD))
 
 
 if __name__ == "__main__":
