@@ -29,8 +29,8 @@ import numpy as np
 __all__ = ["make_shadow", "quantize_values", "quantize_positions", "position_quantum", "round_mantissa", "Shadow",
            "QUANTUM_BITS"]
 
-#: bits kept: values in multiples of 2^-QUANTUM_BITS (of the first batch's sd), mantissas of QUANTUM_BITS bits (as
-#: :data:`sim.canonical.QUANTUM_BITS`, which science code does not import)
+#: bits kept: values in multiples of 2^-QUANTUM_BITS (of the first batch's sd), mantissas of QUANTUM_BITS bits (also
+#: the planner's inputs' rounding, :mod:`sim.canonical`, which takes it from here)
 QUANTUM_BITS = 20
 
 

@@ -14,26 +14,18 @@ within ~10⁻¹⁴ of a rounding boundary (about one plan in 10⁴).
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import numpy as np
 
-#: bits kept relative to the maximum (the quantum is 2^-QUANTUM_BITS of the maximum)
-QUANTUM_BITS = 20
+# bits kept relative to the maximum (the quantum is 2^-QUANTUM_BITS of the maximum) and the mantissas' rounding: the
+# refit's own (regression.canonical), one rounding for the planner's inputs and the refit's
+from ..regression.canonical import QUANTUM_BITS, round_mantissa
 
 
 def _unit_round(x: np.ndarray) -> np.ndarray:
     """``x`` (>= 0, max 1) rounded to multiples of 2^-QUANTUM_BITS."""
     q = float(2 ** QUANTUM_BITS)
     return np.rint(np.asarray(x, dtype=float) * q) / q
-
-
-def round_mantissa(x: float) -> float:
-    """``x`` with its binary mantissa rounded to QUANTUM_BITS bits (0 stays 0)."""
-    if x == 0.0 or not math.isfinite(x):
-        return float(x)
-    m, e = math.frexp(float(x))
-    return math.ldexp(round(m * 2 ** QUANTUM_BITS) / 2 ** QUANTUM_BITS, e)
 
 
 def canonical_density(p_f, cell_area: float):
