@@ -390,10 +390,12 @@ _WEB_MERCATOR = ("3857", "900913", "3785", "102100", "102113")
 
 
 def _is_web_mercator(name: str) -> bool:
-    """Whether a CRS name (``urn:ogc:def:crs:EPSG::3857``, ``EPSG:3857``, ``ESRI:102100``, ...) is Web Mercator."""
+    """Whether a CRS name (``urn:ogc:def:crs:EPSG::3857``, ``EPSG:3857``, ``ESRI:102100``, OGC's
+    ``http://www.opengis.net/def/crs/EPSG/0/3857`` (:func:`units.epsg_code`), ...) is Web Mercator."""
     tail = str(name).upper().replace("::", ":").rsplit(":", 1)[-1].strip()
     upper = str(name).upper().replace(" ", "_").replace("-", "_")
-    return tail in _WEB_MERCATOR or "PSEUDO_MERCATOR" in upper or "WEB_MERCATOR" in upper
+    return (tail in _WEB_MERCATOR or str(epsg_code(name)) in _WEB_MERCATOR or "PSEUDO_MERCATOR" in upper
+            or "WEB_MERCATOR" in upper)
 
 
 def _web_mercator(path, crs: str, x: float, y: float) -> str:
@@ -591,7 +593,7 @@ def _load_geojson(path: Path, sim_extent):
     code = epsg_code(name)
     geographic = any(name.upper().endswith(g) for g in _GEOGRAPHIC_NAMES) or code in _GEOGRAPHIC_EPSG
     objects, vertices = _geojson_objects(doc, path)
-    web_mercator = (_is_web_mercator(name) or str(code) in _WEB_MERCATOR) if name else False
+    web_mercator = _is_web_mercator(name) if name else False
     unit = crs_unit(name) if name and not geographic and not web_mercator else None
     if unit is not None:                             # a State Plane zone in feet, say: refused before any work
         raise ValueError(_units_refusal(path, name, unit))
